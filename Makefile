@@ -1,0 +1,33 @@
+# Every target that runs something depends on the virtual environment, so on a fresh
+# machine `make match` or `make test` is the only command needed.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+.PHONY: install match test bench lint clean
+
+install: $(STAMP)
+
+# Re-installs only when the project metadata changes; the packages are editable.
+$(STAMP): pyproject.toml
+	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "pingpong needs python3 >= 3.11, found " + sys.version.split()[0])'
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+match: install
+	$(BIN)/pingpong match
+
+lint: install
+	$(BIN)/lint-imports
+
+test: lint
+	$(BIN)/python -m pytest -q
+
+bench: install
+	$(BIN)/python -m pytest bench --benchmark-enable -q
+
+clean:
+	rm -rf $(VENV) .pytest_cache .benchmarks

@@ -1,0 +1,2 @@
+"""The table net: topology builder, numba spring kernels and their numpy twins."""
+__all__: list[str] = []

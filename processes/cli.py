@@ -1,0 +1,66 @@
+"""The `pingpong` command line: one argparse parser with thin subcommand functions."""
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def _add_common(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--seed", type=int, default=0, help="seed of every random number in the run")
+    parser.add_argument("--json", action="store_true", help="print one JSON object instead of a human summary")
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from processes.run import run_scene_command
+
+    return run_scene_command(args)
+
+
+def _cmd_match(args: argparse.Namespace) -> int:
+    from processes.run import match_command
+
+    return match_command(args)
+
+
+def _cmd_profile_net(args: argparse.Namespace) -> int:
+    from processes.profile_net import profile_net_command
+
+    return profile_net_command(args)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The whole `pingpong` parser; subcommands share --seed/--json."""
+    formatter = argparse.ArgumentDefaultsHelpFormatter
+    parser = argparse.ArgumentParser(prog="pingpong", description=__doc__, formatter_class=formatter)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    run = sub.add_parser("run", help="run a scene in-process", formatter_class=formatter)
+    run.add_argument("scene", help="scene TOML file, or the name of a bundled scene (drop, serve, rally)")
+    run.add_argument("--ticks", type=int, default=None, help="ticks to run (default: the scene's duration)")
+    run.add_argument("--dt", type=float, default=None, help="tick length in seconds (default: the scene's)")
+    run.add_argument("--integrator", default=None, help="ball integrator (default: the scene's)")
+    _add_common(run)
+    run.set_defaults(func=_cmd_run)
+
+    match = sub.add_parser("match", help="run a match on the default scene", formatter_class=formatter)
+    match.add_argument("--scene", default="rally", help="scene TOML file or bundled scene name")
+    match.add_argument("--ticks", type=int, default=None, help="ticks to run (default: the scene's duration)")
+    _add_common(match)
+    match.set_defaults(func=_cmd_match)
+
+    profile = sub.add_parser("profile-net", help="profile the net kernel", formatter_class=formatter)
+    profile.add_argument("--knots", default="184x16", help="knot grid, COLUMNSxROWS")
+    profile.add_argument("--steps", type=int, default=None, help="timed steps (default: sized to ~1 s per backend)")
+    profile.add_argument("--backend", choices=["numba", "reference", "both"], default="both")
+    profile.add_argument("--json", action="store_true", help="print one JSON object")
+    profile.set_defaults(func=_cmd_profile_net)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    return int(args.func(args) or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
