@@ -1,0 +1,293 @@
+"""Scenes: TOML files naming the bodies and effects to simulate, validated into a frozen Scene."""
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any, Mapping
+
+from engine import equipment
+from engine.integrators import METHODS
+
+SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
+
+# Effects a scene can list (DESIGN.md). Those this version cannot simulate yet are refused by name.
+EFFECTS = ("gravity", "drag", "magnus", "friction", "table", "floor", "net", "bats")
+PLANNED_EFFECTS = ("ai", "remote", "referee", "recording")
+NET_KINDS = ("rigid",)  # "cloth" joins when the net kernel is wired into the engine
+BAT_NAMES = ("a", "b")
+MATERIAL_BODIES = ("table", "floor", "net", "bat")
+
+
+class SceneError(ValueError):
+    """A scene that cannot be simulated; the message names the file, the key and what is allowed."""
+
+
+@dataclass(frozen=True)
+class Material:
+    restitution: float
+    friction: float
+
+
+@dataclass(frozen=True)
+class BallSpec:
+    pos: tuple[float, float, float]
+    vel: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    spin: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class BatSpec:
+    name: str
+    pos: tuple[float, float, float]
+    quat: tuple[float, float, float, float]
+    vel: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    ang_vel: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    force: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    torque: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    mass: float = equipment.BAT_MASS
+    radius: float = equipment.BAT_RADIUS
+    half_thickness: float = equipment.BAT_HALF_THICKNESS
+
+
+@dataclass(frozen=True)
+class Scene:
+    """Static description of a run. Derived numbers (drag factor, inertia...) are computed in
+    engine.world.build, never here."""
+
+    name: str
+    source: str
+    effects: frozenset[str]
+    ball: BallSpec
+    dt: float = 0.001
+    duration: float = 2.0
+    integrator: str = "verlet"
+    rtol: float = 1e-6
+    atol: float = 1e-9
+    description: str = ""
+    bats: tuple[BatSpec, ...] = ()
+    net_kind: str = "rigid"
+    gravity: float = equipment.GRAVITY
+    air_density: float = equipment.AIR_DENSITY
+    drag_coefficient: float = equipment.DRAG_COEFFICIENT
+    magnus_coefficient: float = equipment.MAGNUS_COEFFICIENT
+    materials: Mapping[str, Material] = field(default_factory=lambda: MappingProxyType(dict(DEFAULT_MATERIALS)))
+
+    @property
+    def ticks(self) -> int:
+        """Ticks in the scene's duration."""
+        return int(round(self.duration / self.dt))
+
+
+DEFAULT_MATERIALS = {
+    "table": Material(equipment.TABLE_RESTITUTION, equipment.TABLE_FRICTION),
+    "floor": Material(equipment.FLOOR_RESTITUTION, equipment.FLOOR_FRICTION),
+    "net": Material(equipment.NET_RESTITUTION, equipment.NET_FRICTION),
+    "bat": Material(equipment.BAT_RESTITUTION, equipment.BAT_FRICTION),
+}
+
+
+class _Reader:
+    """Reads values out of a parsed TOML table, naming the file and key path in every error."""
+
+    def __init__(self, source: str):
+        self.source = source
+
+    def fail(self, key: str, message: str) -> SceneError:
+        return SceneError(f"{self.source}: {key}: {message}")
+
+    def table(self, data: Any, key: str, allowed: tuple[str, ...]) -> dict:
+        if not isinstance(data, dict):
+            raise self.fail(key, f"must be a table, got {type(data).__name__}")
+        unknown = sorted(set(data) - set(allowed))
+        if unknown:
+            raise self.fail(f"{key}.{unknown[0]}" if key else unknown[0],
+                            f"unknown key; allowed here: {', '.join(allowed)}")
+        return data
+
+    def number(self, data: dict, key: str, path: str, default: float | None = None, *,
+               low: float = -math.inf, high: float = math.inf, low_open: bool = False) -> float:
+        if key not in data:
+            if default is None:
+                raise self.fail(path, "is required")
+            return default
+        value = data[key]
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(path, f"must be a number, got {type(value).__name__} {value!r}")
+        value = float(value)
+        bracket = "(" if low_open else "["
+        if not math.isfinite(value):
+            raise self.fail(path, f"must be finite, got {value}")
+        if value < low or (low_open and value == low) or value > high:
+            raise self.fail(path, f"must be in {bracket}{low}, {high}], got {value}")
+        return value
+
+    def vector(self, data: dict, key: str, path: str, default: tuple | None = None, *,
+               size: int = 3, bound: float = 1e3) -> tuple:
+        if key not in data:
+            if default is None:
+                raise self.fail(path, "is required")
+            return default
+        value = data[key]
+        if not isinstance(value, list) or len(value) != size:
+            raise self.fail(path, f"must be a list of {size} numbers, got {value!r}")
+        return tuple(self.number({"v": v}, "v", f"{path}[{i}]", low=-bound, high=bound)
+                     for i, v in enumerate(value))
+
+    def string(self, data: dict, key: str, path: str, default: str, choices: tuple[str, ...] | None = None) -> str:
+        value = data.get(key, default)
+        if not isinstance(value, str):
+            raise self.fail(path, f"must be a string, got {type(value).__name__} {value!r}")
+        if choices is not None and value not in choices:
+            raise self.fail(path, f"must be one of {', '.join(choices)}; got {value!r}")
+        return value
+
+
+def _quat_from_normal(normal: tuple[float, float, float]) -> tuple[float, float, float, float]:
+    """Shortest-arc unit quaternion turning the bat's local z axis onto `normal`."""
+    nx, ny, nz = normal
+    norm = math.sqrt(nx * nx + ny * ny + nz * nz)
+    nx, ny, nz = nx / norm, ny / norm, nz / norm
+    if nz < -1.0 + 1e-12:
+        return (0.0, 1.0, 0.0, 0.0)  # half turn about x
+    w = 1.0 + nz  # z x n = (-ny, nx, 0); q = (1 + z.n, z x n), normalised
+    qx, qy = -ny, nx
+    s = math.sqrt(w * w + qx * qx + qy * qy)
+    return (w / s, qx / s, qy / s, 0.0)
+
+
+def _read_bat(r: _Reader, name: str, data: Any) -> BatSpec:
+    path = f"bats.{name}"
+    keys = ("pos", "normal", "quat", "vel", "ang_vel", "force", "torque", "mass", "radius", "half_thickness")
+    data = r.table(data, path, keys)
+    if "normal" in data and "quat" in data:
+        raise r.fail(path, "give either normal or quat, not both")
+    if "quat" in data:
+        quat = r.vector(data, "quat", f"{path}.quat", size=4, bound=1.0)
+        norm = math.sqrt(sum(c * c for c in quat))
+        if abs(norm - 1.0) > 1e-6:
+            raise r.fail(f"{path}.quat", f"must be a unit quaternion (w, x, y, z), its norm is {norm}")
+    else:
+        normal = r.vector(data, "normal", f"{path}.normal", default=(1.0 if name == "a" else -1.0, 0.0, 0.0))
+        if math.sqrt(sum(c * c for c in normal)) < 1e-9:
+            raise r.fail(f"{path}.normal", "must not be the zero vector")
+        quat = _quat_from_normal(normal)
+    return BatSpec(
+        name=name,
+        pos=r.vector(data, "pos", f"{path}.pos", bound=10.0),
+        quat=quat,
+        vel=r.vector(data, "vel", f"{path}.vel", (0.0, 0.0, 0.0), bound=50.0),
+        ang_vel=r.vector(data, "ang_vel", f"{path}.ang_vel", (0.0, 0.0, 0.0), bound=200.0),
+        force=r.vector(data, "force", f"{path}.force", (0.0, 0.0, 0.0), bound=1e3),
+        torque=r.vector(data, "torque", f"{path}.torque", (0.0, 0.0, 0.0), bound=1e2),
+        mass=r.number(data, "mass", f"{path}.mass", equipment.BAT_MASS, low=0.05, high=1.0),
+        radius=r.number(data, "radius", f"{path}.radius", equipment.BAT_RADIUS, low=0.03, high=0.15),
+        half_thickness=r.number(data, "half_thickness", f"{path}.half_thickness",
+                                equipment.BAT_HALF_THICKNESS, low=0.001, high=0.02),
+    )
+
+
+def parse_scene(data: dict, source: str) -> Scene:
+    """Validate a parsed TOML document into a Scene; every error names `source` and the key."""
+    r = _Reader(source)
+    top = ("name", "description", "effects", "dt", "duration", "integrator", "rtol", "atol",
+           "ball", "bats", "net", "air", "materials")
+    data = r.table(data, "", top)
+    effects_raw = data.get("effects")
+    if not isinstance(effects_raw, list) or not all(isinstance(e, str) for e in effects_raw):
+        raise r.fail("effects", f"is required: a list of effect names out of {', '.join(EFFECTS)}")
+    for effect in effects_raw:
+        if effect in PLANNED_EFFECTS:
+            raise r.fail("effects", f"effect {effect!r} is not supported by this version of the engine; "
+                                    f"supported: {', '.join(EFFECTS)}")
+        if effect not in EFFECTS:
+            raise r.fail("effects", f"unknown effect {effect!r}; known: {', '.join(EFFECTS)}")
+    effects = frozenset(effects_raw)
+
+    ball_data = r.table(data.get("ball", {}), "ball", ("pos", "vel", "spin"))
+    ball = BallSpec(
+        pos=r.vector(ball_data, "pos", "ball.pos", bound=10.0),
+        vel=r.vector(ball_data, "vel", "ball.vel", (0.0, 0.0, 0.0), bound=60.0),
+        # 200 rev/s is beyond the fastest measured loops (~150 rev/s).
+        spin=r.vector(ball_data, "spin", "ball.spin", (0.0, 0.0, 0.0), bound=2 * math.pi * 200),
+    )
+
+    bats: list[BatSpec] = []
+    if "bats" in data:
+        if "bats" not in effects:
+            raise r.fail("bats", "bats are described but the effect 'bats' is not listed in effects; add it or remove [bats]")
+        for name, bat_data in r.table(data["bats"], "bats", BAT_NAMES).items():
+            bats.append(_read_bat(r, name, bat_data))
+    if "bats" in effects and not bats:
+        raise r.fail("effects", "effect 'bats' needs at least one [bats.a] or [bats.b] table")
+
+    net_kind = "rigid"
+    if "net" in data:
+        if "net" not in effects:
+            raise r.fail("net", "a net is described but the effect 'net' is not listed in effects; add it or remove [net]")
+        net_data = r.table(data["net"], "net", ("kind",))
+        if net_data.get("kind") == "cloth":
+            raise r.fail("net.kind", "the cloth net is not yet coupled to the ball engine; use 'rigid'")
+        net_kind = r.string(net_data, "kind", "net.kind", "rigid", NET_KINDS)
+
+    air = r.table(data.get("air", {}), "air", ("density", "drag_coefficient", "magnus_coefficient", "gravity"))
+    materials = dict(DEFAULT_MATERIALS)
+    for body, mat in r.table(data.get("materials", {}), "materials", MATERIAL_BODIES).items():
+        mat = r.table(mat, f"materials.{body}", ("restitution", "friction"))
+        base = materials[body]
+        materials[body] = Material(
+            restitution=r.number(mat, "restitution", f"materials.{body}.restitution", base.restitution, low=0.0, high=1.0),
+            friction=r.number(mat, "friction", f"materials.{body}.friction", base.friction, low=0.0, high=2.0),
+        )
+
+    dt = r.number(data, "dt", "dt", 0.001, low=0.0, high=0.05, low_open=True)
+    scene = Scene(
+        name=r.string(data, "name", "name", Path(source).stem),
+        source=source,
+        description=r.string(data, "description", "description", ""),
+        effects=effects,
+        ball=ball,
+        dt=dt,
+        duration=r.number(data, "duration", "duration", 2.0, low=0.0, high=3600.0),
+        integrator=r.string(data, "integrator", "integrator", "verlet", tuple(METHODS)),
+        rtol=r.number(data, "rtol", "rtol", 1e-6, low=1e-14, high=1e-1),
+        atol=r.number(data, "atol", "atol", 1e-9, low=1e-16, high=1e-1),
+        bats=tuple(bats),
+        net_kind=net_kind,
+        gravity=r.number(air, "gravity", "air.gravity", equipment.GRAVITY, low=0.0, high=100.0),
+        air_density=r.number(air, "density", "air.density", equipment.AIR_DENSITY, low=0.0, high=10.0),
+        drag_coefficient=r.number(air, "drag_coefficient", "air.drag_coefficient", equipment.DRAG_COEFFICIENT, low=0.0, high=2.0),
+        magnus_coefficient=r.number(air, "magnus_coefficient", "air.magnus_coefficient", equipment.MAGNUS_COEFFICIENT, low=0.0, high=5.0),
+        materials=MappingProxyType(materials),
+    )
+    return scene
+
+
+def load_scene(name_or_path: str | Path) -> Scene:
+    """Load a scene from a TOML path, or a bundled scene by name (`drop`, `serve`, `rally`)."""
+    path = Path(name_or_path)
+    if not path.exists() and not path.suffix:
+        bundled = SCENES_DIR / f"{path.name}.toml"
+        if bundled.exists():
+            path = bundled
+    if not path.exists():
+        names = ", ".join(sorted(p.stem for p in SCENES_DIR.glob("*.toml")))
+        raise SceneError(f"{name_or_path}: no such scene file; bundled scenes: {names}")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{path}: not valid TOML: {exc}") from exc
+    return parse_scene(data, str(path))
+
+
+def with_overrides(scene: Scene, **changes: Any) -> Scene:
+    """A copy of the scene with some fields changed and re-validated (CLI --dt, --integrator)."""
+    from dataclasses import replace
+
+    if "integrator" in changes and changes["integrator"] not in METHODS:
+        raise SceneError(f"{scene.source}: integrator: must be one of {', '.join(METHODS)}; got {changes['integrator']!r}")
+    if "dt" in changes and not (math.isfinite(changes["dt"]) and 0.0 < changes["dt"] <= 0.05):
+        raise SceneError(f"{scene.source}: dt: must be in (0.0, 0.05] s, got {changes['dt']}")
+    return replace(scene, **changes)

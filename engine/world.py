@@ -1,0 +1,204 @@
+"""The in-process world: derived model built once from a scene, state arrays, and the tick.
+
+This single-process world is the reference the multi-process run must reproduce bit for bit.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from engine import equipment
+from engine.bat import BAT_WIDTH, bat_step, disc_inertia
+from engine.collision import (
+    BAT_HALF_THICKNESS,
+    BAT_RADIUS,
+    BAT_ROW,
+    ERR_IMPACTS,
+    ERR_SUBSTEPS,
+    EVENT_ROW,
+    MAX_IMPACTS_PER_TICK,
+    N_PARAMS,
+    P_INERTIA,
+    P_MASS,
+    P_RADIUS,
+    P_REST_SPEED,
+    SCRATCH_SHAPE,
+    ball_tick,
+)
+from engine.dtypes import BALL_DTYPE, BAT_DTYPE, CONTACT_DTYPE, WORLD_DTYPE
+from engine.forces import drag_factor, magnus_factor
+from engine.geometry import FLOOR_Z, NET_BOX, POST_BOXES, TABLE_BOX, Body
+from engine.integrators import ADAPT_SIZE, METHODS, WORK_SHAPE
+from engine.scene import Scene
+
+
+class SimulationError(RuntimeError):
+    """The engine could not advance the state (it says which check failed and at which tick)."""
+
+
+@dataclass(frozen=True)
+class Model:
+    """Every derived number of a scene, computed once here and nowhere else.
+
+    An absent effect is None, which compiles it out of the kernels (engine/forces.py).
+    """
+
+    scene: Scene
+    dt: float
+    method: int
+    gravity: float | None
+    drag_k: float | None
+    magnus_k: float | None
+    table: np.ndarray | None
+    floor_z: float | None
+    net: np.ndarray | None
+    posts: np.ndarray | None
+    ball_params: np.ndarray  # (N_PARAMS,), see engine.collision.P_*
+    materials: np.ndarray  # (len(Body), 2): restitution, friction per body id
+    bat_mass: np.ndarray  # (n_bats,) kg
+    bat_inertia: np.ndarray  # (n_bats, 3) kg m^2
+
+
+def build_model(scene: Scene) -> Model:
+    """Derive the model of a scene: effect factors, geometry, ball and bat parameters."""
+    fx = scene.effects
+    mass, radius = equipment.BALL_MASS, equipment.BALL_RADIUS
+    params = np.zeros(N_PARAMS)
+    params[P_RADIUS] = radius
+    params[P_MASS] = mass
+    params[P_INERTIA] = equipment.BALL_INERTIA_FACTOR * mass * radius**2
+    params[P_REST_SPEED] = equipment.REST_SPEED
+    materials = np.zeros((len(Body), 2))
+    for body, name in ((Body.TABLE, "table"), (Body.FLOOR, "floor"), (Body.NET, "net"), (Body.POST, "net"),
+                       (Body.BAT_A, "bat"), (Body.BAT_B, "bat")):
+        mat = scene.materials[name]
+        # Without the friction effect the contact is frictionless: no spin in contact.
+        materials[body] = (mat.restitution, mat.friction if "friction" in fx else 0.0)
+    return Model(
+        scene=scene,
+        dt=scene.dt,
+        method=METHODS[scene.integrator],
+        gravity=scene.gravity if "gravity" in fx else None,
+        drag_k=drag_factor(scene.drag_coefficient, scene.air_density, radius, mass) if "drag" in fx else None,
+        magnus_k=magnus_factor(scene.magnus_coefficient, scene.air_density, radius, mass) if "magnus" in fx else None,
+        table=TABLE_BOX.copy() if "table" in fx else None,
+        floor_z=FLOOR_Z if "floor" in fx else None,
+        net=NET_BOX.copy() if "net" in fx else None,
+        posts=POST_BOXES.copy() if "net" in fx else None,
+        ball_params=params,
+        materials=materials,
+        bat_mass=np.array([b.mass for b in scene.bats]),
+        bat_inertia=np.array([disc_inertia(b.mass, b.radius) for b in scene.bats]).reshape(len(scene.bats), 3),
+    )
+
+
+@dataclass
+class State:
+    """Dynamic state: structured arrays (engine/dtypes.py) plus the tick's preallocated scratch."""
+
+    ball: np.ndarray  # (1,) BALL_DTYPE
+    bats: np.ndarray  # (n_bats,) BAT_DTYPE
+    world: np.ndarray  # (1,) WORLD_DTYPE
+    # Scratch, allocated once: a tick allocates nothing.
+    ball_y: np.ndarray
+    bat_flat: np.ndarray
+    bat_motion: np.ndarray
+    work: np.ndarray
+    scratch: np.ndarray
+    adapt: np.ndarray
+    event_rows: np.ndarray
+    bat_tmp: np.ndarray
+
+
+def initial_state(scene: Scene) -> State:
+    """State at tick 0 from the scene's initial conditions."""
+    ball = np.zeros(1, BALL_DTYPE)
+    ball["pos"][0] = scene.ball.pos
+    ball["vel"][0] = scene.ball.vel
+    ball["spin"][0] = scene.ball.spin
+    bats = np.zeros(len(scene.bats), BAT_DTYPE)
+    for i, spec in enumerate(scene.bats):
+        for field in ("pos", "quat", "vel", "ang_vel", "force", "torque"):
+            bats[field][i] = getattr(spec, field)
+    motion = np.zeros((len(scene.bats), BAT_ROW))
+    for i, spec in enumerate(scene.bats):
+        motion[i, BAT_RADIUS] = spec.radius
+        motion[i, BAT_HALF_THICKNESS] = spec.half_thickness
+    return State(
+        ball=ball,
+        bats=bats,
+        world=np.zeros(1, WORLD_DTYPE),
+        ball_y=ball.view("<f8"),
+        bat_flat=bats.view("<f8").reshape(len(scene.bats), BAT_WIDTH),
+        bat_motion=motion,
+        work=np.zeros(WORK_SHAPE),
+        scratch=np.zeros(SCRATCH_SHAPE),
+        adapt=np.zeros(ADAPT_SIZE),
+        event_rows=np.zeros((MAX_IMPACTS_PER_TICK, EVENT_ROW)),
+        bat_tmp=np.zeros((3, 3)),
+    )
+
+
+def new_events() -> np.ndarray:
+    """An events buffer large enough for any tick."""
+    return np.zeros(MAX_IMPACTS_PER_TICK, CONTACT_DTYPE)
+
+
+def step(model: Model, state: State, inputs: np.ndarray | None, events: np.ndarray, dt: float | None = None) -> int:
+    """Advance the world by one tick, in place.
+
+    Args:
+        model: from build_model. state: from initial_state; mutated.
+        inputs: (n_bats, 6) force N and torque N m per bat held over the tick, or None to keep
+            the bats' current inputs.
+        events: CONTACT_DTYPE array of at least MAX_IMPACTS_PER_TICK; the tick's impacts are written
+            to its first n records.
+        dt: tick length in s; the model's by default. 0 leaves the state unchanged.
+
+    Returns:
+        n, the number of contact events written.
+    """
+    h = model.dt if dt is None else dt
+    world = state.world[0]
+    has_bats = len(state.bats) > 0
+    if has_bats:
+        if inputs is not None:
+            state.bats["force"] = inputs[:, 0:3]
+            state.bats["torque"] = inputs[:, 3:6]
+        bat_step(state.bat_flat, h, model.bat_mass, model.bat_inertia, state.bat_motion, state.bat_tmp)
+    n, support = ball_tick(
+        state.ball_y[0:9], h, int(world["ball_support"]), model.method, model.gravity, model.drag_k,
+        model.magnus_k, model.scene.rtol, model.scene.atol, model.table, model.floor_z, model.net,
+        model.posts, state.bat_motion if has_bats else None, model.ball_params, model.materials,
+        state.work, state.scratch, state.adapt, state.event_rows,
+    )
+    tick = int(world["tick"])
+    if n == ERR_SUBSTEPS:
+        raise SimulationError(f"tick {tick}: the adaptive integrator needed more than its substep limit; "
+                              f"loosen rtol/atol (now {model.scene.rtol}, {model.scene.atol}) or shorten dt")
+    if n == ERR_IMPACTS:
+        raise SimulationError(f"tick {tick}: more than {MAX_IMPACTS_PER_TICK} impacts in one tick "
+                              "(the ball is trapped between bodies); shorten dt")
+    # Cheap invariant after the tick (pymunk-style): the state stays finite.
+    if not np.isfinite(state.ball_y).all():
+        raise SimulationError(f"tick {tick}: the ball's state became non-finite: {state.ball[0]}")
+    time0 = float(world["time"])
+    for k in range(n):
+        row = state.event_rows[k]
+        ev = events[k]
+        ev["tick"] = tick
+        ev["time"] = time0 + row[0]
+        ev["body"] = int(row[1])
+        ev["pos"] = row[2:5]
+        ev["normal"] = row[5:8]
+        ev["vel_in"] = row[8:11]
+        ev["vel_out"] = row[11:14]
+        ev["spin_in"] = row[14:17]
+        ev["spin_out"] = row[17:20]
+        ev["normal_speed"] = row[20]
+    world["ball_support"] = support
+    world["n_events"] = n
+    world["tick"] = tick + 1
+    world["time"] = time0 + h
+    return n
