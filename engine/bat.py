@@ -66,6 +66,15 @@ def bat_step(bats, h, mass, inertia, motion, tmp):
     w_body = tmp[1]
     alpha = tmp[2]
     for b in range(bats.shape[0]):
+        if h == 0.0:
+            # A zero step changes nothing, not even the quaternion's last bit by renormalising.
+            face_normal(bats[b, _QUAT:_QUAT + 4], motion[b, BAT_AXIS0:BAT_AXIS0 + 3])
+            for i in range(3):
+                motion[b, BAT_POS0 + i] = bats[b, _POS + i]
+                motion[b, BAT_POS1 + i] = bats[b, _POS + i]
+                motion[b, BAT_AXIS1 + i] = motion[b, BAT_AXIS0 + i]
+                motion[b, BAT_ANG_VEL + i] = bats[b, _ANG_VEL + i]
+            continue
         bat = bats[b]
         q = bat[_QUAT:_QUAT + 4]
         for i in range(3):

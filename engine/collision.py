@@ -200,11 +200,7 @@ def ball_tick(y, h, support, method, gravity, drag_k, magnus_k, rtol, atol,
     t_done = 0.0
     n_events = 0
     skip = 0
-    surface_z = 0.0
-    if support == _FLOOR and floor_z is not None:
-        surface_z = floor_z
-    elif support == _TABLE and table is not None:
-        surface_z = table[2] + table[5]
+    surface_z = _surface_z(support, table, floor_z)
     for _ in range(MAX_IMPACTS_PER_TICK + 1):
         t_left = h - t_done
         if t_left <= 0.0:
@@ -283,7 +279,7 @@ def ball_tick(y, h, support, method, gravity, drag_k, magnus_k, rtol, atol,
             # Touching but not approaching: rest on it if pressed into it, else let it go.
             if horizontal and v_n < params[P_REST_SPEED] and _lift_check(cur, gravity, drag_k, magnus_k, acc) <= 0.0:
                 support = body
-                surface_z = floor_z if body == _FLOOR else table[2] + table[5]
+                surface_z = _surface_z(body, table, floor_z)
                 cur[5] = 0.0
             skip |= _bit(body)
             continue
@@ -304,7 +300,7 @@ def ball_tick(y, h, support, method, gravity, drag_k, magnus_k, rtol, atol,
                        params[P_INERTIA], restitution, materials[body, 1], cur[3:6], cur[6:9])
         if horizontal and speed < params[P_REST_SPEED]:
             support = body
-            surface_z = floor_z if body == _FLOOR else table[2] + table[5]
+            surface_z = _surface_z(body, table, floor_z)
             cur[2] = surface_z + params[P_RADIUS]
             cur[5] = 0.0
         for i in range(3):
@@ -316,6 +312,16 @@ def ball_tick(y, h, support, method, gravity, drag_k, magnus_k, rtol, atol,
     for i in range(9):
         y[i] = cur[i]
     return n_events, support
+
+
+@njit(inline="always", cache=True)
+def _surface_z(body, table, floor_z):
+    """Height of the horizontal surface a resting ball lies on, m."""
+    if body == _FLOOR and floor_z is not None:
+        return floor_z
+    if body == _TABLE and table is not None:
+        return table[2] + table[5]
+    return 0.0
 
 
 @njit(cache=True)
