@@ -1,0 +1,69 @@
+"""Scenes: bundled scenes load; every bad scene is refused with the file, the key and what is allowed."""
+import pytest
+
+from engine.scene import SCENES_DIR, SceneError, load_scene, with_overrides
+
+
+@pytest.mark.parametrize("name", ["drop", "serve", "rally"])
+def test_bundled_scenes_load(name):
+    scene = load_scene(name)
+    assert scene.name == name and scene.ticks > 0
+
+
+def write(tmp_path, text):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    return path
+
+
+GOOD = 'effects = ["gravity", "bats"]\n[ball]\npos = [0, 0, 0.3]\n[bats.a]\npos = [-1.5, 0, 0.2]\n'
+
+
+@pytest.mark.parametrize(
+    "text, key, hint",
+    [
+        ("mass_of_ball = 3\n" + GOOD, "mass_of_ball", "unknown key"),
+        (GOOD.replace("pos = [-1.5, 0, 0.2]", "pos = [-1.5, 0, 0.2]\nmas = 0.2"), "bats.a.mas", "allowed here: pos"),
+        (GOOD.replace("pos = [-1.5, 0, 0.2]", "pos = [-1.5, 0, 0.2]\nmass = -1"), "bats.a.mass", "must be in [0.05, 1.0]"),
+        (GOOD.replace("pos = [-1.5, 0, 0.2]", 'pos = [-1.5, 0, 0.2]\nmass = "heavy"'), "bats.a.mass", "must be a number"),
+        (GOOD.replace("[0, 0, 0.3]", "[0, nan, 0.3]"), "ball.pos[1]", "must be finite"),
+        (GOOD.replace("[0, 0, 0.3]", "[0, inf, 0.3]"), "ball.pos[1]", "must be finite"),
+        (GOOD.replace("[0, 0, 0.3]", "[0, 0]"), "ball.pos", "list of 3 numbers"),
+        (GOOD.replace('"gravity"', '"gravity", "ai"'), "effects", "not supported"),
+        (GOOD.replace('"gravity"', '"gravty"'), "effects", "unknown effect 'gravty'"),
+        (GOOD.replace('"gravity", "bats"', '"gravity"'), "bats", "not listed in effects"),
+        ("dt = 0\n" + GOOD, "dt", "must be in (0.0, 0.05]"),
+        ('integrator = "leapfrog"\n' + GOOD, "integrator", "must be one of explicit_euler"),
+        (GOOD + "[materials.table]\nrestitution = 1.5\n", "materials.table.restitution", "must be in [0.0, 1.0]"),
+        (GOOD.replace("[bats.a]\npos = [-1.5, 0, 0.2]", "[bats.a]\npos = [-1.5, 0, 0.2]\nnormal = [0, 0, 0]"),
+         "bats.a.normal", "zero vector"),
+        (GOOD + "[net]\nkind = \"rope\"\n", "net", "not listed in effects"),
+    ],
+)
+def test_bad_scene_errors_name_file_key_and_allowed(tmp_path, text, key, hint):
+    path = write(tmp_path, text)
+    with pytest.raises(SceneError) as info:
+        load_scene(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}: {key}:"), message
+    assert hint in message, message
+
+
+def test_not_toml(tmp_path):
+    path = write(tmp_path, "effects = [\n")
+    with pytest.raises(SceneError, match="not valid TOML"):
+        load_scene(path)
+
+
+def test_missing_file_lists_bundled_scenes():
+    with pytest.raises(SceneError, match="bundled scenes: .*drop"):
+        load_scene("no_such_scene")
+
+
+def test_overrides_are_validated():
+    scene = load_scene(SCENES_DIR / "drop.toml")
+    with pytest.raises(SceneError, match="integrator: must be one of"):
+        with_overrides(scene, integrator="euler")
+    with pytest.raises(SceneError, match=r"dt: must be in \(0.0, 0.05\]"):
+        with_overrides(scene, dt=float("nan"))
+    assert with_overrides(scene, dt=0.002).ticks == 2500

@@ -1,0 +1,57 @@
+"""Every `pingpong` subcommand of this stage, smoke-run as a subprocess (STYLE.md: --ticks 2)."""
+import json
+import subprocess
+import sys
+
+import pytest
+
+from engine.scene import SCENES_DIR
+
+TIMEOUT = 120  # s: first runs compile the numba kernels unless the cache is warm
+
+
+def pingpong(*args):
+    return subprocess.run([sys.executable, "-m", "processes", *args], capture_output=True, text=True,
+                          timeout=TIMEOUT, stdin=subprocess.DEVNULL)
+
+
+@pytest.mark.parametrize("scene", ["drop", "serve", "rally"])
+def test_run_json_two_ticks(scene):
+    done = pingpong("run", scene, "--ticks", "2", "--json")
+    assert done.returncode == 0, done.stderr
+    summary = json.loads(done.stdout)
+    assert summary["scene"] == scene and summary["ticks"] == 2
+    assert summary["sim_seconds"] == pytest.approx(0.002)
+
+
+def test_run_drop_reports_bounce_heights():
+    done = pingpong("run", str(SCENES_DIR / "drop.toml"), "--json")
+    assert done.returncode == 0, done.stderr
+    summary = json.loads(done.stdout)
+    assert summary["bounce_heights_m"][0] == pytest.approx(0.23, abs=0.01)  # ITTF rule 2.1.3
+    assert all(e["body"] == "table" for e in summary["events"])
+
+
+def test_run_human_summary_and_overrides():
+    done = pingpong("run", "serve", "--integrator", "rk4", "--dt", "0.0005")
+    assert done.returncode == 0, done.stderr
+    assert "integrator rk4" in done.stdout and "table" in done.stdout
+
+
+def test_match_two_ticks():
+    done = pingpong("match", "--ticks", "2", "--json")
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["scene"] == "rally"
+
+
+def test_bad_scene_exits_2_with_the_reason(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('effects = ["gravity"]\n[ball]\npos = [0, 0, "up"]\n')
+    done = pingpong("run", str(bad))
+    assert done.returncode == 2
+    assert f"{bad}: ball.pos[2]: must be a number" in done.stderr
+
+
+def test_bad_integrator_exits_2():
+    done = pingpong("run", "drop", "--integrator", "leapfrog")
+    assert done.returncode == 2 and "integrator: must be one of" in done.stderr
