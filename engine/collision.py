@@ -41,6 +41,7 @@ _TABLE, _FLOOR, _NET, _POST, _BAT_A = int(Body.TABLE), int(Body.FLOOR), int(Body
 # Error codes returned instead of an event count.
 ERR_SUBSTEPS = -1
 ERR_IMPACTS = -2
+ERR_NONFINITE = -3
 
 
 def new_scratch():
@@ -309,6 +310,10 @@ def ball_tick(y, h, support, method, gravity, drag_k, magnus_k, rtol, atol,
         ev[E_SPEED] = speed
         n_events += 1
         skip |= _bit(body)
+    # Cheap invariant after the tick (pymunk's step check): the state stays finite.
+    for i in range(9):
+        if not math.isfinite(cur[i]):
+            return ERR_NONFINITE, support
     for i in range(9):
         y[i] = cur[i]
     return n_events, support

@@ -15,6 +15,7 @@ from engine.collision import (
     BAT_RADIUS,
     BAT_ROW,
     ERR_IMPACTS,
+    ERR_NONFINITE,
     ERR_SUBSTEPS,
     EVENT_ROW,
     MAX_IMPACTS_PER_TICK,
@@ -145,6 +146,16 @@ def new_events() -> np.ndarray:
     return np.zeros(MAX_IMPACTS_PER_TICK, CONTACT_DTYPE)
 
 
+def _check_inputs(inputs: np.ndarray, n_bats: int) -> None:
+    """Refuse malformed bat inputs before they touch the state."""
+    if inputs.shape != (n_bats, 6):
+        raise ValueError(f"bat inputs must have shape ({n_bats}, 6): force N and torque N m per bat; got {inputs.shape}")
+    if not np.isfinite(inputs).all():
+        bat, column = np.argwhere(~np.isfinite(inputs))[0]
+        quantity = "force" if column < 3 else "torque"
+        raise ValueError(f"bat {'ab'[bat]} {quantity}[{column % 3}] is {inputs[bat, column]}; inputs must be finite")
+
+
 def step(model: Model, state: State, inputs: np.ndarray | None, events: np.ndarray, dt: float | None = None) -> int:
     """Advance the world by one tick, in place.
 
@@ -164,6 +175,7 @@ def step(model: Model, state: State, inputs: np.ndarray | None, events: np.ndarr
     has_bats = len(state.bats) > 0
     if has_bats:
         if inputs is not None:
+            _check_inputs(inputs, len(state.bats))
             state.bats["force"] = inputs[:, 0:3]
             state.bats["torque"] = inputs[:, 3:6]
         bat_step(state.bat_flat, h, model.bat_mass, model.bat_inertia, state.bat_motion, state.bat_tmp)
@@ -180,9 +192,9 @@ def step(model: Model, state: State, inputs: np.ndarray | None, events: np.ndarr
     if n == ERR_IMPACTS:
         raise SimulationError(f"tick {tick}: more than {MAX_IMPACTS_PER_TICK} impacts in one tick "
                               "(the ball is trapped between bodies); shorten dt")
-    # Cheap invariant after the tick (pymunk-style): the state stays finite.
-    if not np.isfinite(state.ball_y).all():
-        raise SimulationError(f"tick {tick}: the ball's state became non-finite: {state.ball[0]}")
+    if n == ERR_NONFINITE:
+        raise SimulationError(f"tick {tick}: the ball's state would become non-finite from {state.ball[0]}; "
+                              "the state was left as it was before the tick")
     time0 = float(world["time"])
     for k in range(n):
         row = state.event_rows[k]

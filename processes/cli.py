@@ -28,6 +28,12 @@ def _cmd_profile_net(args: argparse.Namespace) -> int:
     return profile_net_command(args)
 
 
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from processes.bench import bench_command
+
+    return bench_command(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The whole `pingpong` parser; subcommands share --seed/--json."""
     formatter = argparse.ArgumentDefaultsHelpFormatter
@@ -54,6 +60,12 @@ def build_parser() -> argparse.ArgumentParser:
     profile.add_argument("--backend", choices=["numba", "reference", "both"], default="both")
     profile.add_argument("--json", action="store_true", help="print one JSON object")
     profile.set_defaults(func=_cmd_profile_net)
+    bench = sub.add_parser("bench", help="measured answers to 'what does it cost'", formatter_class=formatter)
+    bench.add_argument("what", choices=["accuracy", "effects"], help="which study to run")
+    bench.add_argument("--json", action="store_true", help="print one JSON object")
+    bench.add_argument("--png", default=None, help="accuracy: write the work-precision plot to this PNG file")
+    bench.add_argument("--quick", action="store_true", help="fewer step sizes and repeats (smoke runs)")
+    bench.set_defaults(func=_cmd_bench)
     return parser
 
 
