@@ -30,6 +30,10 @@ WORLD_DTYPE = np.dtype(
         ("time", "<f8"),  # s, simulated
         ("ball_support", "<i4"),  # Body id the ball rests or rolls on, 0 = in flight
         ("n_events", "<i4"),  # contact events written during the last tick
+        ("events_total", "<i8"),  # contact events since tick 0
+        # dopri5's next trial substep (s) and its accepted and rejected substeps: state, not
+        # scratch, because the next tick's substeps depend on it (restarts must restore it).
+        ("ball_adapt", "<f8", (3,)),
     ]
 )
 
@@ -48,3 +52,8 @@ CONTACT_DTYPE = np.dtype(
         ("normal_speed", "<f8"),  # m/s, approach speed along the normal relative to the body
     ]
 )
+
+
+def physics_snapshot_dtype(n_bats: int) -> np.dtype:
+    """Everything the physics worker owns at one tick, as one record: ball, bats, world."""
+    return np.dtype([("ball", BALL_DTYPE), ("bats", BAT_DTYPE, (n_bats,)), ("world", WORLD_DTYPE)])

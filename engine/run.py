@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from engine.dtypes import physics_snapshot_dtype
 from engine.geometry import Body
 from engine.scene import Scene
 from engine.world import Model, State, build_model, initial_state, new_events, step
@@ -23,6 +24,7 @@ class RunResult:
     events: np.ndarray  # CONTACT_DTYPE, every impact in order
     bounce_heights_m: list[float] = field(default_factory=list)
     state: State | None = None
+    trace: np.ndarray | None = None  # (ticks + 1,) physics snapshots, tick 0 first, if asked for
 
     def summary(self) -> dict:
         """JSON-ready summary."""
@@ -61,7 +63,14 @@ class RunResult:
         }
 
 
-def run(scene: Scene, ticks: int | None = None, model: Model | None = None) -> RunResult:
+def snapshot_into(state: State, record: np.ndarray) -> None:
+    """Copy the physics state into one physics_snapshot_dtype record."""
+    record["ball"] = state.ball[0]
+    record["bats"] = state.bats
+    record["world"] = state.world[0]
+
+
+def run(scene: Scene, ticks: int | None = None, model: Model | None = None, trace: bool = False) -> RunResult:
     """Run a scene in-process for `ticks` (default: its duration), tracking table-bounce apexes.
 
     An apex is where the ball's vertical velocity turns from up to down in flight after a table
@@ -83,9 +92,14 @@ def run(scene: Scene, ticks: int | None = None, model: Model | None = None) -> R
     compile_start = time.perf_counter()
     step(model, state, None, events, dt=0.0)
     compile_seconds = time.perf_counter() - compile_start
+    states = np.zeros(n_ticks + 1, physics_snapshot_dtype(len(scene.bats))) if trace else None
+    if trace:
+        snapshot_into(state, states[0])
     start = time.perf_counter()
-    for _ in range(n_ticks):
+    for tick in range(n_ticks):
         n = step(model, state, None, events)
+        if trace:
+            snapshot_into(state, states[tick + 1])
         if n:
             collected.append(events[:n].copy())
             # A bounce starts a flight whose apex counts only if the last impact was the table.
@@ -100,4 +114,4 @@ def run(scene: Scene, ticks: int | None = None, model: Model | None = None) -> R
     wall = time.perf_counter() - start
     all_events = np.concatenate(collected) if collected else events[:0].copy()
     return RunResult(scene=scene, ticks=n_ticks, sim_seconds=n_ticks * scene.dt, wall_seconds=wall,
-                     compile_seconds=compile_seconds, events=all_events, bounce_heights_m=heights, state=state)
+                     compile_seconds=compile_seconds, events=all_events, bounce_heights_m=heights, state=state, trace=states)

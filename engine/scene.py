@@ -3,10 +3,9 @@ from __future__ import annotations
 
 import math
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from types import MappingProxyType
-from typing import Any, Mapping
+from typing import Any
 
 from engine import equipment
 from engine.integrators import METHODS
@@ -73,7 +72,12 @@ class Scene:
     air_density: float = equipment.AIR_DENSITY
     drag_coefficient: float = equipment.DRAG_COEFFICIENT
     magnus_coefficient: float = equipment.MAGNUS_COEFFICIENT
-    materials: Mapping[str, Material] = field(default_factory=lambda: MappingProxyType(dict(DEFAULT_MATERIALS)))
+    # (body, Material) pairs: a tuple keeps the scene immutable and picklable (sent to workers).
+    materials: tuple[tuple[str, Material], ...] = ()
+
+    def material(self, body: str) -> Material:
+        """The material of `body` (table, floor, net, bat)."""
+        return dict(self.materials).get(body, DEFAULT_MATERIALS[body])
 
     @property
     def ticks(self) -> int:
@@ -260,7 +264,7 @@ def parse_scene(data: dict, source: str) -> Scene:
         air_density=r.number(air, "density", "air.density", equipment.AIR_DENSITY, low=0.0, high=10.0),
         drag_coefficient=r.number(air, "drag_coefficient", "air.drag_coefficient", equipment.DRAG_COEFFICIENT, low=0.0, high=2.0),
         magnus_coefficient=r.number(air, "magnus_coefficient", "air.magnus_coefficient", equipment.MAGNUS_COEFFICIENT, low=0.0, high=5.0),
-        materials=MappingProxyType(materials),
+        materials=tuple(sorted(materials.items())),
     )
     return scene
 

@@ -30,7 +30,7 @@ from engine.collision import (
 from engine.dtypes import BALL_DTYPE, BAT_DTYPE, CONTACT_DTYPE, WORLD_DTYPE
 from engine.forces import drag_factor, magnus_factor
 from engine.geometry import FLOOR_Z, NET_BOX, POST_BOXES, TABLE_BOX, Body
-from engine.integrators import ADAPT_SIZE, METHODS, WORK_SHAPE
+from engine.integrators import METHODS, WORK_SHAPE
 from engine.scene import Scene
 
 
@@ -73,7 +73,7 @@ def build_model(scene: Scene) -> Model:
     materials = np.zeros((len(Body), 2))
     for body, name in ((Body.TABLE, "table"), (Body.FLOOR, "floor"), (Body.NET, "net"), (Body.POST, "net"),
                        (Body.BAT_A, "bat"), (Body.BAT_B, "bat")):
-        mat = scene.materials[name]
+        mat = scene.material(name)
         # Without the friction effect the contact is frictionless: no spin in contact.
         materials[body] = (mat.restitution, mat.friction if "friction" in fx else 0.0)
     return Model(
@@ -126,16 +126,17 @@ def initial_state(scene: Scene) -> State:
     for i, spec in enumerate(scene.bats):
         motion[i, BAT_RADIUS] = spec.radius
         motion[i, BAT_HALF_THICKNESS] = spec.half_thickness
+    world = np.zeros(1, WORLD_DTYPE)
     return State(
         ball=ball,
         bats=bats,
-        world=np.zeros(1, WORLD_DTYPE),
+        world=world,
         ball_y=ball.view("<f8"),
         bat_flat=bats.view("<f8").reshape(len(scene.bats), BAT_WIDTH),
         bat_motion=motion,
         work=np.zeros(WORK_SHAPE),
         scratch=np.zeros(SCRATCH_SHAPE),
-        adapt=np.zeros(ADAPT_SIZE),
+        adapt=world["ball_adapt"][0],  # a view: dopri5 updates the world record in place
         event_rows=np.zeros((MAX_IMPACTS_PER_TICK, EVENT_ROW)),
         bat_tmp=np.zeros((3, 3)),
     )
@@ -209,8 +210,11 @@ def step(model: Model, state: State, inputs: np.ndarray | None, events: np.ndarr
         ev["spin_in"] = row[14:17]
         ev["spin_out"] = row[17:20]
         ev["normal_speed"] = row[20]
+    if h == 0.0:
+        return 0  # a zero-length tick ran the kernels (compiling them) and changed nothing
     world["ball_support"] = support
     world["n_events"] = n
+    world["events_total"] += n
     world["tick"] = tick + 1
     world["time"] = time0 + h
     return n

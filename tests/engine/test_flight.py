@@ -43,6 +43,6 @@ def test_dt_zero_changes_nothing(integrator):
     from engine.world import build_model, initial_state, new_events, step
 
     model, state, events = build_model(scene), initial_state(scene), new_events()
-    before = (state.ball.tobytes(), state.bats.tobytes())
+    before = (state.ball.tobytes(), state.bats.tobytes(), state.world.tobytes())
     assert step(model, state, None, events, dt=0.0) == 0
-    assert (state.ball.tobytes(), state.bats.tobytes()) == before
+    assert (state.ball.tobytes(), state.bats.tobytes(), state.world.tobytes()) == before
