@@ -45,6 +45,12 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--ticks", type=int, default=None, help="ticks to run (default: the scene's duration)")
     run.add_argument("--dt", type=float, default=None, help="tick length in seconds (default: the scene's)")
     run.add_argument("--integrator", default=None, help="ball integrator (default: the scene's)")
+    run.add_argument("--processes", action="store_true", help="run in separate worker processes")
+    run.add_argument("--mode", choices=["lockstep", "realtime"], default="lockstep",
+                     help="with --processes: lockstep (deterministic, flat out) or realtime (wall-clock paced)")
+    run.add_argument("--check-reference", action="store_true",
+                     help="with --processes: also run in-process and check every tick is bitwise equal")
+    run.add_argument("--crash-at-tick", type=int, default=None, help=argparse.SUPPRESS)
     _add_common(run)
     run.set_defaults(func=_cmd_run)
 

@@ -35,21 +35,78 @@ def _print_human(summary: dict) -> None:
     print(f"  ball at the end: pos {[round(c, 4) for c in ball['pos']]} m, vel {[round(c, 3) for c in ball['vel']]} m/s")
 
 
+def _process_summary(result, reference=None) -> dict:
+    from engine.geometry import Body
+    from processes.supervisor import first_difference
+
+    world = result.final["world"]
+    summary = {
+        "scene": result.scene.name,
+        "integrator": result.scene.integrator,
+        "dt": result.scene.dt,
+        "processes": True,
+        "mode": result.mode,
+        "ticks": result.ticks,
+        "sim_seconds": result.ticks * result.scene.dt,
+        "wall_seconds": result.wall_seconds,
+        "startup_seconds": result.startup_seconds,
+        "realtime_factor": result.ticks * result.scene.dt / result.wall_seconds if result.wall_seconds > 0 else None,
+        "workers": result.workers,
+        "events": [
+            {"tick": int(ev["tick"]), "time": float(ev["time"]), "body": Body(int(ev["body"])).name.lower(),
+             "pos": [float(c) for c in ev["pos"]], "normal_speed": float(ev["normal_speed"]),
+             "vel_out": [float(c) for c in ev["vel_out"]], "spin_out": [float(c) for c in ev["spin_out"]]}
+            for ev in result.events
+        ],
+        "events_total": result.events_total,
+        "bounce_heights_m": [],
+        "final_ball": {k: [float(c) for c in result.final["ball"][k]] for k in ("pos", "vel", "spin")},
+        "compile_seconds": None,
+    }
+    if reference is not None:
+        diff = first_difference(result.trace, reference.trace)
+        summary["reference"] = {"bitwise_equal": diff is None, "first_different_tick": diff,
+                                "ticks_compared": len(reference.trace)}
+    del world
+    return summary
+
+
 def run_scene_command(args: argparse.Namespace) -> int:
-    """Run a scene in-process and print the summary."""
+    """Run a scene in-process, or in worker processes with --processes, and print the summary."""
     try:
         scene = _load(args)
         if args.ticks is not None and args.ticks < 0:
             raise SceneError(f"--ticks must be >= 0, got {args.ticks}")
-        result = run(scene, args.ticks)
+        if getattr(args, "processes", False):
+            from processes.supervisor import Supervisor
+
+            ticks = scene.ticks if args.ticks is None else args.ticks
+            check = args.check_reference
+            supervisor = Supervisor(scene, ticks, args.mode, trace=check, crash_at_tick=args.crash_at_tick)
+            result = supervisor.run()
+            reference = run(scene, ticks, trace=True) if check else None
+            summary = _process_summary(result, reference)
+        else:
+            if getattr(args, "check_reference", False):
+                raise SceneError("--check-reference compares a --processes run with the in-process one; add --processes")
+            summary = run(scene, args.ticks).summary()
     except (SceneError, SimulationError) as exc:
         print(f"pingpong: {exc}", file=sys.stderr)
         return 2
-    summary = result.summary()
     if args.json:
         print(json.dumps(summary))
     else:
         _print_human(summary)
+        if "reference" in summary:
+            ref = summary["reference"]
+            verdict = "bitwise equal" if ref["bitwise_equal"] else f"DIFFERENT from tick {ref['first_different_tick']}"
+            print(f"  in-process reference: {verdict} over {ref['ticks_compared']} ticks")
+        if "workers" in summary:
+            for kind, info in summary["workers"].items():
+                print(f"  worker {kind}: busy {info['busy_s']:.3f} s, restarts {info['restarts']}, "
+                      f"late ticks {info['late_ticks']}")
+    if "reference" in summary and not summary["reference"]["bitwise_equal"]:
+        return 1
     return 0
 
 
@@ -57,4 +114,6 @@ def match_command(args: argparse.Namespace) -> int:
     """Run the match scene. Without the referee and bat AI (issue 6) this is the scene's rally."""
     args.dt = None
     args.integrator = None
+    args.processes = False
+    args.check_reference = False
     return run_scene_command(args)

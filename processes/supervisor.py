@@ -1,0 +1,243 @@
+"""The supervisor: builds the run's shared memory, starts only the workers the scene needs,
+watches them, restarts a dead one from the last consistent snapshot, and always cleans up.
+
+Cleanup holds on every exit path: normal end, an exception, Ctrl-C (KeyboardInterrupt) or
+SIGTERM (turned into SystemExit), a worker's crash. Workers get a stop command, then a bounded
+join, then terminate, then kill; every segment of the run is unlinked. Should the supervisor
+itself be SIGKILLed, its workers notice their parent is gone within a heartbeat and exit, and
+the multiprocessing resource tracker unlinks the segments.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import multiprocessing.connection
+import signal
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from engine.dtypes import CONTACT_DTYPE, physics_snapshot_dtype
+from engine.scene import Scene
+from processes.shm import Arena
+from processes.worker import STATUS_DTYPE, WorkerState, worker_entry
+
+EVENT_LOG_CAPACITY = 1 << 16
+READY_TIMEOUT_S = 120.0  # a cold numba cache compiles the kernels before the first tick
+STOP_TIMEOUT_S = 5.0
+STALL_TIMEOUT_S = 10.0  # a RUNNING worker silent this long is killed and restarted
+MAX_RESTARTS = 3
+
+
+class WorkerFailed(RuntimeError):
+    """A worker raised; the message carries its traceback."""
+
+
+@dataclass
+class ProcessRunResult:
+    """What a multi-process run produced."""
+
+    scene: Scene
+    mode: str
+    ticks: int
+    wall_seconds: float
+    startup_seconds: float
+    final: np.ndarray  # one physics snapshot record
+    events: np.ndarray  # CONTACT_DTYPE, oldest first (the last EVENT_LOG_CAPACITY at most)
+    events_total: int
+    workers: dict = field(default_factory=dict)  # per worker: pid, restarts, late ticks, busy time
+    trace: np.ndarray | None = None
+
+
+def workers_for(scene: Scene) -> list[str]:
+    """The workers a scene needs, no more: a scene without a cloth net or AI starts none of those."""
+    return ["physics"]
+
+
+class _Worker:
+    def __init__(self, kind: str, index: int):
+        self.kind = kind
+        self.index = index
+        self.process = None
+        self.conn = None
+        self.restarts = 0
+        self.finished = False
+
+
+class Supervisor:
+    """One run of a scene in separate processes.
+
+    Args:
+        scene: the scene. ticks: ticks to run. mode: "lockstep" or "realtime".
+        trace: keep every tick's physics snapshot (for --check-reference).
+        crash_at_tick: fault injection for tests and `pingpong stress`: the physics worker's first
+            incarnation SIGKILLs itself right after publishing this tick.
+    """
+
+    def __init__(self, scene: Scene, ticks: int, mode: str = "lockstep", trace: bool = False,
+                 crash_at_tick: int | None = None):
+        if mode not in ("lockstep", "realtime"):
+            raise ValueError(f"mode must be lockstep or realtime, got {mode!r}")
+        self.scene = scene
+        self.ticks = ticks
+        self.mode = mode
+        self.trace = trace
+        self.crash_at_tick = crash_at_tick
+        self.kinds = workers_for(scene)
+        # forkserver: workers fork from a clean server that never ran threads or kernels.
+        self._ctx = multiprocessing.get_context("forkserver")
+        self._ctx.set_forkserver_preload(["engine.world", "processes.worker", "processes.worker_physics"])
+        self.arena: Arena | None = None
+        self._workers: list[_Worker] = []
+
+    def _build_arena(self) -> Arena:
+        arena = Arena()
+        arena.snapshot_block("physics", physics_snapshot_dtype(len(self.scene.bats)), 1)
+        arena.shared_array("events", CONTACT_DTYPE, EVENT_LOG_CAPACITY)
+        arena.shared_array("status", STATUS_DTYPE, len(self.kinds))
+        if self.trace:
+            arena.shared_array("trace", physics_snapshot_dtype(len(self.scene.bats)), self.ticks + 1)
+        return arena
+
+    def _start(self, worker: _Worker) -> None:
+        parent, child = self._ctx.Pipe()
+        options = {"ticks": self.ticks, "mode": self.mode, "trace": self.trace,
+                   "crash_at_tick": self.crash_at_tick if worker.restarts == 0 else None}
+        worker.process = self._ctx.Process(
+            target=worker_entry, name=f"pingpong-{worker.kind}",
+            args=(worker.kind, child, self.arena.layout(), worker.index, self.scene, options))
+        worker.process.start()
+        child.close()
+        worker.conn = parent
+        worker.finished = False
+
+    def _await_ready(self, worker: _Worker) -> None:
+        deadline = time.monotonic() + READY_TIMEOUT_S
+        while time.monotonic() < deadline:
+            ready = multiprocessing.connection.wait([worker.conn, worker.process.sentinel], timeout=0.5)
+            if worker.conn in ready:
+                kind, payload = worker.conn.recv()
+                if kind == "ready":
+                    return
+                if kind == "error":
+                    raise WorkerFailed(f"{worker.kind} worker failed while starting:\n{payload['traceback']}")
+            elif worker.process.sentinel in ready:
+                raise WorkerFailed(f"{worker.kind} worker exited with code {worker.process.exitcode} while starting")
+        raise TimeoutError(f"{worker.kind} worker not ready within {READY_TIMEOUT_S} s")
+
+    def _restart(self, worker: _Worker, why: str, start_wall: float) -> None:
+        if worker.restarts >= MAX_RESTARTS:
+            raise WorkerFailed(f"{worker.kind} worker {why}; gave up after {MAX_RESTARTS} restarts")
+        self._reap(worker)
+        worker.restarts += 1
+        self.arena["status"].array[worker.index]["restarts"] = worker.restarts
+        self._start(worker)
+        self._await_ready(worker)
+        worker.conn.send(("go", start_wall))
+
+    def _reap(self, worker: _Worker) -> None:
+        """Stop one worker: ask, wait (bounded), terminate, kill."""
+        process = worker.process
+        if process is None:
+            return
+        if process.is_alive():
+            try:
+                worker.conn.send(("stop", None))
+            except (OSError, BrokenPipeError):
+                pass
+            process.join(STOP_TIMEOUT_S)
+        if process.is_alive():
+            process.terminate()
+            process.join(STOP_TIMEOUT_S)
+        if process.is_alive():
+            process.kill()
+            process.join(STOP_TIMEOUT_S)
+        worker.conn.close()
+        process.close()
+        worker.process = None
+
+    def _watch(self, start_wall: float) -> None:
+        """Until every worker is done: handle reports, deaths and stalls (all waits bounded)."""
+        status = self.arena["status"].array
+        while not all(w.finished for w in self._workers):
+            live = [w for w in self._workers if not w.finished]
+            handles = [w.conn for w in live] + [w.process.sentinel for w in live]
+            ready = multiprocessing.connection.wait(handles, timeout=0.5)
+            for worker in live:
+                if worker.conn in ready:
+                    try:
+                        kind, payload = worker.conn.recv()
+                    except EOFError:
+                        kind, payload = "eof", None
+                    if kind == "done":
+                        worker.finished = True
+                        continue
+                    if kind == "error":
+                        raise WorkerFailed(f"{worker.kind} worker raised {payload['type']}: {payload['message']}\n"
+                                           f"{payload['traceback']}")
+                if not worker.finished and worker.process.sentinel in ready:
+                    self._restart(worker, f"died (exit code {worker.process.exitcode})", start_wall)
+                elif not worker.finished:
+                    row = status[worker.index]
+                    silent = time.monotonic() - float(row["heartbeat"])
+                    if row["state"] == WorkerState.RUNNING and silent > STALL_TIMEOUT_S:
+                        self._restart(worker, f"stalled ({silent:.1f} s without a heartbeat)", start_wall)
+
+    def run(self) -> ProcessRunResult:
+        previous_term = signal.signal(signal.SIGTERM, _exit_on_sigterm)
+        started = time.monotonic()
+        self.arena = self._build_arena()
+        try:
+            self._workers = [_Worker(kind, i) for i, kind in enumerate(self.kinds)]
+            for worker in self._workers:
+                self._start(worker)
+            for worker in self._workers:
+                self._await_ready(worker)
+            start_wall = time.monotonic()
+            startup = start_wall - started
+            for worker in self._workers:
+                worker.conn.send(("go", start_wall))
+            self._watch(start_wall)
+            wall = time.monotonic() - start_wall
+            return self._collect(wall, startup)
+        finally:
+            for worker in self._workers:
+                self._reap(worker)
+            self.arena.close()
+            signal.signal(signal.SIGTERM, previous_term)
+
+    def _collect(self, wall: float, startup: float) -> ProcessRunResult:
+        final = np.zeros(1, physics_snapshot_dtype(len(self.scene.bats)))
+        self.arena["physics"].snapshot(final)
+        total = int(final[0]["world"]["events_total"])
+        log = self.arena["events"].array
+        first = max(0, total - EVENT_LOG_CAPACITY)
+        events = np.array([log[i % EVENT_LOG_CAPACITY] for i in range(first, total)], dtype=CONTACT_DTYPE)
+        status = self.arena["status"].array
+        workers = {
+            w.kind: {
+                "restarts": w.restarts,
+                "late_ticks": int(status[w.index]["late_ticks"]),
+                "max_late_s": float(status[w.index]["max_late_s"]),
+                "busy_s": float(status[w.index]["busy_s"]),
+            }
+            for w in self._workers
+        }
+        trace = self.arena["trace"].array.copy() if self.trace else None
+        return ProcessRunResult(scene=self.scene, mode=self.mode, ticks=int(final[0]["world"]["tick"]),
+                                wall_seconds=wall, startup_seconds=startup, final=final[0], events=events,
+                                events_total=total, workers=workers, trace=trace)
+
+
+def _exit_on_sigterm(signum, frame):
+    raise SystemExit(128 + signum)
+
+
+def first_difference(a: np.ndarray, b: np.ndarray) -> int | None:
+    """Index of the first record whose bytes differ, None if all equal (bit-for-bit check)."""
+    if a.shape != b.shape or a.dtype != b.dtype:
+        raise ValueError(f"traces differ in shape or dtype: {a.shape} {a.dtype} vs {b.shape} {b.dtype}")
+    rows_a = a.view(np.uint8).reshape(len(a), -1)
+    rows_b = b.view(np.uint8).reshape(len(b), -1)
+    differs = np.flatnonzero((rows_a != rows_b).any(axis=1))
+    return int(differs[0]) if len(differs) else None

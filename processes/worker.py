@@ -1,0 +1,124 @@
+"""What every worker process shares: its state enum, status row, entry point and command loop.
+
+A worker is started by the supervisor with a control pipe (commands in, reports out: pickled,
+but only at start, end and on errors, never per tick), attaches the run's shared memory, and
+reports its progress in its row of the shared status array. It ignores SIGINT: Ctrl-C reaches
+the whole process group, and the supervisor alone decides how the run ends.
+"""
+from __future__ import annotations
+
+import enum
+import os
+import signal
+import time
+import traceback
+
+import numpy as np
+
+STATUS_DTYPE = np.dtype([
+    ("pid", "<i8"),
+    ("state", "<i4"),  # WorkerState
+    ("restarts", "<i4"),
+    ("tick", "<i8"),  # ticks completed
+    ("heartbeat", "<f8"),  # time.monotonic() of the last sign of life
+    ("late_ticks", "<i8"),  # realtime: ticks that started after their due time
+    ("max_late_s", "<f8"),
+    ("busy_s", "<f8"),  # wall time spent simulating
+])
+
+
+class WorkerState(enum.IntEnum):
+    NONE = 0
+    STARTING = 1
+    READY = 2
+    RUNNING = 3
+    DONE = 4
+    FAILED = 5
+    STOPPED = 6
+
+
+class StopRequested(Exception):
+    """The supervisor asked the worker to stop, or went away."""
+
+
+class Control:
+    """The worker's side of its control pipe and status row."""
+
+    HEARTBEAT_S = 0.05
+
+    def __init__(self, conn, status_row: np.ndarray):
+        self.conn = conn
+        self.row = status_row
+        self._parent = os.getppid()
+        self._next_check = 0.0
+
+    def set_state(self, state: WorkerState) -> None:
+        self.row["state"] = state
+        self.row["heartbeat"] = time.monotonic()
+
+    def send(self, kind: str, payload=None) -> None:
+        self.conn.send((kind, payload))
+
+    def wait_for(self, expected: str, timeout: float):
+        """Block (bounded) for one command; returns its payload."""
+        deadline = time.monotonic() + timeout
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise TimeoutError(f"worker {os.getpid()}: no {expected!r} from the supervisor within {timeout} s")
+            if self.conn.poll(min(left, 0.2)):
+                kind, payload = self.conn.recv()
+                if kind == "stop":
+                    raise StopRequested()
+                if kind == expected:
+                    return payload
+            self.check_parent()
+
+    def check_parent(self) -> None:
+        if os.getppid() != self._parent:
+            raise StopRequested()
+
+    def beat(self, tick: int) -> None:
+        """Per tick: record progress; every HEARTBEAT_S also look for a stop command."""
+        now = time.monotonic()
+        self.row["tick"] = tick
+        if now >= self._next_check:
+            self._next_check = now + self.HEARTBEAT_S
+            self.row["heartbeat"] = now
+            if self.conn.poll(0):
+                kind, _ = self.conn.recv()
+                if kind == "stop":
+                    raise StopRequested()
+            self.check_parent()
+
+
+def worker_entry(kind: str, conn, layout: dict, status_index: int, scene, options: dict) -> None:
+    """Process entry point: run the worker of `kind`, ship any error back with its traceback."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    from processes.shm import Arena
+
+    arena = Arena.attach(layout)
+    row = arena["status"].array[status_index]
+    row["pid"] = os.getpid()
+    control = Control(conn, row)
+    control.set_state(WorkerState.STARTING)
+    try:
+        if kind == "physics":
+            from processes.worker_physics import physics_worker
+
+            physics_worker(control, arena, scene, options)
+        else:
+            raise ValueError(f"unknown worker kind {kind!r}")
+        control.set_state(WorkerState.DONE)
+    except StopRequested:
+        control.set_state(WorkerState.STOPPED)
+    except BaseException as exc:  # noqa: BLE001 - everything goes back to the supervisor
+        control.set_state(WorkerState.FAILED)
+        try:
+            control.send("error", {"type": type(exc).__name__, "message": str(exc), "traceback": traceback.format_exc()})
+        except (OSError, BrokenPipeError):
+            pass
+    finally:
+        del row, control
+        arena.close()
+        conn.close()
