@@ -1,0 +1,101 @@
+"""Multi-process runs: lockstep equals the in-process reference bit for bit, crashes are survived,
+Ctrl-C leaves nothing behind, a scene starts only the workers it needs."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from engine.run import run
+from engine.scene import load_scene, with_overrides
+from processes.shm import Arena, leftover_segments
+from processes.supervisor import Supervisor, first_difference, workers_for
+from processes.worker import STATUS_DTYPE, WorkerState
+
+
+@pytest.mark.parametrize("name, integrator", [("rally", "verlet"), ("serve", "dopri5"), ("drop", "rk4")])
+def test_lockstep_equals_in_process_reference_bit_for_bit(name, integrator, no_leftovers):
+    # Thousands of ticks with drag, Magnus, friction, bats, net and resting contact.
+    scene = with_overrides(load_scene(name), integrator=integrator)
+    result = Supervisor(scene, scene.ticks, "lockstep", trace=True).run()
+    reference = run(scene, trace=True)
+    assert result.ticks == scene.ticks
+    assert first_difference(result.trace, reference.trace) is None
+    assert result.events.tobytes() == reference.events.tobytes()
+
+
+def test_sigkilled_worker_is_restarted_and_the_run_stays_exact(no_leftovers):
+    scene = with_overrides(load_scene("serve"), integrator="dopri5")
+    result = Supervisor(scene, scene.ticks, "lockstep", trace=True, crash_at_tick=700).run()
+    assert result.workers["physics"]["restarts"] == 1
+    assert result.ticks == scene.ticks
+    assert first_difference(result.trace, run(scene, trace=True).trace) is None
+
+
+def test_realtime_is_paced_by_the_wall_clock(no_leftovers):
+    scene = load_scene("serve")
+    ticks = 300
+    result = Supervisor(scene, ticks, "realtime").run()
+    assert result.ticks == ticks
+    # Paced: the run cannot finish before its simulated time has passed (one tick of slack for
+    # the first tick, which is due at the start).
+    assert result.wall_seconds >= (ticks - 1) * scene.dt
+    assert result.workers["physics"]["late_ticks"] >= 0  # counted, reported
+
+
+def test_a_scene_starts_only_the_workers_it_needs():
+    assert workers_for(load_scene("drop")) == ["physics"]  # no cloth net, no AI: no such workers
+
+
+def _wait_running(run_ids_before, timeout):
+    """Handshake through shared memory: the new run's physics worker reports RUNNING."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        new = {name[2:].split("-")[0] for name in leftover_segments()} - run_ids_before
+        for run_id in new:
+            try:
+                status = Arena.attach({"run_id": run_id, "specs": {"status": ("array", STATUS_DTYPE.descr, (1,))}})
+            except FileNotFoundError:
+                continue
+            try:
+                row = status["status"].array[0]
+                if row["state"] == WorkerState.RUNNING:
+                    return run_id, int(row["pid"])
+            finally:
+                status.close()
+        time.sleep(0.01)  # polling a shared flag with a deadline, not a sleep used as a handshake
+    raise TimeoutError("the run never reported RUNNING")
+
+
+def test_sigint_to_the_supervisor_leaves_no_process_and_no_segment():
+    before = {name[2:].split("-")[0] for name in leftover_segments()}
+    cmd = [sys.executable, "-m", "processes", "run", "rally", "--processes", "--mode", "realtime",
+           "--ticks", "60000", "--json"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True)
+    try:
+        run_id, worker_pid = _wait_running(before, timeout=60)
+        proc.send_signal(signal.SIGINT)
+        proc.communicate(timeout=30)
+        assert proc.returncode != 0
+        assert leftover_segments(run_id) == []
+        with pytest.raises(ProcessLookupError):
+            os.kill(worker_pid, 0)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate(timeout=10)
+
+
+def test_cli_processes_check_reference_json():
+    done = subprocess.run([sys.executable, "-m", "processes", "run", "serve", "--processes", "--check-reference",
+                           "--json"], capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
+    assert done.returncode == 0, done.stderr
+    summary = json.loads(done.stdout)
+    assert summary["reference"]["bitwise_equal"] is True
+    assert summary["reference"]["ticks_compared"] == load_scene("serve").ticks + 1
+    assert summary["workers"]["physics"]["restarts"] == 0
+    assert np.isfinite(summary["wall_seconds"])
