@@ -29,6 +29,10 @@ def _cmd_profile_net(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
+    if args.what == "handoff":
+        from processes.bench_handoff import handoff_command
+
+        return handoff_command(args)
     from processes.bench import bench_command
 
     return bench_command(args)
@@ -67,7 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
     profile.add_argument("--json", action="store_true", help="print one JSON object")
     profile.set_defaults(func=_cmd_profile_net)
     bench = sub.add_parser("bench", help="measured answers to 'what does it cost'", formatter_class=formatter)
-    bench.add_argument("what", choices=["accuracy", "effects"], help="which study to run")
+    bench.add_argument("what", choices=["accuracy", "effects", "handoff"], help="which study to run")
     bench.add_argument("--json", action="store_true", help="print one JSON object")
     bench.add_argument("--png", default=None, help="accuracy: write the work-precision plot to this PNG file")
     bench.add_argument("--quick", action="store_true", help="fewer step sizes and repeats (smoke runs)")

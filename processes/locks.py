@@ -81,6 +81,10 @@ class LockTable:
         self.names = tuple(names)
         self._rank = {name: i for i, name in enumerate(self.names)}
         self._holders = holders
+        # Holder rows through typed memoryviews (4 words a lock): cheap on the per-tick path.
+        self._ints = memoryview(holders.array.view("<i8")).cast("B").cast("q")
+        self._floats = memoryview(holders.array.view("<f8")).cast("B").cast("d")
+        self._pid = os.getpid()
         self._fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o600)
         self._held: list[int] = []
 
@@ -92,9 +96,9 @@ class LockTable:
 
     def holder(self, name: str) -> tuple[int, float]:
         """(pid, seconds held) of the current holder, (0, 0) if free."""
-        row = self._holders.array[self._rank[name]]
-        pid = int(row["pid"])
-        return pid, (time.monotonic() - float(row["since"])) if pid else 0.0
+        base = 4 * self._rank[name]
+        pid = self._ints[base]
+        return pid, (time.monotonic() - self._floats[base + 1]) if pid else 0.0
 
     def stats(self, name: str) -> dict:
         row = self._holders.array[self._rank[name]]
@@ -147,21 +151,21 @@ class LockTable:
             state = "alive" if pid and _alive(pid) else "gone"
             raise LockTimeout(f"lock {name!r} not acquired within {timeout:g} s: held by pid {pid} ({state}) "
                               f"for {held_for:.3f} s")
-        row = self._holders.array[rank]
-        previous = int(row["pid"])
-        recovered_from = previous if previous and previous != os.getpid() else 0
+        base = 4 * rank  # pid, since, acquired, recovered
+        previous = self._ints[base]
+        recovered_from = previous if previous and previous != self._pid else 0
         if recovered_from:
-            row["recovered"] += 1
-        row["pid"] = os.getpid()
-        row["since"] = time.monotonic()
-        row["acquired"] += 1
+            self._ints[base + 3] += 1
+        self._ints[base] = self._pid
+        self._floats[base + 1] = time.monotonic()
+        self._ints[base + 2] += 1
         self._held.append(rank)
         return Acquired(name, recovered_from)
 
     def release(self, name: str) -> None:
         rank = self._rank[name]
         self._held.remove(rank)
-        self._holders.array[rank]["pid"] = 0
+        self._ints[4 * rank] = 0
         fcntl.lockf(self._fd, fcntl.LOCK_UN, 1, rank)
 
     @contextlib.contextmanager
@@ -174,6 +178,8 @@ class LockTable:
             self.release(name)
 
     def close(self) -> None:
+        self._ints.release()
+        self._floats.release()
         if self._fd >= 0:
             os.close(self._fd)
             self._fd = -1

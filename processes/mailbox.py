@@ -22,6 +22,8 @@ class Mailbox:
     def __init__(self, name: str, header: SharedArray, body: SharedArray, locks: LockTable, timeout: float = 0.5):
         self.name = name
         self._header = header.array
+        # count, dirty, dropped_full, discarded_torn as a typed memoryview (cheap per tick).
+        self._words = memoryview(header.array.view("<i8")).cast("B").cast("q")
         self._body = body.array
         self._locks = locks
         self.timeout = timeout
@@ -31,36 +33,46 @@ class Mailbox:
         return self._body.shape[0]
 
     def _check_recovered(self, got) -> None:
-        if got.recovered_from and self._header["dirty"][0]:
-            self._header["discarded_torn"][0] += self._header["count"][0]
-            self._header["count"][0] = 0
-            self._header["dirty"][0] = 0
+        words = self._words
+        if got.recovered_from and words[1]:
+            words[3] += words[0]
+            words[0] = 0
+            words[1] = 0
 
     def post(self, record: np.ndarray) -> bool:
         """Append one record; False (and counted) if the mailbox is full."""
-        with self._locks.hold(self.name, self.timeout) as got:
+        words = self._words
+        got = self._locks.acquire(self.name, self.timeout)
+        try:
             self._check_recovered(got)
-            count = int(self._header["count"][0])
+            count = words[0]
             if count >= self.capacity:
-                self._header["dropped_full"][0] += 1
+                words[2] += 1
                 return False
-            self._header["dirty"][0] = 1
+            words[1] = 1
             self._body[count] = record
-            self._header["count"][0] = count + 1
-            self._header["dirty"][0] = 0
+            words[0] = count + 1
+            words[1] = 0
             return True
+        finally:
+            self._locks.release(self.name)
 
     def drain(self, out: np.ndarray) -> int:
         """Move every record into `out` (capacity-sized), oldest first; returns how many."""
-        with self._locks.hold(self.name, self.timeout) as got:
+        words = self._words
+        got = self._locks.acquire(self.name, self.timeout)
+        try:
             self._check_recovered(got)
-            count = int(self._header["count"][0])
-            self._header["dirty"][0] = 1
-            out[:count] = self._body[:count]
-            self._header["count"][0] = 0
-            self._header["dirty"][0] = 0
+            count = words[0]
+            if count:
+                words[1] = 1
+                out[:count] = self._body[:count]
+                words[0] = 0
+                words[1] = 0
             return count
+        finally:
+            self._locks.release(self.name)
 
     def stats(self) -> dict:
-        h = self._header[0]
-        return {"pending": int(h["count"]), "dropped_full": int(h["dropped_full"]), "discarded_torn": int(h["discarded_torn"])}
+        words = self._words
+        return {"pending": words[0], "dropped_full": words[2], "discarded_torn": words[3]}

@@ -54,6 +54,14 @@ def leftover_segments(run_id: str | None = None) -> list[str]:
     return sorted(p.name for p in SHM_DIR.iterdir() if p.name.startswith(prefix))
 
 
+def _bytes(records: np.ndarray, dtype: np.dtype) -> np.ndarray:
+    """The bytes of a C-contiguous array of `dtype` records (a view, never a copy)."""
+    if records.dtype != dtype or not records.flags.c_contiguous:
+        raise ValueError(f"expected a C-contiguous array of {dtype}, got {records.dtype} "
+                         f"(contiguous: {records.flags.c_contiguous})")
+    return records.view(np.uint8)
+
+
 class SnapshotBlock:
     """A double-buffered structured array in shared memory with one writer and many readers.
 
@@ -74,21 +82,29 @@ class SnapshotBlock:
         self._shm = shared_memory.SharedMemory(name=name, create=create, size=size if create else 0)
         buf = self._shm.buf
         self.header = np.ndarray((1,), _HEADER, buffer=buf, offset=0)
+        # The seqlock words through a typed memoryview: ~50 ns a access instead of ~1 us for numpy
+        # field views, which matters on the per-tick path. 0 version, 1 writer pid, 2 tick.
+        self._words = buf[0:32].cast("q")
         self._slots = [
             np.ndarray((count,), self.dtype, buffer=buf, offset=self._slot_offset + k * self._slot_stride)
             for k in (0, 1)
         ]
+        # Copies go byte for byte: numpy copies a nested structured dtype field by field (~12 us
+        # for a physics snapshot), a flat uint8 copy is a memcpy (~0.5 us).
+        self._raw = [slot.view(np.uint8) for slot in self._slots]
+        self._pid = os.getpid()
+        self._last_records = self._last_bytes = None
         if create:
             self.header[0] = (0, 0, -1, 0)
 
     @property
     def version(self) -> int:
-        return int(self.header["version"][0])
+        return self._words[0]
 
     @property
     def tick(self) -> int:
         """Tick of the latest published snapshot (-1 before the first)."""
-        return int(self.header["tick"][0])
+        return self._words[2]
 
     def latest(self) -> np.ndarray:
         """A view of the latest complete slot (for the writer itself, or a reader that re-checks)."""
@@ -99,12 +115,16 @@ class SnapshotBlock:
 
         Also right after a writer died mid-write (odd version): its torn slot is the free one.
         """
-        published = self.version // 2
-        self.header["version"][0] = 2 * published + 1
-        np.copyto(self._slots[(published + 1) % 2], records)
-        self.header["writer_pid"][0] = os.getpid()
-        self.header["tick"][0] = tick
-        self.header["version"][0] = 2 * published + 2
+        words = self._words
+        published = words[0] // 2
+        words[0] = 2 * published + 1
+        if records is not self._last_records:  # a writer publishes the same array every tick
+            self._last_bytes = _bytes(records, self.dtype)
+            self._last_records = records
+        np.copyto(self._raw[(published + 1) % 2], self._last_bytes)
+        words[1] = self._pid
+        words[2] = tick
+        words[0] = 2 * published + 2
 
     def snapshot(self, out: np.ndarray, timeout: float = 1.0) -> int:
         """Copy the latest complete records into `out`; returns how many snapshots were published.
@@ -113,21 +133,26 @@ class SnapshotBlock:
             SnapshotTimeout: no untorn copy could be taken within `timeout` seconds.
         """
         deadline = None
+        words = self._words
+        out_bytes = _bytes(out, self.dtype)
         while True:
-            published = self.version // 2
-            np.copyto(out, self._slots[published % 2])
-            if self.version <= 2 * published + 2:
+            published = words[0] // 2
+            np.copyto(out_bytes, self._raw[published % 2])
+            if words[0] <= 2 * published + 2:
                 return published
             if deadline is None:
                 deadline = time.monotonic() + timeout
             elif time.monotonic() > deadline:
                 raise SnapshotTimeout(f"{self.name}: no untorn snapshot within {timeout} s; "
-                                      f"writer pid {int(self.header['writer_pid'][0])} never paused")
+                                      f"writer pid {words[1]} never paused")
 
     def close(self) -> None:
-        # Drop the numpy views first: SharedMemory.close refuses while buffers are exported.
+        # Drop the views first: SharedMemory.close refuses while buffers are exported.
         self.header = None
         self._slots = []
+        self._raw = []
+        self._last_records = self._last_bytes = None
+        self._words.release()
         self._shm.close()
 
     def unlink(self) -> None:
@@ -170,14 +195,14 @@ class Arena:
     def snapshot_block(self, name: str, dtype: np.dtype, count: int) -> SnapshotBlock:
         self._owner = True
         block = SnapshotBlock(segment_name(self.run_id, name), dtype, count, create=True)
-        self._specs[name] = ("snapshot", np.dtype(dtype).descr, count)
+        self._specs[name] = ("snapshot", np.dtype(dtype), count)
         self.blocks[name] = block
         return block
 
     def shared_array(self, name: str, dtype: np.dtype, shape: tuple[int, ...] | int) -> SharedArray:
         self._owner = True
         array = SharedArray(segment_name(self.run_id, name), dtype, shape, create=True)
-        self._specs[name] = ("array", np.dtype(dtype).descr, array.shape)
+        self._specs[name] = ("array", np.dtype(dtype), array.shape)
         self.blocks[name] = array
         return array
 
@@ -188,8 +213,8 @@ class Arena:
     @classmethod
     def attach(cls, layout: dict) -> "Arena":
         arena = cls(layout["run_id"])
-        for name, (kind, descr, size) in layout["specs"].items():
-            dtype = np.dtype(descr)
+        for name, (kind, dtype, size) in layout["specs"].items():
+            dtype = np.dtype(dtype)
             full = segment_name(arena.run_id, name)
             arena.blocks[name] = SnapshotBlock(full, dtype, size) if kind == "snapshot" else SharedArray(full, dtype, size)
         return arena

@@ -58,7 +58,7 @@ def _wait_running(run_ids_before, timeout):
         new = {name[2:].split("-")[0] for name in leftover_segments()} - run_ids_before
         for run_id in new:
             try:
-                status = Arena.attach({"run_id": run_id, "specs": {"status": ("array", STATUS_DTYPE.descr, (1,))}})
+                status = Arena.attach({"run_id": run_id, "specs": {"status": ("array", STATUS_DTYPE, (1,))}})
             except FileNotFoundError:
                 continue
             try:

@@ -1,0 +1,69 @@
+"""Lockstep hand-offs: the hub worker (physics) gives another worker its turn for a tick and
+waits, bounded, until that worker is done.
+
+A Baton is a pair of POSIX semaphores (futex-backed, so a waiting worker sleeps in the kernel
+and costs no CPU) plus a shared tick slot; the data itself crosses through SnapshotBlocks and
+mailboxes, never through the baton, so nothing is pickled per tick. The hub calls only the
+workers a tick needs (a sleeping net, an AI between its control ticks, the ball in free flight
+wake nobody), always in the same order, which keeps lockstep deterministic.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+class HandoffTimeout(TimeoutError):
+    """A worker did not take or finish its turn within the bound."""
+
+
+TICK_SLOT_DTYPE = np.dtype([("tick", "<i8"), ("command", "<i8")])
+RUN, STOP = 1, 2
+
+
+class Baton:
+    """One hub <-> worker hand-off channel.
+
+    Args:
+        name: for messages. ctx: the multiprocessing context the workers are started from.
+        slot: a (1,) TICK_SLOT_DTYPE shared array (processes.shm.SharedArray.array).
+    """
+
+    def __init__(self, name: str, ctx, slot: np.ndarray):
+        self.name = name
+        self._go = ctx.Semaphore(0)
+        self._done = ctx.Semaphore(0)
+        self.attach(slot)
+
+    def __getstate__(self):
+        # The shared slot is re-attached by the worker from the arena; semaphores pickle by handle.
+        return {"name": self.name, "_go": self._go, "_done": self._done, "_words": None}
+
+    def attach(self, slot: np.ndarray) -> "Baton":
+        """Point at the shared (1,) TICK_SLOT_DTYPE slot: words 0 tick, 1 command."""
+        self._words = memoryview(slot.view("<i8")).cast("B").cast("q")
+        return self
+
+    # hub side
+    def call(self, tick: int, timeout: float) -> None:
+        """Give the worker its turn for `tick` and wait until it is done."""
+        self._words[0] = tick
+        self._words[1] = RUN
+        self._go.release()
+        if not self._done.acquire(timeout=timeout):
+            raise HandoffTimeout(f"{self.name}: worker did not finish tick {tick} within {timeout} s")
+
+    def stop(self) -> None:
+        self._words[1] = STOP
+        self._go.release()
+
+    # worker side
+    def wait_turn(self, timeout: float) -> int | None:
+        """The tick to do, None when told to stop; raises HandoffTimeout after `timeout` s."""
+        if not self._go.acquire(timeout=timeout):
+            raise HandoffTimeout(f"{self.name}: no turn given within {timeout} s")
+        if self._words[1] == STOP:
+            return None
+        return self._words[0]
+
+    def done(self) -> None:
+        self._done.release()
