@@ -1,8 +1,10 @@
 """The referee: ITTF rules (Handbook, chapter 2) as a state machine driven by contact events.
 
-Players are 0 (A) and 1 (B). A player's court is the half of the table at its end: the sign of
-x, which is -1 for A and +1 for B in odd games and swaps each game (rule 2.14: ends change after
-each game, and in the last possible game when a player first reaches 5 points).
+Players are 0 (A) and 1 (B). A player's court is the half of the table at its end: x < 0 for A,
+x > 0 for B. Rule 2.14 has the players change ends after each game and at 5 points in the
+last possible game; that rule exists to even out a real hall's light, floor and draughts. The
+simulated hall is symmetric, so the referee records each change of ends (`ends_changed`) but
+the players stay where they are (walking the bats around the net would only cost time).
 
 Feed it every contact event of the ball (engine.dtypes.CONTACT_DTYPE) in order, and call
 `ball_out_of_play` when the ball leaves the playing area or stops without an event. It decides
@@ -82,12 +84,13 @@ class Referee:
         return len(self.games)
 
     def end_sign(self, player: int) -> int:
-        """-1 if `player`'s court is at x < 0 now, +1 otherwise."""
-        sign = -1 if player == 0 else 1
-        swapped = self.game % 2 == 1
-        if self._deciding_ends_swapped:
-            swapped = not swapped
-        return -sign if swapped else sign
+        """-1 if `player`'s court is at x < 0, +1 otherwise."""
+        return -1 if player == 0 else 1
+
+    @property
+    def ends_changed(self) -> int:
+        """How many times rule 2.14 has had the players change ends so far."""
+        return self.game + (1 if self._deciding_ends_swapped else 0)
 
     def court_of(self, x: float) -> int:
         """The player whose court contains x."""

@@ -13,8 +13,9 @@ from engine.integrators import METHODS
 SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
 
 # Effects a scene can list (DESIGN.md). Those this version cannot simulate yet are refused by name.
-EFFECTS = ("gravity", "drag", "magnus", "friction", "table", "floor", "net", "bats")
-PLANNED_EFFECTS = ("ai", "remote", "referee", "recording")
+EFFECTS = ("gravity", "drag", "magnus", "friction", "table", "floor", "net", "bats", "ai", "referee")
+PLANNED_EFFECTS = ("remote", "recording")
+SKILL_NAMES = ("pro", "club", "novice")
 NET_KINDS = ("rigid",)  # "cloth" joins when the net kernel is wired into the engine
 BAT_NAMES = ("a", "b")
 MATERIAL_BODIES = ("table", "floor", "net", "bat")
@@ -49,6 +50,18 @@ class BatSpec:
     mass: float = equipment.BAT_MASS
     radius: float = equipment.BAT_RADIUS
     half_thickness: float = equipment.BAT_HALF_THICKNESS
+    skill: str | None = None  # AI skill level driving this bat (effect "ai"), None = no AI
+
+
+@dataclass(frozen=True)
+class MatchSpec:
+    """How a match is played (effect "referee")."""
+
+    best_of: int = 5
+    first_server: str = "a"
+    ai_hz: float = 250.0  # control rate of the AI; forces are held between its updates
+    max_rally_s: float = 10.0  # a rally still undecided after this long is judged out of play
+    toss_speed: float = 2.6  # m/s upwards: the toss rises ~34 cm (ITTF 2.6.2: at least 16 cm)
 
 
 @dataclass(frozen=True)
@@ -74,6 +87,7 @@ class Scene:
     magnus_coefficient: float = equipment.MAGNUS_COEFFICIENT
     # (body, Material) pairs: a tuple keeps the scene immutable and picklable (sent to workers).
     materials: tuple[tuple[str, Material], ...] = ()
+    match: MatchSpec | None = None
 
     def material(self, body: str) -> Material:
         """The material of `body` (table, floor, net, bat)."""
@@ -164,7 +178,7 @@ def _quat_from_normal(normal: tuple[float, float, float]) -> tuple[float, float,
 
 def _read_bat(r: _Reader, name: str, data: Any) -> BatSpec:
     path = f"bats.{name}"
-    keys = ("pos", "normal", "quat", "vel", "ang_vel", "force", "torque", "mass", "radius", "half_thickness")
+    keys = ("pos", "normal", "quat", "vel", "ang_vel", "force", "torque", "mass", "radius", "half_thickness", "skill")
     data = r.table(data, path, keys)
     if "normal" in data and "quat" in data:
         raise r.fail(path, "give either normal or quat, not both")
@@ -190,6 +204,7 @@ def _read_bat(r: _Reader, name: str, data: Any) -> BatSpec:
         radius=r.number(data, "radius", f"{path}.radius", equipment.BAT_RADIUS, low=0.03, high=0.15),
         half_thickness=r.number(data, "half_thickness", f"{path}.half_thickness",
                                 equipment.BAT_HALF_THICKNESS, low=0.001, high=0.02),
+        skill=r.string(data, "skill", f"{path}.skill", None, SKILL_NAMES) if "skill" in data else None,
     )
 
 
@@ -197,7 +212,7 @@ def parse_scene(data: dict, source: str) -> Scene:
     """Validate a parsed TOML document into a Scene; every error names `source` and the key."""
     r = _Reader(source)
     top = ("name", "description", "effects", "dt", "duration", "integrator", "rtol", "atol",
-           "ball", "bats", "net", "air", "materials")
+           "ball", "bats", "net", "air", "materials", "match")
     data = r.table(data, "", top)
     effects_raw = data.get("effects")
     if not isinstance(effects_raw, list) or not all(isinstance(e, str) for e in effects_raw):
@@ -236,6 +251,31 @@ def parse_scene(data: dict, source: str) -> Scene:
             raise r.fail("net.kind", "the cloth net is not yet coupled to the ball engine; use 'rigid'")
         net_kind = r.string(net_data, "kind", "net.kind", "rigid", NET_KINDS)
 
+    ai_bats = [b.name for b in bats if b.skill is not None]
+    if ai_bats and "ai" not in effects:
+        raise r.fail(f"bats.{ai_bats[0]}.skill", "a skill is given but the effect 'ai' is not listed in effects")
+    if "ai" in effects and not ai_bats:
+        raise r.fail("effects", "effect 'ai' needs a bat with a skill (bats.a.skill = \"pro\", \"club\" or \"novice\")")
+    match = None
+    if "referee" in effects:
+        missing = [e for e in ("table", "net", "floor", "bats") if e not in effects]
+        if missing or len(bats) != 2:
+            raise r.fail("effects", f"effect 'referee' needs the table, net, floor and both bats; missing: "
+                                    f"{', '.join(missing) or 'a second bat'}")
+        m = r.table(data.get("match", {}), "match", ("best_of", "first_server", "ai_hz", "max_rally_s", "toss_speed"))
+        best_of = r.number(m, "best_of", "match.best_of", 5, low=1, high=9)
+        if best_of != int(best_of) or int(best_of) % 2 == 0:
+            raise r.fail("match.best_of", f"must be an odd whole number, got {best_of}")
+        match = MatchSpec(
+            best_of=int(best_of),
+            first_server=r.string(m, "first_server", "match.first_server", "a", BAT_NAMES),
+            ai_hz=r.number(m, "ai_hz", "match.ai_hz", 250.0, low=10.0, high=2000.0),
+            max_rally_s=r.number(m, "max_rally_s", "match.max_rally_s", 10.0, low=1.0, high=120.0),
+            toss_speed=r.number(m, "toss_speed", "match.toss_speed", 2.6, low=1.8, high=5.0),
+        )
+    elif "match" in data:
+        raise r.fail("match", "a [match] table needs the effect 'referee'")
+
     air = r.table(data.get("air", {}), "air", ("density", "drag_coefficient", "magnus_coefficient", "gravity"))
     materials = dict(DEFAULT_MATERIALS)
     for body, mat in r.table(data.get("materials", {}), "materials", MATERIAL_BODIES).items():
@@ -265,6 +305,7 @@ def parse_scene(data: dict, source: str) -> Scene:
         drag_coefficient=r.number(air, "drag_coefficient", "air.drag_coefficient", equipment.DRAG_COEFFICIENT, low=0.0, high=2.0),
         magnus_coefficient=r.number(air, "magnus_coefficient", "air.magnus_coefficient", equipment.MAGNUS_COEFFICIENT, low=0.0, high=5.0),
         materials=tuple(sorted(materials.items())),
+        match=match,
     )
     return scene
 

@@ -1,0 +1,501 @@
+"""Bat AI: predicts the ball with the engine itself, aims, solves the stroke, drives the bat by force.
+
+The engine is deterministic, so once the opponent has struck, the ball's path is fixed: the AI
+predicts it with the very kernel the physics runs (`predict_flight` loops `ball_tick`), finds
+where it will strike after the ball's bounce on its court, picks an aim point on the
+opponent's court, and solves two inverse problems:
+- shooting: the outgoing velocity that lands the ball on the aim point over the net, by Newton
+  iteration on the engine's own flight (drag and Magnus included);
+- the stroke: the bat face normal and velocity whose impact (engine.contact.impact, friction
+  and spin included) gives that outgoing velocity, by fixed-point iteration.
+It then drives the bat there with forces and torques only: a planned path (backswing, swing,
+follow-through, recovery) tracked by PD control with feed-forward, clipped at a human arm's
+force, torque, speed and reach. Skill (reaction delay, aim and face-angle noise, force limits)
+decides how often that goes wrong; the noise comes from a seeded generator, so matches repeat.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from engine import equipment
+from engine.bat import face_normal
+from engine.collision import ERR_SUBSTEPS, EVENT_ROW, E_BODY, E_POS, E_TIME, MAX_IMPACTS_PER_TICK, SCRATCH_SHAPE, ball_tick
+from engine.contact import impact
+from engine.geometry import Body
+from engine.integrators import ADAPT_SIZE, WORK_SHAPE
+
+HALF_LENGTH = equipment.TABLE_LENGTH / 2
+HALF_WIDTH = equipment.TABLE_WIDTH / 2
+
+
+@njit(cache=True)
+def predict_flight(y0, h, n_max, max_events, x_stop, method, gravity, drag_k, magnus_k, rtol, atol,
+                   table, floor_z, net, posts, params, materials, work, scratch, adapt, tick_events,
+                   traj, events, event_ticks):
+    """The ball's path without bats, tick by tick, exactly as the physics would step it.
+
+    Args:
+        y0: (9,) start state. h: tick, s. n_max: ticks at most. max_events: stop after this many.
+        x_stop: m, stop once the ball has crossed the plane x = x_stop (inf: never).
+        method ... materials: as engine.collision.ball_tick.
+        work, scratch, adapt, tick_events: scratch for ball_tick.
+        traj: (n_max + 1, 9) written: traj[k] is the state after k ticks.
+        events: (max_events, EVENT_ROW) written. event_ticks: (max_events,) tick of each event.
+
+    Returns:
+        (ticks simulated, events recorded, error code of ball_tick or 0).
+    """
+    for i in range(9):
+        traj[0, i] = y0[i]
+    support = 0
+    n_events = 0
+    for k in range(n_max):
+        for i in range(9):
+            traj[k + 1, i] = traj[k, i]
+        n, support = ball_tick(traj[k + 1], h, support, method, gravity, drag_k, magnus_k, rtol, atol,
+                               table, floor_z, net, posts, None, params, materials, work, scratch, adapt,
+                               tick_events)
+        if n < 0:
+            return k + 1, n_events, n
+        for e in range(n):
+            if n_events < max_events:
+                for i in range(EVENT_ROW):
+                    events[n_events, i] = tick_events[e, i]
+                event_ticks[n_events] = k
+                n_events += 1
+        if n_events >= max_events or support != 0:
+            return k + 1, n_events, 0
+        if (traj[0, 0] - x_stop) * (traj[k + 1, 0] - x_stop) <= 0.0:
+            return k + 1, n_events, 0
+    return n_max, n_events, 0
+
+
+SEG_T0, SEG_T1, SEG_P0, SEG_V0, SEG_P1, SEG_V1 = 0, 1, 2, 5, 8, 11
+SEG_WIDTH = 14
+
+
+@njit(cache=True)
+def bat_control(now, segments, n_segments, hold_pos, normal_ref, pos, vel, quat, ang_vel, mass, inertia,
+                kp, kd, k_angle, d_angle, max_force, max_torque, max_speed, out):
+    """Force and torque on a bat tracking a planned path, by PD control with feed-forward.
+
+    Args:
+        now: s. segments: (n, SEG_WIDTH) cubic Hermite pieces (t0, t1, p0, v0, p1, v1), in time
+            order; with none left (n_segments = 0 or now past the last) the bat holds hold_pos.
+        normal_ref: (3,) unit face normal to turn to. pos, vel, quat, ang_vel: the bat's state.
+        mass: kg. inertia: kg m^2 about a diameter (the face turns about one).
+        kp, kd: (rad/s)^2 and rad/s gains of the position loop; k_angle, d_angle: of the face.
+        max_force: N, max_torque: N m, max_speed: m/s: the arm's limits.
+        out: (6,) written: force N, torque N m.
+    """
+    p_ref = np.empty(3)
+    v_ref = np.zeros(3)
+    a_ref = np.zeros(3)
+    k = 0
+    while k < n_segments and now > segments[k, SEG_T1]:
+        k += 1
+    if k < n_segments:
+        seg = segments[k]
+        T = seg[SEG_T1] - seg[SEG_T0]
+        s = min(max((now - seg[SEG_T0]) / T, 0.0), 1.0)
+        h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
+        d00, d10, d01, d11 = 6 * s**2 - 6 * s, 3 * s**2 - 4 * s + 1, -6 * s**2 + 6 * s, 3 * s**2 - 2 * s
+        a00, a10, a01, a11 = 12 * s - 6, 6 * s - 4, -12 * s + 6, 6 * s - 2
+        inside = 0.0 < s < 1.0
+        for i in range(3):
+            p0, p1 = seg[SEG_P0 + i], seg[SEG_P1 + i]
+            m0, m1 = seg[SEG_V0 + i] * T, seg[SEG_V1 + i] * T
+            p_ref[i] = h00 * p0 + h10 * m0 + h01 * p1 + h11 * m1
+            v_ref[i] = (d00 * p0 + d10 * m0 + d01 * p1 + d11 * m1) / T
+            a_ref[i] = (a00 * p0 + a10 * m0 + a01 * p1 + a11 * m1) / (T * T) if inside else 0.0
+    else:
+        for i in range(3):
+            p_ref[i] = hold_pos[i]
+    speed = math.sqrt(vel[0] ** 2 + vel[1] ** 2 + vel[2] ** 2)
+    norm = 0.0
+    for i in range(3):
+        if speed > max_speed:  # the arm cannot go faster: brake
+            out[i] = -mass * kd * vel[i]
+        else:
+            out[i] = mass * (a_ref[i] + kp * (p_ref[i] - pos[i]) + kd * (v_ref[i] - vel[i]))
+        norm += out[i] * out[i]
+    norm = math.sqrt(norm)
+    if norm > max_force:
+        for i in range(3):
+            out[i] *= max_force / norm
+    # Face: rotate the current normal onto normal_ref about their common perpendicular.
+    n = np.empty(3)
+    face_normal(quat, n)
+    ax = n[1] * normal_ref[2] - n[2] * normal_ref[1]
+    ay = n[2] * normal_ref[0] - n[0] * normal_ref[2]
+    az = n[0] * normal_ref[1] - n[1] * normal_ref[0]
+    sin_a = math.sqrt(ax * ax + ay * ay + az * az)
+    cos_a = n[0] * normal_ref[0] + n[1] * normal_ref[1] + n[2] * normal_ref[2]
+    scale = math.atan2(sin_a, cos_a) / sin_a if sin_a > 1e-12 else 0.0
+    rot = (ax * scale, ay * scale, az * scale)
+    norm = 0.0
+    for i in range(3):
+        out[3 + i] = inertia * (k_angle * rot[i] - d_angle * ang_vel[i])
+        norm += out[3 + i] ** 2
+    norm = math.sqrt(norm)
+    if norm > max_torque:
+        for i in range(3):
+            out[3 + i] *= max_torque / norm
+
+
+@dataclass(frozen=True)
+class Skill:
+    """How well a bat plays. Noise is one standard deviation."""
+
+    reaction_s: float  # delay after the opponent's strike before the AI starts its stroke
+    aim_noise_m: float  # error of the landing point it aims at
+    face_noise_rad: float  # error of the bat face angle at impact
+    max_force_n: float  # arm force limit on the bat
+    max_torque_nm: float
+    max_speed: float  # m/s, fastest bat speed
+    pace: float  # m/s, preferred horizontal speed of its strokes
+
+
+# Elite strokes reach 20-30 m/s ball speed with ~15 m/s bat speed; reaction times of elite players
+# to a struck ball are ~0.1-0.2 s. The lower levels are scaled to lose more points to errors.
+SKILLS = {
+    "pro": Skill(reaction_s=0.10, aim_noise_m=0.04, face_noise_rad=0.004, max_force_n=120.0,
+                 max_torque_nm=4.0, max_speed=18.0, pace=9.0),
+    "club": Skill(reaction_s=0.16, aim_noise_m=0.10, face_noise_rad=0.015, max_force_n=80.0,
+                  max_torque_nm=3.0, max_speed=14.0, pace=7.0),
+    "novice": Skill(reaction_s=0.25, aim_noise_m=0.20, face_noise_rad=0.035, max_force_n=50.0,
+                    max_torque_nm=2.0, max_speed=10.0, pace=5.0),
+}
+
+
+@dataclass
+class Segment:
+    """Cubic Hermite path of the bat centre from (p0, v0) at t0 to (p1, v1) at t1."""
+
+    t0: float
+    t1: float
+    p0: np.ndarray
+    v0: np.ndarray
+    p1: np.ndarray
+    v1: np.ndarray
+
+
+@dataclass
+class Plan:
+    segments: list[Segment]
+    normal: np.ndarray  # face normal to hold, unit
+    t_hit: float
+    target: tuple[float, float]
+
+    def as_array(self) -> np.ndarray:
+        """(n, SEG_WIDTH) rows for bat_control."""
+        rows = np.zeros((len(self.segments), SEG_WIDTH))
+        for row, seg in zip(rows, self.segments):
+            row[SEG_T0], row[SEG_T1] = seg.t0, seg.t1
+            row[SEG_P0:SEG_P0 + 3], row[SEG_V0:SEG_V0 + 3] = seg.p0, seg.v0
+            row[SEG_P1:SEG_P1 + 3], row[SEG_V1:SEG_V1 + 3] = seg.p1, seg.v1
+        return rows
+
+
+class BatAI:
+    """Controller of one bat.
+
+    Args:
+        model: engine.world.Model of the match scene (geometry, integrator, effects).
+        player: 0 (A) or 1 (B); its bat is model bat `player`.
+        skill: a Skill. seed: for its random numbers.
+    """
+
+    SWING_S = 0.14  # duration of the forward swing
+    SHOOTING_DT = 0.004  # s, step of the free flights the aim is solved on
+    RECOVER_S = 0.35
+    KP = 30.0**2  # (rad/s)^2: position loop natural frequency 30 rad/s, critically damped
+    KD = 2 * 30.0
+    K_ANGLE = 40.0**2
+    D_ANGLE = 2 * 40.0
+
+    def __init__(self, model, player: int, skill: Skill, seed: int):
+        self.model = model
+        self.player = player
+        self.skill = skill
+        self.rng = np.random.default_rng(seed)
+        self.mass = float(model.bat_mass[player])
+        self.inertia = model.bat_inertia[player].copy()
+        self.radius = float(model.ball_params[0])
+        self.bat_half_thickness = equipment.BAT_HALF_THICKNESS
+        n_max = int(round(2.5 / model.dt))
+        self._traj = np.zeros((n_max + 1, 9))
+        self._events = np.zeros((8, EVENT_ROW))
+        self._event_ticks = np.zeros(8, np.int64)
+        self._work = np.zeros(WORK_SHAPE)
+        self._scratch = np.zeros(SCRATCH_SHAPE)
+        self._adapt = np.zeros(ADAPT_SIZE)
+        self._tick_events = np.zeros((MAX_IMPACTS_PER_TICK, EVENT_ROW))
+        self.plan: Plan | None = None
+        self._no_segments = np.zeros((0, SEG_WIDTH))
+        self._segments = self._no_segments
+        self._ready = {sign: self._make_ready(sign) for sign in (-1, 1)}
+        self.turn_key = None
+        self.turn_seen_at = 0.0
+        self.planned_key = None
+        self.stats = {"plans": 0, "no_solution": 0, "let_go": 0, "too_late": 0}
+
+    # --- prediction ---------------------------------------------------------------------
+    def predict(self, y0: np.ndarray, seconds: float, max_events: int = 8, dt: float | None = None,
+                x_stop: float = math.inf, bodies: bool = True):
+        """(times, states, events) of the ball's path from y0, without bats.
+
+        bodies=False flies the ball through everything (smooth in the launch state, for shooting).
+        """
+        m = self.model
+        h = m.dt if dt is None else dt
+        n_max = min(int(round(seconds / h)), self._traj.shape[0] - 1)
+        self._adapt[:] = 0.0
+        table, floor_z, net, posts = (m.table, m.floor_z, m.net, m.posts) if bodies else (None, None, None, None)
+        n, n_ev, err = predict_flight(
+            np.ascontiguousarray(y0, dtype=np.float64), h, n_max, max_events, x_stop, m.method, m.gravity,
+            m.drag_k, m.magnus_k, m.scene.rtol, m.scene.atol, table, floor_z, net, posts, m.ball_params,
+            m.materials, self._work, self._scratch, self._adapt, self._tick_events, self._traj, self._events,
+            self._event_ticks)
+        if err == ERR_SUBSTEPS:
+            raise RuntimeError("prediction failed: the integrator's substep limit was hit")
+        times = np.arange(n + 1) * h
+        events = [(int(self._event_ticks[i]), int(self._events[i, E_BODY]), self._events[i, E_POS:E_POS + 3].copy(),
+                   float(self._events[i, E_TIME])) for i in range(n_ev)]
+        return times, self._traj[: n + 1], events
+
+    def _net_clearance(self, traj: np.ndarray, end_sign: int) -> float:
+        """Height of the ball's bottom above the net's top where it crosses x = 0 (m, -inf if it never does)."""
+        x = traj[:, 0]
+        crossing = np.flatnonzero(np.sign(x[:-1]) != np.sign(x[1:]))
+        if len(crossing) == 0:
+            return -math.inf
+        k = crossing[0]
+        f = x[k] / (x[k] - x[k + 1])
+        z = traj[k, 2] + f * (traj[k + 1, 2] - traj[k, 2])
+        return z - self.radius - equipment.NET_HEIGHT
+
+    def solve_shot(self, p: np.ndarray, spin: np.ndarray, target: tuple[float, float], pace: float,
+                   end_sign: int, first_on_own_court: bool = False):
+        """Outgoing velocity from p whose flight reaches `target` (x, y) at table height, or None.
+
+        Shooting with Newton iteration on (v_y, v_z), the horizontal pace fixed. The residual is
+        taken where the ball, flying through everything, crosses the plane x = target x: that is
+        smooth in the launch velocity, unlike the first contact (net, table or floor), so Newton
+        converges in a few steps from the drag-free ballistic guess. The caller checks the real
+        path (net clearance, where it bounces) afterwards.
+        """
+        g = self.model.gravity or 0.0
+        direction = 1.0 if target[0] > p[0] else -1.0
+        flight = abs(target[0] - p[0]) / pace
+        v = np.array([direction * pace, (target[1] - p[1]) / flight, (self.radius - p[2]) / flight + 0.5 * g * flight])
+        for _ in range(12):
+            residual = self._crossing_residual(p, v, spin, target)
+            if residual is None:
+                return None
+            if np.hypot(*residual) < 1e-3:
+                return v, self._path(p, v, spin)
+            jac = np.zeros((2, 2))
+            for j, axis in enumerate((1, 2)):
+                dv = v.copy()
+                dv[axis] += 1e-4
+                shifted = self._crossing_residual(p, dv, spin, target)
+                if shifted is None:
+                    return None
+                jac[:, j] = (shifted - residual) / 1e-4
+            try:
+                step = np.linalg.solve(jac, -residual)
+            except np.linalg.LinAlgError:
+                return None
+            v[1] += float(np.clip(step[0], -3.0, 3.0))
+            v[2] += float(np.clip(step[1], -3.0, 3.0))
+        return None
+
+    def _crossing_residual(self, p, v, spin, target):
+        """(y - y_target, z - r) where the free flight crosses x = target x; None if it never does."""
+        y0 = np.concatenate([p, v, spin])
+        # 4 ms steps: the same integrator's error over one flight stays far below a millimetre,
+        # and the real path is checked at the engine's own tick afterwards.
+        _, traj, _ = self.predict(y0, 2.0, max_events=1, x_stop=target[0], bodies=False, dt=self.SHOOTING_DT)
+        x = traj[:, 0]
+        if (x[0] - target[0]) * (x[-1] - target[0]) > 0:
+            return None
+        f = (target[0] - x[-2]) / (x[-1] - x[-2])
+        at = traj[-2] + f * (traj[-1] - traj[-2])
+        return np.array([at[1] - target[1], at[2] - self.radius])
+
+    def _path(self, p, v, spin):
+        """The real path of a struck ball (with the table, net and floor), up to two contacts."""
+        y0 = np.concatenate([p, v, spin])
+        _, traj, events = self.predict(y0, 2.0, max_events=2)
+        return traj.copy(), events
+
+    def solve_stroke(self, v_in: np.ndarray, spin_in: np.ndarray, v_out: np.ndarray):
+        """Bat face normal and velocity whose impact turns (v_in, spin_in) into v_out.
+
+        Frictionless, the impulse is along the normal, so the normal is the direction of
+        v_out - v_in and the bat speed along it follows from the restitution; friction then bends
+        the result, which a fixed-point iteration on the requested change removes.
+        """
+        mat = self.model.materials[Body.BAT_A + self.player]
+        e, mu = float(mat[0]), float(mat[1])
+        r, m, inertia = self.model.ball_params[0], self.model.ball_params[1], self.model.ball_params[2]
+        want = v_out - v_in
+        got_v, got_w = np.zeros(3), np.zeros(3)
+        normal = want / np.linalg.norm(want)
+        bat_vel = np.zeros(3)
+        for _ in range(30):
+            delta = np.linalg.norm(want)
+            normal = want / delta
+            speed_n = float(v_in @ normal) + delta / (1.0 + e)
+            bat_vel = speed_n * normal
+            impact(v_in, spin_in, normal, bat_vel, r, m, inertia, e, mu, got_v, got_w)
+            error = v_out - got_v
+            if np.linalg.norm(error) < 1e-4:
+                break
+            want = want + error
+        return normal, bat_vel, got_w.copy()
+
+    # --- planning -----------------------------------------------------------------------
+    def plan_stroke(self, now: float, ball_y: np.ndarray, bat_pos: np.ndarray, current_vel: np.ndarray,
+                    end_sign: int, serve: bool) -> Plan | None:
+        """Plan the next stroke from the ball's state now; None means let the ball go."""
+        self.stats["plans"] += 1
+        times, traj, events = self.predict(ball_y, 2.0, max_events=3)
+        hit = self._hit_index(times, traj, events, end_sign, serve)
+        if hit is None:
+            self.stats["let_go"] += 1
+            return None
+        t_hit = now + times[hit]
+        p, v_in, spin_in = traj[hit, 0:3].copy(), traj[hit, 3:6].copy(), traj[hit, 6:9].copy()
+        if serve:
+            target = (end_sign * self.rng.uniform(0.6, 1.0), self.rng.uniform(-0.4, 0.4))
+        else:
+            target = (-end_sign * self.rng.uniform(0.55, 1.05), self.rng.uniform(-0.5, 0.5))
+        noisy = (target[0] + self.rng.normal(0, self.skill.aim_noise_m), target[1] + self.rng.normal(0, self.skill.aim_noise_m))
+        solution = None
+        paces = [self.skill.pace, 0.8 * self.skill.pace, 0.6 * self.skill.pace, 0.45 * self.skill.pace]
+        if serve:
+            paces = [5.0, 6.0, 4.5, 7.0]
+        spin_out = np.zeros(3)
+        for pace in paces:
+            for _ in range(2):  # the stroke's spin changes the flight: solve again with it
+                shot = self.solve_shot(p, spin_out, noisy, pace, end_sign, first_on_own_court=serve)
+                if shot is None:
+                    break
+                v_out = shot[0]
+                normal, bat_vel, spin_out = self.solve_stroke(v_in, spin_in, v_out)
+            if shot is None:
+                continue
+            if self._lands_well(p, v_out, spin_out, end_sign, serve):
+                solution = (normal, bat_vel)
+                break
+        if solution is None:
+            self.stats["no_solution"] += 1
+            return None
+        normal, bat_vel = solution
+        normal = self._jitter(normal, self.skill.face_noise_rad)
+        speed = np.linalg.norm(bat_vel)
+        if speed > self.skill.max_speed:
+            bat_vel = bat_vel * (self.skill.max_speed / speed)
+        centre = p - (self.radius + self.bat_half_thickness) * normal
+        swing = min(self.SWING_S, max(t_hit - now - 0.02, 0.04))
+        back = centre - bat_vel * swing / 2  # constant-acceleration swing from rest
+        segments = []
+        if t_hit - swing > now + 1e-3:  # get to the backswing point, at rest, in time
+            segments.append(Segment(now, t_hit - swing, bat_pos.copy(), current_vel.copy(), back, np.zeros(3)))
+        segments.append(Segment(t_hit - swing, t_hit, back, np.zeros(3), centre, bat_vel))
+        segments.append(Segment(t_hit, t_hit + 0.08, centre, bat_vel, centre + bat_vel * 0.04, np.zeros(3)))
+        return Plan(segments, normal, t_hit, target)
+
+    def _lands_well(self, p, v_out, spin_out, end_sign, serve) -> bool:
+        """The real path clears the net and bounces where it must (own court first for a service)."""
+        traj, events = self._path(p, v_out, spin_out)
+        if not events or events[0][1] != Body.TABLE:
+            return False
+        margin = 0.05
+        def on_court(pos, sign):
+            return (np.sign(pos[0]) == sign and abs(pos[0]) < HALF_LENGTH - margin
+                    and abs(pos[1]) < HALF_WIDTH - margin)
+        if not serve:
+            return on_court(events[0][2], -end_sign) and self._net_clearance(traj, end_sign) > 0.02
+        if len(events) < 2 or events[1][1] != Body.TABLE:
+            return False
+        return (on_court(events[0][2], end_sign) and on_court(events[1][2], -end_sign)
+                and self._net_clearance(traj, end_sign) > 0.01)
+
+    def _hit_index(self, times, traj, events, end_sign, serve) -> int | None:
+        """Tick of the prediction at which to strike, None if the ball is not ours to play."""
+        z, x = traj[:, 2], traj[:, 0]
+        if serve:
+            # The tossed ball: strike it on the way down, 10-30 cm above the surface.
+            falling = np.flatnonzero((traj[:-1, 5] < 0) & (z[:-1] < 0.28) & (z[:-1] > 0.08))
+            return int(falling[0]) if len(falling) else None
+        bounce = next((e for e in events if e[1] == Body.TABLE and np.sign(e[2][0]) == end_sign), None)
+        if bounce is None:
+            return None
+        if any(e[1] in (Body.FLOOR,) and e[0] < bounce[0] for e in events):
+            return None
+        start = bounce[0] + 2
+        if start >= len(traj) - 1:
+            return None
+        after = slice(start, len(traj) - 1)
+        vz = traj[after, 5]
+        apex = np.flatnonzero(vz <= 0)
+        deep = np.flatnonzero(np.abs(x[after]) > HALF_LENGTH + 0.5)
+        floor = np.flatnonzero(z[after] < 0.03)
+        candidates = [a[0] for a in (apex, deep, floor) if len(a)]
+        if not candidates:
+            return None
+        k = start + int(min(candidates))
+        if abs(x[k]) < HALF_LENGTH - 0.6:  # not that far over the table: wait for it
+            later = np.flatnonzero((np.abs(x[start:]) >= HALF_LENGTH - 0.6) & (z[start:] > 0.05))
+            if len(later):
+                k = start + int(later[0])
+        return k
+
+    def _jitter(self, normal: np.ndarray, sd: float) -> np.ndarray:
+        tilted = normal + self.rng.normal(0.0, sd, 3)
+        return tilted / np.linalg.norm(tilted)
+
+    # --- control ------------------------------------------------------------------------
+    def ready_pose(self, end_sign: int) -> tuple[np.ndarray, np.ndarray]:
+        """Where the bat waits: 40 cm behind its end line, face towards the net."""
+        return self._ready[end_sign]
+
+    @staticmethod
+    def _make_ready(end_sign: int) -> tuple[np.ndarray, np.ndarray]:
+        return np.array([end_sign * (HALF_LENGTH + 0.4), 0.0, 0.15]), np.array([-end_sign, 0.0, 0.0])
+
+    def control(self, now: float, ball_y: np.ndarray, bat: np.ndarray, rally_key, my_turn: bool,
+                serve: bool, end_sign: int, out: np.ndarray | None = None) -> np.ndarray:
+        """Force and torque (6,) for the bat now.
+
+        Args:
+            now: s. ball_y: (9,) ball state. bat: one BAT_DTYPE record of this AI's bat.
+            rally_key: changes whenever the ball changes hands (new rally or a strike).
+            my_turn: the ball is this bat's to strike next. serve: that strike is a service.
+            end_sign: -1 if this bat's court is at x < 0.
+            out: (6,) written and returned if given.
+        """
+        if rally_key != self.turn_key:
+            self.turn_key = rally_key
+            self.turn_seen_at = now
+        if my_turn and self.planned_key != rally_key and now >= self.turn_seen_at + (0.0 if serve else self.skill.reaction_s):
+            self.planned_key = rally_key
+            self.plan = self.plan_stroke(now, ball_y, np.array(bat["pos"]), np.array(bat["vel"]), end_sign, serve)
+            self._segments = self.plan.as_array() if self.plan is not None else self._no_segments
+        if self.plan is not None and now > self.plan.segments[-1].t1:
+            self.plan = None
+            self._segments = self._no_segments
+        ready_pos, ready_normal = self.ready_pose(end_sign)
+        normal = self.plan.normal if self.plan is not None else ready_normal
+        out = np.zeros(6) if out is None else out
+        bat_control(now, self._segments, len(self._segments), ready_pos, normal, bat["pos"], bat["vel"], bat["quat"],
+                    bat["ang_vel"], self.mass, float(self.inertia[0]), self.KP, self.KD, self.K_ANGLE, self.D_ANGLE,
+                    self.skill.max_force_n, self.skill.max_torque_nm, self.skill.max_speed, out)
+        return out

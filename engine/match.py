@@ -1,0 +1,162 @@
+"""A whole match in one process: physics, referee, the AIs and the server's toss.
+
+This is the reference the multi-process match must reproduce bit for bit in lockstep. Each
+tick: at the AI's control ticks every AI computes its bat's force and torque from the state
+after the previous tick; the physics steps with those inputs; the referee judges the tick's
+contact events; a decided rally is followed by the next server's toss.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from engine import equipment
+from engine.ai import SKILLS, BatAI
+from engine.geometry import Body
+from engine.rules import Phase, PointRecord, Referee
+from engine.scene import Scene
+from engine.world import build_model, initial_state, new_events, step
+
+OUT_OF_PLAY_DISTANCE = 4.0  # m from the table's centre: the ball is gone
+
+
+@dataclass
+class MatchResult:
+    scene: Scene
+    seed: int
+    referee: Referee
+    ticks: int
+    sim_seconds: float
+    wall_seconds: float
+    compile_seconds: float
+    ai_seconds: float
+    ai_stats: dict = field(default_factory=dict)
+
+    def summary(self) -> dict:
+        ref = self.referee
+        decided = [p for p in ref.points if p.winner >= 0]
+        reasons: dict[str, int] = {}
+        for p in decided:
+            reasons[p.reason.value] = reasons.get(p.reason.value, 0) + 1
+        shots = [p.shots for p in decided]
+        served = [p for p in decided if p.shots >= 1]
+        returned = [p for p in served if p.shots >= 2]
+        return {
+            "scene": self.scene.name,
+            "seed": self.seed,
+            "winner": None if ref.winner is None else "ab"[ref.winner],
+            "games": [list(g) for g in ref.games],
+            "score_in_game": list(ref.score),
+            "points": len(decided),
+            "lets": sum(1 for p in ref.points if p.winner < 0),
+            "points_won": [sum(1 for p in decided if p.winner == k) for k in (0, 1)],
+            "mean_rally_shots": float(np.mean(shots)) if shots else 0.0,
+            "max_rally_shots": int(max(shots)) if shots else 0,
+            "serves_returned": len(returned) / len(served) if served else 0.0,
+            "point_reasons": dict(sorted(reasons.items(), key=lambda kv: -kv[1])),
+            "ticks": self.ticks,
+            "sim_seconds": self.sim_seconds,
+            "wall_seconds": self.wall_seconds,
+            "compile_seconds": self.compile_seconds,
+            "ai_seconds": self.ai_seconds,
+            "realtime_factor": self.sim_seconds / self.wall_seconds if self.wall_seconds > 0 else None,
+            "ai": self.ai_stats,
+        }
+
+
+class Match:
+    """A match between the scene's two bats, judged by the referee, AIs where the scene has them."""
+
+    def __init__(self, scene: Scene, seed: int = 0):
+        if scene.match is None:
+            raise ValueError(f"{scene.source}: scene {scene.name!r} has no referee; a match needs the effect 'referee'")
+        self.scene = scene
+        self.seed = seed
+        self.model = build_model(scene)
+        self.state = initial_state(scene)
+        self.events = new_events()
+        spec = scene.match
+        self.referee = Referee(best_of=spec.best_of, first_server="ab".index(spec.first_server))
+        self.ais = {i: BatAI(self.model, i, SKILLS[bat.skill], seed=seed * 1000 + i)
+                    for i, bat in enumerate(scene.bats) if bat.skill is not None}
+        self.inputs = np.zeros((len(scene.bats), 6))
+        self.ai_every = max(1, int(round(1.0 / (spec.ai_hz * scene.dt))))
+        self.rally = 0
+        self.rally_started = 0.0
+        self.ai_seconds = 0.0
+        self.toss()
+
+    def toss(self) -> None:
+        """The server holds the ball 10 cm behind its end line and tosses it straight up."""
+        ref = self.referee
+        sign = ref.end_sign(ref.server)
+        ball = self.state.ball[0]
+        ball["pos"] = (sign * (equipment.TABLE_LENGTH / 2 + 0.1), 0.0, 0.12)
+        ball["vel"] = (0.0, 0.0, self.scene.match.toss_speed)
+        ball["spin"] = (0.0, 0.0, 0.0)
+        self.state.world[0]["ball_support"] = 0
+        self.rally_started = float(self.state.world[0]["time"])
+
+    def rally_key(self) -> tuple[int, int]:
+        """Changes whenever the ball changes hands."""
+        return (self.rally, self.referee.shots)
+
+    def _control(self, now: float) -> None:
+        ref = self.referee
+        ball_y = self.state.ball_y
+        for player, ai in self.ais.items():
+            if ref.phase == Phase.OVER:
+                my_turn = False
+            elif ref.phase == Phase.WAITING_SERVE:
+                my_turn = ref.server == player
+            else:
+                my_turn = ref.striker != player
+            serve = ref.phase == Phase.WAITING_SERVE
+            ai.control(now, ball_y, self.state.bats[player], self.rally_key(), my_turn, serve,
+                       ref.end_sign(player), self.inputs[player])
+
+    def tick(self) -> PointRecord | None:
+        """One tick of the match; returns a point record when a rally was decided."""
+        world = self.state.world[0]
+        tick = int(world["tick"])
+        if self.ais and tick % self.ai_every == 0:
+            started = time.perf_counter()
+            self._control(float(world["time"]))
+            self.ai_seconds += time.perf_counter() - started
+        n = step(self.model, self.state, self.inputs, self.events)
+        point = None
+        for k in range(n):
+            point = self.referee.on_contact(int(self.events[k]["body"]), self.events[k]["pos"]) or point
+        if point is None and self.referee.phase != Phase.OVER:
+            pos = self.state.ball["pos"][0]
+            now = float(world["time"])
+            gone = np.hypot(pos[0], pos[1]) > OUT_OF_PLAY_DISTANCE or pos[2] < -equipment.TABLE_HEIGHT
+            resting = int(world["ball_support"]) != 0
+            if gone or resting or now - self.rally_started > self.scene.match.max_rally_s:
+                point = self.referee.ball_out_of_play(float(pos[0]), float(pos[1]))
+        if point is not None and not self.referee.match_over:
+            self.referee.next_rally()
+            self.rally += 1
+            self.toss()
+        return point
+
+    def play(self, max_ticks: int | None = None, on_point=None) -> MatchResult:
+        """Play until the match is won (or max_ticks); `on_point(match, record)` after each rally."""
+        limit = self.scene.ticks if max_ticks is None else max_ticks
+        compile_start = time.perf_counter()
+        step(self.model, self.state, None, self.events, dt=0.0)  # compile or load the kernels
+        for ai in self.ais.values():
+            ai.predict(self.state.ball_y.copy(), 0.01)
+        compile_seconds = time.perf_counter() - compile_start
+        start = time.perf_counter()
+        ticks = 0
+        while ticks < limit and not self.referee.match_over:
+            point = self.tick()
+            ticks += 1
+            if point is not None and on_point is not None:
+                on_point(self, point)
+        wall = time.perf_counter() - start
+        return MatchResult(self.scene, self.seed, self.referee, ticks, ticks * self.scene.dt, wall, compile_seconds,
+                           self.ai_seconds, {"ab"[k]: dict(ai.stats) for k, ai in self.ais.items()})
