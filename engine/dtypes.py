@@ -53,7 +53,41 @@ CONTACT_DTYPE = np.dtype(
     ]
 )
 
+# The referee's whole state and the match's rally bookkeeping (engine/rules.py, engine/match.py),
+# so a restarted physics worker resumes a match mid-rally and the AI knows whose ball it is.
+RALLY_DTYPE = np.dtype(
+    [
+        ("rally", "<i8"),  # rallies started since the match began
+        ("rally_started", "<f8"),  # s, simulated time of this rally's toss
+        ("shots", "<i8"),  # strikes in this rally
+        ("phase", "<i4"),  # engine.rules.Phase
+        ("server", "<i4"),  # player 0 (A) or 1 (B)
+        ("striker", "<i4"),
+        ("touched_net", "<i4"),
+        ("score", "<i4", (2,)),  # points in the current game
+        ("games_won", "<i4", (2,)),
+        ("game_first_server", "<i4"),
+        ("deciding_ends_swapped", "<i4"),
+        ("winner", "<i4"),  # -1 while the match is on
+        ("points_total", "<i8"),  # entries in the point log (lets included)
+    ]
+)
+
+# One decided rally, as the point log and the replay file keep it.
+POINT_DTYPE = np.dtype(
+    [
+        ("tick", "<i8"),
+        ("game", "<i4"),
+        ("server", "<i4"),
+        ("winner", "<i4"),  # -1 for a let
+        ("reason", "<i4"),  # index into engine.rules.REASONS
+        ("shots", "<i4"),
+        ("score_after", "<i4", (2,)),
+    ]
+)
+
 
 def physics_snapshot_dtype(n_bats: int) -> np.dtype:
-    """Everything the physics worker owns at one tick, as one record: ball, bats, world."""
-    return np.dtype([("ball", BALL_DTYPE), ("bats", BAT_DTYPE, (n_bats,)), ("world", WORLD_DTYPE)])
+    """Everything the physics worker owns at one tick, as one record: ball, bats, world, rally."""
+    return np.dtype([("ball", BALL_DTYPE), ("bats", BAT_DTYPE, (n_bats,)), ("world", WORLD_DTYPE),
+                     ("rally", RALLY_DTYPE)])

@@ -14,8 +14,8 @@ import numpy as np
 
 from engine import equipment
 from engine.ai import SKILLS, BatAI
-from engine.geometry import Body
-from engine.rules import Phase, PointRecord, Referee
+from engine.dtypes import POINT_DTYPE
+from engine.rules import REASONS, Phase, PointRecord, Referee
 from engine.scene import Scene
 from engine.world import build_model, initial_state, new_events, step
 
@@ -66,10 +66,48 @@ class MatchResult:
         }
 
 
-class Match:
-    """A match between the scene's two bats, judged by the referee, AIs where the scene has them."""
+def make_ais(scene: Scene, model, seed: int) -> dict[int, BatAI]:
+    """The AI of every bat that has a skill, each seeded from the match seed and its player."""
+    return {i: BatAI(model, i, SKILLS[bat.skill], seed=seed * 1000 + i)
+            for i, bat in enumerate(scene.bats) if bat.skill is not None}
 
-    def __init__(self, scene: Scene, seed: int = 0):
+
+def ai_inputs(ais: dict[int, BatAI], now: float, ball_y: np.ndarray, bats: np.ndarray, rally_key,
+              phase: int, server: int, striker: int, inputs: np.ndarray) -> None:
+    """Every AI's force and torque from one state: the one function both the in-process match
+    and the AI worker call, so lockstep runs compute bit for bit the same inputs."""
+    for player, ai in ais.items():
+        if phase == Phase.OVER:
+            my_turn = False
+        elif phase == Phase.WAITING_SERVE:
+            my_turn = server == player
+        else:
+            my_turn = striker != player
+        ai.control(now, ball_y, bats[player], rally_key, my_turn, phase == Phase.WAITING_SERVE,
+                   -1 if player == 0 else 1, inputs[player])
+
+
+def point_row(point: PointRecord, tick: int) -> np.ndarray:
+    """A point as a POINT_DTYPE record."""
+    row = np.zeros((), POINT_DTYPE)
+    row["tick"], row["game"], row["server"], row["winner"] = tick, point.game, point.server, point.winner
+    row["reason"], row["shots"], row["score_after"] = REASONS.index(point.reason), point.shots, point.score_after
+    return row
+
+
+def point_from_row(row) -> PointRecord:
+    return PointRecord(int(row["game"]), int(row["server"]), int(row["winner"]), REASONS[int(row["reason"])],
+                       int(row["shots"]), tuple(int(v) for v in row["score_after"]))
+
+
+class Match:
+    """A match between the scene's two bats, judged by the referee, AIs where the scene has them.
+
+    ai_driver(match, now) fills match.inputs at the AI's control ticks; by default the AIs run
+    here, in-process (the reference). The physics worker passes one that asks the AI worker.
+    """
+
+    def __init__(self, scene: Scene, seed: int = 0, ai_driver=None):
         if scene.match is None:
             raise ValueError(f"{scene.source}: scene {scene.name!r} has no referee; a match needs the effect 'referee'")
         self.scene = scene
@@ -79,12 +117,14 @@ class Match:
         self.events = new_events()
         spec = scene.match
         self.referee = Referee(best_of=spec.best_of, first_server="ab".index(spec.first_server))
-        self.ais = {i: BatAI(self.model, i, SKILLS[bat.skill], seed=seed * 1000 + i)
-                    for i, bat in enumerate(scene.bats) if bat.skill is not None}
+        self.has_ai = any(bat.skill is not None for bat in scene.bats)
+        self.ais = make_ais(scene, self.model, seed) if ai_driver is None else {}
+        self.ai_driver = ai_driver or Match._local_ai
         self.inputs = np.zeros((len(scene.bats), 6))
         self.ai_every = max(1, int(round(1.0 / (spec.ai_hz * scene.dt))))
         self.rally = 0
         self.rally_started = 0.0
+        self.n_events = 0
         self.ai_seconds = 0.0
         self.toss()
 
@@ -103,29 +143,45 @@ class Match:
         """Changes whenever the ball changes hands."""
         return (self.rally, self.referee.shots)
 
-    def _control(self, now: float) -> None:
+    def _local_ai(self, now: float) -> None:
         ref = self.referee
-        ball_y = self.state.ball_y
-        for player, ai in self.ais.items():
-            if ref.phase == Phase.OVER:
-                my_turn = False
-            elif ref.phase == Phase.WAITING_SERVE:
-                my_turn = ref.server == player
-            else:
-                my_turn = ref.striker != player
-            serve = ref.phase == Phase.WAITING_SERVE
-            ai.control(now, ball_y, self.state.bats[player], self.rally_key(), my_turn, serve,
-                       ref.end_sign(player), self.inputs[player])
+        ai_inputs(self.ais, now, self.state.ball_y, self.state.bats, self.rally_key(), int(ref.phase), ref.server,
+                  ref.striker, self.inputs)
+
+    def save(self, record) -> None:
+        """The whole match state into one physics_snapshot_dtype record."""
+        record["ball"] = self.state.ball[0]
+        record["bats"] = self.state.bats
+        record["world"] = self.state.world[0]
+        rally = record["rally"]
+        self.referee.save(rally)
+        rally["rally"] = self.rally
+        rally["rally_started"] = self.rally_started
+
+    def restore(self, record, points: list[PointRecord]) -> None:
+        """Resume from a saved record and the point log (a restarted physics worker)."""
+        self.state.ball[0] = record["ball"]
+        self.state.bats[:] = record["bats"]
+        self.state.world[0] = record["world"]
+        # The AI's forces are held between its control ticks: they are state, kept in the bats.
+        self.inputs[:, 0:3] = self.state.bats["force"]
+        self.inputs[:, 3:6] = self.state.bats["torque"]
+        rally = record["rally"]
+        spec = self.scene.match
+        self.referee = Referee.restore(rally, spec.best_of, "ab".index(spec.first_server), points)
+        self.rally = int(rally["rally"])
+        self.rally_started = float(rally["rally_started"])
 
     def tick(self) -> PointRecord | None:
         """One tick of the match; returns a point record when a rally was decided."""
         world = self.state.world[0]
         tick = int(world["tick"])
-        if self.ais and tick % self.ai_every == 0:
+        if self.has_ai and tick % self.ai_every == 0:
             started = time.perf_counter()
-            self._control(float(world["time"]))
+            self.ai_driver(self, float(world["time"]))
             self.ai_seconds += time.perf_counter() - started
         n = step(self.model, self.state, self.inputs, self.events)
+        self.n_events = n
         point = None
         for k in range(n):
             point = self.referee.on_contact(int(self.events[k]["body"]), self.events[k]["pos"]) or point
@@ -142,8 +198,12 @@ class Match:
             self.toss()
         return point
 
-    def play(self, max_ticks: int | None = None, on_point=None) -> MatchResult:
-        """Play until the match is won (or max_ticks); `on_point(match, record)` after each rally."""
+    def play(self, max_ticks: int | None = None, on_point=None, on_tick=None, events_out: list | None = None) -> MatchResult:
+        """Play until the match is won (or max_ticks).
+
+        on_point(match, record) after each rally; on_tick(match, tick) after each tick; contact
+        events are appended to events_out if given.
+        """
         limit = self.scene.ticks if max_ticks is None else max_ticks
         compile_start = time.perf_counter()
         step(self.model, self.state, None, self.events, dt=0.0)  # compile or load the kernels
@@ -155,6 +215,10 @@ class Match:
         while ticks < limit and not self.referee.match_over:
             point = self.tick()
             ticks += 1
+            if events_out is not None and self.n_events:
+                events_out.extend(self.events[: self.n_events].copy())
+            if on_tick is not None:
+                on_tick(self, int(self.state.world[0]["tick"]))
             if point is not None and on_point is not None:
                 on_point(self, point)
         wall = time.perf_counter() - start

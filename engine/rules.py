@@ -48,6 +48,9 @@ class Reason(enum.Enum):
     LET = "let"  # 2.9.1.1: a service touching the net assembly, otherwise good: replayed
 
 
+REASONS = tuple(Reason)  # stable codes for logs and replay files: REASONS.index(reason)
+
+
 @dataclass
 class PointRecord:
     game: int
@@ -231,6 +234,44 @@ class Referee:
         self._game_first_server = 1 - self._game_first_server
         if self.games_won[winner] > self.best_of // 2:
             self.winner = winner
+
+    # --- persistence (restarts, replays) ------------------------------------------------------
+    def save(self, record) -> None:
+        """Write the referee's state into a RALLY_DTYPE record (the match fills rally and rally_started)."""
+        record["shots"] = self.shots
+        record["phase"] = int(self.phase)
+        record["server"] = self.server
+        record["striker"] = self.striker
+        record["touched_net"] = int(self.touched_net)
+        record["score"] = self.score
+        record["games_won"] = self.games_won
+        record["game_first_server"] = self._game_first_server
+        record["deciding_ends_swapped"] = int(self._deciding_ends_swapped)
+        record["winner"] = -1 if self.winner is None else self.winner
+        record["points_total"] = len(self.points)
+
+    @classmethod
+    def restore(cls, record, best_of: int, first_server: int, points: list[PointRecord]) -> "Referee":
+        """Rebuild a referee from a saved record and the point log (finished games from the log)."""
+        ref = cls(best_of=best_of, first_server=first_server)
+        ref.points = list(points)
+        games = {}
+        for p in points:
+            if p.winner >= 0:
+                games[p.game] = p.score_after
+        finished = int(record["games_won"][0] + record["games_won"][1])
+        ref.games = [tuple(int(v) for v in games[g]) for g in range(finished)]
+        ref.score = [int(v) for v in record["score"]]
+        ref.games_won = [int(v) for v in record["games_won"]]
+        ref._game_first_server = int(record["game_first_server"])
+        ref._deciding_ends_swapped = bool(record["deciding_ends_swapped"])
+        ref.winner = None if int(record["winner"]) < 0 else int(record["winner"])
+        ref.phase = Phase(int(record["phase"]))
+        ref.striker = int(record["striker"])
+        ref.shots = int(record["shots"])
+        ref.touched_net = bool(record["touched_net"])
+        ref.last_point = points[-1] if points else None
+        return ref
 
     def next_rally(self) -> None:
         """Start the next rally after a decided one (the caller re-tosses the ball)."""

@@ -17,9 +17,15 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_match(args: argparse.Namespace) -> int:
-    from processes.run import match_command
+    from processes.match import match_command
 
     return match_command(args)
+
+
+def _cmd_replay(args: argparse.Namespace) -> int:
+    from processes.match import replay_command
+
+    return replay_command(args)
 
 
 def _cmd_profile_net(args: argparse.Namespace) -> int:
@@ -58,11 +64,22 @@ def build_parser() -> argparse.ArgumentParser:
     _add_common(run)
     run.set_defaults(func=_cmd_run)
 
-    match = sub.add_parser("match", help="run a match on the default scene", formatter_class=formatter)
-    match.add_argument("--scene", default="rally", help="scene TOML file or bundled scene name")
-    match.add_argument("--ticks", type=int, default=None, help="ticks to run (default: the scene's duration)")
+    match = sub.add_parser("match", help="play a match (AI against AI by default) in worker processes",
+                           formatter_class=formatter)
+    match.add_argument("--scene", default="match", help="scene TOML file or bundled scene name")
+    match.add_argument("--best-of", type=int, default=None, help="games in the match (default: the scene's)")
+    match.add_argument("--mode", choices=["lockstep", "realtime"], default="lockstep",
+                       help="lockstep (deterministic, flat out) or realtime (wall-clock paced)")
+    match.add_argument("--ticks", type=int, default=None, help="stop after this many ticks even if undecided")
+    match.add_argument("--replay", default=None, help="write a replay file here")
+    match.add_argument("--in-process", action="store_true", help="run the in-process reference instead of workers")
     _add_common(match)
     match.set_defaults(func=_cmd_match)
+
+    replay = sub.add_parser("replay", help="summarise a replay file", formatter_class=formatter)
+    replay.add_argument("file", help="a file written by `pingpong match --replay`")
+    replay.add_argument("--json", action="store_true", help="print one JSON object")
+    replay.set_defaults(func=_cmd_replay)
 
     profile = sub.add_parser("profile-net", help="profile the net kernel", formatter_class=formatter)
     profile.add_argument("--knots", default="184x16", help="knot grid, COLUMNSxROWS")

@@ -9,6 +9,8 @@ wake nobody), always in the same order, which keeps lockstep deterministic.
 """
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 
@@ -16,7 +18,7 @@ class HandoffTimeout(TimeoutError):
     """A worker did not take or finish its turn within the bound."""
 
 
-TICK_SLOT_DTYPE = np.dtype([("tick", "<i8"), ("command", "<i8")])
+TICK_SLOT_DTYPE = np.dtype([("tick", "<i8"), ("command", "<i8"), ("done_tick", "<i8")])
 RUN, STOP = 1, 2
 
 
@@ -39,18 +41,27 @@ class Baton:
         return {"name": self.name, "_go": self._go, "_done": self._done, "_words": None}
 
     def attach(self, slot: np.ndarray) -> "Baton":
-        """Point at the shared (1,) TICK_SLOT_DTYPE slot: words 0 tick, 1 command."""
+        """Point at the shared (1,) TICK_SLOT_DTYPE slot: words 0 tick, 1 command, 2 tick done."""
         self._words = memoryview(slot.view("<i8")).cast("B").cast("q")
         return self
 
     # hub side
     def call(self, tick: int, timeout: float) -> None:
-        """Give the worker its turn for `tick` and wait until it is done."""
-        self._words[0] = tick
-        self._words[1] = RUN
+        """Give the worker its turn for `tick` and wait until it is done with that tick.
+
+        A 'done' for another tick (a late answer to a call that had timed out) is skipped.
+        """
+        words = self._words
+        words[0] = tick
+        words[1] = RUN
         self._go.release()
-        if not self._done.acquire(timeout=timeout):
-            raise HandoffTimeout(f"{self.name}: worker did not finish tick {tick} within {timeout} s")
+        deadline = time.monotonic() + timeout
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0 or not self._done.acquire(timeout=left):
+                raise HandoffTimeout(f"{self.name}: worker did not finish tick {tick} within {timeout} s")
+            if words[2] == tick:
+                return
 
     def stop(self) -> None:
         self._words[1] = STOP
@@ -66,4 +77,5 @@ class Baton:
         return self._words[0]
 
     def done(self) -> None:
+        self._words[2] = self._words[0]
         self._done.release()

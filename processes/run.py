@@ -108,12 +108,3 @@ def run_scene_command(args: argparse.Namespace) -> int:
     if "reference" in summary and not summary["reference"]["bitwise_equal"]:
         return 1
     return 0
-
-
-def match_command(args: argparse.Namespace) -> int:
-    """Run the match scene. Without the referee and bat AI (issue 6) this is the scene's rally."""
-    args.dt = None
-    args.integrator = None
-    args.processes = False
-    args.check_reference = False
-    return run_scene_command(args)

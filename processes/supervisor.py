@@ -11,18 +11,25 @@ from __future__ import annotations
 
 import multiprocessing
 import multiprocessing.connection
+import shutil
 import signal
+import tempfile
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
-from engine.dtypes import CONTACT_DTYPE, physics_snapshot_dtype
+from engine.dtypes import CONTACT_DTYPE, POINT_DTYPE, physics_snapshot_dtype
 from engine.scene import Scene
+from processes.handoff import TICK_SLOT_DTYPE, Baton
+from processes.locks import HOLDER_DTYPE, LockTable
+from processes.mailbox import MAILBOX_HEADER
 from processes.shm import Arena
 from processes.worker import STATUS_DTYPE, WorkerState, worker_entry
 
 EVENT_LOG_CAPACITY = 1 << 16
+POINT_LOG_CAPACITY = 1 << 12  # a best-of-9 match has at most a few hundred rallies
 READY_TIMEOUT_S = 120.0  # a cold numba cache compiles the kernels before the first tick
 STOP_TIMEOUT_S = 5.0
 STALL_TIMEOUT_S = 10.0  # a RUNNING worker silent this long is killed and restarted
@@ -47,11 +54,16 @@ class ProcessRunResult:
     events_total: int
     workers: dict = field(default_factory=dict)  # per worker: pid, restarts, late ticks, busy time
     trace: np.ndarray | None = None
+    points: np.ndarray | None = None  # POINT_DTYPE log of a match
+    frames: np.ndarray | None = None  # decimated snapshots for a replay
 
 
 def workers_for(scene: Scene) -> list[str]:
     """The workers a scene needs, no more: a scene without a cloth net or AI starts none of those."""
-    return ["physics"]
+    kinds = ["physics"]
+    if any(bat.skill is not None for bat in scene.bats):
+        kinds.append("ai")
+    return kinds
 
 
 class _Worker:
@@ -70,12 +82,14 @@ class Supervisor:
     Args:
         scene: the scene. ticks: ticks to run. mode: "lockstep" or "realtime".
         trace: keep every tick's physics snapshot (for --check-reference).
-        crash_at_tick: fault injection for tests and `pingpong stress`: the physics worker's first
-            incarnation SIGKILLs itself right after publishing this tick.
+        crash_at_tick: fault injection for tests and `pingpong stress`: the first incarnation of
+            `crash_worker` SIGKILLs itself at this tick.
+        seed: the match's seed. frame_every: keep a snapshot every this many ticks (replays), 0: none.
     """
 
     def __init__(self, scene: Scene, ticks: int, mode: str = "lockstep", trace: bool = False,
-                 crash_at_tick: int | None = None):
+                 crash_at_tick: int | None = None, seed: int = 0, frame_every: int = 0,
+                 crash_worker: str = "physics"):
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode must be lockstep or realtime, got {mode!r}")
         self.scene = scene
@@ -83,10 +97,16 @@ class Supervisor:
         self.mode = mode
         self.trace = trace
         self.crash_at_tick = crash_at_tick
+        self.crash_worker = crash_worker
+        self.seed = seed
+        self.frame_every = frame_every
+        self._tmp = None
+        self._baton = None
         self.kinds = workers_for(scene)
         # forkserver: workers fork from a clean server that never ran threads or kernels.
         self._ctx = multiprocessing.get_context("forkserver")
-        self._ctx.set_forkserver_preload(["engine.world", "processes.worker", "processes.worker_physics"])
+        self._ctx.set_forkserver_preload(["engine.world", "engine.match", "processes.worker",
+                                          "processes.worker_physics", "processes.worker_ai"])
         self.arena: Arena | None = None
         self._workers: list[_Worker] = []
 
@@ -95,14 +115,32 @@ class Supervisor:
         arena.snapshot_block("physics", physics_snapshot_dtype(len(self.scene.bats)), 1)
         arena.shared_array("events", CONTACT_DTYPE, EVENT_LOG_CAPACITY)
         arena.shared_array("status", STATUS_DTYPE, len(self.kinds))
+        snapshot = physics_snapshot_dtype(len(self.scene.bats))
         if self.trace:
-            arena.shared_array("trace", physics_snapshot_dtype(len(self.scene.bats)), self.ticks + 1)
+            arena.shared_array("trace", snapshot, self.ticks + 1)
+        if self.scene.match is not None:
+            arena.shared_array("points", POINT_DTYPE, POINT_LOG_CAPACITY)
+            if self.frame_every:
+                arena.shared_array("frames", snapshot, self.ticks // self.frame_every + 1)
+        if "ai" in self.kinds:
+            from processes.worker_ai import INPUT_DTYPE, LOCK_NAMES
+
+            self._tmp = tempfile.mkdtemp(prefix=f"pingpong-{arena.run_id}-")
+            self._lock_path = str(Path(self._tmp) / "locks")
+            LockTable.create(self._lock_path, LOCK_NAMES, arena.shared_array("lock_holders", HOLDER_DTYPE,
+                                                                              len(LOCK_NAMES))).close()
+            arena.shared_array("inputs_header", MAILBOX_HEADER, 1)
+            arena.shared_array("inputs", INPUT_DTYPE, 2 * len(self.scene.bats))
+            self._baton = Baton("ai", self._ctx, arena.shared_array("baton", TICK_SLOT_DTYPE, 1).array)
         return arena
 
     def _start(self, worker: _Worker) -> None:
         parent, child = self._ctx.Pipe()
-        options = {"ticks": self.ticks, "mode": self.mode, "trace": self.trace,
-                   "crash_at_tick": self.crash_at_tick if worker.restarts == 0 else None}
+        crash = self.crash_at_tick if worker.restarts == 0 and worker.kind == self.crash_worker else None
+        options = {"ticks": self.ticks, "mode": self.mode, "trace": self.trace, "crash_at_tick": crash,
+                   "seed": self.seed, "frame_every": self.frame_every}
+        if self._baton is not None:
+            options.update(baton=self._baton, lock_path=self._lock_path)
         worker.process = self._ctx.Process(
             target=worker_entry, name=f"pingpong-{worker.kind}",
             args=(worker.kind, child, self.arena.layout(), worker.index, self.scene, options))
@@ -156,13 +194,17 @@ class Supervisor:
         process.close()
         worker.process = None
 
-    def _watch(self, start_wall: float) -> None:
+    def _watch(self, start_wall: float, progress=None) -> None:
         """Until every worker is done: handle reports, deaths and stalls (all waits bounded)."""
         status = self.arena["status"].array
+        latest = np.zeros(1, self.arena["physics"].dtype)
         while not all(w.finished for w in self._workers):
             live = [w for w in self._workers if not w.finished]
             handles = [w.conn for w in live] + [w.process.sentinel for w in live]
-            ready = multiprocessing.connection.wait(handles, timeout=0.5)
+            ready = multiprocessing.connection.wait(handles, timeout=0.25)
+            if progress is not None:
+                self.arena["physics"].snapshot(latest)
+                progress(latest[0])
             for worker in live:
                 if worker.conn in ready:
                     try:
@@ -183,7 +225,8 @@ class Supervisor:
                     if row["state"] == WorkerState.RUNNING and silent > STALL_TIMEOUT_S:
                         self._restart(worker, f"stalled ({silent:.1f} s without a heartbeat)", start_wall)
 
-    def run(self) -> ProcessRunResult:
+    def run(self, progress=None) -> ProcessRunResult:
+        """Run to the end; `progress(snapshot_record)` is called about four times a second."""
         previous_term = signal.signal(signal.SIGTERM, _exit_on_sigterm)
         started = time.monotonic()
         self.arena = self._build_arena()
@@ -197,13 +240,17 @@ class Supervisor:
             startup = start_wall - started
             for worker in self._workers:
                 worker.conn.send(("go", start_wall))
-            self._watch(start_wall)
+            self._watch(start_wall, progress)
             wall = time.monotonic() - start_wall
             return self._collect(wall, startup)
         finally:
+            if self._baton is not None:
+                self._baton.stop()  # an AI worker waiting for its turn exits at once
             for worker in self._workers:
                 self._reap(worker)
             self.arena.close()
+            if self._tmp is not None:
+                shutil.rmtree(self._tmp, ignore_errors=True)
             signal.signal(signal.SIGTERM, previous_term)
 
     def _collect(self, wall: float, startup: float) -> ProcessRunResult:
@@ -224,9 +271,15 @@ class Supervisor:
             for w in self._workers
         }
         trace = self.arena["trace"].array.copy() if self.trace else None
-        return ProcessRunResult(scene=self.scene, mode=self.mode, ticks=int(final[0]["world"]["tick"]),
-                                wall_seconds=wall, startup_seconds=startup, final=final[0], events=events,
-                                events_total=total, workers=workers, trace=trace)
+        ticks = int(final[0]["world"]["tick"])
+        points = frames = None
+        if self.scene.match is not None:
+            points = self.arena["points"].array[: int(final[0]["rally"]["points_total"])].copy()
+            if self.frame_every:
+                frames = self.arena["frames"].array[: ticks // self.frame_every + 1].copy()
+        return ProcessRunResult(scene=self.scene, mode=self.mode, ticks=ticks, wall_seconds=wall,
+                                startup_seconds=startup, final=final[0], events=events, events_total=total,
+                                workers=workers, trace=trace, points=points, frames=frames)
 
 
 def _exit_on_sigterm(signum, frame):

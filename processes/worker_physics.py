@@ -1,4 +1,7 @@
-"""The physics worker: ball, bats, contacts. It owns the physics snapshot and the event log."""
+"""The physics worker: ball, bats, contacts and, in a match, the referee and the server's toss.
+
+It owns the physics snapshot (published every tick), the event log and the point log.
+"""
 from __future__ import annotations
 
 import os
@@ -8,12 +11,16 @@ import time
 import numpy as np
 
 from engine.dtypes import physics_snapshot_dtype
+from engine.match import Match, point_from_row, point_row
 from engine.run import snapshot_into
 from engine.world import build_model, initial_state, new_events, step
+from processes.handoff import HandoffTimeout
 from processes.shm import Arena
 from processes.worker import Control, WorkerState
 
 STARTUP_TIMEOUT_S = 30.0
+AI_HANDOFF_S = 1.0  # one call's bound; retried while a killed AI worker is restarted
+AI_GIVE_UP_S = 60.0
 
 
 def restore(state, record: np.ndarray) -> None:
@@ -23,12 +30,31 @@ def restore(state, record: np.ndarray) -> None:
     state.world[0] = record["world"]
 
 
+class _Pacer:
+    """Realtime mode: start each tick at its wall-clock time; count the late ones, drop none."""
+
+    def __init__(self, start_wall: float, dt: float, row):
+        self.start, self.dt, self.row = start_wall, dt, row
+
+    def wait(self, tick: int) -> None:
+        due = self.start + tick * self.dt
+        now = time.monotonic()
+        if now < due:
+            time.sleep(due - now)  # pacing to the wall clock, not synchronisation
+        elif now - due > self.dt:
+            self.row["late_ticks"] += 1
+            self.row["max_late_s"] = max(float(self.row["max_late_s"]), now - due)
+
+
 def physics_worker(control: Control, arena: Arena, scene, options: dict) -> None:
     """Run the physics ticks: lockstep (as fast as possible) or realtime (paced by the wall clock).
 
     options: ticks (total to reach), mode ("lockstep" | "realtime"), trace (bool),
-        crash_at_tick (int or None: SIGKILL this process right after publishing that tick).
+        crash_at_tick (int or None: SIGKILL this process right after publishing that tick),
+        and for a match: seed, baton, lock_path (when the scene has AI bats).
     """
+    if scene.match is not None:
+        return _match_worker(control, arena, scene, options)
     model = build_model(scene)
     state = initial_state(scene)
     events = new_events()
@@ -51,24 +77,14 @@ def physics_worker(control: Control, arena: Arena, scene, options: dict) -> None
     control.send("ready", tick)
     start_wall = control.wait_for("go", STARTUP_TIMEOUT_S)
     control.set_state(WorkerState.RUNNING)
-    realtime = options["mode"] == "realtime"
+    pacer = _Pacer(start_wall, model.dt, control.row) if options["mode"] == "realtime" else None
     n_ticks = options["ticks"]
-    dt = model.dt
-    row = control.row
-    busy = 0.0
     crash_at_tick = options.get("crash_at_tick")
     capacity = log.shape[0]
+    busy = 0.0
     while tick < n_ticks:
-        if realtime:
-            due = start_wall + tick * dt
-            now = time.monotonic()
-            if now < due:
-                time.sleep(due - now)  # pacing to the wall clock, not synchronisation
-            else:
-                late = now - due
-                if late > dt:
-                    row["late_ticks"] += 1
-                    row["max_late_s"] = max(float(row["max_late_s"]), late)
+        if pacer is not None:
+            pacer.wait(tick)
         t0 = time.perf_counter()
         n = step(model, state, None, events)
         for k in range(n):
@@ -83,5 +99,99 @@ def physics_worker(control: Control, arena: Arena, scene, options: dict) -> None
             os.kill(os.getpid(), signal.SIGKILL)
         busy += time.perf_counter() - t0
         control.beat(tick)
-    row["busy_s"] = float(row["busy_s"]) + busy
+    control.row["busy_s"] = float(control.row["busy_s"]) + busy
+    control.send("done", {"tick": tick, "busy_s": busy})
+
+
+def _remote_ai(control: Control, arena: Arena, options: dict, n_bats: int):
+    """An ai_driver for engine.match.Match that asks the AI worker (lockstep hand-off)."""
+    from processes.locks import LockTable
+    from processes.mailbox import Mailbox
+    from processes.worker_ai import INPUT_DTYPE, LOCK_NAMES
+
+    baton = options["baton"].attach(arena["baton"].array)
+    locks = LockTable(options["lock_path"], LOCK_NAMES, arena["lock_holders"])
+    box = Mailbox("bat_inputs", arena["inputs_header"], arena["inputs"], locks)
+    inbox = np.zeros(box.capacity, INPUT_DTYPE)
+
+    def driver(match: Match, now: float) -> None:
+        tick = int(match.state.world[0]["tick"])
+        deadline = time.monotonic() + AI_GIVE_UP_S
+        while True:
+            try:
+                baton.call(tick, AI_HANDOFF_S)
+                break
+            except HandoffTimeout:
+                control.beat(tick)  # the AI worker may be restarting: stay alive and ask again
+                if time.monotonic() > deadline:
+                    raise
+        n = box.drain(inbox)
+        for k in range(n):
+            bat = int(inbox[k]["bat"])
+            match.inputs[bat, 0:3] = inbox[k]["force"]
+            match.inputs[bat, 3:6] = inbox[k]["torque"]
+
+    return driver
+
+
+def _match_worker(control: Control, arena: Arena, scene, options: dict) -> None:
+    n_bats = len(scene.bats)
+    has_ai = any(bat.skill is not None for bat in scene.bats)
+    driver = _remote_ai(control, arena, options, n_bats) if has_ai else None
+    match = Match(scene, options["seed"], ai_driver=driver)
+    snapshots = arena["physics"]
+    log = arena["events"].array
+    points_log = arena["points"].array
+    frames = arena["frames"].array if "frames" in arena.blocks else None
+    frame_every = options.get("frame_every", 0)
+    trace = arena["trace"].array if options.get("trace") else None
+    record = np.zeros(1, physics_snapshot_dtype(n_bats))
+    step(match.model, match.state, None, match.events, dt=0.0)  # compile or load the kernels
+    if snapshots.version >= 2:
+        latest = snapshots.latest()[0].copy()
+        total = int(latest["rally"]["points_total"])
+        match.restore(latest, [point_from_row(points_log[i]) for i in range(total)])
+    else:
+        match.save(record[0])
+        if trace is not None:
+            trace[0] = record[0]
+        snapshots.publish(record, 0)
+    world = match.state.world[0]
+    tick = int(world["tick"])
+    total_events = int(world["events_total"])
+    points_logged = len(match.referee.points)
+    control.set_state(WorkerState.READY)
+    control.send("ready", tick)
+    start_wall = control.wait_for("go", STARTUP_TIMEOUT_S)
+    control.set_state(WorkerState.RUNNING)
+    pacer = _Pacer(start_wall, match.model.dt, control.row) if options["mode"] == "realtime" else None
+    n_ticks = options["ticks"]
+    crash_at_tick = options.get("crash_at_tick")
+    capacity = log.shape[0]
+    busy = 0.0
+    while tick < n_ticks and not match.referee.match_over:
+        if pacer is not None:
+            pacer.wait(tick)
+        t0 = time.perf_counter()
+        match.tick()
+        for k in range(match.n_events):
+            log[(total_events + k) % capacity] = match.events[k]
+        total_events += match.n_events
+        tick += 1
+        while points_logged < len(match.referee.points):
+            points_log[points_logged] = point_row(match.referee.points[points_logged], tick)
+            points_logged += 1
+        match.save(record[0])
+        if trace is not None:
+            trace[tick] = record[0]
+        if frames is not None and tick % frame_every == 0 and tick // frame_every < len(frames):
+            frames[tick // frame_every] = record[0]
+        snapshots.publish(record, tick)
+        if tick == crash_at_tick:
+            os.kill(os.getpid(), signal.SIGKILL)
+        busy += time.perf_counter() - t0
+        control.beat(tick)
+    if driver is not None:
+        options["baton"].stop()
+    control.row["busy_s"] = float(control.row["busy_s"]) + busy
     control.send("done", {"tick": tick, "busy_s": busy})

@@ -41,7 +41,25 @@ def test_run_human_summary_and_overrides():
 def test_match_two_ticks():
     done = pingpong("match", "--ticks", "2", "--json")
     assert done.returncode == 0, done.stderr
-    assert json.loads(done.stdout)["scene"] == "rally"
+    summary = json.loads(done.stdout)
+    assert summary["scene"] == "match" and summary["ticks"] == 2 and summary["winner"] is None
+    assert set(summary["workers"]) == {"physics", "ai"}
+
+
+def test_replay_two_ticks(tmp_path):
+    path = tmp_path / "short.replay"
+    done = pingpong("match", "--ticks", "40", "--replay", str(path), "--json")
+    assert done.returncode == 0, done.stderr
+    done = pingpong("replay", str(path), "--json")
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["frames"] == 5  # ticks 0, 10, 20, 30, 40
+
+
+def test_replay_of_a_file_that_is_not_one(tmp_path):
+    bad = tmp_path / "bad.replay"
+    bad.write_bytes(b"not a zip")
+    done = pingpong("replay", str(bad))
+    assert done.returncode == 2 and "not a pingpong replay" in done.stderr
 
 
 def test_bad_scene_exits_2_with_the_reason(tmp_path):

@@ -1,0 +1,199 @@
+"""`pingpong match` and `pingpong replay`: a whole match in worker processes, scoreboard, replay file."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from engine import replay as replay_file
+from engine.geometry import Body
+from engine.match import Match, MatchResult, point_from_row, point_row
+from engine.rules import REASONS, Referee
+from engine.scene import SceneError, load_scene
+from engine.world import SimulationError
+
+FRAME_EVERY = 10  # replay frames every 10 ms at 1 kHz
+
+
+def _scene(args):
+    scene = load_scene(args.scene)
+    if scene.match is None:
+        raise SceneError(f"{scene.source}: scene {scene.name!r} has no referee; `pingpong match` needs a scene "
+                         "with the effect 'referee' (the bundled one is `match`)")
+    if args.best_of is not None:
+        if args.best_of < 1 or args.best_of % 2 == 0:
+            raise SceneError(f"--best-of must be an odd number >= 1, got {args.best_of}")
+        scene = replace(scene, match=replace(scene.match, best_of=args.best_of))
+    return scene
+
+
+class _Scoreboard:
+    """Live score in the terminal (rich), refreshed from the physics snapshot."""
+
+    def __init__(self, scene):
+        from rich.live import Live
+
+        self.scene = scene
+        self.live = Live(self._render(None), refresh_per_second=4, transient=False)
+
+    def _render(self, record):
+        from rich.table import Table
+
+        table = Table(title=f"pingpong: {self.scene.name}, best of {self.scene.match.best_of}")
+        for column in ("player", "games", "points", "serving"):
+            table.add_column(column)
+        if record is None:
+            table.caption = "starting workers..."
+            return table
+        rally = record["rally"]
+        for player in (0, 1):
+            table.add_row("AB"[player], str(int(rally["games_won"][player])), str(int(rally["score"][player])),
+                          "*" if int(rally["server"]) == player else "")
+        table.caption = f"t = {float(record['world']['time']):.1f} s, rally {int(rally['rally']) + 1}"
+        return table
+
+    def update(self, record):
+        self.live.update(self._render(record))
+
+
+def _summary_from_processes(scene, seed, result) -> dict:
+    points = [point_from_row(row) for row in result.points]
+    spec = scene.match
+    referee = Referee.restore(result.final["rally"], spec.best_of, "ab".index(spec.first_server), points)
+    summary = MatchResult(scene, seed, referee, result.ticks, result.ticks * scene.dt, result.wall_seconds,
+                          result.startup_seconds, 0.0).summary()
+    summary.update(mode=result.mode, processes=True, startup_seconds=result.startup_seconds,
+                   workers=result.workers, compile_seconds=None, ai_seconds=None)
+    return summary
+
+
+def _print_summary(summary: dict) -> None:
+    winner = summary["winner"]
+    games = ", ".join(f"{a}-{b}" for a, b in summary["games"])
+    print(f"{'winner: ' + winner.upper() if winner else 'no winner yet'}   games: {games or '-'}"
+          f"   current game: {summary['score_in_game'][0]}-{summary['score_in_game'][1]}")
+    print(f"points {summary['points']} (lets {summary['lets']}), won A {summary['points_won'][0]} / "
+          f"B {summary['points_won'][1]}; rally shots mean {summary['mean_rally_shots']:.1f}, "
+          f"max {summary['max_rally_shots']}; serves returned {summary['serves_returned']:.0%}")
+    reasons = ", ".join(f"{k} {v}" for k, v in summary["point_reasons"].items())
+    print(f"points ended by: {reasons or '-'}")
+    factor = summary["realtime_factor"]
+    print(f"simulated {summary['sim_seconds']:.1f} s in {summary['wall_seconds']:.2f} s wall"
+          f" ({factor:.1f}x realtime)" if factor else "")
+    for kind, info in (summary.get("workers") or {}).items():
+        print(f"  worker {kind}: busy {info['busy_s']:.2f} s, restarts {info['restarts']}, late ticks {info['late_ticks']}")
+
+
+def match_command(args: argparse.Namespace) -> int:
+    try:
+        scene = _scene(args)
+        ticks = scene.ticks if args.ticks is None else args.ticks
+        if ticks < 0:
+            raise SceneError(f"--ticks must be >= 0, got {args.ticks}")
+        frame_every = FRAME_EVERY if args.replay else 0
+        if args.in_process:
+            match = Match(scene, seed=args.seed)
+            frames = []
+            from engine.dtypes import physics_snapshot_dtype
+
+            record = np.zeros(1, physics_snapshot_dtype(len(scene.bats)))
+            events = []
+
+            def keep(m, tick):
+                if frame_every and tick % frame_every == 0:
+                    m.save(record[0])
+                    frames.append(record[0].copy())
+
+            result = match.play(max_ticks=ticks, on_tick=keep, events_out=events)
+            summary = result.summary()
+            summary.update(mode="in-process", processes=False)
+            points = np.array([point_row(p, 0) for p in match.referee.points]) if match.referee.points else None
+            frame_array = np.array(frames) if frames else np.zeros(0, record.dtype)
+            event_array = np.array(events) if events else None
+        else:
+            from processes.supervisor import Supervisor
+
+            board = _Scoreboard(scene) if not args.json and sys.stdout.isatty() else None
+            supervisor = Supervisor(scene, ticks, args.mode, seed=args.seed, frame_every=frame_every)
+            if board is not None:
+                with board.live:
+                    result = supervisor.run(progress=board.update)
+            else:
+                result = supervisor.run()
+            summary = _summary_from_processes(scene, args.seed, result)
+            points, frame_array, event_array = result.points, result.frames, result.events
+    except (SceneError, SimulationError) as exc:
+        print(f"pingpong: {exc}", file=sys.stderr)
+        return 2
+    if args.replay:
+        from engine.dtypes import CONTACT_DTYPE, POINT_DTYPE
+
+        replay_file.write(args.replay, scene_name=scene.name, scene_text=_scene_text(scene), seed=args.seed,
+                          dt=scene.dt, frame_every=frame_every, frames=frame_array,
+                          events=event_array if event_array is not None else np.zeros(0, CONTACT_DTYPE),
+                          points=points if points is not None else np.zeros(0, POINT_DTYPE), summary=summary)
+        summary["replay"] = str(args.replay)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        _print_summary(summary)
+        if args.replay:
+            print(f"replay written to {args.replay}")
+    return 0
+
+
+def _scene_text(scene) -> str:
+    path = Path(scene.source)
+    return path.read_text() if path.exists() else ""
+
+
+def replay_command(args: argparse.Namespace) -> int:
+    try:
+        data = replay_file.read(args.file)
+    except replay_file.ReplayError as exc:
+        print(f"pingpong: {exc}", file=sys.stderr)
+        return 2
+    h = data.header
+    points = data.points
+    decided = points[points["winner"] >= 0] if len(points) else points
+    reasons: dict[str, int] = {}
+    for row in decided:
+        name = REASONS[int(row["reason"])].value
+        reasons[name] = reasons.get(name, 0) + 1
+    contacts: dict[str, int] = {}
+    for ev in data.events:
+        name = Body(int(ev["body"])).name.lower()
+        contacts[name] = contacts.get(name, 0) + 1
+    last = data.frames[-1] if len(data.frames) else None
+    summary = {
+        "file": str(args.file),
+        "version": h["version"],
+        "scene": h["scene"],
+        "seed": h["seed"],
+        "frames": int(len(data.frames)),
+        "frame_every_ticks": h["frame_every"],
+        "sim_seconds": float(last["world"]["time"]) if last is not None else 0.0,
+        "points": int(len(decided)),
+        "lets": int(len(points) - len(decided)),
+        "points_won": [int((decided["winner"] == k).sum()) for k in (0, 1)] if len(decided) else [0, 0],
+        "point_reasons": dict(sorted(reasons.items(), key=lambda kv: -kv[1])),
+        "mean_rally_shots": float(decided["shots"].mean()) if len(decided) else 0.0,
+        "contacts": contacts,
+        "winner": h["summary"].get("winner"),
+        "games": h["summary"].get("games"),
+    }
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(f"{summary['file']}: scene {summary['scene']}, seed {summary['seed']}, "
+              f"{summary['sim_seconds']:.1f} s in {summary['frames']} frames")
+        print(f"winner {summary['winner'] or '-'}, games {summary['games']}, points {summary['points']} "
+              f"(A {summary['points_won'][0]}, B {summary['points_won'][1]}), lets {summary['lets']}, "
+              f"mean rally {summary['mean_rally_shots']:.1f} shots")
+        print("points ended by: " + ", ".join(f"{k} {v}" for k, v in summary["point_reasons"].items()))
+        print("contacts: " + ", ".join(f"{k} {v}" for k, v in summary["contacts"].items()))
+    return 0
