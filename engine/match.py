@@ -17,7 +17,7 @@ from engine.ai import SKILLS, BatAI
 from engine.dtypes import POINT_DTYPE
 from engine.rules import REASONS, Phase, PointRecord, Referee
 from engine.scene import Scene
-from engine.world import build_model, initial_state, new_events, step
+from engine.world import build_model, copy_record, initial_state, new_events, step
 
 OUT_OF_PLAY_DISTANCE = 4.0  # m from the table's centre: the ball is gone
 
@@ -138,6 +138,7 @@ class Match:
         ball["spin"] = (0.0, 0.0, 0.0)
         self.state.world[0]["ball_support"] = 0
         self.rally_started = float(self.state.world[0]["time"])
+        self._sync_rally()
 
     def rally_key(self) -> tuple[int, int]:
         """Changes whenever the ball changes hands."""
@@ -148,15 +149,16 @@ class Match:
         ai_inputs(self.ais, now, self.state.ball_y, self.state.bats, self.rally_key(), int(ref.phase), ref.server,
                   ref.striker, self.inputs)
 
-    def save(self, record) -> None:
-        """The whole match state into one physics_snapshot_dtype record."""
-        record["ball"] = self.state.ball[0]
-        record["bats"] = self.state.bats
-        record["world"] = self.state.world[0]
-        rally = record["rally"]
+    def _sync_rally(self) -> None:
+        """Write the referee and rally bookkeeping into the state record (only when they change)."""
+        rally = self.state.record[0]["rally"]
         self.referee.save(rally)
         rally["rally"] = self.rally
         rally["rally_started"] = self.rally_started
+
+    def save(self, record: np.ndarray, index: int = 0) -> None:
+        """The whole match state into record[index] (a physics_snapshot_dtype array)."""
+        copy_record(self.state.record, record, index)
 
     def restore(self, record, points: list[PointRecord]) -> None:
         """Resume from a saved record and the point log (a restarted physics worker)."""
@@ -171,16 +173,19 @@ class Match:
         self.referee = Referee.restore(rally, spec.best_of, "ab".index(spec.first_server), points)
         self.rally = int(rally["rally"])
         self.rally_started = float(rally["rally_started"])
+        self._sync_rally()
 
     def tick(self) -> PointRecord | None:
         """One tick of the match; returns a point record when a rally was decided."""
         world = self.state.world[0]
         tick = int(world["tick"])
+        inputs = None  # between the AI's control ticks the bats keep their inputs (held in their records)
         if self.has_ai and tick % self.ai_every == 0:
             started = time.perf_counter()
             self.ai_driver(self, float(world["time"]))
             self.ai_seconds += time.perf_counter() - started
-        n = step(self.model, self.state, self.inputs, self.events)
+            inputs = self.inputs
+        n = step(self.model, self.state, inputs, self.events)
         self.n_events = n
         point = None
         for k in range(n):
@@ -196,6 +201,8 @@ class Match:
             self.referee.next_rally()
             self.rally += 1
             self.toss()
+        elif n or point is not None:
+            self._sync_rally()
         return point
 
     def play(self, max_ticks: int | None = None, on_point=None, on_tick=None, events_out: list | None = None) -> MatchResult:

@@ -9,7 +9,7 @@ import numpy as np
 from engine.dtypes import physics_snapshot_dtype
 from engine.geometry import Body
 from engine.scene import Scene
-from engine.world import Model, State, build_model, initial_state, new_events, step
+from engine.world import Model, State, build_model, copy_record, initial_state, new_events, step
 
 
 @dataclass
@@ -63,13 +63,6 @@ class RunResult:
         }
 
 
-def snapshot_into(state: State, record: np.ndarray) -> None:
-    """Copy the physics state into one physics_snapshot_dtype record."""
-    record["ball"] = state.ball[0]
-    record["bats"] = state.bats
-    record["world"] = state.world[0]
-
-
 def run(scene: Scene, ticks: int | None = None, model: Model | None = None, trace: bool = False) -> RunResult:
     """Run a scene in-process for `ticks` (default: its duration), tracking table-bounce apexes.
 
@@ -94,12 +87,12 @@ def run(scene: Scene, ticks: int | None = None, model: Model | None = None, trac
     compile_seconds = time.perf_counter() - compile_start
     states = np.zeros(n_ticks + 1, physics_snapshot_dtype(len(scene.bats))) if trace else None
     if trace:
-        snapshot_into(state, states[0])
+        copy_record(state.record, states, 0)
     start = time.perf_counter()
     for tick in range(n_ticks):
         n = step(model, state, None, events)
         if trace:
-            snapshot_into(state, states[tick + 1])
+            copy_record(state.record, states, tick + 1)
         if n:
             collected.append(events[:n].copy())
             # A bounce starts a flight whose apex counts only if the last impact was the table.

@@ -27,7 +27,7 @@ from engine.collision import (
     SCRATCH_SHAPE,
     ball_tick,
 )
-from engine.dtypes import BALL_DTYPE, BAT_DTYPE, CONTACT_DTYPE, WORLD_DTYPE
+from engine.dtypes import CONTACT_DTYPE, physics_snapshot_dtype
 from engine.forces import drag_factor, magnus_factor
 from engine.geometry import FLOOR_Z, NET_BOX, POST_BOXES, TABLE_BOX, Body
 from engine.integrators import METHODS, WORK_SHAPE
@@ -96,11 +96,16 @@ def build_model(scene: Scene) -> Model:
 
 @dataclass
 class State:
-    """Dynamic state: structured arrays (engine/dtypes.py) plus the tick's preallocated scratch."""
+    """Dynamic state: structured arrays (engine/dtypes.py) plus the tick's preallocated scratch.
 
-    ball: np.ndarray  # (1,) BALL_DTYPE
-    bats: np.ndarray  # (n_bats,) BAT_DTYPE
-    world: np.ndarray  # (1,) WORLD_DTYPE
+    ball, bats and world are views into one physics_snapshot_dtype record, `record`: the state
+    is the snapshot, so publishing or tracing it is a single copy of bytes.
+    """
+
+    record: np.ndarray  # (1,) physics_snapshot_dtype
+    ball: np.ndarray  # (1,) BALL_DTYPE view
+    bats: np.ndarray  # (n_bats,) BAT_DTYPE view
+    world: np.ndarray  # (1,) WORLD_DTYPE view
     # Scratch, allocated once: a tick allocates nothing.
     ball_y: np.ndarray
     bat_flat: np.ndarray
@@ -114,11 +119,12 @@ class State:
 
 def initial_state(scene: Scene) -> State:
     """State at tick 0 from the scene's initial conditions."""
-    ball = np.zeros(1, BALL_DTYPE)
+    record = np.zeros(1, physics_snapshot_dtype(len(scene.bats)))
+    ball = record["ball"]
     ball["pos"][0] = scene.ball.pos
     ball["vel"][0] = scene.ball.vel
     ball["spin"][0] = scene.ball.spin
-    bats = np.zeros(len(scene.bats), BAT_DTYPE)
+    bats = record["bats"][0]
     for i, spec in enumerate(scene.bats):
         for field in ("pos", "quat", "vel", "ang_vel", "force", "torque"):
             bats[field][i] = getattr(spec, field)
@@ -126,8 +132,9 @@ def initial_state(scene: Scene) -> State:
     for i, spec in enumerate(scene.bats):
         motion[i, BAT_RADIUS] = spec.radius
         motion[i, BAT_HALF_THICKNESS] = spec.half_thickness
-    world = np.zeros(1, WORLD_DTYPE)
+    world = record["world"]
     return State(
+        record=record,
         ball=ball,
         bats=bats,
         world=world,
@@ -140,6 +147,12 @@ def initial_state(scene: Scene) -> State:
         event_rows=np.zeros((MAX_IMPACTS_PER_TICK, EVENT_ROW)),
         bat_tmp=np.zeros((3, 3)),
     )
+
+
+def copy_record(src: np.ndarray, dst: np.ndarray, index: int = 0) -> None:
+    """dst[index] = src[0], byte for byte (numpy copies nested structured records field by field,
+    ~10x slower)."""
+    dst.view(np.uint8).reshape(len(dst), -1)[index] = src.view(np.uint8)
 
 
 def new_events() -> np.ndarray:

@@ -105,7 +105,7 @@ def match_command(args: argparse.Namespace) -> int:
 
             def keep(m, tick):
                 if frame_every and tick % frame_every == 0:
-                    m.save(record[0])
+                    m.save(record)
                     frames.append(record[0].copy())
 
             result = match.play(max_ticks=ticks, on_tick=keep, events_out=events)

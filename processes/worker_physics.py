@@ -12,8 +12,7 @@ import numpy as np
 
 from engine.dtypes import physics_snapshot_dtype
 from engine.match import Match, point_from_row, point_row
-from engine.run import snapshot_into
-from engine.world import build_model, initial_state, new_events, step
+from engine.world import build_model, copy_record, initial_state, new_events, step
 from processes.handoff import HandoffTimeout
 from processes.shm import Arena
 from processes.worker import Control, WorkerState
@@ -21,13 +20,6 @@ from processes.worker import Control, WorkerState
 STARTUP_TIMEOUT_S = 30.0
 AI_HANDOFF_S = 1.0  # one call's bound; retried while a killed AI worker is restarted
 AI_GIVE_UP_S = 60.0
-
-
-def restore(state, record: np.ndarray) -> None:
-    """Load a physics snapshot record into the engine state (restart after a crash)."""
-    state.ball[0] = record["ball"]
-    state.bats[:] = record["bats"]
-    state.world[0] = record["world"]
 
 
 class _Pacer:
@@ -61,15 +53,14 @@ def physics_worker(control: Control, arena: Arena, scene, options: dict) -> None
     snapshots = arena["physics"]
     log = arena["events"].array
     trace = arena["trace"].array if options.get("trace") else None
-    record = np.zeros(1, physics_snapshot_dtype(len(scene.bats)))
+    record = state.record  # the state lives in the snapshot record: publishing is one copy
     # Compile (or load from the cache) before reporting ready: a zero-length tick is an identity.
     step(model, state, None, events, dt=0.0)
     if snapshots.version >= 2:
-        restore(state, snapshots.latest()[0])  # restarted: resume from the last consistent snapshot
+        snapshots.snapshot(record)  # restarted: resume from the last consistent snapshot
     else:
-        snapshot_into(state, record[0])
         if trace is not None:
-            trace[0] = record[0]
+            copy_record(record, trace, 0)
         snapshots.publish(record, 0)
     tick = int(state.world[0]["tick"])
     total_events = int(state.world[0]["events_total"])
@@ -91,9 +82,8 @@ def physics_worker(control: Control, arena: Arena, scene, options: dict) -> None
             log[(total_events + k) % capacity] = events[k]
         total_events += n
         tick += 1
-        snapshot_into(state, record[0])
         if trace is not None:
-            trace[tick] = record[0]
+            copy_record(record, trace, tick)
         snapshots.publish(record, tick)
         if tick == crash_at_tick:
             os.kill(os.getpid(), signal.SIGKILL)
@@ -145,16 +135,16 @@ def _match_worker(control: Control, arena: Arena, scene, options: dict) -> None:
     frames = arena["frames"].array if "frames" in arena.blocks else None
     frame_every = options.get("frame_every", 0)
     trace = arena["trace"].array if options.get("trace") else None
-    record = np.zeros(1, physics_snapshot_dtype(n_bats))
+    record = match.state.record  # the state lives in the snapshot record: publishing is one copy
     step(match.model, match.state, None, match.events, dt=0.0)  # compile or load the kernels
     if snapshots.version >= 2:
-        latest = snapshots.latest()[0].copy()
-        total = int(latest["rally"]["points_total"])
-        match.restore(latest, [point_from_row(points_log[i]) for i in range(total)])
+        latest = np.zeros(1, physics_snapshot_dtype(n_bats))
+        snapshots.snapshot(latest)
+        total = int(latest[0]["rally"]["points_total"])
+        match.restore(latest[0], [point_from_row(points_log[i]) for i in range(total)])
     else:
-        match.save(record[0])
         if trace is not None:
-            trace[0] = record[0]
+            copy_record(record, trace, 0)
         snapshots.publish(record, 0)
     world = match.state.world[0]
     tick = int(world["tick"])
@@ -181,11 +171,10 @@ def _match_worker(control: Control, arena: Arena, scene, options: dict) -> None:
         while points_logged < len(match.referee.points):
             points_log[points_logged] = point_row(match.referee.points[points_logged], tick)
             points_logged += 1
-        match.save(record[0])
         if trace is not None:
-            trace[tick] = record[0]
+            copy_record(record, trace, tick)
         if frames is not None and tick % frame_every == 0 and tick // frame_every < len(frames):
-            frames[tick // frame_every] = record[0]
+            copy_record(record, frames, tick // frame_every)
         snapshots.publish(record, tick)
         if tick == crash_at_tick:
             os.kill(os.getpid(), signal.SIGKILL)

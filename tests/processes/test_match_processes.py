@@ -14,10 +14,10 @@ TICKS = 12_000
 def reference_trace(seed, ticks):
     match = Match(SCENE, seed=seed)
     trace = np.zeros(ticks + 1, physics_snapshot_dtype(len(SCENE.bats)))
-    match.save(trace[0])
+    match.save(trace, 0)
     for k in range(ticks):
         match.tick()
-        match.save(trace[k + 1])
+        match.save(trace, k + 1)
     return match, trace
 
 
