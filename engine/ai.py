@@ -23,6 +23,7 @@ from numba import njit
 
 from engine import equipment
 from engine.bat import face_normal
+from engine.dtypes import BAT_DTYPE
 from engine.collision import ERR_SUBSTEPS, EVENT_ROW, E_BODY, E_POS, E_TIME, MAX_IMPACTS_PER_TICK, SCRATCH_SHAPE, ball_tick
 from engine.contact import impact
 from engine.geometry import Body
@@ -247,6 +248,17 @@ class BatAI:
         self.turn_seen_at = 0.0
         self.planned_key = None
         self.stats = {"plans": 0, "no_solution": 0, "let_go": 0, "too_late": 0}
+
+    def warm_up(self) -> None:
+        """Load (or compile) every kernel the AI uses, without touching its state or its RNG."""
+        self.predict(np.array([0.0, 0.0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), 0.01)
+        self.predict(np.array([0.0, 0.0, 0.5, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]), 0.01, x_stop=0.5, bodies=False,
+                     dt=self.SHOOTING_DT)
+        bat = np.zeros(1, BAT_DTYPE)
+        bat["quat"][0] = (1.0, 0.0, 0.0, 0.0)
+        bat_control(0.0, self._no_segments, 0, np.zeros(3), np.array([1.0, 0.0, 0.0]), bat["pos"][0], bat["vel"][0],
+                    bat["quat"][0], bat["ang_vel"][0], self.mass, float(self.inertia[0]), self.KP, self.KD,
+                    self.K_ANGLE, self.D_ANGLE, 1.0, 1.0, 1.0, np.zeros(6))
 
     # --- prediction ---------------------------------------------------------------------
     def predict(self, y0: np.ndarray, seconds: float, max_events: int = 8, dt: float | None = None,

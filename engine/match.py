@@ -215,7 +215,7 @@ class Match:
         compile_start = time.perf_counter()
         step(self.model, self.state, None, self.events, dt=0.0)  # compile or load the kernels
         for ai in self.ais.values():
-            ai.predict(self.state.ball_y.copy(), 0.01)
+            ai.warm_up()
         compile_seconds = time.perf_counter() - compile_start
         start = time.perf_counter()
         ticks = 0

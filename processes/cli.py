@@ -39,6 +39,10 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         from processes.bench_handoff import handoff_command
 
         return handoff_command(args)
+    if args.what == "match":
+        from processes.match import bench_match_command
+
+        return bench_match_command(args)
     from processes.bench import bench_command
 
     return bench_command(args)
@@ -88,7 +92,9 @@ def build_parser() -> argparse.ArgumentParser:
     profile.add_argument("--json", action="store_true", help="print one JSON object")
     profile.set_defaults(func=_cmd_profile_net)
     bench = sub.add_parser("bench", help="measured answers to 'what does it cost'", formatter_class=formatter)
-    bench.add_argument("what", choices=["accuracy", "effects", "handoff"], help="which study to run")
+    bench.add_argument("what", choices=["accuracy", "effects", "handoff", "match"], help="which study to run")
+    bench.add_argument("--best-of", type=int, default=5, help="match: games in the benchmarked match")
+    bench.add_argument("--seed", type=int, default=0, help="match: the match's seed")
     bench.add_argument("--json", action="store_true", help="print one JSON object")
     bench.add_argument("--png", default=None, help="accuracy: write the work-precision plot to this PNG file")
     bench.add_argument("--quick", action="store_true", help="fewer step sizes and repeats (smoke runs)")

@@ -197,3 +197,42 @@ def replay_command(args: argparse.Namespace) -> int:
         print("points ended by: " + ", ".join(f"{k} {v}" for k, v in summary["point_reasons"].items()))
         print("contacts: " + ", ".join(f"{k} {v}" for k, v in summary["contacts"].items()))
     return 0
+
+
+def bench_match_command(args: argparse.Namespace) -> int:
+    """`pingpong bench match`: a headless lockstep match, its realtime factor and time per worker,
+    against the in-process reference in the same run (same seed, so the same match)."""
+    from processes.supervisor import Supervisor
+
+    scene = load_scene("match")
+    scene = replace(scene, match=replace(scene.match, best_of=args.best_of if not args.quick else 1))
+    ticks = scene.ticks if not args.quick else 20_000
+    result = Supervisor(scene, ticks, "lockstep", seed=args.seed).run()
+    multi = _summary_from_processes(scene, args.seed, result)
+    reference = Match(scene, seed=args.seed).play(max_ticks=ticks).summary()
+    report = {
+        "best_of": scene.match.best_of,
+        "seed": args.seed,
+        "same_match": multi["games"] == reference["games"] and multi["points"] == reference["points"],
+        "sim_seconds": multi["sim_seconds"],
+        "processes": {"wall_seconds": multi["wall_seconds"], "realtime_factor": multi["realtime_factor"],
+                      "startup_seconds": result.startup_seconds, "workers": result.workers,
+                      "us_per_tick": 1e6 * multi["wall_seconds"] / max(multi["ticks"], 1)},
+        "in_process": {"wall_seconds": reference["wall_seconds"], "realtime_factor": reference["realtime_factor"],
+                       "ai_seconds": reference["ai_seconds"],
+                       "us_per_tick": 1e6 * reference["wall_seconds"] / max(reference["ticks"], 1)},
+        "target": "a best-of-5 match at >= 100x realtime, headless lockstep (issue 6)",
+    }
+    if args.json:
+        print(json.dumps(report))
+        return 0
+    p, r = report["processes"], report["in_process"]
+    print(f"match best of {report['best_of']}, seed {report['seed']}: {report['sim_seconds']:.1f} s simulated, "
+          f"same match in both runs: {report['same_match']}")
+    print(f"  worker processes (lockstep): {p['wall_seconds']:.2f} s wall, {p['realtime_factor']:.1f}x realtime, "
+          f"{p['us_per_tick']:.1f} us/tick, startup {p['startup_seconds']:.2f} s")
+    for kind, info in p["workers"].items():
+        print(f"    {kind:<8} own work {info['busy_s']:.2f} s, hand-offs {info['handoff_s']:.2f} s")
+    print(f"  in-process reference:        {r['wall_seconds']:.2f} s wall, {r['realtime_factor']:.1f}x realtime, "
+          f"{r['us_per_tick']:.1f} us/tick (AI {r['ai_seconds']:.2f} s)")
+    return 0

@@ -130,7 +130,7 @@ class Supervisor:
             LockTable.create(self._lock_path, LOCK_NAMES, arena.shared_array("lock_holders", HOLDER_DTYPE,
                                                                               len(LOCK_NAMES))).close()
             arena.shared_array("inputs_header", MAILBOX_HEADER, 1)
-            arena.shared_array("inputs", INPUT_DTYPE, 2 * len(self.scene.bats))
+            arena.shared_array("inputs", INPUT_DTYPE, 4)
             self._baton = Baton("ai", self._ctx, arena.shared_array("baton", TICK_SLOT_DTYPE, 1).array)
         return arena
 
@@ -267,6 +267,7 @@ class Supervisor:
                 "late_ticks": int(status[w.index]["late_ticks"]),
                 "max_late_s": float(status[w.index]["max_late_s"]),
                 "busy_s": float(status[w.index]["busy_s"]),
+                "handoff_s": float(status[w.index]["handoff_s"]),
             }
             for w in self._workers
         }

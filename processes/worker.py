@@ -23,7 +23,8 @@ STATUS_DTYPE = np.dtype([
     ("heartbeat", "<f8"),  # time.monotonic() of the last sign of life
     ("late_ticks", "<i8"),  # realtime: ticks that started after their due time
     ("max_late_s", "<f8"),
-    ("busy_s", "<f8"),  # wall time spent simulating
+    ("busy_s", "<f8"),  # wall time spent on its own work
+    ("handoff_s", "<f8"),  # wall time spent handing off to other workers and waiting for them
 ])
 
 

@@ -9,10 +9,11 @@ from __future__ import annotations
 
 import os
 import signal
+import time
 
 import numpy as np
 
-from engine.dtypes import BALL_DTYPE, BAT_DTYPE, physics_snapshot_dtype
+from engine.dtypes import physics_snapshot_dtype
 from engine.match import ai_inputs, make_ais
 from engine.world import build_model
 from processes.handoff import HandoffTimeout
@@ -21,7 +22,9 @@ from processes.mailbox import Mailbox
 from processes.shm import Arena
 from processes.worker import Control, WorkerState
 
-INPUT_DTYPE = np.dtype([("tick", "<i8"), ("bat", "<i8"), ("force", "<f8", (3,)), ("torque", "<f8", (3,))])
+MAX_BATS = 2
+# One record per AI tick carries every AI bat's inputs (one locked post, not one per bat).
+INPUT_DTYPE = np.dtype([("tick", "<i8"), ("mask", "<i8"), ("inputs", "<f8", (MAX_BATS, 6))])
 LOCK_NAMES = ("bat_inputs",)
 STARTUP_TIMEOUT_S = 30.0
 
@@ -35,17 +38,20 @@ def ai_worker(control: Control, arena: Arena, scene, options: dict) -> None:
     locks = LockTable(options["lock_path"], LOCK_NAMES, arena["lock_holders"])
     box = Mailbox("bat_inputs", arena["inputs_header"], arena["inputs"], locks)
     snap = np.zeros(1, physics_snapshot_dtype(n_bats))
-    ball = np.zeros(1, BALL_DTYPE)
-    ball_y = ball.view("<f8")
-    bats = np.zeros(n_bats, BAT_DTYPE)
-    inputs = np.zeros((n_bats, 6))
+    ball_y = snap["ball"].view("<f8")  # views into the snapshot copy: nothing else is copied
+    bats = snap["bats"][0]
+    rally = snap[0]["rally"]
+    world = snap[0]["world"]
     record = np.zeros((), INPUT_DTYPE)
+    inputs = record["inputs"][:n_bats]
+    record["mask"] = sum(1 << player for player in ais)
     for ai in ais.values():
-        ai.predict(np.array([0.0, 0.0, 0.5, 0, 0, 0, 0, 0, 0]), 0.01)  # compile or load the kernels
+        ai.warm_up()
     control.set_state(WorkerState.READY)
     control.send("ready", 0)
     control.wait_for("go", STARTUP_TIMEOUT_S)
     control.set_state(WorkerState.RUNNING)
+    busy = 0.0
     try:
         while True:
             try:
@@ -55,24 +61,19 @@ def ai_worker(control: Control, arena: Arena, scene, options: dict) -> None:
                 continue
             if tick is None:
                 break
+            t0 = time.perf_counter()
             arena["physics"].snapshot(snap)
-            rec = snap[0]
-            ball[0] = rec["ball"]
-            bats[:] = rec["bats"]
-            rally = rec["rally"]
-            ai_inputs(ais, float(rec["world"]["time"]), ball_y, bats, (int(rally["rally"]), int(rally["shots"])),
+            ai_inputs(ais, float(world["time"]), ball_y, bats, (int(rally["rally"]), int(rally["shots"])),
                       int(rally["phase"]), int(rally["server"]), int(rally["striker"]), inputs)
-            for player in ais:
-                record["tick"] = tick
-                record["bat"] = player
-                record["force"] = inputs[player, 0:3]
-                record["torque"] = inputs[player, 3:6]
-                box.post(record)
+            record["tick"] = tick
+            box.post(record)
+            busy += time.perf_counter() - t0
             baton.done()
             if tick == options.get("crash_at_tick"):
                 os.kill(os.getpid(), signal.SIGKILL)
             control.beat(tick)
-        control.send("done", {"tick": int(control.row["tick"])})
+        control.row["busy_s"] = float(control.row["busy_s"]) + busy
+        control.send("done", {"tick": int(control.row["tick"]), "busy_s": busy})
     finally:
-        del snap, box, baton
+        del snap, box, baton, ball_y, bats, rally, world
         locks.close()

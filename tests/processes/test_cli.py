@@ -73,3 +73,12 @@ def test_bad_scene_exits_2_with_the_reason(tmp_path):
 def test_bad_integrator_exits_2():
     done = pingpong("run", "drop", "--integrator", "leapfrog")
     assert done.returncode == 2 and "integrator: must be one of" in done.stderr
+
+
+def test_bench_match_quick_json():
+    done = subprocess.run([sys.executable, "-m", "processes", "bench", "match", "--quick", "--json"],
+                          capture_output=True, text=True, timeout=300, stdin=subprocess.DEVNULL)
+    assert done.returncode == 0, done.stderr
+    report = json.loads(done.stdout)
+    assert report["same_match"] is True  # the lockstep match and the in-process one agree
+    assert set(report["processes"]["workers"]) == {"physics", "ai"}
