@@ -284,6 +284,19 @@ def ball_tick(y, h, support, method, gravity, drag_k, magnus_k, rtol, atol,
                 cur[5] = 0.0
             skip |= _bit(body)
             continue
+        restitution = materials[body, 0]
+        if -v_n < params[P_REST_SPEED]:
+            # Resting contact, not an impact: stop the approach, record no event (a ball lying
+            # on a bat would otherwise log one event a tick).
+            impact(cur[3:6], cur[6:9], normal, body_vel, params[P_RADIUS], params[P_MASS],
+                   params[P_INERTIA], 0.0, materials[body, 1], cur[3:6], cur[6:9])
+            if horizontal:
+                support = body
+                surface_z = _surface_z(body, table, floor_z)
+                cur[2] = surface_z + params[P_RADIUS]
+                cur[5] = 0.0
+            skip |= _bit(body)
+            continue
         if n_events >= events.shape[0] or n_events >= MAX_IMPACTS_PER_TICK:
             return ERR_IMPACTS, support
         ev = events[n_events]
@@ -294,9 +307,6 @@ def ball_tick(y, h, support, method, gravity, drag_k, magnus_k, rtol, atol,
             ev[E_NORMAL + i] = normal[i]
             ev[E_VEL_IN + i] = cur[3 + i]
             ev[E_SPIN_IN + i] = cur[6 + i]
-        restitution = materials[body, 0]
-        if -v_n < params[P_REST_SPEED]:
-            restitution = 0.0
         speed = impact(cur[3:6], cur[6:9], normal, body_vel, params[P_RADIUS], params[P_MASS],
                        params[P_INERTIA], restitution, materials[body, 1], cur[3:6], cur[6:9])
         if horizontal and speed < params[P_REST_SPEED]:
@@ -310,6 +320,7 @@ def ball_tick(y, h, support, method, gravity, drag_k, magnus_k, rtol, atol,
         ev[E_SPEED] = speed
         n_events += 1
         skip |= _bit(body)
+    _project_out(cur, h, support, table, floor_z, net, posts, bats, params, normal, body_vel, tmp)
     # Cheap invariant after the tick (pymunk's step check): the state stays finite.
     for i in range(9):
         if not math.isfinite(cur[i]):
@@ -317,6 +328,51 @@ def ball_tick(y, h, support, method, gravity, drag_k, magnus_k, rtol, atol,
     for i in range(9):
         y[i] = cur[i]
     return n_events, support
+
+
+@njit(cache=True)
+def _project_out(cur, h, support, table, floor_z, net, posts, bats, params, normal, body_vel, tmp):
+    """Position correction at the end of a tick (Box2D's non-penetration projection).
+
+    A ball left inside a body (resting on a bat, squeezed, trapped) is moved out along the normal
+    and loses the inward part of its velocity relative to that body, so contact never drifts
+    inwards. Static bodies come first; a bat is projected out of only if that does not push the
+    ball back into a static body: squeezed between a bat and the table or the net, the ball stays
+    put and the bat yields (a player's grip gives way long before a table does).
+    """
+    support_mask = _bit(support) if support != 0 else 0
+    _project_once(cur, h, table, floor_z, net, posts, None, params, support_mask, normal, body_vel, tmp)
+    if bats is None:
+        return
+    saved = tmp[3]
+    for i in range(6):
+        saved[i] = cur[i]
+    if _project_once(cur, h, None, None, None, None, bats, params, 0, normal, body_vel, tmp):
+        g, _ = _gap(cur[0:3], 1.0, table, floor_z, net, posts, None, params, support_mask, normal, tmp)
+        if g < -CONTACT_TOL:  # that would squeeze it into the table or the net: the bat yields
+            for i in range(6):
+                cur[i] = saved[i]
+
+
+@njit(cache=True)
+def _project_once(cur, h, table, floor_z, net, posts, bats, params, mask, normal, body_vel, tmp):
+    """Project the ball out of the deepest body not in `mask`; True if it moved."""
+    g, body = _gap(cur[0:3], 1.0, table, floor_z, net, posts, bats, params, mask, normal, tmp)
+    if body == 0 or g >= 0.0:
+        return False
+    for i in range(3):
+        cur[i] -= g * normal[i]
+    if h > 0.0 and bats is not None:
+        _body_point_velocity(body, cur[0:3], normal, 1.0, h, bats, params, tmp[1, 0:3], tmp[2, 0:3], body_vel)
+    else:
+        body_vel[0] = body_vel[1] = body_vel[2] = 0.0
+    v_n = 0.0
+    for i in range(3):
+        v_n += (cur[3 + i] - body_vel[i]) * normal[i]
+    if v_n < 0.0:
+        for i in range(3):
+            cur[3 + i] -= v_n * normal[i]
+    return True
 
 
 @njit(inline="always", cache=True)
