@@ -5,7 +5,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install match test bench lint clean
+.PHONY: install match test test-long bench lint clean
 
 install: $(STAMP)
 
@@ -25,6 +25,9 @@ lint: install
 
 test: lint
 	$(BIN)/python -m pytest -q
+
+test-long: install
+	$(BIN)/python -m pytest -q -m long
 
 bench: install
 	$(BIN)/python -m pytest bench --benchmark-enable -q

@@ -320,7 +320,7 @@ def ball_tick(y, h, support, method, gravity, drag_k, magnus_k, rtol, atol,
         ev[E_SPEED] = speed
         n_events += 1
         skip |= _bit(body)
-    _project_out(cur, h, support, table, floor_z, net, posts, bats, params, normal, body_vel, tmp)
+    _project_out(cur, h, table, floor_z, net, posts, bats, params, normal, body_vel, tmp)
     # Cheap invariant after the tick (pymunk's step check): the state stays finite.
     for i in range(9):
         if not math.isfinite(cur[i]):
@@ -331,7 +331,7 @@ def ball_tick(y, h, support, method, gravity, drag_k, magnus_k, rtol, atol,
 
 
 @njit(cache=True)
-def _project_out(cur, h, support, table, floor_z, net, posts, bats, params, normal, body_vel, tmp):
+def _project_out(cur, h, table, floor_z, net, posts, bats, params, normal, body_vel, tmp):
     """Position correction at the end of a tick (Box2D's non-penetration projection).
 
     A ball left inside a body (resting on a bat, squeezed, trapped) is moved out along the normal
@@ -340,15 +340,15 @@ def _project_out(cur, h, support, table, floor_z, net, posts, bats, params, norm
     ball back into a static body: squeezed between a bat and the table or the net, the ball stays
     put and the bat yields (a player's grip gives way long before a table does).
     """
-    support_mask = _bit(support) if support != 0 else 0
-    _project_once(cur, h, table, floor_z, net, posts, None, params, support_mask, normal, body_vel, tmp)
+    # The supporting surface counts too: a resting ball sits at gap 0 and is left alone by it.
+    _project_once(cur, h, table, floor_z, net, posts, None, params, 0, normal, body_vel, tmp)
     if bats is None:
         return
     saved = tmp[3]
     for i in range(6):
         saved[i] = cur[i]
     if _project_once(cur, h, None, None, None, None, bats, params, 0, normal, body_vel, tmp):
-        g, _ = _gap(cur[0:3], 1.0, table, floor_z, net, posts, None, params, support_mask, normal, tmp)
+        g, _ = _gap(cur[0:3], 1.0, table, floor_z, net, posts, None, params, 0, normal, tmp)
         if g < -CONTACT_TOL:  # that would squeeze it into the table or the net: the bat yields
             for i in range(6):
                 cur[i] = saved[i]

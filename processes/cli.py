@@ -48,6 +48,12 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     return bench_command(args)
 
 
+def _cmd_stability(args: argparse.Namespace) -> int:
+    from processes.run import stability_command
+
+    return stability_command(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The whole `pingpong` parser; subcommands share --seed/--json."""
     formatter = argparse.ArgumentDefaultsHelpFormatter
@@ -79,6 +85,12 @@ def build_parser() -> argparse.ArgumentParser:
     match.add_argument("--in-process", action="store_true", help="run the in-process reference instead of workers")
     _add_common(match)
     match.set_defaults(func=_cmd_match)
+
+    stability = sub.add_parser("stability", help="run the stability suite's hard cases", formatter_class=formatter)
+    stability.add_argument("--long", action="store_true", help="also the long runs (10^6 ticks)")
+    stability.add_argument("--case", default=None, help="only cases whose name contains this text")
+    stability.add_argument("--json", action="store_true", help="one JSON object per case, one per line")
+    stability.set_defaults(func=_cmd_stability)
 
     replay = sub.add_parser("replay", help="summarise a replay file", formatter_class=formatter)
     replay.add_argument("file", help="a file written by `pingpong match --replay`")

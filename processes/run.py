@@ -108,3 +108,28 @@ def run_scene_command(args: argparse.Namespace) -> int:
     if "reference" in summary and not summary["reference"]["bitwise_equal"]:
         return 1
     return 0
+
+
+def stability_command(args: argparse.Namespace) -> int:
+    """Run the stability suite; exit 1 if any case failed."""
+    from engine.stability import cases, run_case
+
+    chosen = [c for c in cases() if (args.long or not c.long) and (args.case is None or args.case in c.name)]
+    if not chosen:
+        print(f"pingpong: no stability case matches {args.case!r}", file=sys.stderr)
+        return 2
+    failed = 0
+    if not args.json:
+        print(f"{'case':<56} {'integrator':<15} {'dt':>7} {'result':<10} {'penetration':>11} {'energy +':>9} {'max|y|':>8}")
+    for case in chosen:
+        out = run_case(case)
+        failed += out.result.startswith("failed")
+        if args.json:
+            print(json.dumps(out.as_dict()))
+            continue
+        verdict = out.result.split(":")[0]
+        print(f"{out.case:<56} {out.integrator:<15} {out.dt:7.4f} {verdict:<10} {out.max_penetration_m:11.2e} "
+              f"{out.energy_gain:9.1e} {out.max_abs_state:8.2f}")
+        if verdict != "stable":
+            print(f"    {out.result}")
+    return 1 if failed else 0

@@ -82,3 +82,11 @@ def test_bench_match_quick_json():
     report = json.loads(done.stdout)
     assert report["same_match"] is True  # the lockstep match and the in-process one agree
     assert set(report["processes"]["workers"]) == {"physics", "ai"}
+
+
+def test_stability_json_one_case():
+    done = pingpong("stability", "--case", "two impacts", "--json")
+    assert done.returncode == 0, done.stderr
+    row = json.loads(done.stdout.splitlines()[0])
+    assert row["result"] == "stable" and row["finite"] and not row["tunnelled"]
+    assert set(row) >= {"finite", "tunnelled", "max_penetration_m", "energy_gain"}
