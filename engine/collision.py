@@ -321,9 +321,11 @@ def ball_tick(y, h, support, method, gravity, drag_k, magnus_k, rtol, atol,
         n_events += 1
         skip |= _bit(body)
     _project_out(cur, h, table, floor_z, net, posts, bats, params, normal, body_vel, tmp)
-    # Cheap invariant after the tick (pymunk's step check): the state stays finite.
+    # Cheap invariant after the tick (pymunk's step check): the state stays finite. The index of
+    # the first bad component goes to scratch[7, 0] so the caller can name the quantity.
     for i in range(9):
         if not math.isfinite(cur[i]):
+            scratch[7, 0] = i
             return ERR_NONFINITE, support
     for i in range(9):
         y[i] = cur[i]

@@ -207,7 +207,10 @@ def step(model: Model, state: State, inputs: np.ndarray | None, events: np.ndarr
         raise SimulationError(f"tick {tick}: more than {MAX_IMPACTS_PER_TICK} impacts in one tick "
                               "(the ball is trapped between bodies); shorten dt")
     if n == ERR_NONFINITE:
-        raise SimulationError(f"tick {tick}: the ball's state would become non-finite from {state.ball[0]}; "
+        index = int(state.scratch[7, 0])
+        quantity = f"{('pos', 'vel', 'spin')[index // 3]}[{'xyz'[index % 3]}]"
+        raise SimulationError(f"tick {tick}: the ball's {quantity} would become non-finite (from pos "
+                              f"{state.ball['pos'][0].tolist()}, vel {state.ball['vel'][0].tolist()}); "
                               "the state was left as it was before the tick")
     time0 = float(world["time"])
     for k in range(n):

@@ -95,6 +95,8 @@ def build_parser() -> argparse.ArgumentParser:
     replay = sub.add_parser("replay", help="summarise a replay file", formatter_class=formatter)
     replay.add_argument("file", help="a file written by `pingpong match --replay`")
     replay.add_argument("--json", action="store_true", help="print one JSON object")
+    replay.add_argument("--png", default=None, help="draw side and top views of the last rally to this PNG")
+    replay.add_argument("--gif", default=None, help="animate the last seconds to this GIF")
     replay.set_defaults(func=_cmd_replay)
 
     profile = sub.add_parser("profile-net", help="profile the net kernel", formatter_class=formatter)

@@ -186,6 +186,16 @@ def replay_command(args: argparse.Namespace) -> int:
         "winner": h["summary"].get("winner"),
         "games": h["summary"].get("games"),
     }
+    title = f"{h['scene']}, seed {h['seed']}: winner {summary['winner'] or '-'}, games {summary['games']}"
+    if args.png or args.gif:
+        from processes import render
+
+        if args.png:
+            render.png(data.frames, data.events, args.png, title)
+            summary["png"] = args.png
+        if args.gif:
+            render.gif(data.frames, args.gif, title)
+            summary["gif"] = args.gif
     if args.json:
         print(json.dumps(summary))
     else:
@@ -196,6 +206,9 @@ def replay_command(args: argparse.Namespace) -> int:
               f"mean rally {summary['mean_rally_shots']:.1f} shots")
         print("points ended by: " + ", ".join(f"{k} {v}" for k, v in summary["point_reasons"].items()))
         print("contacts: " + ", ".join(f"{k} {v}" for k, v in summary["contacts"].items()))
+        for kind in ("png", "gif"):
+            if kind in summary:
+                print(f"{kind} written to {summary[kind]}")
     return 0
 
 

@@ -31,6 +31,9 @@ import numpy as np
 _HEADER = np.dtype([("version", "<u8"), ("writer_pid", "<i8"), ("tick", "<i8"), ("_pad", "<i8")])
 SHM_DIR = Path("/dev/shm")
 PREFIX = "pp"
+# Run ids whose segments this process created: what it alone must clean up (tests check these,
+# not every pingpong segment on the machine, which other runs may own).
+created_run_ids: set[str] = set()
 
 
 class SnapshotTimeout(RuntimeError):
@@ -194,6 +197,7 @@ class Arena:
 
     def snapshot_block(self, name: str, dtype: np.dtype, count: int) -> SnapshotBlock:
         self._owner = True
+        created_run_ids.add(self.run_id)
         block = SnapshotBlock(segment_name(self.run_id, name), dtype, count, create=True)
         self._specs[name] = ("snapshot", np.dtype(dtype), count)
         self.blocks[name] = block
@@ -201,6 +205,7 @@ class Arena:
 
     def shared_array(self, name: str, dtype: np.dtype, shape: tuple[int, ...] | int) -> SharedArray:
         self._owner = True
+        created_run_ids.add(self.run_id)
         array = SharedArray(segment_name(self.run_id, name), dtype, shape, create=True)
         self._specs[name] = ("array", np.dtype(dtype), array.shape)
         self.blocks[name] = array

@@ -90,3 +90,12 @@ def test_stability_json_one_case():
     row = json.loads(done.stdout.splitlines()[0])
     assert row["result"] == "stable" and row["finite"] and not row["tunnelled"]
     assert set(row) >= {"finite", "tunnelled", "max_penetration_m", "energy_gain"}
+
+
+def test_replay_pictures(tmp_path):
+    path = tmp_path / "short.replay"
+    assert pingpong("match", "--ticks", "600", "--replay", str(path)).returncode == 0
+    png, gif = tmp_path / "r.png", tmp_path / "r.gif"
+    done = pingpong("replay", str(path), "--png", str(png), "--gif", str(gif))
+    assert done.returncode == 0, done.stderr
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and gif.read_bytes()[:6] in (b"GIF89a", b"GIF87a")
