@@ -66,26 +66,15 @@ def _gap(p, frac, table, floor_z, net, posts, bats, params, skip, normal, tmp):
     body = 0
     n = tmp[0, 0:3]
     if table is not None and not skip & _bit(_TABLE):
-        d = box_sdf(p, table, n) - radius
-        if d < best:
-            best, body = d, _TABLE
-            normal[0], normal[1], normal[2] = n[0], n[1], n[2]
+        best, body = _closer(box_sdf(p, table, n) - radius, _TABLE, n, best, body, normal)
     if floor_z is not None and not skip & _bit(_FLOOR):
-        d = p[2] - floor_z - radius
-        if d < best:
-            best, body = d, _FLOOR
-            normal[0], normal[1], normal[2] = 0.0, 0.0, 1.0
+        n[0], n[1], n[2] = 0.0, 0.0, 1.0
+        best, body = _closer(p[2] - floor_z - radius, _FLOOR, n, best, body, normal)
     if net is not None and not skip & _bit(_NET):
-        d = box_sdf(p, net, n) - radius
-        if d < best:
-            best, body = d, _NET
-            normal[0], normal[1], normal[2] = n[0], n[1], n[2]
+        best, body = _closer(box_sdf(p, net, n) - radius, _NET, n, best, body, normal)
     if posts is not None and not skip & _bit(_POST):
         for k in range(posts.shape[0]):
-            d = box_sdf(p, posts[k], n) - radius
-            if d < best:
-                best, body = d, _POST
-                normal[0], normal[1], normal[2] = n[0], n[1], n[2]
+            best, body = _closer(box_sdf(p, posts[k], n) - radius, _POST, n, best, body, normal)
     if bats is not None:
         centre = tmp[1, 0:3]
         axis = tmp[2, 0:3]
@@ -94,9 +83,16 @@ def _gap(p, frac, table, floor_z, net, posts, bats, params, skip, normal, tmp):
                 continue
             _bat_pose(bats[b], frac, centre, axis)
             d = disc_sdf(p, centre, axis, bats[b, BAT_RADIUS], bats[b, BAT_HALF_THICKNESS], n) - radius
-            if d < best:
-                best, body = d, _BAT_A + b
-                normal[0], normal[1], normal[2] = n[0], n[1], n[2]
+            best, body = _closer(d, _BAT_A + b, n, best, body, normal)
+    return best, body
+
+
+@njit(inline="always", cache=True)
+def _closer(gap, candidate, n, best, body, normal):
+    """Keep the smaller gap: (gap, candidate) with its normal n, or the best so far."""
+    if gap < best:
+        normal[0], normal[1], normal[2] = n[0], n[1], n[2]
+        return gap, candidate
     return best, body
 
 
