@@ -1,0 +1,118 @@
+"""`pingpong bench accuracy|effects`: thin front end to the studies in bench/ (parse, call, format).
+
+The studies live in bench/accuracy.py and bench/effects.py, next to the pytest-benchmark suite,
+and need a source checkout (bench/ is not an installed package) and the dev extras (scipy).
+"""
+from __future__ import annotations
+
+import importlib
+import json
+import math
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def load_study(name: str):
+    """Import bench/<name>.py from the checkout this package was installed from (editable)."""
+    if not (ROOT / "bench" / f"{name}.py").exists():
+        raise SystemExit(f"pingpong bench {name}: bench/{name}.py not found next to {ROOT / 'processes'}; "
+                         "the studies need a source checkout (make bench)")
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    return importlib.import_module(f"bench.{name}")
+
+
+def finite_json(value):
+    """value with every non-finite float replaced by None (JSON has no infinity: a missed impact)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {str(k): finite_json(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [finite_json(v) for v in value]
+    if hasattr(value, "item"):  # numpy scalars
+        return finite_json(value.item())
+    return value
+
+
+def _progress(quiet: bool):
+    if quiet:
+        return None
+    return lambda msg: print(f"  {msg}", file=sys.stderr, flush=True)
+
+
+def _print_accuracy(study, result: dict) -> None:
+    from rich.console import Console
+    from rich.markdown import Markdown
+
+    console = Console()
+    ref = result["reference"]
+    console.print(f"[bold]Work-precision study[/bold]: {len(result['shots'])} shots against scipy DOP853 at "
+                  f"rtol = atol = {ref['tol']:.0e} (reference built in {ref['seconds']:.1f} s; kernels compiled or "
+                  f"loaded in {result['compile_seconds']:.1f} s, apart from every timing)")
+    for name, check in ref["shots"].items():
+        console.print(f"  {name}: bounces {', '.join(check['bounces'])} at "
+                      f"{', '.join(f'{t:.3f}' for t in check['impact_times_s'])} s; reference at "
+                      f"{ref['check_tol']:.0e} agrees to {max(check['landing_diff_m'], check['final_diff_m']):.1e} m")
+    console.print(Markdown(study.markdown_table(result)))
+    console.print(f"timing: median of {result['repeats']}; spread between repeats median "
+                  f"{result['timing_spread_median'] * 100:.0f} %, worst {result['timing_spread_max'] * 100:.0f} % "
+                  "(2 shared cores: read the ratios, not the absolute times)")
+    step = result["through_step_1ms"]
+    console.print("through engine.world.step, 1 ms tick: "
+                  + ", ".join(f"{name} {v['us_per_tick']:.1f} µs/tick" for name, v in step.items()))
+    console.print(Markdown(study.orders_markdown(result)))
+    console.print(Markdown(study.recommendation_markdown(result)))
+
+
+def _print_effects(result: dict) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    console.print(f"[bold]Effect costs[/bold], scene {result['scene']}: numba tick loop over {result['sim_seconds']:g} "
+                  f"simulated s, median of {result['repeats']}; kernels compiled in "
+                  f"{result['compile_seconds']:.1f} s, apart. Same-run A/A check of the baseline: "
+                  f"{result['noise']['aa_ratio']:.3f} (spread {result['noise']['spread'] * 100:.0f} %).")
+    table = Table("effect", "without s/sim s", "with s/sim s", "cost ratio", "absent = compiled out", "note")
+    for row in result["effects"]:
+        if not row["available"] or row.get("skipped"):
+            table.add_row(row["effect"], "-", "-", "-", "-", ("not available: " if not row["available"] else "") + row["note"])
+            continue
+        table.add_row(row["effect"], f"{row['without_s_per_sim_s']:.2e}", f"{row['with_s_per_sim_s']:.2e}",
+                      f"{row['ratio']:.2f}", "yes" if row.get("compiled_out") else ("-" if row.get("compiled_out") is None else "no"),
+                      row["note"])
+    console.print(table)
+    if result.get("absent_check"):
+        check = result["absent_check"]
+        console.print(f"absent costs nothing: {check['text']}")
+
+
+def bench_command(args) -> int:
+    """Run `pingpong bench accuracy` or `pingpong bench effects`; returns the exit status."""
+    quick = bool(getattr(args, "quick", False))
+    as_json = bool(getattr(args, "json", False))
+    if args.what == "accuracy":
+        study = load_study("accuracy")
+        result = study.study(quick=quick, progress=_progress(as_json))
+        if getattr(args, "png", None):
+            study.plot(result, args.png)
+            result["png"] = args.png
+        if as_json:
+            print(json.dumps(finite_json(result)))
+        else:
+            _print_accuracy(study, result)
+            if getattr(args, "png", None):
+                print(f"work-precision plot: {args.png}")
+        return 0
+    if args.what == "effects":
+        study = load_study("effects")
+        result = study.study(quick=quick, progress=_progress(as_json))
+        if as_json:
+            print(json.dumps(finite_json(result)))
+        else:
+            _print_effects(result)
+        return 0
+    raise SystemExit(f"pingpong bench: unknown study {args.what!r}")
