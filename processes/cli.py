@@ -54,6 +54,12 @@ def _cmd_stability(args: argparse.Namespace) -> int:
     return stability_command(args)
 
 
+def _cmd_decode(args: argparse.Namespace) -> int:
+    from processes.wire import decode_command
+
+    return decode_command(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The whole `pingpong` parser; subcommands share --seed/--json."""
     formatter = argparse.ArgumentDefaultsHelpFormatter
@@ -113,6 +119,12 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--png", default=None, help="accuracy: write the work-precision plot to this PNG file")
     bench.add_argument("--quick", action="store_true", help="fewer step sizes and repeats (smoke runs)")
     bench.set_defaults(func=_cmd_bench)
+
+    decode = sub.add_parser("decode", help="pretty-print one captured wire message (exit 2 if it is bad)",
+                            formatter_class=formatter)
+    decode.add_argument("message", metavar="FILE|HEX", help="a file of the message's raw bytes, or its bytes in hex")
+    decode.add_argument("--json", action="store_true", help="print one JSON object")
+    decode.set_defaults(func=_cmd_decode)
     return parser
 
 
