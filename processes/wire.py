@@ -12,6 +12,11 @@ message type. Every message starts with the same 24-byte header:
       8     8  seq      <u8   sender's sequence number, +1 per message it sends
      16     8  tick     <i8   physics tick the message refers to, >= 0 (see each message)
 
+Text fields (names, scene, detail) are UTF-8, NUL-padded to their fixed size: the text ends at
+the first NUL and every byte after it is NUL; no control or format characters (Unicode Cc, Cf,
+Cs, Co, Zl, Zp: no terminal escapes, no bidi overrides), no leading or trailing white space.
+Tokens are raw bytes. Enums are one byte each; a value that names no member is refused.
+
 The first 6 bytes (magic, version) never change, so a peer of another version is recognised as
 such (BadVersion carries the version it saw) instead of being misread.
 
@@ -210,6 +215,7 @@ class Hello(_Spec):
          25     1  slot   u1        Slot wanted: 0 any free, 1 A, 2 B; 0 for a spectator
          26    32  name   u1[32]    UTF-8, NUL-padded, 1..32 bytes, see text rules
          58    16  token  u1[16]    rejoin token from an earlier welcome; all zero = a new session
+                                    (always, for a spectator)
     """
 
     kind = Kind.HELLO

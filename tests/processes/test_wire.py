@@ -143,6 +143,13 @@ def test_docstring_layout_lists_every_field_at_its_offset(kind):
     assert listed == actual
 
 
+def test_module_docstring_header_table_matches_the_header_dtype():
+    rows = re.findall(r"^\s+(\d+)\s+(\d+)\s+(\w+)\s", wire.__doc__.split("Text fields")[0], re.MULTILINE)
+    listed = {name: (int(offset), int(size)) for offset, size, name in rows}
+    dtype = wire.HEADER_DTYPE
+    assert listed == {name: (dtype.fields[name][1], dtype.fields[name][0].itemsize) for name in dtype.names}
+
+
 def test_magic_and_version_are_the_first_six_bytes():
     for data in GOLDEN.values():
         assert data[:4] == b"PPNG" and data[4:6] == wire.PROTOCOL_VERSION.to_bytes(2, "little")
@@ -170,6 +177,18 @@ def test_golden_message_round_trip(name):
             assert message[field] == value, field
     assert _reencode(message) == GOLDEN[name]
     assert json.loads(json.dumps(message.to_dict(), ensure_ascii=False))["kind"] == name.split("_")[0]
+
+
+def test_spectator_welcome_and_match_event_round_trip():
+    _, welcome = GOLDEN_FIELDS["welcome_a"]
+    spectator = {**welcome, "slot": Slot.NONE, "token": bytes(16), "name_b": ""}
+    message = decode(encode(Kind.WELCOME, **spectator))
+    assert message["slot"] is Slot.NONE and message["token"] == bytes(16) and message["name_b"] == ""
+    with pytest.raises(OutOfRange):
+        encode(Kind.WELCOME, **{**spectator, "token": TOKEN})  # a spectator has nothing to rejoin
+    _, point = GOLDEN_FIELDS["event_point"]
+    end = {**point, "event": EventKind.MATCH, "score": (9, 11), "games_won": (1, 3)}
+    assert decode(encode(Kind.EVENT, **end))["event"] is EventKind.MATCH
 
 
 def test_decoded_fields_are_typed_and_read_only():
