@@ -17,7 +17,7 @@ from engine.ai import SKILLS, BatAI
 from engine.dtypes import POINT_DTYPE
 from engine.rules import REASONS, Phase, PointRecord, Referee
 from engine.scene import Scene
-from engine.world import build_model, copy_record, initial_state, new_events, step
+from engine.world import advance, build_model, copy_record, initial_state, new_events, step
 
 OUT_OF_PLAY_DISTANCE = 4.0  # m from the table's centre: the ball is gone
 
@@ -125,6 +125,7 @@ class Match:
         self.rally = 0
         self.rally_started = 0.0
         self.n_events = 0
+        self.ticks_done = 0
         self.ai_seconds = 0.0
         self.toss()
 
@@ -175,28 +176,40 @@ class Match:
         self.rally_started = float(rally["rally_started"])
         self._sync_rally()
 
-    def tick(self) -> PointRecord | None:
-        """One tick of the match; returns a point record when a rally was decided."""
+    def tick(self, max_ticks: int = 1) -> PointRecord | None:
+        """Advance up to max_ticks ticks, stopping where the match must act; returns a point
+        record when a rally was decided.
+
+        Each call starts, at the AI's control ticks, by asking the AIs for their inputs; then
+        the engine advances until the next control tick, a contact event (judged here), the ball
+        leaving the area or coming to rest, or the rally's time limit, all checked tick by tick
+        inside the kernel, so any max_ticks gives the same match.
+        """
         world = self.state.world[0]
         tick = int(world["tick"])
         inputs = None  # between the AI's control ticks the bats keep their inputs (held in their records)
-        if self.has_ai and tick % self.ai_every == 0:
-            started = time.perf_counter()
-            self.ai_driver(self, float(world["time"]))
-            self.ai_seconds += time.perf_counter() - started
-            inputs = self.inputs
-        n = step(self.model, self.state, inputs, self.events)
+        n_max = max_ticks
+        if self.has_ai:
+            if tick % self.ai_every == 0:
+                started = time.perf_counter()
+                self.ai_driver(self, float(world["time"]))
+                self.ai_seconds += time.perf_counter() - started
+                inputs = self.inputs
+            n_max = min(n_max, self.ai_every - tick % self.ai_every)
+        deadline = self.rally_started + self.scene.match.max_rally_s
+        ticks, n, _ = advance(self.model, self.state, n_max, inputs, self.events, gone_radius=OUT_OF_PLAY_DISTANCE,
+                              gone_z=-equipment.TABLE_HEIGHT, deadline=deadline)
+        self.ticks_done = ticks
         self.n_events = n
         point = None
         for k in range(n):
             point = self.referee.on_contact(int(self.events[k]["body"]), self.events[k]["pos"]) or point
         if point is None and self.referee.phase != Phase.OVER:
-            pos = self.state.ball["pos"][0]
-            now = float(world["time"])
-            gone = np.hypot(pos[0], pos[1]) > OUT_OF_PLAY_DISTANCE or pos[2] < -equipment.TABLE_HEIGHT
+            y = self.state.ball_y
+            gone = y[0] * y[0] + y[1] * y[1] > OUT_OF_PLAY_DISTANCE**2 or y[2] < -equipment.TABLE_HEIGHT
             resting = int(world["ball_support"]) != 0
-            if gone or resting or now - self.rally_started > self.scene.match.max_rally_s:
-                point = self.referee.ball_out_of_play(float(pos[0]), float(pos[1]))
+            if gone or resting or float(world["time"]) > deadline:
+                point = self.referee.ball_out_of_play(float(y[0]), float(y[1]))
         if point is not None and not self.referee.match_over:
             self.referee.next_rally()
             self.rally += 1
@@ -219,9 +232,10 @@ class Match:
         compile_seconds = time.perf_counter() - compile_start
         start = time.perf_counter()
         ticks = 0
+        chunk = 1 if on_tick is not None else 1 << 30  # per-tick callbacks see every tick
         while ticks < limit and not self.referee.match_over:
-            point = self.tick()
-            ticks += 1
+            point = self.tick(min(chunk, limit - ticks))
+            ticks += self.ticks_done
             if events_out is not None and self.n_events:
                 events_out.extend(self.events[: self.n_events].copy())
             if on_tick is not None:

@@ -96,7 +96,11 @@ def run_case(case: Case) -> Outcome:
         scene = parse_scene(data, f"stability:{case.name}")
     except SceneError as exc:
         return Outcome(case.name, data.get("integrator", "verlet"), data.get("dt", 0.001), 0, f"refused: {exc}")
-    model, state, events = build_model(scene), initial_state(scene), new_events()
+    try:
+        model = build_model(scene)
+    except SceneError as exc:
+        return Outcome(case.name, scene.integrator, scene.dt, 0, f"refused: {exc}")
+    state, events = initial_state(scene), new_events()
     out = Outcome(case.name, scene.integrator, scene.dt, 0, "stable")
     g = model.gravity or 0.0
     e0 = _energy(state.ball_y, g)
@@ -244,6 +248,8 @@ def cases() -> list[Case]:
               "bats": {"a": {"pos": [-0.3, 0.0, 0.08], "normal": [1.0, 0.0, 0.0], "vel": [1.0, 0.0, 0.0]}}}, 400,
              _expect_final(lambda y: y[0] < 0, "must stay on its side of the net"), bat_yields=True),
         Case("refused: NaN in the scene", {"effects": ["gravity"], "ball": _ball((0.0, math.nan, 0.3))}, 10),
+        Case("refused: a ball starting inside the net", {"effects": ["gravity", "net"], "ball": _ball((0.0, 0.0, 0.1))},
+             10),
         Case("refused: infinite speed", {"effects": ["gravity"], "ball": _ball((0.0, 0.0, 0.3), (math.inf, 0.0, 0.0))}, 10),
         Case("long run: 10^6 ticks of bounces", {"effects": ALL + ["table"], "ball": _ball((0.2, 0.0, 0.32)),
                                                   "duration": 1000.0}, 1_000_000,

@@ -4,12 +4,13 @@ This single-process world is the reference the multi-process run must reproduce 
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from engine import equipment
-from engine.bat import BAT_WIDTH, bat_step, disc_inertia
+from engine.bat import BAT_WIDTH, disc_inertia
 from engine.collision import (
     BAT_HALF_THICKNESS,
     BAT_RADIUS,
@@ -25,13 +26,13 @@ from engine.collision import (
     P_RADIUS,
     P_REST_SPEED,
     SCRATCH_SHAPE,
-    ball_tick,
 )
 from engine.dtypes import CONTACT_DTYPE, physics_snapshot_dtype
 from engine.forces import drag_factor, magnus_factor
 from engine.geometry import FLOOR_Z, NET_BOX, POST_BOXES, TABLE_BOX, Body
 from engine.integrators import METHODS, WORK_SHAPE
 from engine.scene import Scene
+from engine.tick import advance_ticks
 
 
 class SimulationError(RuntimeError):
@@ -76,7 +77,7 @@ def build_model(scene: Scene) -> Model:
         mat = scene.material(name)
         # Without the friction effect the contact is frictionless: no spin in contact.
         materials[body] = (mat.restitution, mat.friction if "friction" in fx else 0.0)
-    return Model(
+    model = Model(
         scene=scene,
         dt=scene.dt,
         method=METHODS[scene.integrator],
@@ -92,6 +93,37 @@ def build_model(scene: Scene) -> Model:
         bat_mass=np.array([b.mass for b in scene.bats]),
         bat_inertia=np.array([disc_inertia(b.mass, b.radius) for b in scene.bats]).reshape(len(scene.bats), 3),
     )
+    _check_start(model)
+    return model
+
+
+def _check_start(model: Model) -> None:
+    """Refuse a ball that starts inside a body: no physics can say which way it should leave."""
+    from engine.bat import face_normal
+    from engine.geometry import box_sdf, disc_sdf
+    from engine.scene import SceneError
+
+    scene = model.scene
+    p = np.array(scene.ball.pos, dtype=float)
+    radius = float(model.ball_params[P_RADIUS])
+    n = np.zeros(3)
+    bodies = []
+    if model.table is not None:
+        bodies.append(("the table", box_sdf(p, model.table, n)))
+    if model.floor_z is not None:
+        bodies.append(("the floor", p[2] - model.floor_z))
+    if model.net is not None:
+        bodies.append(("the net", box_sdf(p, model.net, n)))
+        bodies += [("a net post", box_sdf(p, post, n)) for post in model.posts]
+    for bat in scene.bats:
+        axis = np.zeros(3)
+        face_normal(np.array(bat.quat, dtype=float), axis)
+        bodies.append((f"bat {bat.name}", disc_sdf(p, np.array(bat.pos, dtype=float), axis, bat.radius,
+                                                   bat.half_thickness, n)))
+    for name, distance in bodies:
+        if distance - radius < -1e-9:
+            raise SceneError(f"{scene.source}: ball.pos: the ball starts inside {name} (overlap "
+                             f"{radius - distance:.4f} m); move it out")
 
 
 @dataclass
@@ -184,40 +216,63 @@ def step(model: Model, state: State, inputs: np.ndarray | None, events: np.ndarr
     Returns:
         n, the number of contact events written.
     """
+    ticks, n, _ = advance(model, state, 1, inputs, events, dt=dt)
+    return n
+
+
+def advance(model: Model, state: State, n_max: int, inputs: np.ndarray | None, events: np.ndarray,
+            dt: float | None = None, gone_radius: float = math.inf, gone_z: float = -math.inf,
+            deadline: float = math.inf) -> tuple[int, int, int]:
+    """Advance up to n_max ticks in one kernel call (engine/tick.py); stop after a tick with
+    contact events, with the ball beyond gone_radius (m, horizontal) or below gone_z, with its
+    support changed, or past the deadline (s of simulated time).
+
+    Returns:
+        (ticks done, events of the last tick written to `events`, the engine.tick.STOP_* reason).
+    """
     h = model.dt if dt is None else dt
-    world = state.world[0]
     has_bats = len(state.bats) > 0
-    if has_bats:
-        if inputs is not None:
-            _check_inputs(inputs, len(state.bats))
-            state.bats["force"] = inputs[:, 0:3]
-            state.bats["torque"] = inputs[:, 3:6]
-        bat_step(state.bat_flat, h, model.bat_mass, model.bat_inertia, state.bat_motion, state.bat_tmp)
-    n, support = ball_tick(
-        state.ball_y[0:9], h, int(world["ball_support"]), model.method, model.gravity, model.drag_k,
-        model.magnus_k, model.scene.rtol, model.scene.atol, model.table, model.floor_z, model.net,
-        model.posts, state.bat_motion if has_bats else None, model.ball_params, model.materials,
-        state.work, state.scratch, state.adapt, state.event_rows,
-    )
-    tick = int(world["tick"])
-    if n == ERR_SUBSTEPS:
+    if inputs is not None and has_bats:
+        _check_inputs(inputs, len(state.bats))
+        state.bats["force"] = inputs[:, 0:3]
+        state.bats["torque"] = inputs[:, 3:6]
+    tick = int(state.world[0]["tick"])
+    ticks, n, reason, error = advance_ticks(
+        n_max, h, state.world, state.bat_flat if has_bats else None, model.bat_mass, model.bat_inertia,
+        state.bat_motion if has_bats else None, state.bat_tmp, state.ball_y[0:9], model.method, model.gravity,
+        model.drag_k, model.magnus_k, model.scene.rtol, model.scene.atol, model.table, model.floor_z, model.net,
+        model.posts, model.ball_params, model.materials, state.work, state.scratch, state.adapt, state.event_rows,
+        gone_radius * gone_radius, gone_z, deadline)
+    if error:
+        _raise(error, tick + ticks, model, state)
+    if n:
+        _copy_events(state, events, n, int(state.world[0]["tick"]) - 1)
+    return ticks, n, reason
+
+
+def _raise(error: int, tick: int, model: Model, state: State) -> None:
+    if error == ERR_SUBSTEPS:
         raise SimulationError(f"tick {tick}: the adaptive integrator needed more than its substep limit; "
                               f"loosen rtol/atol (now {model.scene.rtol}, {model.scene.atol}) or shorten dt")
-    if n == ERR_IMPACTS:
+    if error == ERR_IMPACTS:
         raise SimulationError(f"tick {tick}: more than {MAX_IMPACTS_PER_TICK} impacts in one tick "
                               "(the ball is trapped between bodies); shorten dt")
-    if n == ERR_NONFINITE:
+    if error == ERR_NONFINITE:
         index = int(state.scratch[7, 0])
         quantity = f"{('pos', 'vel', 'spin')[index // 3]}[{'xyz'[index % 3]}]"
         raise SimulationError(f"tick {tick}: the ball's {quantity} would become non-finite (from pos "
                               f"{state.ball['pos'][0].tolist()}, vel {state.ball['vel'][0].tolist()}); "
                               "the state was left as it was before the tick")
-    time0 = float(world["time"])
+    raise SimulationError(f"tick {tick}: the tick kernel failed with code {error}")
+
+
+def _copy_events(state: State, events: np.ndarray, n: int, tick: int) -> None:
+    """The last tick's event rows into CONTACT_DTYPE records (rare: a few per second)."""
     for k in range(n):
         row = state.event_rows[k]
         ev = events[k]
         ev["tick"] = tick
-        ev["time"] = time0 + row[0]
+        ev["time"] = row[0]
         ev["body"] = int(row[1])
         ev["pos"] = row[2:5]
         ev["normal"] = row[5:8]
@@ -226,11 +281,3 @@ def step(model: Model, state: State, inputs: np.ndarray | None, events: np.ndarr
         ev["spin_in"] = row[14:17]
         ev["spin_out"] = row[17:20]
         ev["normal_speed"] = row[20]
-    if h == 0.0:
-        return 0  # a zero-length tick ran the kernels (compiling them) and changed nothing
-    world["ball_support"] = support
-    world["n_events"] = n
-    world["events_total"] += n
-    world["tick"] = tick + 1
-    world["time"] = time0 + h
-    return n

@@ -164,15 +164,21 @@ def _match_worker(control: Control, arena: Arena, scene, options: dict) -> None:
     crash_at_tick = options.get("crash_at_tick")
     capacity = log.shape[0]
     busy = 0.0
+    per_tick = pacer is not None or trace is not None  # pacing and traces want every tick
     while tick < n_ticks and not match.referee.match_over:
         if pacer is not None:
             pacer.wait(tick)
         t0 = time.perf_counter()
-        match.tick()
+        chunk = 1 if per_tick else n_ticks - tick
+        if frames is not None:
+            chunk = min(chunk, frame_every - tick % frame_every)
+        if crash_at_tick is not None and tick < crash_at_tick:
+            chunk = min(chunk, crash_at_tick - tick)
+        match.tick(chunk)
         for k in range(match.n_events):
             log[(total_events + k) % capacity] = match.events[k]
         total_events += match.n_events
-        tick += 1
+        tick += match.ticks_done
         while points_logged < len(match.referee.points):
             points_log[points_logged] = point_row(match.referee.points[points_logged], tick)
             points_logged += 1

@@ -53,3 +53,16 @@ def test_referee_needs_the_whole_table():
     with pytest.raises(SceneError, match="effect 'referee' needs the table, net, floor and both bats; missing: net"):
         parse_scene({"effects": ["gravity", "table", "floor", "bats", "referee"], "ball": {"pos": [0, 0, 0.3]},
                      "bats": {"a": {"pos": [-1.7, 0, 0.1]}, "b": {"pos": [1.7, 0, 0.1]}}}, "inline")
+
+
+def test_advancing_in_chunks_gives_the_same_match_as_tick_by_tick():
+    chunked, by_tick = Match(SCENE, seed=4), Match(SCENE, seed=4)
+    ticks = 0
+    while ticks < 12_000:
+        chunked.tick(1 << 30)
+        ticks += chunked.ticks_done
+    for _ in range(ticks):
+        by_tick.tick(1)
+    assert chunked.state.record.tobytes() == by_tick.state.record.tobytes()
+    assert [(p.winner, p.reason, p.shots) for p in chunked.referee.points] == \
+           [(p.winner, p.reason, p.shots) for p in by_tick.referee.points]

@@ -16,7 +16,8 @@ SUITE = cases()
 def test_case(case):
     out = run_case(case)
     if case.name.startswith("refused"):
-        assert out.result.startswith("refused: ") and "must be finite" in out.result
+        assert out.result.startswith("refused: ")
+        assert "must be finite" in out.result or "starts inside the net" in out.result, out.result
         return
     assert out.result == "stable", out.result
     assert out.finite and not out.tunnelled
@@ -41,6 +42,8 @@ def test_random_shots_stay_finite_and_outside_every_body(x, y, z, vx, vy, vz, wx
     case = Case("random", {"effects": ALL + ["table", "net", "floor"],
                            "ball": {"pos": [x, y, z], "vel": [vx, vy, vz], "spin": [wx, wy, wz]}}, 400)
     out = run_case(case)
+    if out.result.startswith("refused: ") and "starts inside" in out.result:
+        return  # a start overlapping a body is refused at the boundary, which is the right answer
     assert out.finite and not out.tunnelled, out.result
     assert out.max_penetration_m <= 1e-6, out.result  # contacts resolve to CONTACT_TOL = 1 um
     assert np.isfinite(out.final).all()

@@ -1,0 +1,70 @@
+"""The tick kernel: bats, then the ball, for as many ticks as nothing needs Python's attention.
+
+`advance_ticks` runs up to n ticks in one numba call and stops right after the first tick at
+which the orchestrator must act: a contact event (the referee judges it), the ball leaving the
+playing area, its support changing (coming to rest, rolling off), or the time passing a
+deadline (a rally's limit). Everything the orchestrator checks between ticks is checked here
+at the same tick, so advancing in chunks gives the same bits as advancing one tick at a time.
+The AI's control ticks are chunk boundaries chosen by the caller.
+"""
+from numba import njit
+
+from engine.bat import bat_step
+from engine.collision import ball_tick
+
+STOP_LIMIT = 0  # ran the ticks asked for
+STOP_EVENT = 1
+STOP_GONE = 2
+STOP_SUPPORT = 3
+STOP_DEADLINE = 4
+
+
+@njit(cache=True)
+def advance_ticks(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_tmp, ball_y, method,
+                  gravity, drag_k, magnus_k, rtol, atol, table, floor_z, net, posts, params, materials, work,
+                  scratch, adapt, event_rows, gone_r2, gone_z, deadline):
+    """Advance up to n_max ticks of length h; stop after the first tick that needs attention.
+
+    Args:
+        world: (1,) WORLD_DTYPE, updated per tick (tick, time, support, event counts).
+        bat_flat, bat_motion: (n_bats, ...) or None together when the scene has no bats;
+            bat_mass, bat_inertia, bat_tmp as engine.bat.bat_step.
+        ball_y ... adapt: as engine.collision.ball_tick. event_rows: (MAX_IMPACTS_PER_TICK,
+            EVENT_ROW) written with the events of the tick that stopped the run, times absolute.
+        gone_r2: m^2, stop once x^2 + y^2 of the ball exceeds it (inf: never).
+        gone_z: m, stop once the ball's z is below it (-inf: never).
+        deadline: s, stop once the world time exceeds it (inf: never).
+
+    Returns:
+        (ticks done, events in the last tick, STOP_* reason, error code of ball_tick or 0).
+        On an error the failing tick is not counted and the ball keeps its state from before it.
+    """
+    w = world[0]
+    for k in range(n_max):
+        if bat_motion is not None:
+            bat_step(bat_flat, h, bat_mass, bat_inertia, bat_motion, bat_tmp)
+        support_before = w.ball_support
+        n, support = ball_tick(ball_y, h, support_before, method, gravity, drag_k, magnus_k, rtol, atol,
+                               table, floor_z, net, posts, bat_motion, params, materials, work, scratch, adapt,
+                               event_rows)
+        if n < 0:
+            return k, 0, STOP_LIMIT, n
+        if h == 0.0:
+            return 0, 0, STOP_LIMIT, 0  # a zero-length tick ran the kernels and changed nothing
+        for e in range(n):
+            event_rows[e, 0] += w.time  # event times become absolute, from this tick's exact start
+        w.ball_support = support
+        w.n_events = n
+        w.events_total += n
+        w.tick += 1
+        w.time = w.time + h
+        if n > 0:
+            return k + 1, n, STOP_EVENT, 0
+        if ball_y[0] * ball_y[0] + ball_y[1] * ball_y[1] > gone_r2 or ball_y[2] < gone_z:
+            return k + 1, 0, STOP_GONE, 0
+        if support != support_before:
+            return k + 1, 0, STOP_SUPPORT, 0
+        if w.time > deadline:
+            return k + 1, 0, STOP_DEADLINE, 0
+    return n_max, 0, STOP_LIMIT, 0
+
