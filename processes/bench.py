@@ -64,6 +64,8 @@ def _print_accuracy(study, result: dict) -> None:
     console.print("through engine.world.step, 1 ms tick: "
                   + ", ".join(f"{name} {v['us_per_tick']:.1f} µs/tick" for name, v in step.items()))
     console.print(Markdown(study.orders_markdown(result)))
+    for line in result["findings"]:
+        console.print(f"- {line}")
     console.print(Markdown(study.recommendation_markdown(result)))
 
 
