@@ -1,2 +1,39 @@
 """The table net: topology builder, numba spring kernels and their numpy twins."""
-__all__: list[str] = []
+from net_kernel.kernels import NO_CONTACT, collide_ball, knot_speed_max, step_knots, step_knots_implicit, step_knots_serial
+from net_kernel.sim import BACKENDS, NetContact, NetSim
+from net_kernel.topology import (
+    IMPLICIT,
+    NET_HEIGHT,
+    NET_WIDTH,
+    SEMI_IMPLICIT,
+    NetSpec,
+    NetTopology,
+    build_topology,
+    grid_spec,
+    make_topology,
+    stability_bound,
+    validate_spec,
+)
+
+__all__ = [
+    "BACKENDS",
+    "IMPLICIT",
+    "NET_HEIGHT",
+    "NET_WIDTH",
+    "NO_CONTACT",
+    "NetContact",
+    "NetSim",
+    "NetSpec",
+    "NetTopology",
+    "SEMI_IMPLICIT",
+    "build_topology",
+    "collide_ball",
+    "grid_spec",
+    "knot_speed_max",
+    "make_topology",
+    "stability_bound",
+    "step_knots",
+    "step_knots_implicit",
+    "step_knots_serial",
+    "validate_spec",
+]

@@ -1,0 +1,161 @@
+"""Profile of the net step: compile time, time per step, springs per second, bandwidth share.
+
+Plain dicts out (stdlib + numpy + numba only); processes/profile_net.py formats them.
+
+Byte model of one step (the compulsory traffic of the two passes, neighbours from cache):
+  per knot: spring pass reads knot_pos, knot_vel (48 B); knot pass reads knot_pos,
+            knot_vel (48 B), knot_inv_mass (8 B), adj_start (8 B), writes out_pos,
+            out_vel (48 B)                                                    -> 160 B
+  per spring: spring pass reads spring_ij (int32, 8 B), spring_rest, spring_k, spring_c
+            (24 B), writes spring_scale (8 B); knot pass reads 2 slots of adj_knot,
+            adj_spring (int32, 16 B) and spring_scale twice (16 B)            -> 72 B
+Write-allocate traffic is not counted, as it is not in the copy measurement
+(bytes = 2 x size: one read, one write).
+"""
+import math
+import statistics
+import time
+
+import numba
+import numpy as np
+
+from net_kernel import kernels, reference
+from net_kernel.topology import build_topology, grid_spec
+
+BYTES_PER_KNOT = 160
+BYTES_PER_SPRING = 72
+# The copy that sets this machine's bandwidth: large enough to leave every cache (256 MiB).
+COPY_BYTES = 256 * 2**20
+REPEATS = 5
+
+
+def copy_bandwidth(n_bytes: int = COPY_BYTES, repeats: int = REPEATS) -> dict:
+    """GB/s of a large numpy copy (read + write counted), median and spread of `repeats`."""
+    src = np.ones(n_bytes // 8)
+    dst = np.empty_like(src)
+    np.copyto(dst, src)  # first touch: page faults out of the timing
+    rates = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        np.copyto(dst, src)
+        rates.append(2 * src.nbytes / (time.perf_counter() - t0) / 1e9)
+    return {"gb_per_s": statistics.median(rates), "min": min(rates), "max": max(rates), "bytes": 2 * src.nbytes}
+
+
+def parse_knots(text: str) -> tuple[int, int]:
+    """(cols, rows) from "COLSxROWS"; ValueError with the expected form otherwise."""
+    parts = text.lower().split("x")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise ValueError(f"--knots {text!r}: expected COLSxROWS, e.g. 184x16")
+    return int(parts[0]), int(parts[1])
+
+
+def _state(topo, seed=0):
+    """A perturbed, moving state (so no branch is trivially skipped) and output buffers."""
+    rng = np.random.default_rng(seed)
+    free = (topo.knot_inv_mass > 0)[:, None]
+    spacing = min(topo.spec.width / (topo.spec.cols - 1), topo.spec.height / (topo.spec.rows - 1))
+    pos = topo.knot_pos + free * rng.normal(0.0, 0.01 * spacing, topo.knot_pos.shape)
+    vel = free * rng.normal(0.0, 1e-3, topo.knot_pos.shape)
+    return pos, vel, np.empty_like(pos), np.empty_like(vel)
+
+
+def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True, target_s: float = 1.0,
+                    repeats: int = REPEATS) -> dict:
+    """Time `steps` semi-implicit steps of `topo` with one backend (median of `repeats` runs).
+
+    Args:
+        topo: the built net.
+        backend: "numba" or "reference".
+        steps: steps per timed run; None sizes a run to about target_s / repeats.
+        parallel: numba: the parallel kernel (else the serial twin of the same bits).
+        target_s: s, rough total timing budget when steps is None.
+        repeats: timed runs.
+    """
+    mod = kernels if backend == "numba" else reference
+    step = mod.step_knots if parallel else mod.step_knots_serial
+    pos, vel, out_pos, out_vel = _state(topo)
+    args = (topo.knot_inv_mass, topo.adj_start, topo.adj_knot, topo.adj_spring, topo.spring_ij, topo.spring_rest,
+            topo.spring_k, topo.spring_c, topo.spec.gravity, topo.spec.air_damping, 0.5 * topo.h_max,
+            np.zeros(topo.n_springs))
+    t0 = time.perf_counter()
+    step(pos, vel, *args, out_pos, out_vel)  # compiles (or loads the cache) on the first call
+    first_call = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    step(pos, vel, *args, out_pos, out_vel)
+    one = time.perf_counter() - t0
+    if steps is None:
+        steps = max(1, min(100_000, int(target_s / repeats / max(one, 1e-7))))
+    for _ in range(min(steps, 3)):  # warm caches and the thread pool
+        step(pos, vel, *args, out_pos, out_vel)
+    runs = []
+    for _ in range(repeats):
+        p, v, po, vo = pos, vel, out_pos, out_vel
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            step(p, v, *args, po, vo)
+            p, po = po, p
+            v, vo = vo, v
+        runs.append((time.perf_counter() - t0) / steps)
+    per_step = statistics.median(runs)
+    n_bytes = BYTES_PER_KNOT * topo.n_knots + BYTES_PER_SPRING * topo.n_springs
+    return {
+        "backend": backend,
+        "parallel": bool(parallel) if backend == "numba" else False,
+        "compile_s": max(0.0, first_call - one) if backend == "numba" else 0.0,
+        "steps": steps,
+        "repeats": repeats,
+        "us_per_step": per_step * 1e6,
+        "us_per_step_min": min(runs) * 1e6,
+        "us_per_step_max": max(runs) * 1e6,
+        "msprings_per_s": topo.n_springs / per_step / 1e6,
+        "bytes_per_step": n_bytes,
+        "gb_per_s": n_bytes / per_step / 1e9,
+    }
+
+
+def profile_net(cols: int, rows: int, steps: int | None = None, backends=("numba", "reference"),
+                target_s: float = 1.0) -> dict:
+    """The whole profile: net size, copy bandwidth, and one entry per backend (numba: parallel and serial).
+
+    Returns:
+        {"knots", "springs", "cols", "rows", "h_s", "byte_model", "copy": {...}, "results": [...]}
+        where each result carries "copy_share" = its gb_per_s / the copy's gb_per_s.
+    """
+    topo = build_topology(grid_spec(cols, rows))
+    copy = copy_bandwidth(n_bytes=min(COPY_BYTES, max(2**20, 64 * (BYTES_PER_KNOT * topo.n_knots
+                                                                    + BYTES_PER_SPRING * topo.n_springs))))
+    results = []
+    for backend in backends:
+        variants = (True, False) if backend == "numba" else (False,)
+        for parallel in variants:
+            results.append(profile_backend(topo, backend, steps, parallel=parallel, target_s=target_s))
+    copy_again = copy_bandwidth(n_bytes=copy["bytes"] // 2)
+    # Bandwidth is measured before and after the kernels; the share uses the better of the
+    # two medians, since the machine is shared and the slower one saw more interference.
+    copy_best = max(copy["gb_per_s"], copy_again["gb_per_s"])
+    for r in results:
+        r["copy_share"] = r["gb_per_s"] / copy_best
+    return {
+        "cols": cols,
+        "rows": rows,
+        "knots": topo.n_knots,
+        "springs": topo.n_springs,
+        "h_s": 0.5 * topo.h_max,
+        "byte_model": (f"{BYTES_PER_KNOT} B per knot (pos, vel read by both passes, written once; inv_mass; "
+                       f"CSR start) + {BYTES_PER_SPRING} B per spring (ij, 2 slots as int32; rest, k, c, scale "
+                       "as f8, scale read twice); neighbours from cache"),
+        "copy": {"gb_per_s": copy_best, "before": copy["gb_per_s"], "after": copy_again["gb_per_s"],
+                 "bytes": copy["bytes"]},
+        "threads": _threads(),
+        "results": results,
+    }
+
+
+def _threads() -> int:
+    return int(numba.get_num_threads())
+
+
+def isfinite_result(result: dict) -> bool:
+    """True when every number of one backend's result is finite (a smoke check)."""
+    return all(math.isfinite(v) for v in result.values() if isinstance(v, float))

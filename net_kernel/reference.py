@@ -1,0 +1,191 @@
+"""Numpy twins of net_kernel/kernels.py: same signatures, vectorised, for checking and profiling.
+
+Each twin evaluates every CSR slot at once and sums a knot's slots with np.add.reduceat, so
+it sums in the same slot order as the kernels; results match them to rounding (the tests
+state the tolerance). Twins allocate freely; they are the reference, not the fast path.
+"""
+import math
+
+import numpy as np
+
+from net_kernel.kernels import KNOT_WORK_ROWS, NO_CONTACT, SPRING_WORK_COLS  # noqa: F401  (shapes shared)
+
+
+def _slot_owner(adj_start):
+    """(2 n_springs,) the knot owning each slot."""
+    return np.repeat(np.arange(adj_start.shape[0] - 1), np.diff(adj_start))
+
+
+def _gather(per_slot, adj_start):
+    """(n_knots, 3) sums of per-slot rows over each knot's slots, in slot order (0 for no slots)."""
+    n = adj_start.shape[0] - 1
+    out = np.zeros((n, 3))
+    has = adj_start[1:] > adj_start[:-1]
+    if per_slot.shape[0]:
+        out[has] = np.add.reduceat(per_slot, adj_start[:-1][has], axis=0)
+    return out
+
+
+def spring_forces(knot_pos, knot_vel, adj_start, adj_knot, adj_spring, spring_ij, spring_rest, spring_k, spring_c):
+    """(n_knots, 3) N, the spring-damper force on each knot (the kernels' model and order)."""
+    i, j = spring_ij[:, 0], spring_ij[:, 1]
+    d = knot_pos[j] - knot_pos[i]
+    length = np.sqrt(np.einsum("ij,ij->i", d, d))
+    inv_len = 1.0 / length
+    rate = np.einsum("ij,ij->i", knot_vel[j] - knot_vel[i], d)
+    scale = (spring_k * (length - spring_rest) + spring_c * rate * inv_len) * inv_len
+    owner = _slot_owner(adj_start)
+    return _gather(scale[adj_spring][:, None] * (knot_pos[adj_knot] - knot_pos[owner]), adj_start)
+
+
+def step_knots(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_spring, spring_ij, spring_rest, spring_k,
+               spring_c, gravity, drag, h, spring_scale, out_pos, out_vel):
+    """Numpy twin of kernels.step_knots (args and meaning identical; spring_scale is unused)."""
+    force = spring_forces(knot_pos, knot_vel, adj_start, adj_knot, adj_spring, spring_ij, spring_rest, spring_k,
+                          spring_c)
+    accel = knot_inv_mass[:, None] * force - drag * knot_vel
+    accel[:, 2] -= gravity
+    free = knot_inv_mass > 0
+    out_vel[:] = np.where(free[:, None], knot_vel + h * accel, knot_vel)
+    out_pos[:] = np.where(free[:, None], knot_pos + h * out_vel, knot_pos)
+
+
+step_knots_serial = step_knots
+
+
+def knot_speed_max(knot_pos, knot_vel):
+    """Numpy twin of kernels.knot_speed_max."""
+    if not (np.all(np.isfinite(knot_pos)) and np.all(np.isfinite(knot_vel))):
+        return math.inf
+    if knot_vel.shape[0] == 0:
+        return 0.0
+    return float(np.sqrt(np.max(np.einsum("ij,ij->i", knot_vel, knot_vel))))
+
+
+def step_knots_implicit(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_spring, spring_ij, spring_rest,
+                        spring_k, spring_c, gravity, drag, h, cg_tol, cg_max_iter, knot_work, spring_work,
+                        out_pos, out_vel):
+    """Numpy twin of kernels.step_knots_implicit (backward Euler, CG); returns CG iterations."""
+    i, j = spring_ij[:, 0], spring_ij[:, 1]
+    d = knot_pos[j] - knot_pos[i]
+    length = np.linalg.norm(d, axis=1)
+    n = d / length[:, None]
+    rate = np.einsum("ij,ij->i", knot_vel[j] - knot_vel[i], n)
+    transverse = np.maximum(0.0, spring_k * (1.0 - spring_rest / length))
+    a = h * h * transverse
+    b_k = h * h * (spring_k - transverse)
+    b_c = h * spring_c
+    axial = spring_k * (length - spring_rest) + spring_c * rate
+    owner = _slot_owner(adj_start)
+    sign = np.where(spring_ij[adj_spring, 0] == owner, 1.0, -1.0)
+    fixed = knot_inv_mass == 0
+    mass = np.where(fixed, 0.0, 1.0 / np.where(fixed, 1.0, knot_inv_mass))
+
+    def blocks(q, coef_a, coef_b):
+        ns = n[adj_spring]
+        t = coef_b[adj_spring] * np.einsum("ij,ij->i", ns, q)
+        return coef_a[adj_spring][:, None] * q + t[:, None] * ns
+
+    q = knot_vel[owner] - knot_vel[adj_knot]
+    rhs = _gather((sign * h * axial[adj_spring])[:, None] * n[adj_spring] - blocks(q, a, b_k), adj_start)
+    rhs += h * (-drag * mass[:, None] * knot_vel)
+    rhs[:, 2] -= h * mass * gravity
+    rhs[fixed] = 0.0
+
+    def apply(p):
+        pj = np.where(fixed[adj_knot][:, None], 0.0, p[adj_knot])
+        out = ((1.0 + h * drag) * mass)[:, None] * p + _gather(blocks(p[owner] - pj, a, b_k + b_c), adj_start)
+        out[fixed] = p[fixed]
+        return out
+
+    dv = np.zeros_like(knot_vel)
+    r = rhs.copy()
+    p = r.copy()
+    rr = float(np.sum(r * r))
+    stop = cg_tol * cg_tol * rr
+    it = 0
+    while it < cg_max_iter and rr > stop:
+        ap = apply(p)
+        alpha = rr / float(np.sum(p * ap))
+        dv += alpha * p
+        r -= alpha * ap
+        rr_new = float(np.sum(r * r))
+        p = r + (rr_new / rr) * p
+        rr = rr_new
+        it += 1
+    out_vel[:] = knot_vel + dv
+    out_pos[:] = knot_pos + h * out_vel
+    return it
+
+
+def collide_ball(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_radius, ball_inv_mass, knot_radius,
+                 restitution, dt, max_hits, out_impulse, out_ball_pos):
+    """Numpy twin of kernels.collide_ball (same contract, same in-place changes)."""
+    out_impulse[:] = 0.0
+    reach = ball_radius + knot_radius
+    p = np.array(ball_pos, dtype=float)
+    b = np.array(ball_vel, dtype=float)
+    t_now = 0.0
+    first = NO_CONTACT
+    free = knot_inv_mass > 0
+    e = knot_pos - p
+    dist = np.linalg.norm(e, axis=1)
+    inside = free & (dist < reach) & (dist > 0.0)
+    knot_pos[inside] = p + e[inside] * (reach / dist[inside])[:, None]
+    for _ in range(max_hits):
+        d = knot_pos + knot_vel * t_now - p
+        w = knot_vel - b
+        bb = np.einsum("ij,ij->i", d, w)
+        cc = np.einsum("ij,ij->i", d, d) - reach * reach
+        aa = np.einsum("ij,ij->i", w, w)
+        disc = bb * bb - aa * cc
+        with np.errstate(invalid="ignore", divide="ignore"):
+            t = t_now + (-bb - np.sqrt(np.where(disc >= 0, disc, 0.0))) / aa
+        t = np.where(cc <= 0.0, t_now, t)
+        ok = (bb < 0.0) & ((cc <= 0.0) | ((disc >= 0.0) & (t <= dt)))
+        if not ok.any():
+            break
+        t_hit = float(np.min(t[ok]))
+        c = p + b * (t_hit - t_now)
+        e = knot_pos + knot_vel * t_hit - c
+        dist = np.linalg.norm(e, axis=1)
+        touch = (dist <= 1.1 * reach) & (dist > 0.0)
+        normal = np.sum(e[touch] / dist[touch][:, None], axis=0)
+        norm = float(np.linalg.norm(normal))
+        if norm == 0.0:
+            break
+        normal /= norm
+        pinned = bool(np.any(touch & ~free))
+        moving = touch & free
+        mass = float(np.sum(1.0 / knot_inv_mass[moving])) if moving.any() else 0.0
+        if pinned or mass == 0.0:
+            u, inv_knots = np.zeros(3), 0.0
+        else:
+            u = np.sum(knot_vel[moving] / knot_inv_mass[moving][:, None], axis=0) / mass
+            inv_knots = 1.0 / mass
+        rel = b - u
+        closing = float(rel @ normal)
+        if closing <= 0.0:
+            t_now = t_hit + 1e-9 * dt
+            p = c + b * 1e-9 * dt
+            if t_now >= dt:
+                break
+            continue
+        m_eff = 1.0 / (ball_inv_mass + inv_knots)
+        jn = (1.0 + restitution) * closing
+        if pinned or mass == 0.0:
+            jv = m_eff * jn * normal
+        else:
+            jv = m_eff * (jn * normal + rel - closing * normal)
+        out_impulse -= jv
+        b = b - jv * ball_inv_mass
+        if not pinned and mass > 0.0:
+            dv = jv * inv_knots
+            knot_vel[moving] += dv
+            knot_pos[moving] -= dv * t_hit
+        if first == NO_CONTACT:
+            first = t_hit / dt
+        p = c
+        t_now = t_hit
+    out_ball_pos[:] = p + b * (dt - t_now)
+    return first

@@ -1,0 +1,221 @@
+"""The net simulation: owns the knot state, substeps under the stability bound, sleeps and wakes."""
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from net_kernel import kernels, reference
+from net_kernel.kernels import KNOT_WORK_ROWS, NO_CONTACT, SPRING_WORK_COLS
+from net_kernel.topology import IMPLICIT, NetTopology
+
+# One switch picks the backend; both modules expose the same kernel names and signatures.
+BACKENDS = {"numba": kernels, "reference": reference}
+
+# Substeps aim at this fraction of the stability bound, so rounding of the bound (it is an
+# estimate for non-proportional dashpots) never puts a step right at the edge.
+SAFETY = 0.9
+# Below this many knots one thread beats waking the pool (measured: `pingpong profile-net`
+# at 184x16 runs faster serial on the 2-core machine this was built on).
+PARALLEL_MIN_KNOTS = 20_000
+# Sleep: the net falls asleep after SLEEP_TICKS ticks with every knot slower than
+# SLEEP_SPEED, and the ball farther than WAKE_MARGIN plus one tick's travel from the net's box.
+SLEEP_SPEED = 1e-3  # m/s
+SLEEP_TICKS = 20
+WAKE_MARGIN = 0.05  # m
+# Ball-knot contact defaults: a net thread is about 1 mm thick; the cloth's give comes from
+# its springs, so each knot-ball impact is taken as perfectly inelastic.
+KNOT_RADIUS = 0.5e-3  # m
+NET_RESTITUTION = 0.0
+MAX_HITS = 8
+CG_TOL = 1e-8
+CG_MAX_ITER = 200
+# DESIGN.md equipment: a 40 mm, 2.7 g ball (the defaults of NetSim.step).
+BALL_RADIUS = 0.02
+BALL_MASS = 2.7e-3
+
+
+class NetContact(NamedTuple):
+    """What the net did to the ball in one tick (see NetSim.step)."""
+
+    toi: float
+    impulse: np.ndarray
+    offset: np.ndarray
+
+
+class NetSim:
+    """A cloth net stepped tick by tick: knots, substeps, sleeping, ball contact.
+
+    The knot state lives in two preallocated buffer pairs that the kernel ping-pongs between;
+    `knot_pos`/`knot_vel` always name the current pair. `kernel_calls` counts every kernel
+    invocation (steps, rest checks, contact sweeps), so a sleeping net can be shown to cost none.
+    """
+
+    def __init__(self, topo: NetTopology, dt: float, substeps: int | None = None, backend: str = "numba",
+                 parallel: bool | None = None):
+        """Validate the tick against the stability bound and allocate everything once.
+
+        Args:
+            topo: the built net.
+            dt: s, the tick.
+            substeps: steps per tick; None derives the count from the stability bound (implicit
+                solver: 1). An explicit count whose substep exceeds the bound is refused.
+            backend: "numba" or "reference".
+            parallel: numba backend: parallel knot loop (None: only for nets above
+                PARALLEL_MIN_KNOTS knots). Both variants give the same bits.
+
+        Raises:
+            ValueError: dt <= 0, an unknown backend, or substeps too few for the bound.
+        """
+        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
+            raise ValueError(f"dt = {dt!r} must be a finite number of seconds > 0")
+        if backend not in BACKENDS:
+            raise ValueError(f"backend {backend!r} is not one of {', '.join(BACKENDS)}")
+        self.topo = topo
+        self.dt = float(dt)
+        self.backend = backend
+        self.implicit = topo.spec is not None and topo.spec.solver == IMPLICIT
+        if substeps is None:
+            substeps = 1 if self.implicit else max(1, math.ceil(self.dt / (SAFETY * topo.h_max)))
+        if not isinstance(substeps, int) or substeps < 1:
+            raise ValueError(f"substeps = {substeps!r} must be an integer >= 1")
+        h = self.dt / substeps
+        if not self.implicit and h >= topo.h_max:
+            need = math.ceil(self.dt / (SAFETY * topo.h_max))
+            raise ValueError(
+                f"substep h = {h:.4g} s is above the semi-implicit Euler stability bound h_max = {topo.h_max:.4g} s "
+                "(h^2 w^2 + 2 h g < 4 with w^2 = max 2 K_i/m_i, g = max 2 C_i/m_i + air_damping); "
+                f"use substeps >= {need} (or substeps=None), or solver='implicit'")
+        self.substeps = substeps
+        self.h = h
+        spec = topo.spec
+        self.gravity = spec.gravity if spec is not None else 9.81
+        self.drag = spec.air_damping if spec is not None else 0.0
+        mod = BACKENDS[backend]
+        if parallel is None:
+            parallel = topo.n_knots >= PARALLEL_MIN_KNOTS
+        self._step = mod.step_knots if parallel else mod.step_knots_serial
+        self._implicit = mod.step_knots_implicit
+        self._speed = mod.knot_speed_max
+        self._collide = mod.collide_ball
+        n = topo.n_knots
+        self._pos = [topo.knot_pos.copy(), topo.knot_pos.copy()]
+        self._vel = [np.zeros((n, 3)), np.zeros((n, 3))]
+        self._cur = 0
+        self._knot_work = np.zeros((KNOT_WORK_ROWS, n, 3)) if self.implicit else np.zeros((KNOT_WORK_ROWS, 0, 3))
+        self._spring_work = np.zeros((topo.n_springs if self.implicit else 0, SPRING_WORK_COLS))
+        self._spring_scale = np.zeros(topo.n_springs)
+        self._impulse = np.zeros(3)
+        self._offset = np.zeros(3)
+        self._hit_impulse = np.zeros(3)
+        self._ball = np.zeros((3, 3))  # ball position, velocity, position after a sweep
+        self._box_lo = topo.knot_pos.min(axis=0)
+        self._box_hi = topo.knot_pos.max(axis=0)
+        self.kernel_calls = 0
+        self.cg_iterations = 0
+        self.sleeping = False
+        self._quiet_ticks = 0
+        self.knot_radius = KNOT_RADIUS
+        self.restitution = NET_RESTITUTION
+
+    @property
+    def knot_pos(self) -> np.ndarray:
+        """(n_knots, 3) m, the current knot positions (a view; valid until the next step)."""
+        return self._pos[self._cur]
+
+    @property
+    def knot_vel(self) -> np.ndarray:
+        """(n_knots, 3) m/s, the current knot velocities."""
+        return self._vel[self._cur]
+
+    def ball_far(self, ball_pos, ball_vel, ball_radius: float) -> bool:
+        """True when the ball cannot reach the net's box (plus margin) within this tick."""
+        if ball_pos is None:
+            return True
+        reach = ball_radius + WAKE_MARGIN + float(np.linalg.norm(ball_vel)) * self.dt
+        lo = self._box_lo - reach
+        hi = self._box_hi + reach
+        return bool(np.any(ball_pos < lo) or np.any(ball_pos > hi))
+
+    def wake(self) -> None:
+        """Wake the net (contact, or the caller moved a knot)."""
+        self.sleeping = False
+        self._quiet_ticks = 0
+
+    def step(self, ball_pos=None, ball_vel=None, ball_radius: float = BALL_RADIUS,
+             ball_inv_mass: float = 1.0 / BALL_MASS) -> NetContact:
+        """Advance the net one tick (all substeps) with the ball's contact, unless it sleeps.
+
+        The contact is resolved at every substep (kernels.collide_ball over h), so the knots
+        move little between two sweeps. The ball is taken to move in a straight line over the
+        tick, bent only by the net's impulses; forces on the ball are the engine's business.
+
+        Contract for the engine: integrate the ball's tick without the net, then add
+        `offset` to its position and `impulse * ball_inv_mass` to its velocity.
+
+        Args:
+            ball_pos: (3,) m, ball centre at the tick's start, or None for no ball.
+            ball_vel: (3,) m/s.
+            ball_radius: m.
+            ball_inv_mass: 1/kg.
+
+        Returns:
+            NetContact(toi, impulse, offset): fraction of the tick at the first contact or
+            NO_CONTACT, the (3,) N s impulse on the ball, the (3,) m change of the ball's end
+            position. Views of preallocated arrays, valid until the next step.
+
+        Raises:
+            FloatingPointError: a knot position or velocity stopped being finite (the cheap
+                invariant checked after every tick).
+        """
+        self._impulse[:] = 0.0
+        self._offset[:] = 0.0
+        far = self.ball_far(ball_pos, ball_vel, ball_radius)
+        if self.sleeping:
+            if far:
+                return NetContact(NO_CONTACT, self._impulse, self._offset)
+            self.wake()
+        topo = self.topo
+        toi = NO_CONTACT
+        if not far:
+            bp = self._ball[0]
+            bv = self._ball[1]
+            bp[:] = ball_pos
+            bv[:] = ball_vel
+        for k in range(self.substeps):
+            if not far:
+                hit = self._collide(self._pos[self._cur], self._vel[self._cur], topo.knot_inv_mass, bp, bv,
+                                    float(ball_radius), float(ball_inv_mass), self.knot_radius, self.restitution,
+                                    self.h, MAX_HITS, self._hit_impulse, self._ball[2])
+                self.kernel_calls += 1
+                if hit != NO_CONTACT:
+                    if toi == NO_CONTACT:
+                        toi = (k + hit) / self.substeps
+                    self._impulse += self._hit_impulse
+                    bv += self._hit_impulse * ball_inv_mass
+                bp[:] = self._ball[2]
+            src, dst = self._cur, 1 - self._cur
+            if self.implicit:
+                self.cg_iterations += self._implicit(
+                    self._pos[src], self._vel[src], topo.knot_inv_mass, topo.adj_start, topo.adj_knot,
+                    topo.adj_spring, topo.spring_ij, topo.spring_rest, topo.spring_k, topo.spring_c, self.gravity,
+                    self.drag, self.h, CG_TOL, CG_MAX_ITER, self._knot_work, self._spring_work, self._pos[dst],
+                    self._vel[dst])
+            else:
+                self._step(self._pos[src], self._vel[src], topo.knot_inv_mass, topo.adj_start, topo.adj_knot,
+                           topo.adj_spring, topo.spring_ij, topo.spring_rest, topo.spring_k, topo.spring_c,
+                           self.gravity, self.drag, self.h, self._spring_scale, self._pos[dst], self._vel[dst])
+            self._cur = dst
+            self.kernel_calls += 1
+        if toi != NO_CONTACT:
+            # Where the ball ended minus where it would have ended without the net.
+            self._offset[:] = bp - np.asarray(ball_pos, float) - np.asarray(ball_vel, float) * self.dt
+            self.wake()
+        speed = self._speed(self.knot_pos, self.knot_vel)
+        self.kernel_calls += 1
+        if not math.isfinite(speed):
+            raise FloatingPointError("a knot position or velocity is not finite after the net's tick")
+        self._quiet_ticks = self._quiet_ticks + 1 if speed < SLEEP_SPEED else 0
+        if self._quiet_ticks >= SLEEP_TICKS and far:
+            self.sleeping = True
+            self.knot_vel[:] = 0.0
+        return NetContact(toi, self._impulse, self._offset)
