@@ -120,7 +120,7 @@ def energy(y: np.ndarray, model: Model) -> float:
 class Trajectory:
     """What a run of a shot produced.
 
-    impacts: (n, 8) time s, body id, centre pos (3,) m, vel_in z, vel_out z m/s, tick-time flag.
+    impacts: (n, 8) time s, body id, centre pos (3,) m, vel_in z and vel_out z m/s, unused 0.
     apexes: (n, 2) time s, centre height m. smooth: (9,) state at t_smooth. final: (9,) at t_end.
     """
 

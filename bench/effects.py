@@ -4,9 +4,10 @@ Physics effects (gravity, drag, magnus, friction, table, floor, net, bats) are t
 loop over the engine's own kernels (engine.bat.bat_step and engine.collision.ball_tick, as
 engine.world.step calls them) on the bundled `rally` scene, replayed from its start until the
 loop covers the simulated time asked for; the per-tick cost through engine.world.step is given
-beside it. The AI and the referee live in Python (engine/match.py): they are timed through the
-in-process match on the bundled `match` scene. Each cost is the ratio of the scene with the
-effect to the same scene without it, measured in the same run against the same baseline.
+beside it. Each cost is the ratio of the scene with the effect to the same scene without it,
+measured in the same run, interleaved round by round. The AI and the referee live in Python
+(engine/match.py) and a match needs both, so they are timed inside the in-process match on the
+bundled `match` scene (the AIs' own clock, the referee's calls wrapped) instead of toggled.
 
 An absent effect is a None argument: numba compiles a specialisation without its code. Two checks
 show it costs nothing measurable: the baseline timed twice (A/A, the noise floor), and drag and
@@ -113,16 +114,6 @@ class _PhysicsRun:
         return _rally_loop(*self.args)
 
 
-def _median_time(fn, repeats: int) -> tuple[float, float]:
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    med = statistics.median(times)
-    return med, (max(times) - min(times)) / med
-
-
 def _interleaved(runs: dict, repeats: int) -> dict:
     """Median wall time per run, the runs interleaved round by round so that machine load drifts
     hit them all alike; also each run's spread (max - min) / median."""
@@ -135,7 +126,7 @@ def _interleaved(runs: dict, repeats: int) -> dict:
     out = {}
     for key, ts in times.items():
         med = statistics.median(ts)
-        out[key] = (med, (max(ts) - min(ts)) / med)
+        out[key] = (med, (max(ts) - min(ts)) / med, min(ts))
     return out
 
 
@@ -161,13 +152,36 @@ def _compiled_out(run: "_PhysicsRun", effect: str) -> bool | None:
     return run.args[index] is None and any(str(sig[index]) == "none" for sig in _rally_loop.signatures)
 
 
-def _match_seconds(scene: Scene, ticks: int, repeats: int) -> tuple[float, float]:
-    """Wall seconds of `ticks` ticks of the in-process match (AI and referee in Python), median, spread."""
-    def one():
-        Match(scene, seed=0).play(max_ticks=ticks)
+def _match_split(scene: Scene, ticks: int, repeats: int) -> dict:
+    """Wall seconds per tick of the in-process match, and the part of it spent in the AIs
+    (Match.ai_seconds) and in the referee (its methods timed in place), median over repeats.
 
+    A match needs both (no referee: no match; no AI: nobody returns a serve and it is a different
+    game), so these two effects are measured inside one run instead of by toggling.
+    """
     Match(scene, seed=0).play(max_ticks=2)  # compile or load the kernels and warm the AI up
-    return _median_time(one, repeats)
+    samples = []
+    for _ in range(repeats):
+        match = Match(scene, seed=0)
+        spent = [0.0]
+        for name in ("on_contact", "ball_out_of_play", "next_rally"):
+            method = getattr(match.referee, name)
+
+            def timed(*args, _method=method):
+                start = time.perf_counter()
+                try:
+                    return _method(*args)
+                finally:
+                    spent[0] += time.perf_counter() - start
+
+            setattr(match.referee, name, timed)
+        result = match.play(max_ticks=ticks)
+        n = max(result.ticks, 1)
+        samples.append((result.wall_seconds / n, result.ai_seconds / n, spent[0] / n))
+    total = statistics.median(s[0] for s in samples)
+    return {"total_s_per_tick": total, "ai_s_per_tick": statistics.median(s[1] for s in samples),
+            "referee_s_per_tick": statistics.median(s[2] for s in samples),
+            "spread": (max(s[0] for s in samples) - min(s[0] for s in samples)) / total}
 
 
 def study(quick: bool = False, repeats: int | None = None, progress=None) -> dict:
@@ -191,6 +205,9 @@ def study(quick: bool = False, repeats: int | None = None, progress=None) -> dic
     say(f"timing {len(runs)} scenes, {repeats} rounds")
     timed = _interleaved(runs, repeats)
     per_sim = {k: v[0] / sim_seconds for k, v in timed.items()}
+    # The fastest round is the least disturbed by the other processes on the machine: its ratios
+    # are given beside the medians' (timeit's advice for CPU-bound code under interference).
+    best = {k: v[2] / sim_seconds for k, v in timed.items()}
     spread = statistics.median(v[1] for v in timed.values())
     step_ticks = 600 if quick else 2400
     say("per-tick cost through engine.world.step")
@@ -209,29 +226,22 @@ def study(quick: bool = False, repeats: int | None = None, progress=None) -> dic
         }.get(effect, "same trajectory up to the effect's own change")
         rows.append({"effect": effect, "available": True, "without_s_per_sim_s": without,
                      "with_s_per_sim_s": per_sim["all"], "ratio": per_sim["all"] / without,
+                     "ratio_fastest_rounds": best["all"] / best[f"-{effect}"],
                      "step_us_per_tick_without": step_us[f"-{effect}"], "step_us_per_tick_with": step_us["all"],
                      "compiled_out": _compiled_out(runs[f"-{effect}"], effect), "note": note})
 
     match_scene = parse_scene(_scene_data("match"), "scenes/match.toml")
-    no_ai = toggled(_scene_data("match"), "ai")
-    no_referee_data = {k: v for k, v in _scene_data("match").items() if k != "match"}
-    no_referee_data["effects"] = [e for e in no_referee_data["effects"] if e not in ("ai", "referee")]
-    no_referee_data["bats"] = {k: {kk: vv for kk, vv in v.items() if kk != "skill"}
-                               for k, v in no_referee_data["bats"].items()}
-    no_referee = parse_scene(no_referee_data, "bench/effects.py:match-no-referee")
-    match_ticks = 500 if quick else 3000
-    say("the in-process match with and without the AI and the referee")
-    with_ai, spread_ai = _match_seconds(match_scene, match_ticks, max(1, repeats // 2))
-    without_ai, spread_no_ai = _match_seconds(no_ai, match_ticks, max(1, repeats // 2))
-    plain_us = _step_us_per_tick(no_referee, match_ticks)
-    sim_match = match_ticks * match_scene.dt
-    rows.append({"effect": "ai", "available": True, "without_s_per_sim_s": without_ai / sim_match,
-                 "with_s_per_sim_s": with_ai / sim_match, "ratio": with_ai / without_ai, "compiled_out": None,
-                 "note": "two pro AIs at 250 Hz, Python orchestration (in-process match, step path)"})
-    rows.append({"effect": "referee", "available": True, "without_s_per_sim_s": plain_us * 1e-6 / match_scene.dt,
-                 "with_s_per_sim_s": without_ai / sim_match, "ratio": (without_ai / sim_match) / (plain_us * 1e-6 / match_scene.dt),
-                 "compiled_out": None,
-                 "note": "referee, tosses and rally bookkeeping in Python, against the bare step loop"})
+    match_ticks = 1000 if quick else 6000
+    say("the in-process match: time in the AIs and in the referee")
+    split = _match_split(match_scene, match_ticks, 1 if quick else 3)
+    dt = match_scene.dt
+    total, ai, referee = split["total_s_per_tick"], split["ai_s_per_tick"], split["referee_s_per_tick"]
+    rows.append({"effect": "ai", "available": True, "without_s_per_sim_s": (total - ai) / dt,
+                 "with_s_per_sim_s": total / dt, "ratio": total / (total - ai), "compiled_out": None,
+                 "note": "two pro AIs at 250 Hz (Python around numba predictions), timed inside the match"})
+    rows.append({"effect": "referee", "available": True, "without_s_per_sim_s": (total - ai - referee) / dt,
+                 "with_s_per_sim_s": (total - ai) / dt, "ratio": (total - ai) / (total - ai - referee),
+                 "compiled_out": None, "note": "the referee's calls (Python, on contact events only), timed inside the match"})
     for effect in PHYSICS_EFFECTS:
         if effect not in effects:
             rows.append({"effect": effect, "available": True, "skipped": True, "note": "not toggled with --quick"})
@@ -240,6 +250,8 @@ def study(quick: bool = False, repeats: int | None = None, progress=None) -> dic
 
     absent = {
         "aa_ratio": per_sim["all (A/A)"] / per_sim["all"],
+        "aa_ratio_fastest_rounds": best["all (A/A)"] / best["all"],
+        "drag_zero_vs_absent_fastest_rounds": best["drag C_D=0"] / best["-drag"],
         "drag_zero_vs_absent": per_sim["drag C_D=0"] / per_sim["-drag"],
         "magnus_zero_vs_absent": per_sim["magnus C_M=0"] / per_sim["-magnus"] if "magnus" in effects else None,
     }
@@ -247,7 +259,10 @@ def study(quick: bool = False, repeats: int | None = None, progress=None) -> dic
                       f"present with C_D = 0 costs {absent['drag_zero_vs_absent']:.3f}x drag absent"
                       + (f", Magnus with C_M = 0 {absent['magnus_zero_vs_absent']:.3f}x Magnus absent"
                          if absent["magnus_zero_vs_absent"] is not None else "")
-                      + ": an absent effect's argument is None, so its specialisation has no code for it")
+                      + " (fastest rounds: A/A "
+                      f"{absent['aa_ratio_fastest_rounds']:.3f}, drag C_D = 0 vs absent "
+                      f"{absent['drag_zero_vs_absent_fastest_rounds']:.3f}); an absent effect's argument is None, "
+                      "so its specialisation has no code for it")
     return {
         "scene": base.name,
         "effects_in_scene": sorted(base.effects),
@@ -258,8 +273,8 @@ def study(quick: bool = False, repeats: int | None = None, progress=None) -> dic
         "noise": {"aa_ratio": absent["aa_ratio"], "spread": spread},
         "per_sim_s": per_sim,
         "step_us_per_tick": step_us,
-        "match": {"ticks": match_ticks, "with_ai_s": with_ai, "without_ai_s": without_ai, "spread_ai": spread_ai,
-                  "spread_no_ai": spread_no_ai, "plain_step_us_per_tick": plain_us},
+        "match": {"max_ticks": match_ticks, **split},
+        "per_sim_s_fastest_rounds": best,
         "effects": rows,
         "absent_check": absent,
         "quick": quick,

@@ -75,21 +75,26 @@ def _print_effects(result: dict) -> None:
 
     console = Console()
     console.print(f"[bold]Effect costs[/bold], scene {result['scene']}: numba tick loop over {result['sim_seconds']:g} "
-                  f"simulated s, median of {result['repeats']}; kernels compiled in "
+                  f"simulated s, median of {result['repeats']} interleaved rounds; kernels compiled in "
                   f"{result['compile_seconds']:.1f} s, apart. Same-run A/A check of the baseline: "
-                  f"{result['noise']['aa_ratio']:.3f} (spread {result['noise']['spread'] * 100:.0f} %).")
-    table = Table("effect", "without s/sim s", "with s/sim s", "cost ratio", "absent = compiled out", "note")
+                  f"{result['noise']['aa_ratio']:.3f} (median spread between rounds {result['noise']['spread'] * 100:.0f} %).")
+    table = Table("effect", "without s/sim s", "with s/sim s", "with / without", "fastest rounds", "absent compiled out")
+    notes = []
     for row in result["effects"]:
         if not row["available"] or row.get("skipped"):
-            table.add_row(row["effect"], "-", "-", "-", "-", ("not available: " if not row["available"] else "") + row["note"])
+            table.add_row(row["effect"], "-", "-", "-", "-", "-")
+            notes.append(f"{row['effect']}: {'not available: ' if not row['available'] else ''}{row['note']}")
             continue
+        fastest = row.get("ratio_fastest_rounds")
+        compiled = {True: "yes", False: "no", None: "-"}[row.get("compiled_out")]
         table.add_row(row["effect"], f"{row['without_s_per_sim_s']:.2e}", f"{row['with_s_per_sim_s']:.2e}",
-                      f"{row['ratio']:.2f}", "yes" if row.get("compiled_out") else ("-" if row.get("compiled_out") is None else "no"),
-                      row["note"])
+                      f"{row['ratio']:.2f}", "-" if fastest is None else f"{fastest:.2f}", compiled)
+        notes.append(f"{row['effect']}: {row['note']}")
     console.print(table)
+    for note in notes:
+        console.print(f"  {note}")
     if result.get("absent_check"):
-        check = result["absent_check"]
-        console.print(f"absent costs nothing: {check['text']}")
+        console.print(f"absent costs nothing: {result['absent_check']['text']}")
 
 
 def bench_command(args) -> int:
