@@ -27,21 +27,20 @@ from engine.dtypes import BAT_DTYPE
 from engine.collision import ERR_SUBSTEPS, EVENT_ROW, E_BODY, E_POS, E_TIME, MAX_IMPACTS_PER_TICK, SCRATCH_SHAPE, ball_tick
 from engine.contact import impact
 from engine.geometry import Body
-from engine.integrators import ADAPT_SIZE, WORK_SHAPE
+from engine.integrators import ADAPT_SIZE, WORK_SHAPE, advance
 
 HALF_LENGTH = equipment.TABLE_LENGTH / 2
 HALF_WIDTH = equipment.TABLE_WIDTH / 2
 
 
 @njit(cache=True)
-def predict_flight(y0, h, n_max, max_events, x_stop, method, gravity, drag_k, magnus_k, rtol, atol,
+def predict_flight(y0, h, n_max, max_events, method, gravity, drag_k, magnus_k, rtol, atol,
                    table, floor_z, net, posts, params, materials, work, scratch, adapt, tick_events,
                    traj, events, event_ticks):
     """The ball's path without bats, tick by tick, exactly as the physics would step it.
 
     Args:
         y0: (9,) start state. h: tick, s. n_max: ticks at most. max_events: stop after this many.
-        x_stop: m, stop once the ball has crossed the plane x = x_stop (inf: never).
         method ... materials: as engine.collision.ball_tick.
         work, scratch, adapt, tick_events: scratch for ball_tick.
         traj: (n_max + 1, 9) written: traj[k] is the state after k ticks.
@@ -70,9 +69,81 @@ def predict_flight(y0, h, n_max, max_events, x_stop, method, gravity, drag_k, ma
                 n_events += 1
         if n_events >= max_events or support != 0:
             return k + 1, n_events, 0
-        if (traj[0, 0] - x_stop) * (traj[k + 1, 0] - x_stop) <= 0.0:
-            return k + 1, n_events, 0
     return n_max, n_events, 0
+
+
+@njit(cache=True)
+def _crossing(p, v, spin, x_plane, h, max_steps, method, gravity, drag_k, magnus_k, rtol, atol, work, adapt,
+              cur, nxt, out):
+    """Fly the ball from (p, v, spin) through everything until x crosses x_plane; `out` is the state
+    there, linearly interpolated between ticks. False if it never crosses within max_steps."""
+    for i in range(3):
+        cur[i], cur[3 + i], cur[6 + i] = p[i], v[i], spin[i]
+    side = cur[0] - x_plane
+    for _ in range(max_steps):
+        advance(cur, h, method, gravity, drag_k, magnus_k, rtol, atol, work, adapt, nxt)
+        if (nxt[0] - x_plane) * side <= 0.0:
+            f = (x_plane - cur[0]) / (nxt[0] - cur[0])
+            for i in range(9):
+                out[i] = cur[i] + f * (nxt[i] - cur[i])
+            return True
+        for i in range(9):
+            cur[i] = nxt[i]
+    return False
+
+
+@njit(cache=True)
+def shoot(p, spin, target_x, target_y, pace, radius, h, max_steps, method, gravity, drag_k, magnus_k, rtol,
+          atol, work, adapt, scratch, v):
+    """Launch velocity from p whose free flight reaches (target_x, target_y) at table height.
+
+    Newton iteration on (v_y, v_z) with the horizontal pace fixed, from the drag-free ballistic
+    guess, finite-difference Jacobian (1e-4 m/s), steps clipped to 3 m/s; converged when the
+    miss is under 1 mm. The residual is taken where the flight crosses x = target_x, which is
+    smooth in the launch velocity (the first contact, net or table or floor, is not).
+
+    Args:
+        p, spin: (3,) launch point m, spin rad/s. pace: m/s along x. radius: m, the ball's.
+        h: s, flight step. scratch: (4, 9). v: (3,) written with the solution.
+
+    Returns:
+        True when converged.
+    """
+    g = 0.0
+    if gravity is not None:
+        g = gravity
+    direction = 1.0 if target_x > p[0] else -1.0
+    flight = abs(target_x - p[0]) / pace
+    v[0] = direction * pace
+    v[1] = (target_y - p[1]) / flight
+    v[2] = (radius - p[2]) / flight + 0.5 * g * flight
+    cur, nxt, out = scratch[0], scratch[1], scratch[2]
+    trial = scratch[3, 0:3]
+    for _ in range(12):
+        if not _crossing(p, v, spin, target_x, h, max_steps, method, gravity, drag_k, magnus_k, rtol, atol,
+                         work, adapt, cur, nxt, out):
+            return False
+        ry, rz = out[1] - target_y, out[2] - radius
+        if math.sqrt(ry * ry + rz * rz) < 1e-3:
+            return True
+        jac = np.empty((2, 2))
+        for j in range(2):
+            for i in range(3):
+                trial[i] = v[i]
+            trial[1 + j] += 1e-4
+            if not _crossing(p, trial, spin, target_x, h, max_steps, method, gravity, drag_k, magnus_k, rtol,
+                             atol, work, adapt, cur, nxt, out):
+                return False
+            jac[0, j] = (out[1] - target_y - ry) / 1e-4
+            jac[1, j] = (out[2] - radius - rz) / 1e-4
+        det = jac[0, 0] * jac[1, 1] - jac[0, 1] * jac[1, 0]
+        if det == 0.0:
+            return False
+        step_y = (-ry * jac[1, 1] + rz * jac[0, 1]) / det
+        step_z = (-rz * jac[0, 0] + ry * jac[1, 0]) / det
+        v[1] += min(max(step_y, -3.0), 3.0)
+        v[2] += min(max(step_z, -3.0), 3.0)
+    return False
 
 
 SEG_T0, SEG_T1, SEG_P0, SEG_V0, SEG_P1, SEG_V1 = 0, 1, 2, 5, 8, 11
@@ -243,6 +314,7 @@ class BatAI:
         self._scratch = np.zeros(SCRATCH_SHAPE)
         self._adapt = np.zeros(ADAPT_SIZE)
         self._tick_events = np.zeros((MAX_IMPACTS_PER_TICK, EVENT_ROW))
+        self._shoot_scratch = np.zeros((4, 9))
         self.plan: Plan | None = None
         self._no_segments = np.zeros((0, SEG_WIDTH))
         self._segments = self._no_segments
@@ -255,8 +327,7 @@ class BatAI:
     def warm_up(self) -> None:
         """Load (or compile) every kernel the AI uses, without touching its state or its RNG."""
         self.predict(np.array([0.0, 0.0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), 0.01)
-        self.predict(np.array([0.0, 0.0, 0.5, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]), 0.01, x_stop=0.5, bodies=False,
-                     dt=self.SHOOTING_DT)
+        self.solve_shot(np.array([1.6, 0.0, 0.2]), np.zeros(3), (-0.8, 0.0), 8.0, 1)
         bat = np.zeros(1, BAT_DTYPE)
         bat["quat"][0] = (1.0, 0.0, 0.0, 0.0)
         bat_control(0.0, self._no_segments, 0, np.zeros(3), np.array([1.0, 0.0, 0.0]), bat["pos"][0], bat["vel"][0],
@@ -264,20 +335,15 @@ class BatAI:
                     self.K_ANGLE, self.D_ANGLE, 1.0, 1.0, 1.0, np.zeros(6))
 
     # --- prediction ---------------------------------------------------------------------
-    def predict(self, y0: np.ndarray, seconds: float, max_events: int = 8, dt: float | None = None,
-                x_stop: float = math.inf, bodies: bool = True):
-        """(times, states, events) of the ball's path from y0, without bats.
-
-        bodies=False flies the ball through everything (smooth in the launch state, for shooting).
-        """
+    def predict(self, y0: np.ndarray, seconds: float, max_events: int = 8, dt: float | None = None):
+        """(times, states, events) of the ball's path from y0, without bats, as the physics steps it."""
         m = self.model
         h = m.dt if dt is None else dt
         n_max = min(int(round(seconds / h)), self._traj.shape[0] - 1)
         self._adapt[:] = 0.0
-        table, floor_z, net, posts = (m.table, m.floor_z, m.net, m.posts) if bodies else (None, None, None, None)
         n, n_ev, err = predict_flight(
-            np.ascontiguousarray(y0, dtype=np.float64), h, n_max, max_events, x_stop, m.method, m.gravity,
-            m.drag_k, m.magnus_k, m.scene.rtol, m.scene.atol, table, floor_z, net, posts, m.ball_params,
+            np.ascontiguousarray(y0, dtype=np.float64), h, n_max, max_events, m.method, m.gravity,
+            m.drag_k, m.magnus_k, m.scene.rtol, m.scene.atol, m.table, m.floor_z, m.net, m.posts, m.ball_params,
             m.materials, self._work, self._scratch, self._adapt, self._tick_events, self._traj, self._events,
             self._event_ticks)
         if err == ERR_SUBSTEPS:
@@ -299,53 +365,20 @@ class BatAI:
         return z - self.radius - equipment.NET_HEIGHT
 
     def solve_shot(self, p: np.ndarray, spin: np.ndarray, target: tuple[float, float], pace: float,
-                   end_sign: int, first_on_own_court: bool = False):
+                   end_sign: int, first_on_own_court: bool = False) -> np.ndarray | None:
         """Outgoing velocity from p whose flight reaches `target` (x, y) at table height, or None.
 
-        Shooting with Newton iteration on (v_y, v_z), the horizontal pace fixed. The residual is
-        taken where the ball, flying through everything, crosses the plane x = target x: that is
-        smooth in the launch velocity, unlike the first contact (net, table or floor), so Newton
-        converges in a few steps from the drag-free ballistic guess. The caller checks the real
-        path (net clearance, where it bounces) afterwards.
+        Solved by `shoot` (numba) on free flights in SHOOTING_DT steps of the scene's integrator;
+        the caller checks the real path (net clearance, where it bounces) at the engine's tick.
         """
-        g = self.model.gravity or 0.0
-        direction = 1.0 if target[0] > p[0] else -1.0
-        flight = abs(target[0] - p[0]) / pace
-        v = np.array([direction * pace, (target[1] - p[1]) / flight, (self.radius - p[2]) / flight + 0.5 * g * flight])
-        for _ in range(12):
-            residual = self._crossing_residual(p, v, spin, target)
-            if residual is None:
-                return None
-            if np.hypot(*residual) < 1e-3:
-                return v, self._path(p, v, spin)
-            jac = np.zeros((2, 2))
-            for j, axis in enumerate((1, 2)):
-                dv = v.copy()
-                dv[axis] += 1e-4
-                shifted = self._crossing_residual(p, dv, spin, target)
-                if shifted is None:
-                    return None
-                jac[:, j] = (shifted - residual) / 1e-4
-            try:
-                step = np.linalg.solve(jac, -residual)
-            except np.linalg.LinAlgError:
-                return None
-            v[1] += float(np.clip(step[0], -3.0, 3.0))
-            v[2] += float(np.clip(step[1], -3.0, 3.0))
-        return None
-
-    def _crossing_residual(self, p, v, spin, target):
-        """(y - y_target, z - r) where the free flight crosses x = target x; None if it never does."""
-        y0 = np.concatenate([p, v, spin])
-        # 4 ms steps: the same integrator's error over one flight stays far below a millimetre,
-        # and the real path is checked at the engine's own tick afterwards.
-        _, traj, _ = self.predict(y0, 2.0, max_events=1, x_stop=target[0], bodies=False, dt=self.SHOOTING_DT)
-        x = traj[:, 0]
-        if (x[0] - target[0]) * (x[-1] - target[0]) > 0:
-            return None
-        f = (target[0] - x[-2]) / (x[-1] - x[-2])
-        at = traj[-2] + f * (traj[-1] - traj[-2])
-        return np.array([at[1] - target[1], at[2] - self.radius])
+        m = self.model
+        self._adapt[:] = 0.0
+        v = np.zeros(3)
+        ok = shoot(np.ascontiguousarray(p, dtype=np.float64), np.ascontiguousarray(spin, dtype=np.float64),
+                   float(target[0]), float(target[1]), float(pace), self.radius, self.SHOOTING_DT,
+                   int(2.0 / self.SHOOTING_DT), m.method, m.gravity, m.drag_k, m.magnus_k, m.scene.rtol, m.scene.atol,
+                   self._work, self._adapt, self._shoot_scratch, v)
+        return v if ok else None
 
     def _path(self, p, v, spin):
         """The real path of a struck ball (with the table, net and floor), up to two contacts."""
@@ -414,8 +447,8 @@ class BatAI:
                     shot = self.solve_shot(p, spin_out, noisy, pace, end_sign, first_on_own_court=serve)
                     if shot is None:
                         break
-                    normal, bat_vel, spin_out = self.solve_stroke(v_in, spin_in, shot[0])
-                if shot is not None and self._lands_well(p, shot[0], spin_out, end_sign, serve):
+                    normal, bat_vel, spin_out = self.solve_stroke(v_in, spin_in, shot)
+                if shot is not None and self._lands_well(p, shot, spin_out, end_sign, serve):
                     solution = (normal, bat_vel)
                     target = aim
                     break

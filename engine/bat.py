@@ -18,8 +18,8 @@ def _offset(field: str) -> int:
     return BAT_DTYPE.fields[field][1] // 8
 
 
-# Offsets of the fields in a bat record viewed as float64.
-_POS, _QUAT, _VEL, _ANG_VEL, _FORCE, _TORQUE = (
+# Offsets of the fields in a bat record viewed as float64 (engine.world writes inputs through them).
+POS_AT, QUAT_AT, VEL_AT, ANG_VEL_AT, FORCE_AT, TORQUE_AT = (
     _offset(f) for f in ("pos", "quat", "vel", "ang_vel", "force", "torque")
 )
 BAT_WIDTH = BAT_DTYPE.itemsize // 8
@@ -68,24 +68,24 @@ def bat_step(bats, h, mass, inertia, motion, tmp):
     for b in range(bats.shape[0]):
         if h == 0.0:
             # A zero step changes nothing, not even the quaternion's last bit by renormalising.
-            face_normal(bats[b, _QUAT:_QUAT + 4], motion[b, BAT_AXIS0:BAT_AXIS0 + 3])
+            face_normal(bats[b, QUAT_AT:QUAT_AT + 4], motion[b, BAT_AXIS0:BAT_AXIS0 + 3])
             for i in range(3):
-                motion[b, BAT_POS0 + i] = bats[b, _POS + i]
-                motion[b, BAT_POS1 + i] = bats[b, _POS + i]
+                motion[b, BAT_POS0 + i] = bats[b, POS_AT + i]
+                motion[b, BAT_POS1 + i] = bats[b, POS_AT + i]
                 motion[b, BAT_AXIS1 + i] = motion[b, BAT_AXIS0 + i]
-                motion[b, BAT_ANG_VEL + i] = bats[b, _ANG_VEL + i]
+                motion[b, BAT_ANG_VEL + i] = bats[b, ANG_VEL_AT + i]
             continue
         bat = bats[b]
-        q = bat[_QUAT:_QUAT + 4]
+        q = bat[QUAT_AT:QUAT_AT + 4]
         for i in range(3):
-            motion[b, BAT_POS0 + i] = bat[_POS + i]
+            motion[b, BAT_POS0 + i] = bat[POS_AT + i]
         face_normal(q, motion[b, BAT_AXIS0:BAT_AXIS0 + 3])
         for i in range(3):
-            bat[_VEL + i] += h * bat[_FORCE + i] / mass[b]
-            bat[_POS + i] += h * bat[_VEL + i]
+            bat[VEL_AT + i] += h * bat[FORCE_AT + i] / mass[b]
+            bat[POS_AT + i] += h * bat[VEL_AT + i]
         # Euler's equations in the bat frame: I dw/dt = tau - w x (I w).
-        _rotate_conj(q, bat[_ANG_VEL:_ANG_VEL + 3], w_body)
-        _rotate_conj(q, bat[_TORQUE:_TORQUE + 3], alpha)
+        _rotate_conj(q, bat[ANG_VEL_AT:ANG_VEL_AT + 3], w_body)
+        _rotate_conj(q, bat[TORQUE_AT:TORQUE_AT + 3], alpha)
         inert = inertia[b]
         lx, ly, lz = inert[0] * w_body[0], inert[1] * w_body[1], inert[2] * w_body[2]
         alpha[0] = (alpha[0] - (w_body[1] * lz - w_body[2] * ly)) / inert[0]
@@ -93,9 +93,9 @@ def bat_step(bats, h, mass, inertia, motion, tmp):
         alpha[2] = (alpha[2] - (w_body[0] * ly - w_body[1] * lx)) / inert[2]
         rotate(q, alpha, alpha)
         for i in range(3):
-            bat[_ANG_VEL + i] += h * alpha[i]
+            bat[ANG_VEL_AT + i] += h * alpha[i]
         # Exact rotation by the (new) angular velocity over h, applied on the left (world frame).
-        wx, wy, wz = bat[_ANG_VEL], bat[_ANG_VEL + 1], bat[_ANG_VEL + 2]
+        wx, wy, wz = bat[ANG_VEL_AT], bat[ANG_VEL_AT + 1], bat[ANG_VEL_AT + 2]
         rate = math.sqrt(wx * wx + wy * wy + wz * wz)
         if rate > 0.0:
             half = 0.5 * rate * h
@@ -110,8 +110,8 @@ def bat_step(bats, h, mass, inertia, motion, tmp):
             for i in range(4):
                 q[i] /= norm
         for i in range(3):
-            motion[b, BAT_POS1 + i] = bat[_POS + i]
-            motion[b, BAT_ANG_VEL + i] = bat[_ANG_VEL + i]
+            motion[b, BAT_POS1 + i] = bat[POS_AT + i]
+            motion[b, BAT_ANG_VEL + i] = bat[ANG_VEL_AT + i]
         face_normal(q, motion[b, BAT_AXIS1:BAT_AXIS1 + 3])
 
 

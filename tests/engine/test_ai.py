@@ -20,7 +20,7 @@ def ai():
 @pytest.mark.parametrize("target", [(-0.5, 0.0), (-1.0, 0.5), (-0.8, -0.6)])
 def test_shot_solution_lands_on_target(ai, target):
     p, spin = np.array([1.6, 0.2, 0.25]), np.array([0.0, -120.0, 0.0])  # topspin for a ball going -x
-    v_out, _ = ai.solve_shot(p, spin, target, pace=8.0, end_sign=1)
+    v_out = ai.solve_shot(p, spin, target, pace=8.0, end_sign=1)
     _, events = ai._path(p, v_out, spin)
     assert events[0][1] == Body.TABLE
     # Newton stops at 1 mm on the 4 ms flight; the 1 ms path differs by well under 1 mm more.
