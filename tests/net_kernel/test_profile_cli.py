@@ -1,0 +1,29 @@
+"""`pingpong profile-net` smoke run as a subprocess, small net, JSON out."""
+import json
+import subprocess
+import sys
+
+from net_kernel.profile import parse_knots
+
+
+def test_profile_net_smoke():
+    done = subprocess.run([sys.executable, "-m", "processes", "profile-net", "--knots", "20x8", "--steps", "2",
+                           "--json"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    report = json.loads(done.stdout)
+    assert report["knots"] == 160
+    assert {r["backend"] for r in report["results"]} == {"numba", "reference"}
+    for r in report["results"]:
+        assert r["us_per_step"] > 0 and r["msprings_per_s"] > 0 and 0 < r["copy_share"]
+    assert report["copy"]["gb_per_s"] > 0
+
+
+def test_profile_net_text_and_bad_knots():
+    done = subprocess.run([sys.executable, "-m", "processes", "profile-net", "--knots", "12x4", "--steps", "1",
+                           "--backend", "numba"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "Msprings/s" in done.stdout and "of copy" in done.stdout
+    bad = subprocess.run([sys.executable, "-m", "processes", "profile-net", "--knots", "12by4"],
+                         capture_output=True, text=True, timeout=60)
+    assert bad.returncode == 2 and "COLSxROWS" in bad.stderr
+    assert parse_knots("184x16") == (184, 16)
