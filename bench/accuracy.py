@@ -660,9 +660,9 @@ def findings(result: dict) -> list[str]:
         if spread < 2.0:
             out.append(f"dopri5 at a {tick * 1e3:g} ms tick: its tolerance does not bite (rtol "
                        f"{min(r['rtol'] for r in mine):.0e} to {max(r['rtol'] for r in mine):.0e} change the error by "
-                       f"{spread:.1f}x): on ballistic flight the whole tick already meets rtol = "
-                       f"{max(r['rtol'] for r in mine):.0e}, so it takes one substep a tick, lands on the contact floor "
-                       f"and costs {cost:.1f}x rk4 at the same tick.")
+                       f"{spread:.1f}x): its own error is already below the contact floor at rtol = "
+                       f"{max(r['rtol'] for r in mine):.0e}, so a tighter tolerance buys nothing here, and it costs "
+                       f"{cost:.1f}x rk4 at the same tick.")
         else:
             out.append(f"dopri5 at a {tick * 1e3:g} ms tick: the tolerance moves the error by {spread:.0f}x; it costs "
                        f"{cost:.1f}x rk4 at the same tick (median over tolerances).")
@@ -860,7 +860,8 @@ def readme_block(result: dict, png: str | None) -> str:
         f"the tick) against scipy DOP853 at rtol = atol = {ref['tol']:.0e} with every impact located by event "
         f"detection and the same contact model; the reference at {ref['check_tol']:.0e} agrees with it to "
         f"{ref_diff:.1e} m. Errors are the worst over the shots; wall time is a numba loop over the tick, compiled "
-        f"first ({result['compile_seconds']:.1f} s, apart), median of {result['repeats']}, on a shared 2-core "
+        f"or loaded from numba's cache first ({result['compile_seconds']:.1f} s, apart), median of "
+        f"{result['repeats']} interleaved rounds, on a shared 2-core "
         f"machine (median spread between repeats {result['timing_spread_median'] * 100:.0f} %, so ratios, "
         "not absolute times, are the result).",
         "",
