@@ -9,6 +9,7 @@ from typing import Any
 
 from engine import equipment
 from engine.integrators import METHODS
+from net_kernel.topology import SOLVERS, NetSpec, validate_spec
 
 SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
 
@@ -16,7 +17,10 @@ SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
 EFFECTS = ("gravity", "drag", "magnus", "friction", "table", "floor", "net", "bats", "ai", "referee")
 PLANNED_EFFECTS = ("remote", "recording")
 SKILL_NAMES = ("pro", "club", "novice")
-NET_KINDS = ("rigid",)  # "cloth" joins when the net kernel is wired into the engine
+NET_KINDS = ("rigid", "cloth")
+# [net] keys for a cloth net: the fields of net_kernel.NetSpec (validated there).
+CLOTH_FLOATS = ("knot_mass", "spring_k", "spring_c", "mesh_tension", "cord_k", "cord_tension", "air_damping")
+CLOTH_INTS = ("cols", "rows")
 BAT_NAMES = ("a", "b")
 MATERIAL_BODIES = ("table", "floor", "net", "bat")
 
@@ -81,6 +85,7 @@ class Scene:
     description: str = ""
     bats: tuple[BatSpec, ...] = ()
     net_kind: str = "rigid"
+    cloth: NetSpec | None = None  # the cloth net's description when net_kind is "cloth"
     gravity: float = equipment.GRAVITY
     air_density: float = equipment.AIR_DENSITY
     drag_coefficient: float = equipment.DRAG_COEFFICIENT
@@ -176,6 +181,29 @@ def _quat_from_normal(normal: tuple[float, float, float]) -> tuple[float, float,
     return (w / s, qx / s, qy / s, 0.0)
 
 
+def _read_cloth(r: _Reader, data: dict) -> NetSpec:
+    """A cloth net's NetSpec from [net]; its ranges are the net kernel's (net_kernel.validate_spec)."""
+    fields: dict[str, Any] = {}
+    for key in CLOTH_FLOATS:
+        if key in data:
+            fields[key] = r.number(data, key, f"net.{key}", low=0.0)
+    for key in CLOTH_INTS:
+        if key in data:
+            value = data[key]
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise r.fail(f"net.{key}", f"must be a whole number, got {value!r}")
+            fields[key] = value
+    if "solver" in data:
+        fields["solver"] = r.string(data, "solver", "net.solver", "", SOLVERS)
+    spec = NetSpec(**fields)
+    try:
+        validate_spec(spec)
+    except ValueError as exc:
+        field, _, rest = str(exc).partition(" = ")
+        raise r.fail(f"net.{field.removeprefix('NetSpec.')}", rest) from None
+    return spec
+
+
 def _read_bat(r: _Reader, name: str, data: Any) -> BatSpec:
     path = f"bats.{name}"
     keys = ("pos", "normal", "quat", "vel", "ang_vel", "force", "torque", "mass", "radius", "half_thickness", "skill")
@@ -243,13 +271,16 @@ def parse_scene(data: dict, source: str) -> Scene:
         raise r.fail("effects", "effect 'bats' needs at least one [bats.a] or [bats.b] table")
 
     net_kind = "rigid"
+    cloth = None
     if "net" in data:
         if "net" not in effects:
             raise r.fail("net", "a net is described but the effect 'net' is not listed in effects; add it or remove [net]")
-        net_data = r.table(data["net"], "net", ("kind",))
-        if net_data.get("kind") == "cloth":
-            raise r.fail("net.kind", "the cloth net is not yet coupled to the ball engine; use 'rigid'")
+        net_data = r.table(data["net"], "net", ("kind", "solver") + CLOTH_FLOATS + CLOTH_INTS)
         net_kind = r.string(net_data, "kind", "net.kind", "rigid", NET_KINDS)
+        cloth = _read_cloth(r, net_data) if net_kind == "cloth" else None
+        if net_kind == "rigid" and len(net_data) > ("kind" in net_data):
+            extra = sorted(set(net_data) - {"kind"})[0]
+            raise r.fail(f"net.{extra}", "describes a cloth net; set kind = \"cloth\" or remove it")
 
     ai_bats = [b.name for b in bats if b.skill is not None]
     if ai_bats and "ai" not in effects:
@@ -300,6 +331,7 @@ def parse_scene(data: dict, source: str) -> Scene:
         atol=r.number(data, "atol", "atol", 1e-9, low=1e-16, high=1e-1),
         bats=tuple(bats),
         net_kind=net_kind,
+        cloth=cloth,
         gravity=r.number(air, "gravity", "air.gravity", equipment.GRAVITY, low=0.0, high=100.0),
         air_density=r.number(air, "density", "air.density", equipment.AIR_DENSITY, low=0.0, high=10.0),
         drag_coefficient=r.number(air, "drag_coefficient", "air.drag_coefficient", equipment.DRAG_COEFFICIENT, low=0.0, high=2.0),

@@ -17,12 +17,13 @@ STOP_EVENT = 1
 STOP_GONE = 2
 STOP_SUPPORT = 3
 STOP_DEADLINE = 4
+STOP_WATCH = 5
 
 
 @njit(cache=True)
 def advance_ticks(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_tmp, ball_y, method,
                   gravity, drag_k, magnus_k, rtol, atol, table, floor_z, net, posts, params, materials, work,
-                  scratch, adapt, event_rows, gone_r2, gone_z, deadline):
+                  scratch, adapt, event_rows, gone_r2, gone_z, deadline, watch):
     """Advance up to n_max ticks of length h; stop after the first tick that needs attention.
 
     Args:
@@ -34,6 +35,8 @@ def advance_ticks(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, 
         gone_r2: m^2, stop once x^2 + y^2 of the ball exceeds it (inf: never).
         gone_z: m, stop once the ball's z is below it (-inf: never).
         deadline: s, stop once the world time exceeds it (inf: never).
+        watch: (6,) box lo xyz, hi xyz: stop once the ball is inside it (a cloth net's
+            neighbourhood, stepped tick by tick by the caller), or None.
 
     Returns:
         (ticks done, events in the last tick, STOP_* reason, error code of ball_tick or 0).
@@ -66,5 +69,8 @@ def advance_ticks(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, 
             return k + 1, 0, STOP_SUPPORT, 0
         if w.time > deadline:
             return k + 1, 0, STOP_DEADLINE, 0
+        if watch is not None and (watch[0] <= ball_y[0] <= watch[3] and watch[1] <= ball_y[1] <= watch[4]
+                                  and watch[2] <= ball_y[2] <= watch[5]):
+            return k + 1, 0, STOP_WATCH, 0
     return n_max, 0, STOP_LIMIT, 0
 

@@ -5,7 +5,7 @@ This single-process world is the reference the multi-process run must reproduce 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -32,7 +32,9 @@ from engine.forces import drag_factor, magnus_factor
 from engine.geometry import FLOOR_Z, NET_BOX, POST_BOXES, TABLE_BOX, Body
 from engine.integrators import METHODS, WORK_SHAPE
 from engine.scene import Scene
-from engine.tick import advance_ticks
+from engine.tick import STOP_EVENT, STOP_LIMIT, STOP_WATCH, advance_ticks
+from net_kernel import NO_CONTACT, NetSim, build_topology
+from net_kernel.sim import WAKE_MARGIN
 
 
 class SimulationError(RuntimeError):
@@ -60,6 +62,7 @@ class Model:
     materials: np.ndarray  # (len(Body), 2): restitution, friction per body id
     bat_mass: np.ndarray  # (n_bats,) kg
     bat_inertia: np.ndarray  # (n_bats, 3) kg m^2
+    cloth_watch: np.ndarray | None = None  # (6,) box around a cloth net: inside it, tick by tick
 
 
 def build_model(scene: Scene) -> Model:
@@ -86,15 +89,25 @@ def build_model(scene: Scene) -> Model:
         magnus_k=magnus_factor(scene.magnus_coefficient, scene.air_density, radius, mass) if "magnus" in fx else None,
         table=TABLE_BOX.copy() if "table" in fx else None,
         floor_z=FLOOR_Z if "floor" in fx else None,
-        net=NET_BOX.copy() if "net" in fx else None,
+        net=NET_BOX.copy() if "net" in fx and scene.net_kind == "rigid" else None,
         posts=POST_BOXES.copy() if "net" in fx else None,
         ball_params=params,
         materials=materials,
         bat_mass=np.array([b.mass for b in scene.bats]),
         bat_inertia=np.array([disc_inertia(b.mass, b.radius) for b in scene.bats]).reshape(len(scene.bats), 3),
+        cloth_watch=_cloth_watch(scene, radius) if "net" in fx and scene.net_kind == "cloth" else None,
     )
     _check_start(model)
     return model
+
+
+def _cloth_watch(scene: Scene, radius: float) -> np.ndarray:
+    """The box in which the ball is stepped tick by tick with the cloth net: the net's own box
+    grown by the ball's radius, the net's wake margin and two ticks at the fastest speed a
+    scene allows (60 m/s), so no tick can carry the ball from outside it through the net."""
+    reach = radius + WAKE_MARGIN + 2 * 60.0 * scene.dt
+    half_width = scene.cloth.width / 2
+    return np.array([-reach, -half_width - reach, -reach, reach, half_width + reach, scene.cloth.height + reach])
 
 
 def _check_start(model: Model) -> None:
@@ -147,6 +160,7 @@ class State:
     adapt: np.ndarray
     event_rows: np.ndarray
     bat_tmp: np.ndarray
+    net_sim: NetSim | None = None  # the cloth net's knots (a scene with net kind "cloth")
 
 
 def initial_state(scene: Scene) -> State:
@@ -178,6 +192,7 @@ def initial_state(scene: Scene) -> State:
         adapt=world["ball_adapt"][0],  # a view: dopri5 updates the world record in place
         event_rows=np.zeros((MAX_IMPACTS_PER_TICK, EVENT_ROW)),
         bat_tmp=np.zeros((3, 3)),
+        net_sim=NetSim(build_topology(scene.cloth), scene.dt) if scene.cloth is not None and "net" in scene.effects else None,
     )
 
 
@@ -224,7 +239,7 @@ def step(model: Model, state: State, inputs: np.ndarray | None, events: np.ndarr
 
 def advance(model: Model, state: State, n_max: int, inputs: np.ndarray | None, events: np.ndarray,
             dt: float | None = None, gone_radius: float = math.inf, gone_z: float = -math.inf,
-            deadline: float = math.inf) -> tuple[int, int, int]:
+            deadline: float = math.inf, watch: np.ndarray | None = None) -> tuple[int, int, int]:
     """Advance up to n_max ticks in one kernel call (engine/tick.py); stop after a tick with
     contact events, with the ball beyond gone_radius (m, horizontal) or below gone_z, with its
     support changed, or past the deadline (s of simulated time).
@@ -233,6 +248,8 @@ def advance(model: Model, state: State, n_max: int, inputs: np.ndarray | None, e
         (ticks done, events of the last tick written to `events`, the engine.tick.STOP_* reason).
     """
     h = model.dt if dt is None else dt
+    if state.net_sim is not None and h > 0.0:
+        return _advance_with_cloth(model, state, n_max, inputs, events, h, gone_radius, gone_z, deadline)
     has_bats = len(state.bats) > 0
     if inputs is not None and has_bats:
         _check_inputs(inputs, len(state.bats))
@@ -244,12 +261,76 @@ def advance(model: Model, state: State, n_max: int, inputs: np.ndarray | None, e
         state.bat_motion if has_bats else None, state.bat_tmp, state.ball_y[0:9], model.method, model.gravity,
         model.drag_k, model.magnus_k, model.scene.rtol, model.scene.atol, model.table, model.floor_z, model.net,
         model.posts, model.ball_params, model.materials, state.work, state.scratch, state.adapt, state.event_rows,
-        gone_radius * gone_radius, gone_z, deadline)
+        gone_radius * gone_radius, gone_z, deadline, watch)
     if error:
         _raise(error, tick + ticks, model, state)
     if n:
         _copy_events(state, events, n, int(state.world[0]["tick"]) - 1)
     return ticks, n, reason
+
+
+def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, h: float, gone_radius: float,
+                        gone_z: float, deadline: float) -> tuple[int, int, int]:
+    """advance() with a cloth net: the ball's ticks by the kernel, and near the net (or while the
+    net is awake) tick by tick, each followed by the net's step with the ball's contact
+    (net_kernel.NetSim.step: the net moves the ball by `offset` and gives it `impulse`)."""
+    net = state.net_sim
+    y = state.ball_y
+    mass = float(model.ball_params[P_MASS])
+    radius = float(model.ball_params[P_RADIUS])
+    done = 0
+    while done < n_max:
+        w = model.cloth_watch
+        inside = all(w[i] <= y[i] <= w[3 + i] for i in range(3))
+        if net.sleeping and not inside:
+            # Far from a sleeping net: nothing to do for it; run until the ball comes near.
+            ticks, n, reason = advance(model, _without_cloth(state), n_max - done, inputs, events, h, gone_radius,
+                                       gone_z, deadline, watch=w)
+            inputs = None
+            done += ticks
+            if reason != STOP_WATCH:
+                return done, n, reason
+            continue
+        p0, v0 = y[0:3].copy(), y[3:6].copy()
+        ticks, n, reason = advance(model, _without_cloth(state), 1, inputs, events, h, gone_radius, gone_z, deadline)
+        inputs = None
+        done += ticks
+        contact = net.step(p0, v0, radius, 1.0 / mass)
+        if contact.toi != NO_CONTACT:
+            y[0:3] += contact.offset
+            y[3:6] += contact.impulse / mass
+            _net_event(state, events, n, p0, v0, contact, h)
+            n += 1
+            reason = STOP_EVENT
+        if n or reason != STOP_LIMIT:
+            return done, n, reason
+    return done, 0, STOP_LIMIT
+
+
+def _without_cloth(state: State) -> State:
+    """The same state seen by the kernel path (the net is stepped by the caller)."""
+    return replace(state, net_sim=None)
+
+
+def _net_event(state: State, events: np.ndarray, k: int, p0, v0, contact, h: float) -> None:
+    """Record the cloth net's contact as event k of the tick that just ended."""
+    world = state.world[0]
+    world["n_events"] += 1
+    world["events_total"] += 1
+    impulse = np.asarray(contact.impulse)
+    strength = float(np.linalg.norm(impulse))
+    normal = impulse / strength if strength > 0 else np.zeros(3)
+    ev = events[k]
+    ev["tick"] = int(world["tick"]) - 1
+    ev["time"] = float(world["time"]) - h + contact.toi * h
+    ev["body"] = Body.NET
+    ev["pos"] = p0 + v0 * contact.toi * h
+    ev["normal"] = normal
+    ev["vel_in"] = v0
+    ev["vel_out"] = state.ball_y[3:6]
+    ev["spin_in"] = state.ball_y[6:9]
+    ev["spin_out"] = state.ball_y[6:9]
+    ev["normal_speed"] = max(0.0, -float(v0 @ normal))
 
 
 def _raise(error: int, tick: int, model: Model, state: State) -> None:

@@ -1,0 +1,50 @@
+"""The cloth net coupled to the ball (net_kernel.NetSim inside engine.world.advance)."""
+import numpy as np
+import pytest
+
+from engine.geometry import Body
+from engine.scene import SceneError, parse_scene
+from engine.world import build_model, initial_state, new_events, step
+from tests.conftest import make_scene, run_ticks
+
+CLOTH = {"kind": "cloth"}
+# A coarse net (fewer, heavier knots) settles and sleeps within a few hundred ticks.
+COARSE = {"kind": "cloth", "cols": 24, "rows": 4, "knot_mass": 0.05 / 96}
+
+
+def test_a_20_m_per_s_ball_is_stopped_and_thrown_back_by_the_cloth_net():
+    scene = make_scene(["gravity", "drag", "net", "table", "floor"],
+                       {"pos": [-0.6, 0.1, 0.08], "vel": [20.0, 0.0, 0.0]}, net=CLOTH)
+    state, events = run_ticks(scene, 300)
+    bodies = [int(e["body"]) for e in events]
+    assert bodies and bodies[0] == Body.NET
+    assert state.ball["pos"][0][0] < 0.0  # thrown back: never got through
+    assert state.ball["vel"][0][0] < 0.0
+    assert max(float(e["pos"][0]) for e in events if int(e["body"]) == Body.NET) < 0.05  # the bulge, a few cm
+
+
+def test_a_far_ball_leaves_a_sleeping_net_untouched():
+    scene = make_scene(["gravity", "net", "table"], {"pos": [-1.0, 0.0, 0.3]}, net=COARSE)
+    model, state, events = build_model(scene), initial_state(scene), new_events()
+    for _ in range(5000):  # the net settles and falls asleep while the ball bounces far away
+        step(model, state, None, events)
+        if state.net_sim.sleeping:
+            break
+    assert state.net_sim.sleeping
+    calls = state.net_sim.kernel_calls
+    for _ in range(200):
+        step(model, state, None, events)
+    assert state.net_sim.kernel_calls == calls  # a sleeping net costs no kernel call
+
+
+def test_cloth_fields_are_validated_with_their_key():
+    with pytest.raises(SceneError, match=r"net.cols: 1 is out of range: an integer in \[2, 4000\]"):
+        parse_scene({"effects": ["net"], "ball": {"pos": [-0.5, 0, 0.3]}, "net": {"kind": "cloth", "cols": 1}}, "x")
+    with pytest.raises(SceneError, match=r"net.spring_k: describes a cloth net"):
+        parse_scene({"effects": ["net"], "ball": {"pos": [-0.5, 0, 0.3]}, "net": {"spring_k": 10.0}}, "x")
+
+
+def test_the_rigid_net_scene_has_no_cloth():
+    scene = make_scene(["net"], {"pos": [-0.5, 0.0, 0.3]})
+    assert initial_state(scene).net_sim is None and build_model(scene).net is not None
+    np.testing.assert_array_equal(build_model(scene).cloth_watch is None, True)
