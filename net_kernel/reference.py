@@ -13,12 +13,13 @@ from net_kernel.kernels import KNOT_WORK_ROWS, NO_CONTACT, SPRING_WORK_COLS  # n
 
 def _slot_owner(adj_start):
     """(2 n_springs,) the knot owning each slot."""
-    return np.repeat(np.arange(adj_start.shape[0] - 1), np.diff(adj_start))
+    return np.repeat(np.arange(adj_start.shape[0] - 1), np.diff(adj_start.astype(np.intp)))
 
 
 def _gather(per_slot, adj_start):
     """(n_knots, 3) sums of per-slot rows over each knot's slots, in slot order (0 for no slots)."""
     n = adj_start.shape[0] - 1
+    adj_start = adj_start.astype(np.intp)
     out = np.zeros((n, 3))
     has = adj_start[1:] > adj_start[:-1]
     if per_slot.shape[0]:
