@@ -6,9 +6,9 @@ Byte model of one step (the compulsory traffic of the two passes, neighbours fro
   per knot: spring pass reads knot_pos, knot_vel (48 B); knot pass reads knot_pos,
             knot_vel (48 B), knot_inv_mass (8 B), adj_start (8 B), writes out_pos,
             out_vel (48 B)                                                    -> 160 B
-  per spring: spring pass reads spring_ij (int32, 8 B), spring_rest, spring_k, spring_c
+  per spring: spring pass reads spring_ij (uint32, 8 B), spring_rest, spring_k, spring_c
             (24 B), writes spring_scale (8 B); knot pass reads 2 slots of adj_knot,
-            adj_spring (int32, 16 B) and spring_scale twice (16 B)            -> 72 B
+            adj_spring (uint32, 16 B) and spring_scale twice (16 B)            -> 72 B
 Write-allocate traffic is not counted, as it is not in the copy measurement
 (bytes = 2 x size: one read, one write).
 """
@@ -143,7 +143,7 @@ def profile_net(cols: int, rows: int, steps: int | None = None, backends=("numba
         "springs": topo.n_springs,
         "h_s": 0.5 * topo.h_max,
         "byte_model": (f"{BYTES_PER_KNOT} B per knot (pos, vel read by both passes, written once; inv_mass; "
-                       f"CSR start) + {BYTES_PER_SPRING} B per spring (ij, 2 slots as int32; rest, k, c, scale "
+                       f"CSR start) + {BYTES_PER_SPRING} B per spring (ij, 2 slots as uint32; rest, k, c, scale "
                        "as f8, scale read twice); neighbours from cache"),
         "copy": {"gb_per_s": copy_best, "before": copy["gb_per_s"], "after": copy_again["gb_per_s"],
                  "bytes": copy["bytes"]},

@@ -14,8 +14,9 @@ BACKENDS = {"numba": kernels, "reference": reference}
 # Substeps aim at this fraction of the stability bound, so rounding of the bound (it is an
 # estimate for non-proportional dashpots) never puts a step right at the edge.
 SAFETY = 0.9
-# Below this many knots one thread beats waking the pool (measured: `pingpong profile-net`
-# at 184x16 runs faster serial on the 2-core machine this was built on).
+# Below this many knots the serial kernel is used: on a 2-core machine shared with the
+# physics worker, waking the pool for a ~3,000-knot net gains little and costs a core
+# (`pingpong profile-net` shows both side by side; the results are the same bits).
 PARALLEL_MIN_KNOTS = 20_000
 # Sleep: the net falls asleep after SLEEP_TICKS ticks with every knot slower than
 # SLEEP_SPEED, and the ball farther than WAKE_MARGIN plus one tick's travel from the net's box.

@@ -78,7 +78,7 @@ class NetSpec:
 
 @dataclass(frozen=True, eq=False)
 class NetTopology:
-    """Arrays of a built net (structure of arrays, float64 little-endian, int64 indices).
+    """Arrays of a built net (structure of arrays: float64 values, unsigned indices).
 
     Indices are unsigned: uint32 for knots and springs (half the bytes of int64 in the
     kernel's stream; 2^32 is far beyond a million knots), uint64 for CSR starts. Unsigned

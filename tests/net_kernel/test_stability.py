@@ -35,8 +35,9 @@ def test_undamped_energy_bounded_at_0_9_of_the_bound():
     energy = _run(sim, STEPS)
     # Symplectic Euler conserves a modified energy; for a mode with a = h w / 2 <= 0.9 the true
     # energy stays within [(1 - a)/(1 + a), (1 + a)/(1 - a)] of it (19x at worst, linear theory).
-    # No secular drift: the last quarter's peak stays within 10 % of the first quarter's.
-    assert energy.max() <= 19.0 * e0
+    # The random start puts most energy in slow modes (small a): observed peak 1.046 E0, so
+    # 10 % is the bound held; no secular drift: the last quarter's peak within 10 % of the first's.
+    assert energy.max() <= 1.10 * e0
     quarter = STEPS // 4
     assert energy[-quarter:].max() <= 1.10 * energy[:quarter].max()
 
@@ -54,7 +55,7 @@ def test_derived_substeps_keep_energy_bounded_at_1_1_of_the_bound():
     e0 = _start(sim)
     energy = _run(sim, STEPS // 2)
     quarter = STEPS // 8
-    assert energy.max() <= 19.0 * e0  # same modified-energy bound as at 0.9x
+    assert energy.max() <= 1.10 * e0  # as at 0.9x (observed 1.014 E0)
     assert energy[-quarter:].max() <= 1.10 * energy[:quarter].max()
 
 
