@@ -14,8 +14,8 @@ from net_kernel.topology import SOLVERS, NetSpec, validate_spec
 SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
 
 # Effects a scene can list (DESIGN.md). Those this version cannot simulate yet are refused by name.
-EFFECTS = ("gravity", "drag", "magnus", "friction", "table", "floor", "net", "bats", "ai", "referee")
-PLANNED_EFFECTS = ("remote", "recording")
+EFFECTS = ("gravity", "drag", "magnus", "friction", "table", "floor", "net", "bats", "ai", "referee", "remote")
+PLANNED_EFFECTS = ("recording",)
 SKILL_NAMES = ("pro", "club", "novice")
 NET_KINDS = ("rigid", "cloth")
 # [net] keys for a cloth net: the fields of net_kernel.NetSpec (validated there).
@@ -55,6 +55,7 @@ class BatSpec:
     radius: float = equipment.BAT_RADIUS
     half_thickness: float = equipment.BAT_HALF_THICKNESS
     skill: str | None = None  # AI skill level driving this bat (effect "ai"), None = no AI
+    remote: bool = False  # played by a remote client through the gateway (effect "remote")
 
 
 @dataclass(frozen=True)
@@ -206,7 +207,8 @@ def _read_cloth(r: _Reader, data: dict) -> NetSpec:
 
 def _read_bat(r: _Reader, name: str, data: Any) -> BatSpec:
     path = f"bats.{name}"
-    keys = ("pos", "normal", "quat", "vel", "ang_vel", "force", "torque", "mass", "radius", "half_thickness", "skill")
+    keys = ("pos", "normal", "quat", "vel", "ang_vel", "force", "torque", "mass", "radius", "half_thickness", "skill",
+            "remote")
     data = r.table(data, path, keys)
     if "normal" in data and "quat" in data:
         raise r.fail(path, "give either normal or quat, not both")
@@ -233,7 +235,15 @@ def _read_bat(r: _Reader, name: str, data: Any) -> BatSpec:
         half_thickness=r.number(data, "half_thickness", f"{path}.half_thickness",
                                 equipment.BAT_HALF_THICKNESS, low=0.001, high=0.02),
         skill=r.string(data, "skill", f"{path}.skill", None, SKILL_NAMES) if "skill" in data else None,
+        remote=_flag(r, data, "remote", f"{path}.remote"),
     )
+
+
+def _flag(r: _Reader, data: dict, key: str, path: str) -> bool:
+    value = data.get(key, False)
+    if not isinstance(value, bool):
+        raise r.fail(path, f"must be true or false, got {type(value).__name__} {value!r}")
+    return value
 
 
 def parse_scene(data: dict, source: str) -> Scene:
@@ -285,6 +295,12 @@ def parse_scene(data: dict, source: str) -> Scene:
     ai_bats = [b.name for b in bats if b.skill is not None]
     if ai_bats and "ai" not in effects:
         raise r.fail(f"bats.{ai_bats[0]}.skill", "a skill is given but the effect 'ai' is not listed in effects")
+    remote_bats = [b.name for b in bats if b.remote]
+    both = [b.name for b in bats if b.remote and b.skill is not None]
+    if both:
+        raise r.fail(f"bats.{both[0]}.remote", "a bat is played either by the AI (skill) or remotely, not both")
+    if remote_bats and "remote" not in effects:
+        raise r.fail(f"bats.{remote_bats[0]}.remote", "a remote bat needs the effect 'remote' in effects")
     if "ai" in effects and not ai_bats:
         raise r.fail("effects", "effect 'ai' needs a bat with a skill (bats.a.skill = \"pro\", \"club\" or \"novice\")")
     match = None
@@ -306,6 +322,8 @@ def parse_scene(data: dict, source: str) -> Scene:
         )
     elif "match" in data:
         raise r.fail("match", "a [match] table needs the effect 'referee'")
+    if "remote" in effects and match is None:
+        raise r.fail("effects", "effect 'remote' (a match served to network clients) needs the effect 'referee'")
 
     air = r.table(data.get("air", {}), "air", ("density", "drag_coefficient", "magnus_coefficient", "gravity"))
     materials = dict(DEFAULT_MATERIALS)
@@ -368,3 +386,23 @@ def with_overrides(scene: Scene, **changes: Any) -> Scene:
     if "dt" in changes and not (math.isfinite(changes["dt"]) and 0.0 < changes["dt"] <= 0.05):
         raise SceneError(f"{scene.source}: dt: must be in (0.0, 0.05] s, got {changes['dt']}")
     return replace(scene, **changes)
+
+
+def with_remote_players(scene: Scene, players: int) -> Scene:
+    """The scene served to network clients (effect "remote"): bat A remote if players >= 1, bat B
+    too if players == 2; the other bats keep their AI. `pingpong serve --players N`."""
+    from dataclasses import replace
+
+    if players not in (0, 1, 2):
+        raise SceneError(f"players: must be 0, 1 or 2, got {players}")
+    if scene.match is None:
+        raise SceneError(f"{scene.source}: serving a scene needs the effect 'referee' (a match)")
+    bats = tuple(replace(bat, remote=True, skill=None) if i < players else bat for i, bat in enumerate(scene.bats))
+    if any(not bat.remote and bat.skill is None for bat in bats):
+        missing = next(bat.name for bat in bats if not bat.remote and bat.skill is None)
+        raise SceneError(f"{scene.source}: bats.{missing} has no skill: with {players} remote players it would "
+                         "have nobody to play it")
+    effects = set(scene.effects) | {"remote"}
+    if not any(bat.skill is not None for bat in bats):
+        effects.discard("ai")
+    return replace(scene, bats=bats, effects=frozenset(effects))

@@ -60,6 +60,18 @@ def _cmd_decode(args: argparse.Namespace) -> int:
     return decode_command(args)
 
 
+def _cmd_serve(args: argparse.Namespace) -> int:
+    from processes.client import serve_command
+
+    return serve_command(args)
+
+
+def _cmd_join(args: argparse.Namespace) -> int:
+    from processes.client import join_command
+
+    return join_command(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The whole `pingpong` parser; subcommands share --seed/--json."""
     formatter = argparse.ArgumentDefaultsHelpFormatter
@@ -125,6 +137,34 @@ def build_parser() -> argparse.ArgumentParser:
     decode.add_argument("message", metavar="FILE|HEX", help="a file of the message's raw bytes, or its bytes in hex")
     decode.add_argument("--json", action="store_true", help="print one JSON object")
     decode.set_defaults(func=_cmd_decode)
+
+    serve = sub.add_parser("serve", help="serve a realtime match that remote players and spectators join",
+                           formatter_class=formatter)
+    serve.add_argument("--scene", default="match", help="scene TOML file or bundled scene name (needs a referee)")
+    serve.add_argument("--bind", default="tcp://127.0.0.1:0", help="ZeroMQ endpoint; port 0 picks a free port")
+    serve.add_argument("--players", type=int, choices=[0, 1, 2], default=1,
+                       help="remote players (bat A first); the other bats are played by the AI")
+    serve.add_argument("--best-of", type=int, default=None, help="games in the match (default: the scene's)")
+    serve.add_argument("--ticks", type=int, default=None, help="stop after this many ticks even if undecided")
+    serve.add_argument("--snapshot-hz", type=int, default=100, help="snapshots per second to every client")
+    serve.add_argument("--timeout", type=float, default=5.0, help="s, a silent client is dropped after this")
+    serve.add_argument("--grace", type=float, default=30.0, help="s, a dropped player's seat waits for its token")
+    serve.add_argument("--wait", type=float, default=300.0, help="s, wait for the remote players, then start")
+    _add_common(serve)
+    serve.set_defaults(func=_cmd_serve)
+
+    join = sub.add_parser("join", help="join a served match as a player or a spectator", formatter_class=formatter)
+    join.add_argument("address", help="the server's endpoint, e.g. tcp://127.0.0.1:5555")
+    join.add_argument("--as", dest="role", choices=["player", "spectator"], default="spectator")
+    join.add_argument("--bot", action="store_true", help="a player played by engine.ai through the network")
+    join.add_argument("--skill", choices=["pro", "club", "novice"], default="pro", help="the bot's skill")
+    join.add_argument("--slot", choices=["any", "a", "b"], default="any", help="the seat wanted")
+    join.add_argument("--name", default="client", help="shown to the other clients")
+    join.add_argument("--token", default=None, help="rejoin token (hex) from an earlier session")
+    join.add_argument("--seconds", type=float, default=3600.0, help="leave after this long at most")
+    join.add_argument("--join-timeout", type=float, default=10.0, help="s to wait for the welcome")
+    _add_common(join)
+    join.set_defaults(func=_cmd_join)
     return parser
 
 

@@ -63,6 +63,8 @@ def workers_for(scene: Scene) -> list[str]:
     kinds = ["physics"]
     if any(bat.skill is not None for bat in scene.bats):
         kinds.append("ai")
+    if "remote" in scene.effects:
+        kinds.append("gateway")
     return kinds
 
 
@@ -74,6 +76,8 @@ class _Worker:
         self.conn = None
         self.restarts = 0
         self.finished = False
+        self.ready: dict = {}  # what the worker reported with "ready" (the gateway: its endpoint)
+        self.report: dict = {}  # what it reported with "done"
 
 
 class Supervisor:
@@ -85,11 +89,13 @@ class Supervisor:
         crash_at_tick: fault injection for tests and `pingpong stress`: the first incarnation of
             `crash_worker` SIGKILLs itself at this tick.
         seed: the match's seed. frame_every: keep a snapshot every this many ticks (replays), 0: none.
+        gateway: processes.gateway.GatewayConfig for a scene with the effect "remote".
+        players_timeout: s, a served match waits this long for its remote players, then starts.
     """
 
     def __init__(self, scene: Scene, ticks: int, mode: str = "lockstep", trace: bool = False,
                  crash_at_tick: int | None = None, seed: int = 0, frame_every: int = 0,
-                 crash_worker: str = "physics"):
+                 crash_worker: str = "physics", gateway=None, players_timeout: float = 300.0):
         if mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode must be lockstep or realtime, got {mode!r}")
         self.scene = scene
@@ -100,13 +106,19 @@ class Supervisor:
         self.crash_worker = crash_worker
         self.seed = seed
         self.frame_every = frame_every
+        self.players_timeout = players_timeout
         self._tmp = None
+        self._start_event = None
         self._baton = None
         self.kinds = workers_for(scene)
+        if "gateway" in self.kinds:
+            from processes.gateway import GatewayConfig
+
+            self.gateway = gateway or GatewayConfig()
         # forkserver: workers fork from a clean server that never ran threads or kernels.
         self._ctx = multiprocessing.get_context("forkserver")
         self._ctx.set_forkserver_preload(["engine.world", "engine.match", "processes.worker",
-                                          "processes.worker_physics", "processes.worker_ai"])
+                                          "processes.worker_physics", "processes.worker_ai", "processes.gateway"])
         self.arena: Arena | None = None
         self._workers: list[_Worker] = []
 
@@ -122,16 +134,26 @@ class Supervisor:
             arena.shared_array("points", POINT_DTYPE, POINT_LOG_CAPACITY)
             if self.frame_every:
                 arena.shared_array("frames", snapshot, self.ticks // self.frame_every + 1)
-        if "ai" in self.kinds:
-            from processes.worker_ai import INPUT_DTYPE, LOCK_NAMES
+        if "ai" in self.kinds or "gateway" in self.kinds:
+            from processes.gateway import RUN_LOCK_NAMES
 
             self._tmp = tempfile.mkdtemp(prefix=f"pingpong-{arena.run_id}-")
             self._lock_path = str(Path(self._tmp) / "locks")
-            LockTable.create(self._lock_path, LOCK_NAMES, arena.shared_array("lock_holders", HOLDER_DTYPE,
-                                                                              len(LOCK_NAMES))).close()
+            LockTable.create(self._lock_path, RUN_LOCK_NAMES, arena.shared_array("lock_holders", HOLDER_DTYPE,
+                                                                                  len(RUN_LOCK_NAMES))).close()
+        if "ai" in self.kinds:
+            from processes.worker_ai import INPUT_DTYPE
+
             arena.shared_array("inputs_header", MAILBOX_HEADER, 1)
             arena.shared_array("inputs", INPUT_DTYPE, 4)
             self._baton = Baton("ai", self._ctx, arena.shared_array("baton", TICK_SLOT_DTYPE, 1).array)
+        if "gateway" in self.kinds:
+            from processes.gateway import REMOTE_CAPACITY, REMOTE_INPUT_DTYPE
+
+            arena.shared_array("remote_header", MAILBOX_HEADER, 1)
+            arena.shared_array("remote_inputs", REMOTE_INPUT_DTYPE, REMOTE_CAPACITY)
+            arena.shared_array("remote_applied", np.dtype("<u8"), 2)  # seq of the last input applied per bat
+            self._start_event = self._ctx.Event()
         return arena
 
     def _start(self, worker: _Worker) -> None:
@@ -140,7 +162,12 @@ class Supervisor:
         options = {"ticks": self.ticks, "mode": self.mode, "trace": self.trace, "crash_at_tick": crash,
                    "seed": self.seed, "frame_every": self.frame_every}
         if self._baton is not None:
-            options.update(baton=self._baton, lock_path=self._lock_path)
+            options.update(baton=self._baton)
+        if self._tmp is not None:
+            options.update(lock_path=self._lock_path)
+        if self._start_event is not None:
+            options.update(start_event=self._start_event, players_timeout=self.players_timeout,
+                           gateway=self.gateway)
         worker.process = self._ctx.Process(
             target=worker_entry, name=f"pingpong-{worker.kind}",
             args=(worker.kind, child, self.arena.layout(), worker.index, self.scene, options))
@@ -156,6 +183,7 @@ class Supervisor:
             if worker.conn in ready:
                 kind, payload = worker.conn.recv()
                 if kind == "ready":
+                    worker.ready = payload if isinstance(payload, dict) else {}
                     return
                 if kind == "error":
                     raise WorkerFailed(f"{worker.kind} worker failed while starting:\n{payload['traceback']}")
@@ -213,6 +241,7 @@ class Supervisor:
                         kind, payload = "eof", None
                     if kind == "done":
                         worker.finished = True
+                        worker.report = payload if isinstance(payload, dict) else {}
                         continue
                     if kind == "error":
                         raise WorkerFailed(f"{worker.kind} worker raised {payload['type']}: {payload['message']}\n"
@@ -225,8 +254,9 @@ class Supervisor:
                     if row["state"] == WorkerState.RUNNING and silent > STALL_TIMEOUT_S:
                         self._restart(worker, f"stalled ({silent:.1f} s without a heartbeat)", start_wall)
 
-    def run(self, progress=None) -> ProcessRunResult:
-        """Run to the end; `progress(snapshot_record)` is called about four times a second."""
+    def run(self, progress=None, on_ready=None) -> ProcessRunResult:
+        """Run to the end; `progress(snapshot_record)` is called about four times a second;
+        `on_ready({kind: ready report})` once every worker is ready (the gateway's endpoint)."""
         previous_term = signal.signal(signal.SIGTERM, _exit_on_sigterm)
         started = time.monotonic()
         self.arena = self._build_arena()
@@ -236,6 +266,8 @@ class Supervisor:
                 self._start(worker)
             for worker in self._workers:
                 self._await_ready(worker)
+            if on_ready is not None:
+                on_ready({w.kind: w.ready for w in self._workers})
             start_wall = time.monotonic()
             startup = start_wall - started
             for worker in self._workers:
@@ -268,6 +300,7 @@ class Supervisor:
                 "max_late_s": float(status[w.index]["max_late_s"]),
                 "busy_s": float(status[w.index]["busy_s"]),
                 "handoff_s": float(status[w.index]["handoff_s"]),
+                **({"gateway": w.report.get("gateway", {})} if w.kind == "gateway" else {}),
             }
             for w in self._workers
         }

@@ -100,7 +100,7 @@ def _remote_ai(control: Control, arena: Arena, options: dict, n_bats: int):
     from processes.worker_ai import INPUT_DTYPE, LOCK_NAMES
 
     baton = options["baton"].attach(arena["baton"].array)
-    locks = LockTable(options["lock_path"], LOCK_NAMES, arena["lock_holders"])
+    locks = LockTable(options["lock_path"], LOCK_NAMES, arena["lock_holders"])  # a prefix of the run's order
     box = Mailbox("bat_inputs", arena["inputs_header"], arena["inputs"], locks)
     inbox = np.zeros(box.capacity, INPUT_DTYPE)
 
@@ -127,6 +127,46 @@ def _remote_ai(control: Control, arena: Arena, options: dict, n_bats: int):
     waits = [0.0]  # wall time in hand-offs to the AI (its own work included)
     driver.waits = waits
     return driver
+
+
+class _RemoteInputs:
+    """The remote players' inputs: drained from the gateway's locked mailbox before each tick."""
+
+    def __init__(self, arena: Arena, options: dict, match: Match):
+        from processes.gateway import REMOTE_INPUT_DTYPE, RUN_LOCK_NAMES
+        from processes.locks import LockTable
+        from processes.mailbox import Mailbox
+
+        self.locks = LockTable(options["lock_path"], RUN_LOCK_NAMES, arena["lock_holders"])
+        self.box = Mailbox("remote_inputs", arena["remote_header"], arena["remote_inputs"], self.locks)
+        self.inbox = np.zeros(self.box.capacity, REMOTE_INPUT_DTYPE)
+        self.applied = arena["remote_applied"].array
+        self.match = match
+
+    def apply(self) -> None:
+        """Each input holds from now on: in the bat's record (held between AI ticks) and in the
+        match's inputs (which an AI control tick writes to every bat)."""
+        n = self.box.drain(self.inbox)
+        bats = self.match.state.bats
+        for k in range(n):
+            bat = int(self.inbox[k]["bat"])
+            values = self.inbox[k]["inputs"]
+            self.match.inputs[bat] = values
+            bats[bat]["force"] = values[0:3]
+            bats[bat]["torque"] = values[3:6]
+            self.applied[bat] = self.inbox[k]["seq"]
+
+    def close(self) -> None:
+        del self.applied, self.box
+        self.locks.close()
+
+
+def _await_players(control: Control, options: dict, tick: int) -> None:
+    """A served match starts once the gateway says every remote seat is taken (bounded)."""
+    event = options["start_event"]
+    deadline = time.monotonic() + options.get("players_timeout", 300.0)
+    while not event.wait(0.2) and time.monotonic() < deadline:
+        control.beat(tick)
 
 
 def _match_worker(control: Control, arena: Arena, scene, options: dict) -> None:
@@ -159,16 +199,23 @@ def _match_worker(control: Control, arena: Arena, scene, options: dict) -> None:
     control.send("ready", tick)
     start_wall = control.wait_for("go", STARTUP_TIMEOUT_S)
     control.set_state(WorkerState.RUNNING)
+    remote = _RemoteInputs(arena, options, match) if "remote" in scene.effects else None
+    if remote is not None:
+        _await_players(control, options, tick)
+        start_wall = time.monotonic() - tick * match.model.dt  # pace from when play starts
     pacer = _Pacer(start_wall, match.model.dt, control.row) if options["mode"] == "realtime" else None
     n_ticks = options["ticks"]
     crash_at_tick = options.get("crash_at_tick")
     capacity = log.shape[0]
     busy = 0.0
-    per_tick = pacer is not None or trace is not None  # pacing and traces want every tick
+    # pacing, traces and remote inputs (drained before every tick) want every tick
+    per_tick = pacer is not None or trace is not None or remote is not None
     while tick < n_ticks and not match.referee.match_over:
         if pacer is not None:
             pacer.wait(tick)
         t0 = time.perf_counter()
+        if remote is not None:
+            remote.apply()
         chunk = 1 if per_tick else n_ticks - tick
         if frames is not None:
             chunk = min(chunk, frame_every - tick % frame_every)
@@ -194,6 +241,8 @@ def _match_worker(control: Control, arena: Arena, scene, options: dict) -> None:
     handoff = driver.waits[0] if driver is not None else 0.0
     if driver is not None:
         options["baton"].stop()
+    if remote is not None:
+        remote.close()
     # busy_s counts the physics' own work; the hand-offs to the AI (and the AI's work inside
     # them, which the AI worker reports itself) are reported apart.
     control.row["busy_s"] = float(control.row["busy_s"]) + busy - handoff

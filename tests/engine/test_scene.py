@@ -29,7 +29,7 @@ GOOD = 'effects = ["gravity", "bats"]\n[ball]\npos = [0, 0, 0.3]\n[bats.a]\npos 
         (GOOD.replace("[0, 0, 0.3]", "[0, nan, 0.3]"), "ball.pos[1]", "must be finite"),
         (GOOD.replace("[0, 0, 0.3]", "[0, inf, 0.3]"), "ball.pos[1]", "must be finite"),
         (GOOD.replace("[0, 0, 0.3]", "[0, 0]"), "ball.pos", "list of 3 numbers"),
-        (GOOD.replace('"gravity"', '"gravity", "remote"'), "effects", "not supported"),
+        (GOOD.replace('"gravity"', '"gravity", "recording"'), "effects", "not supported"),
         (GOOD.replace('"gravity"', '"gravity", "ai"'), "effects", "needs a bat with a skill"),
         (GOOD.replace('"gravity"', '"gravty"'), "effects", "unknown effect 'gravty'"),
         (GOOD.replace('"gravity", "bats"', '"gravity"'), "bats", "not listed in effects"),

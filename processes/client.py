@@ -1,0 +1,333 @@
+"""The network client: a session with the gateway (DEALER socket), the bot brain, `pingpong join`.
+
+A client says hello, waits (bounded) for welcome or reject, then exchanges wire messages: it
+sends a heartbeat at least as often as the welcome asks, inputs for its own bat, and goodbye
+when it leaves; it takes snapshots, events, heartbeats and the server's goodbye. Every wait is
+bounded and a server silent past the welcome's timeout ends the session.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+import numpy as np
+import zmq
+
+from processes import wire
+from processes.wire import GoodbyeReason, InputMode, Kind, Role, Slot
+
+NO_TOKEN = bytes(wire.TOKEN_SIZE)
+JOIN_TIMEOUT_S = 10.0
+
+
+class Rejected(RuntimeError):
+    """The server turned the hello away; `reason` is a wire.RejectReason."""
+
+    def __init__(self, reason, detail: str):
+        super().__init__(f"rejected: {reason.name.lower()}: {detail}")
+        self.reason = reason
+        self.detail = detail
+
+
+class Client:
+    """One session with a gateway.
+
+    Args:
+        address: the server's ZeroMQ endpoint. role: "player" or "spectator". name: shown to others.
+        slot: the seat wanted (Slot.NONE: any). token: a rejoin token from an earlier welcome.
+        zctx: a zmq.Context (a new one by default, terminated on close).
+        socket_options: extra {zmq option: value} set before connecting.
+    """
+
+    def __init__(self, address: str, role: str = "spectator", name: str = "client", slot: Slot = Slot.NONE,
+                 token: bytes = NO_TOKEN, zctx=None, socket_options: dict | None = None):
+        self.address = address
+        self.role = Role.PLAYER if role == "player" else Role.SPECTATOR
+        self.name = name
+        self.wanted = slot
+        self.token = token
+        self._own_ctx = zctx is None
+        self.zctx = zctx or zmq.Context()
+        self.sock = self.zctx.socket(zmq.DEALER)
+        self.sock.setsockopt(zmq.LINGER, 0)
+        self.sock.setsockopt(zmq.RCVHWM, 256)
+        for option, value in (socket_options or {}).items():
+            self.sock.setsockopt(option, value)
+        self.sock.connect(address)
+        self.seq = 0
+        self.tick = 0
+        self.slot = Slot.NONE
+        self.welcome: wire.Message | None = None
+        self.drops = wire.DropCounter()
+        self.received = 0
+        self.goodbye: GoodbyeReason | None = None
+        self.last_seen = time.monotonic()
+        self._next_beat = 0.0
+        self.heartbeat_s = 0.5
+        self.timeout_s = 5.0
+        self.max_seq_in = 0
+
+    def send(self, kind, **fields) -> None:
+        self.seq += 1
+        self.sock.send(wire.encode(kind, seq=self.seq, tick=self.tick, **fields), flags=zmq.NOBLOCK)
+
+    def send_raw(self, data: bytes) -> None:
+        """Bytes as they are (tests of the gateway's validation)."""
+        self.sock.send(data, flags=zmq.NOBLOCK)
+
+    def hello(self) -> None:
+        """Ask for a seat (or to watch); the answer comes as a welcome or a reject (see accept)."""
+        token = self.token if self.role == Role.PLAYER else NO_TOKEN
+        self.send(Kind.HELLO, role=self.role, slot=self.wanted if self.role == Role.PLAYER else Slot.NONE,
+                  name=self.name, token=token)
+
+    def accept(self, message: wire.Message) -> bool:
+        """Take the server's answer to the hello: True on a welcome, Rejected on a reject,
+        False for anything else."""
+        if message.kind == Kind.REJECT:
+            raise Rejected(message["reason"], message["detail"])
+        if message.kind != Kind.WELCOME:
+            return False
+        self.welcome = message
+        self.slot = message["slot"]
+        self.token = message["token"]
+        self.heartbeat_s = message["heartbeat_ms"] / 1000.0
+        self.timeout_s = message["timeout_ms"] / 1000.0
+        self._next_beat = time.monotonic() + self.heartbeat_s
+        return True
+
+    def join(self, timeout_s: float = JOIN_TIMEOUT_S) -> wire.Message:
+        """Say hello and wait (bounded) for the welcome; raises Rejected or TimeoutError."""
+        self.hello()
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            message = self.recv(int(1000 * min(0.2, max(deadline - time.monotonic(), 0.0))) + 1)
+            if message is not None and self.accept(message):
+                return message
+        raise TimeoutError(f"no welcome from {self.address} within {timeout_s} s")
+
+    def recv(self, timeout_ms: int) -> wire.Message | None:
+        """The next valid message within timeout_ms, or None (bad ones are counted and dropped)."""
+        if not self.sock.poll(timeout_ms, zmq.POLLIN):
+            return None
+        data = self.sock.recv(flags=zmq.NOBLOCK)
+        message = self.drops.decode(data)
+        if message is None:
+            return None
+        self.received += 1
+        self.last_seen = time.monotonic()
+        self.max_seq_in = max(self.max_seq_in, message.seq)
+        self.tick = max(self.tick, message.tick)
+        if message.kind == Kind.GOODBYE:
+            self.goodbye = message["reason"]
+        return message
+
+    def heartbeat_if_due(self) -> None:
+        now = time.monotonic()
+        if now >= self._next_beat:
+            self._next_beat = now + self.heartbeat_s
+            self.send(Kind.HEARTBEAT, ack=self.max_seq_in)
+
+    @property
+    def server_lost(self) -> bool:
+        return time.monotonic() - self.last_seen > self.timeout_s
+
+    def send_input(self, inputs, tick: int | None = None, slot: Slot | None = None) -> None:
+        """Force (N) and torque (N m), world frame, for our bat (slot: tests may name another)."""
+        inputs = np.asarray(inputs, dtype=np.float64)
+        if tick is not None:
+            self.tick = tick
+        self.send(Kind.INPUT, slot=self.slot if slot is None else slot, mode=InputMode.FORCE, force=inputs[0:3],
+                  torque=inputs[3:6], target_pos=np.zeros(3), target_quat=np.zeros(4))
+
+    def leave(self) -> None:
+        try:
+            self.send(Kind.GOODBYE, reason=GoodbyeReason.QUIT)
+        except zmq.ZMQError:
+            pass
+
+    def close(self) -> None:
+        self.sock.close(linger=0)
+        if self._own_ctx:
+            self.zctx.term()
+
+
+class BotBrain:
+    """engine.ai.BatAI playing one bat from the server's snapshots (`pingpong join --bot`).
+
+    The AI sees what the snapshot carries. The rally key (the in-process match uses (rally,
+    shots), which the snapshot does not carry) is (rally, changes of phase or striker seen),
+    which changes whenever the ball changes hands too.
+    """
+
+    def __init__(self, scene_name: str, slot: Slot, skill: str = "pro", seed: int = 0):
+        from engine.ai import SKILLS, BatAI
+        from engine.dtypes import BAT_DTYPE
+        from engine.scene import load_scene
+        from engine.world import build_model
+
+        self.scene = load_scene(scene_name)
+        self.model = build_model(self.scene)
+        self.player = int(slot) - 1
+        self.ai = BatAI(self.model, self.player, SKILLS[skill], seed=seed * 1000 + self.player)
+        self.ai.warm_up()
+        self.bat = np.zeros((), BAT_DTYPE)
+        self.ball_y = np.zeros(9)
+        self.out = np.zeros(6)
+        self._last = None
+        self._turns = 0
+
+    def control(self, snapshot: wire.Message, dt: float) -> np.ndarray:
+        """(6,) force and torque for our bat after this snapshot."""
+        from engine.rules import Phase
+
+        p = self.player
+        self.ball_y[0:3], self.ball_y[3:6], self.ball_y[6:9] = (snapshot["ball_pos"], snapshot["ball_vel"],
+                                                                snapshot["ball_spin"])
+        self.bat["pos"], self.bat["quat"] = snapshot["bat_pos"][p], snapshot["bat_quat"][p]
+        self.bat["vel"], self.bat["ang_vel"] = snapshot["bat_vel"][p], snapshot["bat_ang_vel"][p]
+        phase, server, striker = int(snapshot["phase"]), snapshot["server"], snapshot["striker"]
+        state = (snapshot["rally"], phase, striker)
+        if state != self._last:
+            self._turns += 1
+            self._last = state
+        if phase == Phase.OVER:
+            my_turn = False
+        elif phase == Phase.WAITING_SERVE:
+            my_turn = server == p
+        else:
+            my_turn = striker != p
+        return self.ai.control(snapshot.tick * dt, self.ball_y, self.bat, (snapshot["rally"], self._turns), my_turn,
+                               phase == Phase.WAITING_SERVE, -1 if p == 0 else 1, self.out)
+
+
+def _score_line(snapshot: wire.Message) -> str:
+    s, g, b = snapshot["score"], snapshot["games_won"], snapshot["ball_pos"]
+    return (f"tick {snapshot.tick:>7}  games {g[0]}-{g[1]}  points {s[0]}-{s[1]}  rally {snapshot['rally']}  "
+            f"ball ({b[0]:+.2f}, {b[1]:+.2f}, {b[2]:+.2f}) m  |v| {float(np.linalg.norm(snapshot['ball_vel'])):.1f} m/s")
+
+
+def join_command(args: argparse.Namespace) -> int:
+    """`pingpong join ADDRESS --as player|spectator [--bot]`."""
+    if args.role == "player" and not args.bot:
+        print("pingpong join: keyboard play is not there yet; join a player with --bot, or --as spectator",
+              file=sys.stderr)
+        return 2
+    slot = {"any": Slot.NONE, "a": Slot.A, "b": Slot.B}[args.slot]
+    token = bytes.fromhex(args.token) if args.token else NO_TOKEN
+    client = Client(args.address, args.role, args.name, slot, token)
+    brain = None
+    summary = {"address": args.address, "role": args.role, "snapshots": 0, "events": [], "inputs_sent": 0}
+    try:
+        try:
+            welcome = client.join(args.join_timeout)
+        except Rejected as err:
+            summary.update(rejected=err.reason.name.lower(), detail=err.detail)
+            print(json.dumps(summary) if args.json else f"pingpong join: {err}", file=sys.stdout if args.json else sys.stderr)
+            return 3
+        except TimeoutError as err:
+            print(f"pingpong join: {err}", file=sys.stderr)
+            return 4
+        summary.update(slot=client.slot.name.lower(), scene=welcome["scene"], token=client.token.hex(),
+                       snapshot_hz=welcome["snapshot_hz"])
+        if not args.json:
+            print(f"joined {welcome['scene']} as {'player ' + client.slot.name if client.slot else 'spectator'}"
+                  f" (best of {welcome['best_of']}, {welcome['snapshot_hz']} snapshots/s)", flush=True)
+        if args.bot:
+            brain = BotBrain(welcome["scene"], client.slot, args.skill, args.seed)
+        dt = welcome["dt"]
+        deadline = time.monotonic() + args.seconds
+        last_print = 0.0
+        last = None
+        while time.monotonic() < deadline and client.goodbye is None and not client.server_lost:
+            client.heartbeat_if_due()
+            message = client.recv(100)
+            if message is None:
+                continue
+            if message.kind == Kind.SNAPSHOT:
+                summary["snapshots"] += 1
+                last = message
+                if brain is not None:
+                    client.send_input(brain.control(message, dt), tick=message.tick)
+                    summary["inputs_sent"] += 1
+                elif not args.json and time.monotonic() - last_print >= 0.25:
+                    last_print = time.monotonic()
+                    print(_score_line(message), flush=True)
+            elif message.kind == Kind.EVENT:
+                event = message.to_dict()
+                summary["events"].append({k: event[k] for k in ("event", "winner", "score", "games_won")})
+                if not args.json:
+                    who = "AB"[event["winner"]] if event["winner"] >= 0 else "-"
+                    print(f"{event['event']}: {who}  score {event['score']}  games {event['games_won']}", flush=True)
+        if client.goodbye is None:
+            client.leave()
+        summary["goodbye"] = client.goodbye.name.lower() if client.goodbye else (
+            "server_lost" if client.server_lost else "left")
+        if last is not None:
+            summary.update(tick=last.tick, score=last["score"].tolist(), games_won=last["games_won"].tolist(),
+                           winner=int(last["winner"]))
+        summary["dropped"] = dict(client.drops.by_reason)
+    except KeyboardInterrupt:
+        client.leave()
+        summary["goodbye"] = "interrupted"
+    finally:
+        client.close()
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(f"session ended: {summary['goodbye']}; {summary['snapshots']} snapshots, "
+              f"{len(summary['events'])} events")
+    return 1 if summary["goodbye"] == "server_lost" else 0
+
+
+def serve_command(args: argparse.Namespace) -> int:
+    """`pingpong serve`: a match in realtime worker processes, served through the gateway."""
+    from dataclasses import replace
+
+    from engine.scene import SceneError, load_scene, with_remote_players
+    from engine.world import SimulationError
+    from processes.gateway import GatewayConfig
+    from processes.match import _summary_from_processes
+    from processes.supervisor import Supervisor
+
+    try:
+        scene = with_remote_players(load_scene(args.scene), args.players)
+        if args.best_of is not None:
+            if args.best_of < 1 or args.best_of % 2 == 0:
+                raise SceneError(f"--best-of must be an odd number >= 1, got {args.best_of}")
+            scene = replace(scene, match=replace(scene.match, best_of=args.best_of))
+        ticks = scene.ticks if args.ticks is None else args.ticks
+        config = GatewayConfig(bind=args.bind, snapshot_hz=args.snapshot_hz, timeout_s=args.timeout,
+                               grace_s=args.grace)
+        supervisor = Supervisor(scene, ticks, "realtime", seed=args.seed, gateway=config,
+                                players_timeout=args.wait)
+
+        def ready(reports: dict) -> None:
+            endpoint = reports["gateway"]["endpoint"]
+            if args.json:
+                print(json.dumps({"listening": endpoint, "run_id": supervisor.arena.run_id,
+                                  "players": args.players}), flush=True)
+            else:
+                print(f"serving {scene.name} on {endpoint}: {args.players} remote player(s), "
+                      f"{2 - args.players} AI; join with `pingpong join {endpoint} --as player --bot`", flush=True)
+
+        try:
+            result = supervisor.run(on_ready=ready)
+        except KeyboardInterrupt:
+            print("pingpong serve: interrupted; every client was told goodbye", file=sys.stderr)
+            return 130
+    except (SceneError, SimulationError, ValueError) as exc:
+        print(f"pingpong: {exc}", file=sys.stderr)
+        return 2
+    summary = _summary_from_processes(scene, args.seed, result)
+    summary["gateway"] = result.workers.get("gateway", {}).get("gateway", {})
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        games = ", ".join(f"{a}-{b}" for a, b in summary["games"]) or "-"
+        winner = summary["winner"]
+        print(f"{'winner: ' + winner.upper() if winner else 'no winner'}  games: {games}  ticks {summary['ticks']}")
+        print("gateway: " + ", ".join(f"{k} {v}" for k, v in summary["gateway"].items()))
+    return 0

@@ -1,0 +1,497 @@
+"""The gateway: ZeroMQ sessions of remote players and spectators; their inputs in, snapshots out.
+
+One ROUTER socket carries everything. A client is a DEALER that sends one-frame wire messages
+(processes/wire.py); the gateway sees [identity, message]. Sessions:
+
+- hello -> welcome (slot A/B with a fresh rejoin token, or spectator) or reject (full,
+  version, bad_request, bad_token, shutting_down), and the session is closed on a reject.
+- heartbeats both ways: the gateway sends one every `heartbeat_s` to each session; any valid
+  message from a peer counts as a sign of life; a peer silent for `timeout_s` is sent goodbye
+  (timeout) and dropped. A dropped player's seat is kept for `grace_s`: only its token may
+  reclaim it (rejoin); after the grace anyone may take it.
+- input: decoded and validated, accepted only for the sender's own bat (another bat's input,
+  a spectator's input, target mode and stale sequence numbers are refused and counted), then
+  posted to the locked remote-input mailbox that the physics worker drains each tick.
+- snapshots at `snapshot_hz` from the physics snapshot block, plus point/game/match events
+  from the point log. Sends never block: ROUTER_MANDATORY with NOBLOCK raises when a peer's
+  pipe is at its high-water mark (SNDHWM), and that peer's snapshot is dropped and counted,
+  so a slow spectator stalls nobody.
+- goodbye to every session on shutdown (shutdown) or at the end of the match (match_over).
+
+Every message from outside that fails wire.decode, or arrives in more than one frame, or comes
+from a peer without a session, is dropped and counted by reason, never fatal. A session that
+sends MAX_BAD bad messages is kicked.
+
+`Gateway` is the socket logic alone (the tests drive it in-process); `gateway_worker` runs it
+as the supervisor's worker, fed by the run's shared memory.
+"""
+from __future__ import annotations
+
+import secrets
+import time
+from collections import Counter
+from dataclasses import dataclass
+
+import numpy as np
+import zmq
+
+from processes import wire
+from processes.wire import GoodbyeReason, InputMode, Kind, RejectReason, Role, Slot
+
+# One remote input on its way to the physics worker (the remote-input mailbox's record).
+REMOTE_INPUT_DTYPE = np.dtype([("tick", "<i8"), ("seq", "<u8"), ("bat", "<i8"), ("inputs", "<f8", (6,))])
+REMOTE_CAPACITY = 64  # inputs queued between two physics ticks; more are dropped and counted
+# Every arbitrated lock of a run, in the one global order of acquisition.
+RUN_LOCK_NAMES = ("bat_inputs", "remote_inputs")
+MAX_BAD = 64  # bad messages one session may send before it is kicked
+MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messages
+MAX_FRAME_BYTES = 4096  # libzmq disconnects a peer sending a bigger frame (MAXMSGSIZE)
+NO_TOKEN = bytes(wire.TOKEN_SIZE)
+
+
+@dataclass(frozen=True)
+class GatewayConfig:
+    """How the gateway talks to its peers.
+
+    bind: ZeroMQ endpoint; port 0 or * picks a free port (see Gateway.endpoint).
+    snapshot_hz: snapshots per second to every session. heartbeat_s: a heartbeat at least this
+    often. timeout_s: a silent peer is dropped after this long. grace_s: a dropped player's
+    seat waits this long for its token. sndhwm: messages queued per peer before its snapshots
+    are dropped. sndbuf: the kernel's send buffer per connection in bytes, 0: the OS default.
+    max_spectators: more are told "full".
+    """
+
+    bind: str = "tcp://127.0.0.1:0"
+    snapshot_hz: int = 60
+    heartbeat_s: float = 0.5
+    timeout_s: float = 5.0
+    grace_s: float = 30.0
+    sndhwm: int = 32
+    sndbuf: int = 0
+    max_spectators: int = 64
+
+
+@dataclass
+class _Session:
+    identity: bytes
+    role: Role
+    slot: Slot
+    name: str
+    last_seen: float
+    next_beat: float
+    seq_out: int = 0
+    seq_in: int = 0  # highest seq received
+    input_seq: int = 0  # seq of the last input accepted
+    bad: int = 0
+    snapshots_dropped: int = 0
+
+
+@dataclass
+class _Seat:
+    slot: Slot
+    remote: bool  # False: the AI plays this bat, no client may take it
+    token: bytes = NO_TOKEN
+    identity: bytes | None = None
+    name: str = ""
+    grace_until: float = 0.0  # while empty: only `token` may take it until then
+
+
+def _zero_inputs():
+    return np.zeros(6)
+
+
+class Gateway:
+    """The gateway's sessions over one ROUTER socket.
+
+    Args:
+        zctx: a zmq.Context. config: GatewayConfig.
+        scene_name, best_of, dt: what a welcome tells the client.
+        remote_slots: the seats remote players may take (Slot.A and/or Slot.B).
+        post_input(bat, seq, tick, inputs6) -> bool: hand an accepted input to the physics
+            (False: it could not be queued; counted).
+        clock: seconds, monotonic (tests may pass their own).
+    """
+
+    def __init__(self, zctx, config: GatewayConfig, *, scene_name: str, best_of: int, dt: float,
+                 remote_slots, post_input, clock=time.monotonic):
+        self.config = config
+        self.scene_name = scene_name
+        self.best_of = best_of
+        self.dt = dt
+        self.post_input = post_input
+        self.clock = clock
+        self.seats = {slot: _Seat(slot, slot in set(remote_slots)) for slot in (Slot.A, Slot.B)}
+        self.sessions: dict[bytes, _Session] = {}
+        self.counts: Counter[str] = Counter()
+        self.drops = wire.DropCounter()
+        self.tick = 0
+        self.shutting_down = False
+        self._next_snapshot = 0.0
+        self._points_seen: int | None = None
+        self._games_seen = (0, 0)
+        self._match_sent = False
+        self.router = zctx.socket(zmq.ROUTER)
+        self.router.setsockopt(zmq.LINGER, 0)
+        self.router.setsockopt(zmq.ROUTER_MANDATORY, 1)
+        self.router.setsockopt(zmq.SNDHWM, config.sndhwm)
+        self.router.setsockopt(zmq.MAXMSGSIZE, MAX_FRAME_BYTES)
+        if config.sndbuf:
+            self.router.setsockopt(zmq.SNDBUF, config.sndbuf)
+        self.router.bind(config.bind[:-2] + ":*" if config.bind.endswith(":0") else config.bind)
+        self.endpoint = self.router.getsockopt_string(zmq.LAST_ENDPOINT)
+
+    # --- state ---------------------------------------------------------------------------------
+    @property
+    def seats_filled(self) -> bool:
+        """Every remote seat has a connected player."""
+        return all(seat.identity is not None for seat in self.seats.values() if seat.remote)
+
+    def stats(self) -> dict:
+        """Counters: sessions, inputs, refusals, drops by reason, snapshots sent and dropped."""
+        out = dict(sorted(self.counts.items()))
+        for reason, n in self.drops.by_reason.items():
+            out[f"dropped.{reason}"] = out.get(f"dropped.{reason}", 0) + n
+        out["dropped_total"] = sum(v for k, v in out.items() if k.startswith("dropped."))
+        out["sessions"] = len(self.sessions)
+        return out
+
+    # --- sending -------------------------------------------------------------------------------
+    def _send(self, session: _Session, data: bytes, what: str) -> bool:
+        """One message to one peer, never blocking: a full pipe drops it (counted)."""
+        session.seq_out += 1
+        buf = bytearray(data)
+        buf[8:16] = session.seq_out.to_bytes(8, "little")
+        try:
+            self.router.send_multipart([session.identity, bytes(buf)], flags=zmq.NOBLOCK)
+        except zmq.Again:
+            self.counts[f"{what}_dropped"] += 1
+            session.snapshots_dropped += what == "snapshots"
+            return False
+        except zmq.ZMQError:  # EHOSTUNREACH: the peer's connection is gone
+            self.counts["unreachable"] += 1
+            return False
+        self.counts[f"{what}_sent"] += 1
+        return True
+
+    def _reply(self, identity: bytes, data: bytes) -> None:
+        """A message to a peer without a session (a reject)."""
+        try:
+            self.router.send_multipart([identity, data], flags=zmq.NOBLOCK)
+        except zmq.ZMQError:
+            self.counts["unreachable"] += 1
+
+    def _reject(self, identity: bytes, reason: RejectReason, detail: str) -> None:
+        self.counts[f"rejected.{reason.name.lower()}"] += 1
+        self._reply(identity, wire.encode(Kind.REJECT, tick=self.tick, reason=reason, detail=detail[:64]))
+
+    def _welcome(self, session: _Session, token: bytes) -> None:
+        config = self.config
+        heartbeat_ms = max(1, int(config.heartbeat_s * 1000))
+        self._send(session, wire.encode(
+            Kind.WELCOME, tick=self.tick, slot=session.slot, best_of=self.best_of, snapshot_hz=config.snapshot_hz,
+            heartbeat_ms=heartbeat_ms, timeout_ms=max(heartbeat_ms, int(config.timeout_s * 1000)), dt=self.dt,
+            token=token, scene=self.scene_name[:32], name_a=self.seats[Slot.A].name, name_b=self.seats[Slot.B].name),
+            "welcomes")
+
+    def _goodbye(self, session: _Session, reason: GoodbyeReason) -> None:
+        self._send(session, wire.encode(Kind.GOODBYE, tick=self.tick, reason=reason), "goodbyes")
+
+    # --- receiving -----------------------------------------------------------------------------
+    def poll(self, timeout_ms: int) -> int:
+        """Wait at most timeout_ms for messages, then handle those waiting (bounded); returns
+        how many were handled."""
+        if not self.router.poll(timeout_ms, zmq.POLLIN):
+            return 0
+        handled = 0
+        while handled < MAX_MESSAGES_PER_POLL:
+            try:
+                frames = self.router.recv_multipart(flags=zmq.NOBLOCK, copy=True)
+            except zmq.Again:
+                break
+            handled += 1
+            self.handle(frames)
+        return handled
+
+    def handle(self, frames: list) -> None:
+        """One incoming multipart: [identity, message]."""
+        now = self.clock()
+        identity = frames[0]
+        session = self.sessions.get(identity)
+        if len(frames) != 2:
+            self.counts["dropped.bad_framing"] += 1
+            self._bad(session)
+            return
+        try:
+            message = wire.decode(frames[1])
+        except wire.BadVersion as err:
+            self.drops.by_reason[err.reason] += 1
+            if session is None:
+                self._reject(identity, RejectReason.VERSION,
+                             f"server speaks protocol {wire.PROTOCOL_VERSION}, you {err.version}")
+            else:
+                self._bad(session)
+            return
+        except wire.WireError as err:
+            self.drops.by_reason[err.reason] += 1
+            self._bad(session)
+            return
+        if session is None:
+            if message.kind == Kind.HELLO:
+                self._hello(identity, message, now)
+            else:
+                self.counts["dropped.no_session"] += 1
+            return
+        session.last_seen = now
+        session.seq_in = max(session.seq_in, message.seq)
+        if message.kind == Kind.INPUT:
+            self._input(session, message)
+        elif message.kind == Kind.HEARTBEAT:
+            self.counts["heartbeats_received"] += 1
+        elif message.kind == Kind.GOODBYE:
+            self.counts["quits"] += 1
+            self._end(session, keep_seat=False)
+        elif message.kind == Kind.HELLO:
+            self.counts["dropped.hello_in_session"] += 1
+            self._bad(session)
+        else:  # welcome, reject, snapshot, event: only a server sends those
+            self.counts["dropped.server_message"] += 1
+            self._bad(session)
+
+    def _bad(self, session: _Session | None) -> None:
+        if session is None:
+            return
+        session.bad += 1
+        if session.bad >= MAX_BAD:
+            self.counts["kicked"] += 1
+            self._goodbye(session, GoodbyeReason.KICKED)
+            self._end(session, keep_seat=False)
+
+    def _hello(self, identity: bytes, message: wire.Message, now: float) -> None:
+        if self.shutting_down:
+            self._reject(identity, RejectReason.SHUTTING_DOWN, "the server is shutting down")
+            return
+        name = message["name"]
+        if message["role"] == Role.SPECTATOR:
+            spectators = sum(1 for s in self.sessions.values() if s.role == Role.SPECTATOR)
+            if spectators >= self.config.max_spectators:
+                self._reject(identity, RejectReason.FULL, f"{spectators} spectators already watch")
+                return
+            session = self._open(identity, Role.SPECTATOR, Slot.NONE, name, now, message.seq)
+            self.counts["spectators_joined"] += 1
+            self._welcome(session, NO_TOKEN)
+            return
+        token, wanted = message["token"], message["slot"]
+        if token != NO_TOKEN:
+            seat = next((s for s in self.seats.values() if s.remote and s.token == token), None)
+            if seat is None or (wanted != Slot.NONE and wanted != seat.slot):
+                self._reject(identity, RejectReason.BAD_TOKEN, "unknown or expired rejoin token")
+                return
+            if seat.identity is not None:  # the old connection is still open: the token wins
+                self._end(self.sessions[seat.identity], keep_seat=False)
+            self.counts["rejoined"] += 1
+        else:
+            seat = self._free_seat(wanted, now)
+            if seat is None:
+                remote = [s.slot.name for s in self.seats.values() if s.remote]
+                detail = (f"seat {wanted.name} is played by the AI" if wanted != Slot.NONE and not self.seats[wanted].remote
+                          else f"remote seats {'/'.join(remote) or 'none'} are taken")
+                self._reject(identity, RejectReason.FULL, detail)
+                return
+            seat.token = secrets.token_bytes(wire.TOKEN_SIZE)
+            self.counts["players_joined"] += 1
+        seat.identity, seat.name, seat.grace_until = identity, name, 0.0
+        session = self._open(identity, Role.PLAYER, seat.slot, name, now, message.seq)
+        self._welcome(session, seat.token)
+
+    def _free_seat(self, wanted: Slot, now: float) -> _Seat | None:
+        candidates = [self.seats[wanted]] if wanted != Slot.NONE else list(self.seats.values())
+        for seat in candidates:
+            if seat.remote and seat.identity is None and now >= seat.grace_until:
+                return seat
+        return None
+
+    def _open(self, identity: bytes, role: Role, slot: Slot, name: str, now: float, seq: int) -> _Session:
+        session = _Session(identity, role, slot, name, last_seen=now, next_beat=now + self.config.heartbeat_s,
+                           seq_in=seq)
+        self.sessions[identity] = session
+        return session
+
+    def _end(self, session: _Session, keep_seat: bool) -> None:
+        """Close a session; a player's seat waits for its token (keep_seat) or is free at once."""
+        self.sessions.pop(session.identity, None)
+        if session.role != Role.PLAYER:
+            return
+        seat = self.seats[session.slot]
+        if seat.identity != session.identity:
+            return
+        seat.identity = None
+        bat = int(session.slot) - 1
+        if not self.post_input(bat, session.input_seq, self.tick, _zero_inputs()):  # an absent arm holds no force
+            self.counts["mailbox_full"] += 1
+        if keep_seat:
+            seat.grace_until = self.clock() + self.config.grace_s
+        else:
+            seat.token, seat.name, seat.grace_until = NO_TOKEN, "", 0.0
+
+    def _input(self, session: _Session, message: wire.Message) -> None:
+        if session.role != Role.PLAYER:
+            self.counts["refused.spectator_input"] += 1
+            self._bad(session)
+            return
+        if message["slot"] != session.slot:
+            self.counts["refused.other_bat"] += 1
+            self._bad(session)
+            return
+        if message["mode"] != InputMode.FORCE:
+            self.counts["refused.target_mode"] += 1  # the server-side arm controller comes later
+            return
+        if message.seq <= session.input_seq:
+            self.counts["refused.stale_input"] += 1  # reordered or replayed
+            return
+        session.input_seq = message.seq
+        inputs = np.concatenate([message["force"], message["torque"]])
+        if self.post_input(int(session.slot) - 1, message.seq, message.tick, inputs):
+            self.counts["inputs_accepted"] += 1
+        else:
+            self.counts["mailbox_full"] += 1
+
+    # --- time ----------------------------------------------------------------------------------
+    def service(self, record=None, input_seq=(0, 0), points=None) -> None:
+        """Heartbeats, timeouts, and (when due) the snapshot of `record` and new events.
+
+        record: one physics_snapshot_dtype(2) record or None. input_seq: last applied input per
+        bat. points: the run's POINT_DTYPE log (events for the points `record` counts).
+        """
+        now = self.clock()
+        for session in list(self.sessions.values()):
+            if now - session.last_seen > self.config.timeout_s:
+                self.counts["timeouts"] += 1
+                self._goodbye(session, GoodbyeReason.TIMEOUT)
+                self._end(session, keep_seat=True)
+            elif now >= session.next_beat:
+                session.next_beat = now + self.config.heartbeat_s
+                self._send(session, wire.encode(Kind.HEARTBEAT, tick=self.tick, ack=session.seq_in), "heartbeats")
+        if record is None:
+            return
+        self.tick = int(record["world"]["tick"])
+        if points is not None:
+            self._events(record, points)
+        if now < self._next_snapshot:
+            return
+        self._next_snapshot = now + 1.0 / self.config.snapshot_hz
+        self.broadcast_snapshot(record, input_seq)
+
+    def broadcast_snapshot(self, record, input_seq=(0, 0)) -> None:
+        try:
+            data = wire.snapshot_from_physics(record, seq=0, input_seq=input_seq)
+        except wire.WireError:
+            self.counts["snapshots_unencodable"] += 1  # e.g. a bat beyond the wire's ranges
+            return
+        for session in list(self.sessions.values()):
+            self._send(session, data, "snapshots")
+
+    def _events(self, record, points) -> None:
+        rally = record["rally"]
+        total = int(rally["points_total"])
+        if self._points_seen is None:
+            self._points_seen = total  # a gateway (re)started mid-match announces only new points
+            self._games_seen = tuple(int(g) for g in rally["games_won"])
+        games = tuple(int(g) for g in rally["games_won"])
+        for i in range(self._points_seen, min(total, len(points))):
+            row = points[i]
+            self._event(wire.EventKind.POINT, row, games, rally)
+        if total > self._points_seen and games != self._games_seen and total <= len(points):
+            self._event(wire.EventKind.GAME, points[total - 1], games, rally)
+        self._points_seen, self._games_seen = total, games
+        if int(rally["winner"]) >= 0 and not self._match_sent and total >= 1 and total <= len(points):
+            self._match_sent = True
+            self._event(wire.EventKind.MATCH, points[total - 1], games, rally)
+
+    def _event(self, kind, row, games, rally) -> None:
+        try:
+            data = wire.encode(Kind.EVENT, tick=self.tick, event=kind, winner=int(row["winner"]),
+                               reason=int(row["reason"]), game=int(row["game"]), score=row["score_after"],
+                               games_won=games, shots=int(row["shots"]), rally=int(rally["rally"]))
+        except wire.WireError:
+            self.counts["events_unencodable"] += 1
+            return
+        for session in list(self.sessions.values()):
+            self._send(session, data, "events")
+
+    def shutdown(self, reason: GoodbyeReason = GoodbyeReason.SHUTDOWN) -> int:
+        """Goodbye to every session; returns how many were told."""
+        self.shutting_down = True
+        told = 0
+        for session in list(self.sessions.values()):
+            self._goodbye(session, reason)
+            told += 1
+            self.sessions.pop(session.identity, None)
+        return told
+
+    def close(self) -> None:
+        self.router.close(linger=0)
+
+
+# --- the worker ---------------------------------------------------------------------------------
+def gateway_worker(control, arena, scene, options: dict) -> None:
+    """Serve the run's match to network clients until the match ends or the supervisor stops it.
+
+    options: gateway (GatewayConfig), lock_path, ticks (the run's tick limit), start_event (set
+    once every remote seat is taken: the physics worker waits for it).
+    """
+    from engine.dtypes import physics_snapshot_dtype
+    from processes.locks import LockTable
+    from processes.mailbox import Mailbox
+    from processes.worker import StopRequested, WorkerState
+
+    config: GatewayConfig = options["gateway"]
+    locks = LockTable(options["lock_path"], RUN_LOCK_NAMES, arena["lock_holders"])
+    box = Mailbox("remote_inputs", arena["remote_header"], arena["remote_inputs"], locks)
+    applied = arena["remote_applied"].array
+    points = arena["points"].array
+    snapshots = arena["physics"]
+    record = np.zeros(1, physics_snapshot_dtype(len(scene.bats)))
+    post = np.zeros((), REMOTE_INPUT_DTYPE)
+
+    def post_input(bat: int, seq: int, tick: int, inputs) -> bool:
+        post["tick"], post["seq"], post["bat"], post["inputs"] = tick, seq, bat, inputs
+        return box.post(post)
+
+    remote = [Slot(i + 1) for i, bat in enumerate(scene.bats) if bat.remote]
+    zctx = zmq.Context()
+    gateway = Gateway(zctx, config, scene_name=scene.name, best_of=scene.match.best_of, dt=scene.dt,
+                      remote_slots=remote, post_input=post_input)
+    start_event = options.get("start_event")
+    n_ticks = options["ticks"]
+    reason = GoodbyeReason.SHUTDOWN
+    try:
+        control.set_state(WorkerState.READY)
+        control.send("ready", {"endpoint": gateway.endpoint})
+        control.wait_for("go", 30.0)
+        control.set_state(WorkerState.RUNNING)
+        poll_ms = max(1, int(500 / config.snapshot_hz))
+        while True:
+            gateway.poll(poll_ms)
+            snapshots.snapshot(record)
+            rec = record[0]
+            gateway.service(rec, (int(applied[0]), int(applied[1])), points)
+            if start_event is not None and not start_event.is_set() and gateway.seats_filled:
+                start_event.set()
+            control.beat(gateway.tick)
+            if int(rec["rally"]["winner"]) >= 0 or gateway.tick >= n_ticks:
+                gateway.broadcast_snapshot(rec, (int(applied[0]), int(applied[1])))  # the final state
+                reason = GoodbyeReason.MATCH_OVER
+                break
+    except StopRequested:
+        reason = GoodbyeReason.SHUTDOWN
+        raise
+    finally:
+        told = gateway.shutdown(reason)
+        stats = gateway.stats()
+        stats["goodbyes_at_end"] = told
+        gateway.close()
+        zctx.term()
+        del record, applied, points, snapshots, box
+        locks.close()
+        if reason == GoodbyeReason.MATCH_OVER:
+            control.send("done", {"tick": gateway.tick, "gateway": stats})

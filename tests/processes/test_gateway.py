@@ -1,0 +1,439 @@
+"""The gateway: sessions, seats, refusals, drops, heartbeats and a served match, on real sockets.
+
+Sockets bind to 127.0.0.1 on random ports and close with linger 0; every receive is polled with
+a timeout and every loop is bounded in rounds; each test has its own alarm (pytest-timeout).
+The session tests drive a Gateway in this process with a clock they set, so a heartbeat timeout
+needs no sleep; the match tests run `pingpong serve` and `pingpong join --bot` as processes.
+"""
+import json
+import os
+import select
+import signal
+import subprocess
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+import zmq
+
+from engine.dtypes import physics_snapshot_dtype
+from engine.scene import SceneError, load_scene, parse_scene, with_remote_players
+from processes import shm, wire
+from processes.client import Client, Rejected
+from processes.gateway import Gateway, GatewayConfig
+from processes.supervisor import workers_for
+from processes.wire import GoodbyeReason, Kind, RejectReason, Role, Slot
+
+ROOT = Path(__file__).resolve().parents[2]
+ROUNDS = 400  # pump rounds at most (each polls for at most 10 ms)
+
+
+class Clock:
+    def __init__(self):
+        self.now = 1000.0
+
+    def __call__(self):
+        return self.now
+
+
+@pytest.fixture
+def zctx():
+    """A context whose sockets all close with linger 0 at the end of the test."""
+    context = zmq.Context()
+    context.setsockopt(zmq.LINGER, 0)
+    yield context
+    context.destroy(linger=0)
+
+
+class Rig:
+    """A Gateway on a random port of 127.0.0.1, its clients, and a physics record to serve."""
+
+    def __init__(self, zctx, remote=(Slot.A, Slot.B), **config):
+        self.zctx = zctx
+        self.clock = Clock()
+        self.posted = []
+        settings = dict(snapshot_hz=1000, heartbeat_s=1.0, timeout_s=5.0, grace_s=30.0)
+        settings.update(config)
+        self.gateway = Gateway(zctx, GatewayConfig(bind="tcp://127.0.0.1:0", **settings), scene_name="match",
+                               best_of=1, dt=0.001, remote_slots=remote, post_input=self._post, clock=self.clock)
+        self.record = np.zeros(1, physics_snapshot_dtype(2))[0]
+        self.record["bats"]["quat"] = (1.0, 0.0, 0.0, 0.0)
+        self.record["rally"]["winner"] = -1
+        self.clients = []
+
+    def _post(self, bat, seq, tick, inputs):
+        self.posted.append((bat, seq, tick, np.array(inputs)))
+        return True
+
+    def client(self, role="player", slot=Slot.NONE, token=bytes(16), name="p", socket_options=None) -> Client:
+        client = Client(self.gateway.endpoint, role, name, slot, token, zctx=self.zctx, socket_options=socket_options)
+        self.clients.append(client)
+        return client
+
+    def step(self, serve=False):
+        self.gateway.poll(2)
+        self.gateway.service(self.record if serve else None)
+
+    def until(self, client, predicate, serve=False):
+        """Pump gateway and client until the client gets a message satisfying predicate (bounded)."""
+        for _ in range(ROUNDS):
+            self.step(serve)
+            message = client.recv(5)
+            if message is not None and predicate(message):
+                return message
+        raise AssertionError("no such message within the bound")
+
+    def settle(self, check):
+        """Pump the gateway until check() holds (bounded)."""
+        for _ in range(ROUNDS):
+            self.step()
+            if check():
+                return
+        raise AssertionError("the gateway never got there")
+
+    def join(self, client):
+        client.hello()
+        message = self.until(client, lambda m: m.kind in (Kind.WELCOME, Kind.REJECT))
+        client.accept(message)
+        return message
+
+    def close(self):
+        for client in self.clients:
+            client.close()
+        self.gateway.close()
+
+
+@pytest.fixture
+def rig(zctx):
+    made = []
+
+    def make(**kwargs):
+        made.append(Rig(zctx, **kwargs))
+        return made[-1]
+
+    yield make
+    for r in made:
+        r.close()
+
+
+@pytest.mark.timeout(30)
+def test_two_players_get_seats_a_third_is_told_full_and_spectators_watch(rig):
+    r = rig()
+    a, b, c = r.client(name="ann"), r.client(name="bob"), r.client(name="cy")
+    welcome_a, welcome_b = r.join(a), r.join(b)
+    assert (welcome_a["slot"], welcome_b["slot"]) == (Slot.A, Slot.B)
+    assert welcome_a["token"] != bytes(16) and welcome_a["token"] != welcome_b["token"]
+    assert welcome_b["name_a"] == "ann" and welcome_b["name_b"] == "bob"
+    with pytest.raises(Rejected) as refused:
+        r.join(c)
+    assert refused.value.reason == RejectReason.FULL
+    watcher = r.client(role="spectator")
+    welcome = r.join(watcher)
+    assert welcome["slot"] == Slot.NONE and welcome["token"] == bytes(16)
+    snapshot = r.until(watcher, lambda m: m.kind == Kind.SNAPSHOT, serve=True)
+    assert snapshot["winner"] == -1
+    assert r.gateway.stats()["rejected.full"] == 1 and r.gateway.seats_filled
+
+
+@pytest.mark.timeout(30)
+def test_a_seat_played_by_the_ai_is_not_given_away(rig):
+    r = rig(remote=(Slot.A,))
+    with pytest.raises(Rejected) as refused:
+        r.join(r.client(slot=Slot.B))
+    assert refused.value.reason == RejectReason.FULL and "AI" in refused.value.detail
+    assert r.join(r.client())["slot"] == Slot.A
+
+
+@pytest.mark.timeout(30)
+def test_a_player_moves_only_its_own_bat_and_the_refusals_are_counted(rig):
+    r = rig()
+    a, b = r.client(), r.client()
+    r.join(a)
+    r.join(b)
+    a.send_input([1.0, 2.0, 3.0, 0.1, 0.2, 0.3], tick=7)
+    a.send_input([5.0, 0, 0, 0, 0, 0], tick=8, slot=Slot.B)  # the other player's bat
+    a.send_input([6.0, 0, 0, 0, 0, 0], tick=9)
+    watcher = r.client(role="spectator")
+    r.join(watcher)
+    watcher.send_input([1.0, 0, 0, 0, 0, 0], tick=9, slot=Slot.A)  # a spectator controls nothing
+    r.settle(lambda: r.gateway.counts["inputs_accepted"] == 2 and r.gateway.counts["refused.spectator_input"] == 1)
+    assert r.gateway.counts["refused.other_bat"] == 1
+    assert [(bat, tick) for bat, _, tick, _ in r.posted] == [(0, 7), (0, 9)]  # bat 0 = A; nothing for B
+    np.testing.assert_array_equal(r.posted[0][3], [1.0, 2.0, 3.0, 0.1, 0.2, 0.3])
+    assert r.posted[1][1] > r.posted[0][1]  # the input's seq rides along, for the snapshot's echo
+
+
+@pytest.mark.timeout(30)
+def test_a_silent_player_is_dropped_and_its_token_reclaims_the_seat(rig):
+    r = rig(remote=(Slot.A,), heartbeat_s=1.0, timeout_s=5.0, grace_s=30.0)
+    player = r.client(name="ann")
+    r.join(player)
+    token = player.token
+    r.clock.now += 6.0  # past the timeout without a word from the player
+    goodbye = r.until(player, lambda m: m.kind == Kind.GOODBYE)
+    assert goodbye["reason"] == GoodbyeReason.TIMEOUT
+    assert r.gateway.counts["timeouts"] == 1 and not r.gateway.seats_filled
+    assert r.posted[-1][0] == 0 and not r.posted[-1][3].any()  # the absent arm lets go of the bat
+    with pytest.raises(Rejected) as refused:  # within the grace only the token takes the seat
+        r.join(r.client(name="bob"))
+    assert refused.value.reason == RejectReason.FULL
+    with pytest.raises(Rejected) as refused:
+        r.join(r.client(token=bytes(range(16))))
+    assert refused.value.reason == RejectReason.BAD_TOKEN
+    back = r.client(name="ann", token=token)
+    welcome = r.join(back)
+    assert welcome["slot"] == Slot.A and welcome["token"] == token
+    assert r.gateway.counts["rejoined"] == 1 and r.gateway.seats_filled
+
+
+@pytest.mark.timeout(30)
+def test_heartbeats_keep_a_session_alive_both_ways(rig):
+    r = rig(heartbeat_s=1.0, timeout_s=5.0)
+    player = r.client()
+    r.join(player)
+    for _ in range(4):  # 12 s in all, never 5 s silent: heartbeats from the client keep it
+        r.clock.now += 3.0
+        beat = r.until(player, lambda m: m.kind == Kind.HEARTBEAT)  # the server's heartbeat
+        assert beat["ack"] >= 1
+        player.send(Kind.HEARTBEAT, ack=player.max_seq_in)
+        before = r.gateway.counts["heartbeats_received"]
+        r.settle(lambda: r.gateway.counts["heartbeats_received"] > before)
+    assert r.gateway.counts["timeouts"] == 0 and len(r.gateway.sessions) == 1
+
+
+def _good_input(seq=1):
+    return bytearray(wire.encode(Kind.INPUT, seq=seq, tick=1, slot=Slot.A, mode=wire.InputMode.FORCE,
+                                 force=[1.0, 0, 0], torque=[0, 0, 0], target_pos=[0, 0, 0],
+                                 target_quat=[0, 0, 0, 0]))
+
+
+def _malformed() -> dict:
+    good = _good_input()
+    wrong_version = bytearray(good)
+    wrong_version[4:6] = (9).to_bytes(2, "little")
+    wrong_type = bytearray(good)
+    wrong_type[6] = 99
+    nan = bytearray(good)
+    nan[26:34] = np.float64("nan").tobytes()
+    out_of_range = bytearray(good)
+    out_of_range[26:34] = np.float64(1e6).tobytes()
+    return {"too_short": bytes(good[:20]), "too_long": bytes(good) + b"\0", "bad_version": bytes(wrong_version),
+            "unknown_type": bytes(wrong_type), "non_finite": bytes(nan), "out_of_range": bytes(out_of_range),
+            "bad_magic": b"XXXX" + bytes(good[4:])}
+
+
+@pytest.mark.timeout(30)
+def test_malformed_messages_are_dropped_counted_and_never_fatal(rig):
+    r = rig()
+    player = r.client()
+    r.join(player)
+    bad = _malformed()
+    for data in bad.values():
+        player.send_raw(data)
+    player.sock.send_multipart([bytes(_good_input(50)), b"extra"])  # two frames: not one message
+    stranger = r.client()
+    stranger.send_raw(bytes(_good_input()))  # valid, but no session
+    r.settle(lambda: r.gateway.stats()["dropped_total"] == len(bad) + 2)
+    stats = r.gateway.stats()
+    for reason in bad:
+        assert stats[f"dropped.{reason}"] == 1, reason
+    assert stats["dropped.bad_framing"] == 1 and stats["dropped.no_session"] == 1
+    assert r.posted == [] and len(r.gateway.sessions) == 1  # nothing reached the bat; the player is still in
+    player.send_input([2.0, 0, 0, 0, 0, 0], tick=3)
+    r.settle(lambda: r.gateway.counts["inputs_accepted"] == 1)
+    version = r.client()
+    version.send_raw(bytes(bytearray(wire.encode(Kind.HELLO, role=Role.PLAYER, slot=Slot.NONE, name="old",
+                                                 token=bytes(16)))[:4]) + (2).to_bytes(2, "little")
+                     + wire.encode(Kind.HELLO, role=Role.PLAYER, slot=Slot.NONE, name="old", token=bytes(16))[6:])
+    reject = r.until(version, lambda m: m.kind == Kind.REJECT)
+    assert reject["reason"] == RejectReason.VERSION
+
+
+@pytest.mark.timeout(30)
+def test_a_slow_spectator_loses_snapshots_not_the_match(rig):
+    r = rig(sndhwm=4, sndbuf=4096)
+    fast = r.client(role="spectator")
+    slow = r.client(role="spectator", socket_options={zmq.RCVHWM: 1, zmq.RCVBUF: 4096})
+    r.join(fast)
+    r.join(slow)
+    received = 0
+    for tick in range(1, 20_001):  # the slow one never reads again; the fast one keeps up
+        r.record["world"]["tick"] = tick
+        r.clock.now += 0.002
+        r.gateway.service(r.record)
+        for _ in range(50):  # the fast one reads this tick's snapshot before the next is sent
+            message = fast.recv(100)
+            if message is not None and message.kind == Kind.SNAPSHOT:
+                received += 1
+                if message.tick == tick:
+                    break
+        if r.gateway.counts["snapshots_dropped"] >= 100:
+            break
+    assert r.gateway.counts["snapshots_dropped"] >= 100
+    dropped = sorted(session.snapshots_dropped for session in r.gateway.sessions.values())
+    assert dropped[0] == 0 and dropped[1] >= 100  # only the slow one lost any
+    assert received == tick  # the fast one got every snapshot
+
+
+@pytest.mark.timeout(30)
+def test_shutdown_says_goodbye_to_everyone_and_refuses_newcomers(rig):
+    r = rig()
+    clients = [r.client(), r.client(), r.client(role="spectator")]
+    for client in clients:
+        r.join(client)
+    assert r.gateway.shutdown() == 3
+    for client in clients:
+        goodbye = r.until(client, lambda m: m.kind == Kind.GOODBYE)
+        assert goodbye["reason"] == GoodbyeReason.SHUTDOWN
+    with pytest.raises(Rejected) as refused:
+        r.join(r.client())
+    assert refused.value.reason == RejectReason.SHUTTING_DOWN
+
+
+def test_serving_a_scene_makes_its_bats_remote_and_starts_a_gateway():
+    scene = load_scene("match")
+    one, two = with_remote_players(scene, 1), with_remote_players(scene, 2)
+    assert [b.remote for b in one.bats] == [True, False] and one.bats[1].skill == "pro"
+    assert workers_for(one) == ["physics", "ai", "gateway"]
+    assert workers_for(two) == ["physics", "gateway"] and "ai" not in two.effects
+    assert workers_for(scene) == ["physics", "ai"]
+    with pytest.raises(SceneError):
+        with_remote_players(load_scene("rally"), 1)
+
+
+# --- served matches: pingpong serve and join as processes -------------------------------------
+def _pingpong(*args) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "processes.cli", *args], cwd=ROOT, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+
+
+def _line(proc: subprocess.Popen, timeout: float) -> str:
+    ready, _, _ = select.select([proc.stdout], [], [], timeout)
+    if not ready:
+        raise AssertionError(f"no line within {timeout} s")
+    return proc.stdout.readline()
+
+
+def _descendants(pid: int) -> set[int]:
+    found, todo = set(), [pid]
+    while todo:
+        parent = todo.pop()
+        for task in Path(f"/proc/{parent}/task").glob("*"):
+            try:
+                children = (task / "children").read_text().split()
+            except OSError:
+                continue
+            for child in map(int, children):
+                if child not in found:
+                    found.add(child)
+                    todo.append(child)
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    try:
+        return "zombie" not in Path(f"/proc/{pid}/status").read_text().split("State:")[1].split("\n")[0]
+    except (OSError, IndexError):
+        return False
+
+
+@pytest.fixture
+def served():
+    """`pingpong` processes of a test: killed (whole session) and reaped at the end, whatever happened."""
+    started = []
+    yield started
+    for proc in started:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(10)
+        proc.stdout.close()
+        proc.stderr.close()
+
+
+def _await_gone(pids, seconds=15.0):
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline and any(_alive(p) for p in pids):
+        time.sleep(0.1)  # polling for exits of other processes, bounded
+    return [p for p in pids if _alive(p)]
+
+
+@pytest.mark.timeout(120)
+def test_two_bot_players_and_a_spectator_play_a_served_match(served):
+    server = _pingpong("serve", "--players", "2", "--best-of", "1", "--ticks", "2500", "--snapshot-hz", "100",
+                       "--json")
+    served.append(server)
+    hello = json.loads(_line(server, 60))
+    endpoint = hello["listening"]
+    assert endpoint.startswith("tcp://127.0.0.1:")
+    bots = [_pingpong("join", endpoint, "--as", "player", "--bot", "--json", "--seconds", "90") for _ in range(2)]
+    served.extend(bots)
+    spectator = _pingpong("join", endpoint, "--as", "spectator", "--json", "--seconds", "90")
+    served.append(spectator)
+    summary = json.loads(_line(server, 90))
+    assert server.wait(30) == 0
+    reports = [json.loads(_line(p, 30)) for p in (*bots, spectator)]
+    assert sorted(r["slot"] for r in reports) == ["a", "b", "none"]
+    for report in reports:
+        assert report["goodbye"] == "match_over", report
+        assert report["snapshots"] > 0 and report["dropped"] == {}
+    assert all(r["inputs_sent"] > 0 for r in reports[:2])
+    gateway = summary["gateway"]
+    assert summary["ticks"] == 2500 or summary["winner"] is not None
+    assert gateway["players_joined"] == 2 and gateway["spectators_joined"] == 1
+    assert gateway["inputs_accepted"] > 100 and gateway.get("refused.other_bat", 0) == 0
+    assert gateway["goodbyes_at_end"] == 3 and gateway["dropped_total"] == 0
+    assert not shm.leftover_segments(hello["run_id"])
+
+
+@pytest.mark.timeout(120)
+def test_ctrl_c_on_the_server_says_goodbye_and_leaves_nothing_behind(served, zctx):
+    server = _pingpong("serve", "--players", "1", "--ticks", "600000", "--json")
+    served.append(server)
+    hello = json.loads(_line(server, 60))
+    client = Client(hello["listening"], "player", "ann", zctx=zctx)
+    try:
+        welcome = client.join(30)
+        assert welcome["slot"] == Slot.A
+        snapshots = 0
+        for _ in range(1000):  # the match has started: snapshots arrive
+            client.heartbeat_if_due()
+            message = client.recv(100)
+            snapshots += message is not None and message.kind == Kind.SNAPSHOT
+            if snapshots >= 5:
+                break
+        assert snapshots >= 5
+        workers = _descendants(server.pid)
+        assert len(workers) >= 3  # forkserver, physics, AI, gateway (and the resource tracker)
+        os.kill(server.pid, signal.SIGINT)
+        goodbye = None
+        for _ in range(300):
+            message = client.recv(100)
+            if message is not None and message.kind == Kind.GOODBYE:
+                goodbye = message
+                break
+        assert goodbye is not None and goodbye["reason"] == GoodbyeReason.SHUTDOWN
+    finally:
+        client.close()
+    assert server.wait(30) == 130
+    assert _await_gone(workers) == []
+    assert not shm.leftover_segments(hello["run_id"])
+
+
+def test_a_remote_bat_needs_the_effect_and_no_skill():
+    data = tomllib.loads((ROOT / "scenes" / "match.toml").read_text())
+    data["bats"]["a"]["remote"] = True
+    with pytest.raises(SceneError, match="either by the AI"):
+        parse_scene(data, "t.toml")
+    del data["bats"]["a"]["skill"]
+    with pytest.raises(SceneError, match="needs the effect 'remote'"):
+        parse_scene(data, "t.toml")
+    data["effects"].append("remote")
+    scene = parse_scene(data, "t.toml")
+    assert scene.bats[0].remote and workers_for(scene) == ["physics", "ai", "gateway"]
