@@ -187,6 +187,9 @@ def knot_speed_max(knot_pos, knot_vel):
 # H_s = k_s n n^T + max(0, k_s (1 - L_rest/|L|)) (I - n n^T): the transverse part is clamped at
 # zero for compressed springs so the system stays symmetric positive definite (Choi & Ko,
 # "Stable but responsive cloth", SIGGRAPH 2002). Dashpots enter as h k_d n n^T.
+# The CG pieces run serially: each iteration is a handful of short loops, and waking the
+# thread pool for each of them cost more than the loops on a loaded 2-core machine (a 200-step
+# 24 x 8 test went from seconds to minutes while other processes held the cores).
 # spring_work columns: n0, n1, n2, h^2 transverse stiffness (coefficient of I), h^2 axial
 # stiffness minus it, h k_d (both coefficients of n n^T), axial force (N).
 SPRING_WORK_COLS = 7
@@ -204,10 +207,10 @@ def _block_apply(spring_work, s, p0, p1, p2):
     return a * p0 + b * n0, a * p1 + b * n1, a * p2 + b * n2
 
 
-@njit(cache=True, parallel=True, fastmath=False)
+@njit(cache=True, fastmath=False)
 def _spring_prepare(knot_pos, knot_vel, spring_ij, spring_rest, spring_k, spring_c, h, spring_work):
-    """Per spring: direction, A's block coefficients and the axial force, parallel over springs."""
-    for s in prange(spring_ij.shape[0]):
+    """Per spring: direction, A's block coefficients and the axial force."""
+    for s in range(spring_ij.shape[0]):
         i = spring_ij[s, 0]
         j = spring_ij[s, 1]
         d0 = knot_pos[j, 0] - knot_pos[i, 0]
@@ -230,10 +233,10 @@ def _spring_prepare(knot_pos, knot_vel, spring_ij, spring_rest, spring_k, spring
         spring_work[s, 6] = k * (length - spring_rest[s]) + spring_c[s] * rate
 
 
-@njit(cache=True, parallel=True, fastmath=False)
+@njit(cache=True, fastmath=False)
 def _apply_system(knot_inv_mass, adj_start, adj_knot, adj_spring, spring_work, drag, h, p, out):
     """out = A p, gathered per knot; fixed knots' rows are the identity (their dv stays 0)."""
-    for i in prange(p.shape[0]):
+    for i in range(p.shape[0]):
         w = knot_inv_mass[i]
         if w == 0.0:
             out[i, 0] = p[i, 0]
@@ -262,11 +265,11 @@ def _apply_system(knot_inv_mass, adj_start, adj_knot, adj_spring, spring_work, d
         out[i, 2] = o2
 
 
-@njit(cache=True, parallel=True, fastmath=False)
+@njit(cache=True, fastmath=False)
 def _implicit_rhs(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_spring, spring_ij, spring_work,
                   gravity, drag, h, out):
     """out = h (f0 - drag m v0 - m g z) - h^2 sum_s H_s (v0_i - v0_j), zero for fixed knots."""
-    for i in prange(knot_pos.shape[0]):
+    for i in range(knot_pos.shape[0]):
         w = knot_inv_mass[i]
         if w == 0.0:
             out[i, 0] = 0.0
@@ -313,19 +316,19 @@ def _dot(a, b):
     return total
 
 
-@njit(cache=True, parallel=True, fastmath=False)
+@njit(cache=True, fastmath=False)
 def _axpy(alpha, x, y):
-    """y += alpha x, elementwise (no reduction, so prange is deterministic)."""
-    for i in prange(x.shape[0]):
+    """y += alpha x, elementwise."""
+    for i in range(x.shape[0]):
         y[i, 0] += alpha * x[i, 0]
         y[i, 1] += alpha * x[i, 1]
         y[i, 2] += alpha * x[i, 2]
 
 
-@njit(cache=True, parallel=True, fastmath=False)
+@njit(cache=True, fastmath=False)
 def _xpby(x, beta, y):
     """y = x + beta y, elementwise."""
-    for i in prange(x.shape[0]):
+    for i in range(x.shape[0]):
         y[i, 0] = x[i, 0] + beta * y[i, 0]
         y[i, 1] = x[i, 1] + beta * y[i, 1]
         y[i, 2] = x[i, 2] + beta * y[i, 2]
@@ -339,7 +342,7 @@ def step_knots_implicit(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, 
 
     Solves (M (1 + h drag) - h D - h^2 K) dv = h (f0 - drag M v0 - M g z + h K v0) for dv by
     conjugate gradients from dv = 0, then v' = v0 + dv, x' = x0 + h v'. Fixed knots keep
-    dv = 0. Products with the matrix are per-knot gathers; dot products are serial.
+    dv = 0. Products with the matrix are per-knot gathers; everything runs on one thread.
 
     Args:
         knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_spring, spring_rest,
