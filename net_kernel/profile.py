@@ -81,13 +81,14 @@ def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True
     t0 = time.perf_counter()
     step(pos, vel, *args, out_pos, out_vel)  # compiles (or loads the cache) on the first call
     first_call = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    step(pos, vel, *args, out_pos, out_vel)
-    one = time.perf_counter() - t0
+    # One step's time, the best of three (a shared machine's worst is noise, not the kernel).
+    one = math.inf
+    for _ in range(3):
+        t0 = time.perf_counter()
+        step(pos, vel, *args, out_pos, out_vel)
+        one = min(one, time.perf_counter() - t0)
     if steps is None:
         steps = max(1, min(100_000, int(target_s / repeats / max(one, 1e-7))))
-    for _ in range(min(steps, 3)):  # warm caches and the thread pool
-        step(pos, vel, *args, out_pos, out_vel)
     runs = []
     for _ in range(repeats):
         p, v, po, vo = pos, vel, out_pos, out_vel
@@ -120,7 +121,8 @@ def profile_net(cols: int, rows: int, steps: int | None = None, backends=("numba
 
     Returns:
         {"knots", "springs", "cols", "rows", "h_s", "byte_model", "copy": {...}, "results": [...]}
-        where each result carries "copy_share" = its gb_per_s / the copy's gb_per_s.
+        where each result carries "copy_share" = its gb_per_s / the copy's gb_per_s. A net
+        whose arrays fit in cache can exceed 100 %: the copy is sized to leave the caches.
     """
     topo = build_topology(grid_spec(cols, rows))
     copy = copy_bandwidth(n_bytes=min(COPY_BYTES, max(2**20, 64 * (BYTES_PER_KNOT * topo.n_knots

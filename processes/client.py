@@ -267,7 +267,7 @@ def join_command(args: argparse.Namespace) -> int:
             "server_lost" if client.server_lost else "left")
         if last is not None:
             summary.update(tick=last.tick, score=last["score"].tolist(), games_won=last["games_won"].tolist(),
-                           winner=int(last["winner"]))
+                           winner=int(last["winner"]), input_seq=last["input_seq"].tolist())
         summary["dropped"] = dict(client.drops.by_reason)
     except KeyboardInterrupt:
         client.leave()

@@ -383,13 +383,30 @@ def test_two_bot_players_and_a_spectator_play_a_served_match(served):
     for report in reports:
         assert report["goodbye"] == "match_over", report
         assert report["snapshots"] > 0 and report["dropped"] == {}
-    assert all(r["inputs_sent"] > 0 for r in reports[:2])
+    for bot in reports[:2]:  # the physics applied this bot's inputs: the snapshots echo their seq
+        assert bot["inputs_sent"] > 0 and bot["input_seq"]["ab".index(bot["slot"])] > 0
     gateway = summary["gateway"]
     assert summary["ticks"] == 2500 or summary["winner"] is not None
     assert gateway["players_joined"] == 2 and gateway["spectators_joined"] == 1
     assert gateway["inputs_accepted"] > 100 and gateway.get("refused.other_bat", 0) == 0
     assert gateway["goodbyes_at_end"] == 3 and gateway["dropped_total"] == 0
     assert not shm.leftover_segments(hello["run_id"])
+
+
+@pytest.mark.timeout(60)
+def test_serve_and_join_smoke_runs(served):
+    server = _pingpong("serve", "--players", "0", "--ticks", "2", "--json")
+    served.append(server)
+    assert json.loads(_line(server, 40))["players"] == 0
+    summary = json.loads(_line(server, 40))
+    assert summary["ticks"] == 2 and summary["gateway"]["goodbyes_at_end"] == 0
+    assert server.wait(20) == 0
+    lonely = _pingpong("join", "tcp://127.0.0.1:9", "--as", "spectator", "--join-timeout", "0.5")
+    served.append(lonely)
+    assert lonely.wait(20) == 4  # nobody there: no welcome in time
+    keyboard = _pingpong("join", "tcp://127.0.0.1:9", "--as", "player")
+    served.append(keyboard)
+    assert keyboard.wait(20) == 2 and "keyboard" in keyboard.stderr.read()
 
 
 @pytest.mark.timeout(120)
