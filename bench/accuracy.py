@@ -636,7 +636,36 @@ def study(quick: bool = False, repeats: int | None = None, progress=None) -> dic
     }
     result["recommendation"] = recommend(rows)
     result["findings"] = findings(result)
+    if quick:
+        result["net"] = None  # the net's study takes a minute on a loaded machine: full runs only
+    else:
+        from bench import net
+
+        result["net"] = net.study(progress)
     return result
+
+
+def net_markdown(result: dict) -> str:
+    """The net's table and the conclusion its data supports."""
+    from bench import net
+
+    if not result.get("net"):
+        return "Net: not run with --quick."
+    data = result["net"]
+    text = net.markdown(data)
+    good = [r for r in data["rows"] if r["peak_error_m"] <= 1e-3]
+    if good:
+        pick = min(good, key=lambda r: r["wall_s_per_sim_s"])
+        implicit_one = next((r for r in data["rows"] if r["solver"] == "implicit" and r["substeps"] == 1), None)
+        text += (f"\n\nThe cheapest configuration within 1 mm of the reference's peak deflection is {pick['solver']} at "
+                 f"{pick['substeps']} substeps a tick ({pick['wall_s_per_sim_s']:.1f} s of wall time per simulated second).")
+        if implicit_one is not None:
+            text += (f" The implicit solver at one step a tick is stable but wrong where it matters: peak off by "
+                     f"{implicit_one['peak_error_m'] * 1e3:.1f} mm and the ball leaves at "
+                     f"{implicit_one['ball_vel_x_after']:.1f} m/s along x after {data['duration'] * 1e3:g} ms (the net did not "
+                     "stop it), at "
+                     f"{implicit_one['wall_s_per_sim_s']:.1f} s per simulated second.")
+    return text
 
 
 def findings(result: dict) -> list[str]:
@@ -884,6 +913,7 @@ def readme_block(result: dict, png: str | None) -> str:
     ]
     if png:
         parts += [f"![work-precision plot]({png})", ""]
+    parts += [net_markdown(result), ""]
     parts += ["Recommendation (the cheapest measured configuration within each use's error budget):", "",
               recommendation_markdown(result)]
     return "\n".join(parts)
@@ -920,6 +950,7 @@ def main(argv: list[str] | None = None) -> int:
     print(markdown_table(result))
     print(orders_markdown(result))
     print(recommendation_markdown(result))
+    print(net_markdown(result))
     return 0
 
 

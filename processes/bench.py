@@ -67,6 +67,7 @@ def _print_accuracy(study, result: dict) -> None:
     for line in result["findings"]:
         console.print(f"- {line}")
     console.print(Markdown(study.recommendation_markdown(result)))
+    console.print(Markdown(study.net_markdown(result)))
 
 
 def _print_effects(result: dict) -> None:
