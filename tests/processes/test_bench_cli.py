@@ -50,8 +50,7 @@ def test_bench_effects_quick_json():
     assert rows["drag"]["available"] and rows["drag"]["ratio"] > 0.0
     assert rows["drag"]["compiled_out"] is True  # the scene without drag types it None
     assert rows["bats"]["compiled_out"] is True
-    for missing in ("cloth net", "recording"):
-        assert rows[missing]["available"] is False  # reported as not available, never faked
+    assert rows["recording"]["available"] is False  # reported as not available, never faked
     assert result["absent_check"]["aa_ratio"] > 0.0
 
 
