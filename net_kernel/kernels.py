@@ -19,15 +19,21 @@ import numpy as np
 from numba import njit, prange
 
 NO_CONTACT = -1.0
+STEP_WORK_ROWS = 3  # spring_work rows of step_knots: |L|^2, (v_j - v_i) . L, f / |L|
+# error_model="numpy" on the step kernels: no ZeroDivisionError test on 1/|L| (the builder
+# refuses zero-length springs, and a collapse would surface as a non-finite knot, which NetSim
+# checks after every tick). With python's error model that test kept the loop scalar: the
+# root/division loop measured 50 us against 13 us on the 184 x 16 net.
 
 
-@njit(cache=True, parallel=True, fastmath=False)
+@njit(cache=True, parallel=True, fastmath=False, error_model="numpy")
 def step_knots(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_spring, spring_ij, spring_rest, spring_k,
-               spring_c, gravity, drag, h, spring_scale, out_pos, out_vel):
+               spring_c, gravity, drag, h, spring_work, out_pos, out_vel):
     """One semi-implicit (symplectic) Euler step of every knot, parallel.
 
     Two passes, both race-free: (1) over springs, each spring writes its own scalar
-    spring_scale[s] = f_s / |L_s| (one root and one division per spring, not per end);
+    f_s / |L_s| (one root and one division per spring, not per end; the gather of its ends
+    and the root/division are separate loops so the second one vectorises);
     (2) over knots, each knot gathers scale * (x_j - x_i) over its CSR slots in their fixed
     order and steps. Springs act before knots move: both passes read the old state and the
     new one goes to separate buffers (out_pos, out_vel) that the caller swaps. Bit-for-bit the
@@ -47,12 +53,16 @@ def step_knots(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_sprin
         gravity: m/s^2 along -z.
         drag: 1/s, linear air damping of free knots.
         h: s, the step; stable below NetTopology.h_max.
-        spring_scale: (n_springs,) N/m scratch, written.
+        spring_work: (STEP_WORK_ROWS, n_springs) scratch, written: |L|^2 (m^2),
+            (v_j - v_i) . L (m^2/s), force over length (N/m).
         out_pos: (n_knots, 3) m, written; must not alias knot_pos.
         out_vel: (n_knots, 3) m/s, written; must not alias knot_vel.
     """
+    length2 = spring_work[0]
+    rate = spring_work[1]
+    spring_scale = spring_work[2]
     for s in prange(spring_ij.shape[0]):
-        # Spring s's force over its length (N/m): the force on knot i is scale * (x_j - x_i).
+        # Gather the spring's ends: |L|^2 and (v_j - v_i) . L.
         x = knot_pos
         v = knot_vel
         i = spring_ij[s, 0]
@@ -60,11 +70,14 @@ def step_knots(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_sprin
         d0 = x[j, 0] - x[i, 0]
         d1 = x[j, 1] - x[i, 1]
         d2 = x[j, 2] - x[i, 2]
-        length = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        length2[s] = d0 * d0 + d1 * d1 + d2 * d2
+        rate[s] = (v[j, 0] - v[i, 0]) * d0 + (v[j, 1] - v[i, 1]) * d1 + (v[j, 2] - v[i, 2]) * d2
+    for s in prange(spring_ij.shape[0]):
+        # Contiguous, so it vectorises (sqrt and division are exact in SIMD too: same bits).
+        # Spring s's force over its length (N/m): the force on knot i is scale * (x_j - x_i).
+        length = math.sqrt(length2[s])
         inv_len = 1.0 / length
-        # (v_j - v_i) . L, divided by |L| once below: one division and one root per spring.
-        rate = (v[j, 0] - v[i, 0]) * d0 + (v[j, 1] - v[i, 1]) * d1 + (v[j, 2] - v[i, 2]) * d2
-        spring_scale[s] = (spring_k[s] * (length - spring_rest[s]) + spring_c[s] * rate * inv_len) * inv_len
+        spring_scale[s] = (spring_k[s] * (length - spring_rest[s]) + spring_c[s] * rate[s] * inv_len) * inv_len
     # The knot pass is written out in both kernels, not shared through an inline helper: the
     # helper (inline="always" or a plain njit call) measured 4-5x slower on the 184 x 16 net.
     for i in prange(knot_pos.shape[0]):
@@ -104,15 +117,18 @@ def step_knots(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_sprin
         out_pos[i, 2] = xi2 + h * nv2
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, error_model="numpy")
 def step_knots_serial(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_spring, spring_ij, spring_rest,
-                      spring_k, spring_c, gravity, drag, h, spring_scale, out_pos, out_vel):
+                      spring_k, spring_c, gravity, drag, h, spring_work, out_pos, out_vel):
     """step_knots on one thread, bit-for-bit equal to it (same passes, same order).
 
     For small nets, where waking the thread pool costs more than the step. Args as step_knots.
     """
+    length2 = spring_work[0]
+    rate = spring_work[1]
+    spring_scale = spring_work[2]
     for s in range(spring_ij.shape[0]):
-        # Spring s's force over its length (N/m): the force on knot i is scale * (x_j - x_i).
+        # Gather the spring's ends: |L|^2 and (v_j - v_i) . L.
         x = knot_pos
         v = knot_vel
         i = spring_ij[s, 0]
@@ -120,11 +136,14 @@ def step_knots_serial(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, ad
         d0 = x[j, 0] - x[i, 0]
         d1 = x[j, 1] - x[i, 1]
         d2 = x[j, 2] - x[i, 2]
-        length = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        length2[s] = d0 * d0 + d1 * d1 + d2 * d2
+        rate[s] = (v[j, 0] - v[i, 0]) * d0 + (v[j, 1] - v[i, 1]) * d1 + (v[j, 2] - v[i, 2]) * d2
+    for s in range(spring_ij.shape[0]):
+        # Contiguous, so it vectorises (sqrt and division are exact in SIMD too: same bits).
+        # Spring s's force over its length (N/m): the force on knot i is scale * (x_j - x_i).
+        length = math.sqrt(length2[s])
         inv_len = 1.0 / length
-        # (v_j - v_i) . L, divided by |L| once below: one division and one root per spring.
-        rate = (v[j, 0] - v[i, 0]) * d0 + (v[j, 1] - v[i, 1]) * d1 + (v[j, 2] - v[i, 2]) * d2
-        spring_scale[s] = (spring_k[s] * (length - spring_rest[s]) + spring_c[s] * rate * inv_len) * inv_len
+        spring_scale[s] = (spring_k[s] * (length - spring_rest[s]) + spring_c[s] * rate[s] * inv_len) * inv_len
     for i in range(knot_pos.shape[0]):  # the same knot pass as step_knots, keep the two in step
         w = knot_inv_mass[i]
         x = knot_pos

@@ -6,9 +6,10 @@ Byte model of one step (the compulsory traffic of the two passes, neighbours fro
   per knot: spring pass reads knot_pos, knot_vel (48 B); knot pass reads knot_pos,
             knot_vel (48 B), knot_inv_mass (8 B), adj_start (8 B), writes out_pos,
             out_vel (48 B)                                                    -> 160 B
-  per spring: spring pass reads spring_ij (uint32, 8 B), spring_rest, spring_k, spring_c
-            (24 B), writes spring_scale (8 B); knot pass reads 2 slots of adj_knot,
-            adj_spring (uint32, 16 B) and spring_scale twice (16 B)            -> 72 B
+  per spring: spring pass reads spring_ij (uint32, 8 B), writes |L|^2 and the rate
+            (16 B), reads them back (16 B) with spring_rest, spring_k, spring_c (24 B),
+            writes the scale (8 B); knot pass reads 2 slots of adj_knot, adj_spring
+            (uint32, 16 B) and the scale twice (16 B)                           -> 104 B
 Write-allocate traffic is not counted, as it is not in the copy measurement
 (bytes = 2 x size: one read, one write).
 """
@@ -23,7 +24,7 @@ from net_kernel import kernels, reference
 from net_kernel.topology import build_topology, grid_spec
 
 BYTES_PER_KNOT = 160
-BYTES_PER_SPRING = 72
+BYTES_PER_SPRING = 104
 # The copy that sets this machine's bandwidth: large enough to leave every cache (256 MiB).
 COPY_BYTES = 256 * 2**20
 REPEATS = 5
@@ -77,7 +78,7 @@ def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True
     pos, vel, out_pos, out_vel = _state(topo)
     args = (topo.knot_inv_mass, topo.adj_start, topo.adj_knot, topo.adj_spring, topo.spring_ij, topo.spring_rest,
             topo.spring_k, topo.spring_c, topo.spec.gravity, topo.spec.air_damping, 0.5 * topo.h_max,
-            np.zeros(topo.n_springs))
+            np.zeros((kernels.STEP_WORK_ROWS, topo.n_springs)))
     t0 = time.perf_counter()
     step(pos, vel, *args, out_pos, out_vel)  # compiles (or loads the cache) on the first call
     first_call = time.perf_counter() - t0
@@ -145,8 +146,8 @@ def profile_net(cols: int, rows: int, steps: int | None = None, backends=("numba
         "springs": topo.n_springs,
         "h_s": 0.5 * topo.h_max,
         "byte_model": (f"{BYTES_PER_KNOT} B per knot (pos, vel read by both passes, written once; inv_mass; "
-                       f"CSR start) + {BYTES_PER_SPRING} B per spring (ij, 2 slots as uint32; rest, k, c, scale "
-                       "as f8, scale read twice); neighbours from cache"),
+                       f"CSR start) + {BYTES_PER_SPRING} B per spring (ij, 2 slots as uint32; |L|^2, rate "
+                       "out and in; rest, k, c; scale out and read twice; all f8); neighbours from cache"),
         "copy": {"gb_per_s": copy_best, "before": copy["gb_per_s"], "after": copy_again["gb_per_s"],
                  "bytes": copy["bytes"]},
         "threads": _threads(),

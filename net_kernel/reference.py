@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from net_kernel.kernels import KNOT_WORK_ROWS, NO_CONTACT, SPRING_WORK_COLS  # noqa: F401  (shapes shared)
+from net_kernel.kernels import KNOT_WORK_ROWS, NO_CONTACT, SPRING_WORK_COLS, STEP_WORK_ROWS  # noqa: F401  (shared)
 
 
 def _slot_owner(adj_start):
@@ -40,8 +40,8 @@ def spring_forces(knot_pos, knot_vel, adj_start, adj_knot, adj_spring, spring_ij
 
 
 def step_knots(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_spring, spring_ij, spring_rest, spring_k,
-               spring_c, gravity, drag, h, spring_scale, out_pos, out_vel):
-    """Numpy twin of kernels.step_knots (args and meaning identical; spring_scale is unused)."""
+               spring_c, gravity, drag, h, spring_work, out_pos, out_vel):
+    """Numpy twin of kernels.step_knots (args and meaning identical; spring_work is unused)."""
     force = spring_forces(knot_pos, knot_vel, adj_start, adj_knot, adj_spring, spring_ij, spring_rest, spring_k,
                           spring_c)
     accel = knot_inv_mass[:, None] * force - drag * knot_vel

@@ -5,7 +5,7 @@ from typing import NamedTuple
 import numpy as np
 
 from net_kernel import kernels, reference
-from net_kernel.kernels import KNOT_WORK_ROWS, NO_CONTACT, SPRING_WORK_COLS
+from net_kernel.kernels import KNOT_WORK_ROWS, NO_CONTACT, SPRING_WORK_COLS, STEP_WORK_ROWS
 from net_kernel.topology import IMPLICIT, NetTopology
 
 # One switch picks the backend; both modules expose the same kernel names and signatures.
@@ -104,7 +104,7 @@ class NetSim:
         self._cur = 0
         self._knot_work = np.zeros((KNOT_WORK_ROWS, n, 3)) if self.implicit else np.zeros((KNOT_WORK_ROWS, 0, 3))
         self._spring_work = np.zeros((topo.n_springs if self.implicit else 0, SPRING_WORK_COLS))
-        self._spring_scale = np.zeros(topo.n_springs)
+        self._step_work = np.zeros((STEP_WORK_ROWS, topo.n_springs))
         self._impulse = np.zeros(3)
         self._offset = np.zeros(3)
         self._hit_impulse = np.zeros(3)
@@ -204,7 +204,7 @@ class NetSim:
             else:
                 self._step(self._pos[src], self._vel[src], topo.knot_inv_mass, topo.adj_start, topo.adj_knot,
                            topo.adj_spring, topo.spring_ij, topo.spring_rest, topo.spring_k, topo.spring_c,
-                           self.gravity, self.drag, self.h, self._spring_scale, self._pos[dst], self._vel[dst])
+                           self.gravity, self.drag, self.h, self._step_work, self._pos[dst], self._vel[dst])
             self._cur = dst
             self.kernel_calls += 1
         if toi != NO_CONTACT:

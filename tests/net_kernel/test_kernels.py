@@ -11,7 +11,7 @@ from tests.net_kernel.conftest import perturbed
 
 def _step_args(topo, h):
     return (topo.knot_inv_mass, topo.adj_start, topo.adj_knot, topo.adj_spring, topo.spring_ij, topo.spring_rest,
-            topo.spring_k, topo.spring_c, 9.81, 5.0, h, np.zeros(topo.n_springs))
+            topo.spring_k, topo.spring_c, 9.81, 5.0, h, np.zeros((kernels.STEP_WORK_ROWS, topo.n_springs)))
 
 
 @pytest.mark.parametrize("name", ["step_knots", "step_knots_serial"])

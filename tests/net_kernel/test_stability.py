@@ -77,7 +77,7 @@ def test_the_bound_is_where_the_chain_blows_up(factor, explodes):
     pos[1:-1, 0] += rng.normal(0.0, 1e-4, topo.n_knots - 2)
     vel = np.zeros_like(pos)
     out_pos, out_vel = np.empty_like(pos), np.empty_like(vel)
-    scale = np.zeros(topo.n_springs)
+    scale = np.zeros((kernels.STEP_WORK_ROWS, topo.n_springs))
     for _ in range(2000):
         kernels.step_knots_serial(pos, vel, topo.knot_inv_mass, topo.adj_start, topo.adj_knot, topo.adj_spring,
                                   topo.spring_ij, topo.spring_rest, topo.spring_k, topo.spring_c, 0.0, 0.0,
