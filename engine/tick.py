@@ -46,7 +46,7 @@ def advance_ticks(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, 
     for k in range(n_max):
         if bat_motion is not None:
             bat_step(bat_flat, h, bat_mass, bat_inertia, bat_motion, bat_tmp)
-        support_before = w.ball_support
+        support_before = w['ball_support']
         n, support = ball_tick(ball_y, h, support_before, method, gravity, drag_k, magnus_k, rtol, atol,
                                table, floor_z, net, posts, bat_motion, params, materials, work, scratch, adapt,
                                event_rows)
@@ -55,19 +55,19 @@ def advance_ticks(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, 
         if h == 0.0:
             return 0, 0, STOP_LIMIT, 0  # a zero-length tick ran the kernels and changed nothing
         for e in range(n):
-            event_rows[e, 0] += w.time  # event times become absolute, from this tick's exact start
-        w.ball_support = support
-        w.n_events = n
-        w.events_total += n
-        w.tick += 1
-        w.time = w.time + h
+            event_rows[e, 0] += w['time']  # event times become absolute, from this tick's exact start
+        w['ball_support'] = support
+        w['n_events'] = n
+        w['events_total'] += n
+        w['tick'] += 1
+        w['time'] = w['time'] + h
         if n > 0:
             return k + 1, n, STOP_EVENT, 0
         if ball_y[0] * ball_y[0] + ball_y[1] * ball_y[1] > gone_r2 or ball_y[2] < gone_z:
             return k + 1, 0, STOP_GONE, 0
         if support != support_before:
             return k + 1, 0, STOP_SUPPORT, 0
-        if w.time > deadline:
+        if w['time'] > deadline:
             return k + 1, 0, STOP_DEADLINE, 0
         if watch is not None and (watch[0] <= ball_y[0] <= watch[3] and watch[1] <= ball_y[1] <= watch[4]
                                   and watch[2] <= ball_y[2] <= watch[5]):
