@@ -14,6 +14,7 @@ Write-allocate traffic is not counted, as it is not in the copy measurement
 (bytes = 2 x size: one read, one write).
 """
 import math
+import os
 import statistics
 import time
 
@@ -126,6 +127,7 @@ def profile_net(cols: int, rows: int, steps: int | None = None, backends=("numba
         whose arrays fit in cache can exceed 100 %: the copy is sized to leave the caches.
     """
     topo = build_topology(grid_spec(cols, rows))
+    load_before = os.getloadavg()[0]
     copy = copy_bandwidth(n_bytes=min(COPY_BYTES, max(2**20, 64 * (BYTES_PER_KNOT * topo.n_knots
                                                                     + BYTES_PER_SPRING * topo.n_springs))))
     results = []
@@ -151,12 +153,23 @@ def profile_net(cols: int, rows: int, steps: int | None = None, backends=("numba
         "copy": {"gb_per_s": copy_best, "before": copy["gb_per_s"], "after": copy_again["gb_per_s"],
                  "bytes": copy["bytes"]},
         "threads": _threads(),
+        "threading_layer": _layer(),
+        # The machine may be shared: 1-minute load average before and after the kernels.
+        "load_avg": [load_before, os.getloadavg()[0]],
         "results": results,
     }
 
 
 def _threads() -> int:
     return int(numba.get_num_threads())
+
+
+def _layer() -> str:
+    """numba's threading layer (known once a parallel kernel has run)."""
+    try:
+        return str(numba.threading_layer())
+    except ValueError:
+        return "not started"
 
 
 def isfinite_result(result: dict) -> bool:

@@ -25,7 +25,9 @@ def profile_net_command(args: argparse.Namespace) -> int:
         print(json.dumps(report))
         return 0
     print(f"net {report['cols']} x {report['rows']}: {report['knots']} knots, {report['springs']} springs "
-          f"(structural + shear), h = {report['h_s']:.3g} s, numba threads: {report['threads']}")
+          f"(structural + shear), h = {report['h_s']:.3g} s")
+    print(f"numba threads: {report['threads']} ({report['threading_layer']}); load average "
+          f"{report['load_avg'][0]:.2f} before, {report['load_avg'][1]:.2f} after (a shared machine slows everything)")
     copy = report["copy"]
     print(f"copy bandwidth (numpy copy of {copy['bytes'] / 2**21:.0f} MiB, read + write): "
           f"{copy['gb_per_s']:.1f} GB/s (before {copy['before']:.1f}, after {copy['after']:.1f})")
