@@ -209,7 +209,9 @@ class NetSim:
             self.kernel_calls += 1
         if toi != NO_CONTACT:
             # Where the ball ended minus where it would have ended without the net.
-            self._offset[:] = bp - np.asarray(ball_pos, float) - np.asarray(ball_vel, float) * self.dt
+            np.subtract(bp, ball_pos, out=self._offset)
+            np.multiply(ball_vel, self.dt, out=self._hit_impulse)  # scratch: the free path's travel
+            self._offset -= self._hit_impulse
             self.wake()
         speed = self._speed(self.knot_pos, self.knot_vel)
         self.kernel_calls += 1
