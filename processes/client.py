@@ -157,9 +157,9 @@ class Client:
 class BotBrain:
     """engine.ai.BatAI playing one bat from the server's snapshots (`pingpong join --bot`).
 
-    The AI sees what the snapshot carries. The rally key (the in-process match uses (rally,
-    shots), which the snapshot does not carry) is (rally, changes of phase or striker seen),
-    which changes whenever the ball changes hands too.
+    The AI sees what the snapshot carries. The rally key of the in-process match is (rally,
+    shots); the snapshot carries no shot count, so the bot counts the strikes it sees (the
+    striker changes, or the phase leaves waiting-for-serve), which changes at the same moments.
     """
 
     def __init__(self, scene_name: str, slot: Slot, skill: str = "pro", seed: int = 0):
@@ -188,18 +188,20 @@ class BotBrain:
                                                                 snapshot["ball_spin"])
         self.bat["pos"], self.bat["quat"] = snapshot["bat_pos"][p], snapshot["bat_quat"][p]
         self.bat["vel"], self.bat["ang_vel"] = snapshot["bat_vel"][p], snapshot["bat_ang_vel"][p]
-        phase, server, striker = int(snapshot["phase"]), snapshot["server"], snapshot["striker"]
-        state = (snapshot["rally"], phase, striker)
-        if state != self._last:
-            self._turns += 1
-            self._last = state
+        phase, server, striker, rally = int(snapshot["phase"]), snapshot["server"], snapshot["striker"], snapshot["rally"]
+        last = self._last
+        if last is None or rally != last[0]:
+            self._turns = 0
+        elif striker != last[2] or (last[1] == Phase.WAITING_SERVE and phase != Phase.WAITING_SERVE):
+            self._turns += 1  # a strike: a return (the striker changed) or the service
+        self._last = (rally, phase, striker)
         if phase == Phase.OVER:
             my_turn = False
         elif phase == Phase.WAITING_SERVE:
             my_turn = server == p
         else:
             my_turn = striker != p
-        return self.ai.control(snapshot.tick * dt, self.ball_y, self.bat, (snapshot["rally"], self._turns), my_turn,
+        return self.ai.control(snapshot.tick * dt, self.ball_y, self.bat, (rally, self._turns), my_turn,
                                phase == Phase.WAITING_SERVE, -1 if p == 0 else 1, self.out)
 
 

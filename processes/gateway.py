@@ -8,7 +8,9 @@ One ROUTER socket carries everything. A client is a DEALER that sends one-frame 
 - heartbeats both ways: the gateway sends one every `heartbeat_s` to each session; any valid
   message from a peer counts as a sign of life; a peer silent for `timeout_s` is sent goodbye
   (timeout) and dropped. A dropped player's seat is kept for `grace_s`: only its token may
-  reclaim it (rejoin); after the grace anyone may take it.
+  reclaim it (rejoin); after the grace anyone may take it. A player who says goodbye frees its
+  seat at once. A hello with the token of a seat whose old connection is still open takes the
+  seat over (the old session is told goodbye, kicked).
 - input: decoded and validated, accepted only for the sender's own bat (another bat's input,
   a spectator's input, target mode and stale sequence numbers are refused and counted), then
   posted to the locked remote-input mailbox that the physics worker drains each tick.
@@ -287,7 +289,8 @@ class Gateway:
                 self._reject(identity, RejectReason.BAD_TOKEN, "unknown or expired rejoin token")
                 return
             if seat.identity is not None:  # the old connection is still open: the token wins
-                self._end(self.sessions[seat.identity], keep_seat=False)
+                old = self.sessions.pop(seat.identity)
+                self._goodbye(old, GoodbyeReason.KICKED)
             self.counts["rejoined"] += 1
         else:
             seat = self._free_seat(wanted, now)
@@ -378,7 +381,8 @@ class Gateway:
             self._events(record, points)
         if now < self._next_snapshot:
             return
-        self._next_snapshot = now + 1.0 / self.config.snapshot_hz
+        # on a fixed grid (no drift from the poll loop's latency); after a stall, restart from now
+        self._next_snapshot = max(self._next_snapshot + 1.0 / self.config.snapshot_hz, now)
         self.broadcast_snapshot(record, input_seq)
 
     def broadcast_snapshot(self, record, input_seq=(0, 0)) -> None:

@@ -190,6 +190,31 @@ def test_a_silent_player_is_dropped_and_its_token_reclaims_the_seat(rig):
 
 
 @pytest.mark.timeout(30)
+def test_the_token_takes_the_seat_over_from_a_connection_still_open(rig):
+    r = rig(remote=(Slot.A,))
+    first = r.client(name="ann")
+    r.join(first)
+    second = r.client(name="ann", token=first.token)
+    welcome = r.join(second)
+    assert welcome["slot"] == Slot.A and welcome["token"] == first.token
+    assert r.until(first, lambda m: m.kind == Kind.GOODBYE)["reason"] == GoodbyeReason.KICKED
+    first.send_input([1.0, 0, 0, 0, 0, 0], tick=1)  # the old connection has no say any more
+    second.send_input([2.0, 0, 0, 0, 0, 0], tick=2)
+    r.settle(lambda: r.gateway.counts["inputs_accepted"] == 1 and r.gateway.counts["dropped.no_session"] == 1)
+    assert r.posted[-1][3][0] == 2.0 and r.gateway.counts["rejoined"] == 1
+
+
+@pytest.mark.timeout(30)
+def test_a_player_who_says_goodbye_frees_the_seat_at_once(rig):
+    r = rig(remote=(Slot.A,))
+    leaving = r.client(name="ann")
+    r.join(leaving)
+    leaving.leave()
+    r.settle(lambda: r.gateway.counts["quits"] == 1)
+    assert r.join(r.client(name="bob"))["slot"] == Slot.A
+
+
+@pytest.mark.timeout(30)
 def test_heartbeats_keep_a_session_alive_both_ways(rig):
     r = rig(heartbeat_s=1.0, timeout_s=5.0)
     player = r.client()
