@@ -150,6 +150,7 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--timeout", type=float, default=5.0, help="s, a silent client is dropped after this")
     serve.add_argument("--grace", type=float, default=30.0, help="s, a dropped player's seat waits for its token")
     serve.add_argument("--wait", type=float, default=300.0, help="s, wait for the remote players, then start")
+    serve.add_argument("--crash-gateway-at-tick", type=int, default=None, help=argparse.SUPPRESS)
     _add_common(serve)
     serve.set_defaults(func=_cmd_serve)
 

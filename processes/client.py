@@ -303,8 +303,9 @@ def serve_command(args: argparse.Namespace) -> int:
         ticks = scene.ticks if args.ticks is None else args.ticks
         config = GatewayConfig(bind=args.bind, snapshot_hz=args.snapshot_hz, timeout_s=args.timeout,
                                grace_s=args.grace)
+        crash = getattr(args, "crash_gateway_at_tick", None)
         supervisor = Supervisor(scene, ticks, "realtime", seed=args.seed, gateway=config,
-                                players_timeout=args.wait)
+                                players_timeout=args.wait, crash_at_tick=crash, crash_worker="gateway")
 
         def ready(reports: dict) -> None:
             endpoint = reports["gateway"]["endpoint"]

@@ -29,7 +29,9 @@ as the supervisor's worker, fed by the run's shared memory.
 """
 from __future__ import annotations
 
+import os
 import secrets
+import signal
 import time
 from collections import Counter
 from dataclasses import dataclass
@@ -441,7 +443,12 @@ def gateway_worker(control, arena, scene, options: dict) -> None:
     """Serve the run's match to network clients until the match ends or the supervisor stops it.
 
     options: gateway (GatewayConfig), lock_path, ticks (the run's tick limit), start_event (set
-    once every remote seat is taken: the physics worker waits for it).
+    once every remote seat is taken: the physics worker waits for it), crash_at_tick (fault
+    injection: SIGKILL this process once the physics reached that tick).
+
+    A restarted gateway binds the same endpoint but has lost its sessions and tokens: clients
+    hear nothing from it, and hello again (a rejoin by token after a gateway restart is for a
+    later session: the seats would have to live in shared memory).
     """
     from engine.dtypes import physics_snapshot_dtype
     from processes.locks import LockTable
@@ -467,6 +474,9 @@ def gateway_worker(control, arena, scene, options: dict) -> None:
                       remote_slots=remote, post_input=post_input)
     start_event = options.get("start_event")
     n_ticks = options["ticks"]
+    crash_at_tick = options.get("crash_at_tick")
+    for slot in remote:  # a restarted gateway has no sessions yet: no remote arm holds a force
+        post_input(int(slot) - 1, 0, 0, np.zeros(6))
     reason = GoodbyeReason.SHUTDOWN
     try:
         control.set_state(WorkerState.READY)
@@ -482,6 +492,8 @@ def gateway_worker(control, arena, scene, options: dict) -> None:
             if start_event is not None and not start_event.is_set() and gateway.seats_filled:
                 start_event.set()
             control.beat(gateway.tick)
+            if crash_at_tick is not None and gateway.tick >= crash_at_tick:
+                os.kill(os.getpid(), signal.SIGKILL)  # fault injection (tests)
             if int(rec["rally"]["winner"]) >= 0 or gateway.tick >= n_ticks:
                 gateway.broadcast_snapshot(rec, (int(applied[0]), int(applied[1])))  # the final state
                 reason = GoodbyeReason.MATCH_OVER

@@ -168,6 +168,11 @@ class Supervisor:
         if self._start_event is not None:
             options.update(start_event=self._start_event, players_timeout=self.players_timeout,
                            gateway=self.gateway)
+            if worker.kind == "gateway" and worker.ready.get("endpoint"):
+                from dataclasses import replace
+
+                # a restarted gateway listens where its clients already are
+                options["gateway"] = replace(self.gateway, bind=worker.ready["endpoint"])
         worker.process = self._ctx.Process(
             target=worker_entry, name=f"pingpong-{worker.kind}",
             args=(worker.kind, child, self.arena.layout(), worker.index, self.scene, options))

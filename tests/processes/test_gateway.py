@@ -479,3 +479,46 @@ def test_a_remote_bat_needs_the_effect_and_no_skill():
     data["effects"].append("remote")
     scene = parse_scene(data, "t.toml")
     assert scene.bats[0].remote and workers_for(scene) == ["physics", "ai", "gateway"]
+
+
+@pytest.mark.timeout(120)
+def test_a_killed_gateway_is_restarted_on_the_same_endpoint(served, zctx):
+    server = _pingpong("serve", "--players", "0", "--ticks", "6000", "--crash-gateway-at-tick", "500", "--json")
+    served.append(server)
+    hello = json.loads(_line(server, 60))
+    watcher = Client(hello["listening"], "spectator", "eve", zctx=zctx)
+    try:
+        watcher.join(30)
+        ticks = []
+        for _ in range(3000):  # snapshots until the gateway falls silent (it dies at tick 500)
+            watcher.heartbeat_if_due()
+            message = watcher.recv(500)
+            if message is None:
+                break
+            ticks.append(message.tick)
+        assert ticks and max(ticks) < 6000
+        welcome = None
+        for _ in range(15):  # hello again until the restarted gateway answers on the same endpoint
+            watcher.hello()
+            for _ in range(20):
+                message = watcher.recv(100)
+                if message is not None and watcher.accept(message):
+                    welcome = message
+                    break
+            if welcome is not None:
+                break
+        assert welcome is not None and welcome.tick > 500
+        goodbye = None
+        for _ in range(3000):
+            watcher.heartbeat_if_due()
+            message = watcher.recv(100)
+            if message is not None and message.kind == Kind.GOODBYE:
+                goodbye = message
+                break
+        assert goodbye is not None and goodbye["reason"] == GoodbyeReason.MATCH_OVER
+    finally:
+        watcher.close()
+    summary = json.loads(_line(server, 60))
+    assert server.wait(30) == 0
+    assert summary["workers"]["gateway"]["restarts"] == 1 and summary["ticks"] == 6000
+    assert not shm.leftover_segments(hello["run_id"])
