@@ -15,7 +15,7 @@ import numpy as np
 from engine import equipment
 from engine.ai import SKILLS, BatAI
 from engine.dtypes import POINT_DTYPE
-from engine.rules import REASONS, Phase, PointRecord, Referee
+from engine.rules import REASONS, Phase, PointRecord, Referee, next_striker
 from engine.scene import Scene
 from engine.world import advance, build_model, copy_record, initial_state, new_events, step
 
@@ -76,14 +76,9 @@ def ai_inputs(ais: dict[int, BatAI], now: float, ball_y: np.ndarray, bats: np.nd
               phase: int, server: int, striker: int, inputs: np.ndarray) -> None:
     """Every AI's force and torque from one state: the one function both the in-process match
     and the AI worker call, so lockstep runs compute bit for bit the same inputs."""
+    to_strike = next_striker(phase, server, striker)
     for player, ai in ais.items():
-        if phase == Phase.OVER:
-            my_turn = False
-        elif phase == Phase.WAITING_SERVE:
-            my_turn = server == player
-        else:
-            my_turn = striker != player
-        ai.control(now, ball_y, bats[player], rally_key, my_turn, phase == Phase.WAITING_SERVE,
+        ai.control(now, ball_y, bats[player], rally_key, to_strike == player, phase == Phase.WAITING_SERVE,
                    -1 if player == 0 else 1, inputs[player])
 
 

@@ -51,6 +51,15 @@ class Reason(enum.Enum):
 REASONS = tuple(Reason)  # stable codes for logs and replay files: REASONS.index(reason)
 
 
+def next_striker(phase: int, server: int, striker: int) -> int:
+    """The player who must strike the ball next, -1 when nobody must (the rally is decided)."""
+    if phase == Phase.OVER:
+        return -1
+    if phase == Phase.WAITING_SERVE:
+        return server
+    return 1 - striker
+
+
 @dataclass
 class PointRecord:
     game: int

@@ -181,7 +181,7 @@ class BotBrain:
 
     def control(self, snapshot: wire.Message, dt: float) -> np.ndarray:
         """(6,) force and torque for our bat after this snapshot."""
-        from engine.rules import Phase
+        from engine.rules import Phase, next_striker
 
         p = self.player
         self.ball_y[0:3], self.ball_y[3:6], self.ball_y[6:9] = (snapshot["ball_pos"], snapshot["ball_vel"],
@@ -195,12 +195,7 @@ class BotBrain:
         elif striker != last[2] or (last[1] == Phase.WAITING_SERVE and phase != Phase.WAITING_SERVE):
             self._turns += 1  # a strike: a return (the striker changed) or the service
         self._last = (rally, phase, striker)
-        if phase == Phase.OVER:
-            my_turn = False
-        elif phase == Phase.WAITING_SERVE:
-            my_turn = server == p
-        else:
-            my_turn = striker != p
+        my_turn = next_striker(phase, int(server), int(striker)) == p
         return self.ai.control(snapshot.tick * dt, self.ball_y, self.bat, (rally, self._turns), my_turn,
                                phase == Phase.WAITING_SERVE, -1 if p == 0 else 1, self.out)
 
