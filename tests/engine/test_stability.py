@@ -6,7 +6,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from engine import equipment
 from engine.stability import ALL, Case, cases, run_case
 
 SUITE = cases()
@@ -47,4 +46,3 @@ def test_random_shots_stay_finite_and_outside_every_body(x, y, z, vx, vy, vz, wx
     assert out.finite and not out.tunnelled, out.result
     assert out.max_penetration_m <= 1e-6, out.result  # contacts resolve to CONTACT_TOL = 1 um
     assert np.isfinite(out.final).all()
-    assert equipment.BALL_RADIUS > 0
