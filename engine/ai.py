@@ -322,7 +322,7 @@ class BatAI:
         self.turn_key = None
         self.turn_seen_at = 0.0
         self.planned_key = None
-        self.stats = {"plans": 0, "no_solution": 0, "let_go": 0, "too_late": 0}
+        self.stats = {"plans": 0, "no_solution": 0, "let_go": 0}
 
     def warm_up(self) -> None:
         """Load (or compile) every kernel the AI uses, without touching its state or its RNG."""

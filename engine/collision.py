@@ -11,7 +11,6 @@ tick). Thin bodies cannot be tunnelled: the advance never exceeds the measured g
 """
 import math
 
-import numpy as np
 from numba import njit
 
 from engine.contact import impact, supported_advance
@@ -42,11 +41,6 @@ _TABLE, _FLOOR, _NET, _POST, _BAT_A = int(Body.TABLE), int(Body.FLOOR), int(Body
 ERR_SUBSTEPS = -1
 ERR_IMPACTS = -2
 ERR_NONFINITE = -3
-
-
-def new_scratch():
-    """Preallocated buffers for ball_tick: (work, scratch, adapt-free)."""
-    return np.zeros(WORK_SHAPE), np.zeros(SCRATCH_SHAPE)
 
 
 @njit(inline="always", cache=True)
