@@ -241,23 +241,19 @@ def ball_tick(y, h, support, method, gravity, drag_k, magnus_k, rtol, atol,
             tau, g, body = tau_next, g_next, body_next
             if tau >= t_left:
                 break
-        if not hit:
-            rc = _advance_state(cur, t_left, support, surface_z, method, gravity, drag_k, magnus_k,
+        # Move to the time of impact, or to the end of the tick when nothing is hit.
+        reach = tau if hit else t_left
+        if reach > 0.0:
+            rc = _advance_state(cur, reach, support, surface_z, method, gravity, drag_k, magnus_k,
                                 rtol, atol, params, friction, work, adapt, trial)
             if rc < 0:
                 return ERR_SUBSTEPS, support
             for i in range(9):
                 cur[i] = trial[i]
+        if not hit:
             t_done = h
             break
-        # Move to the time of impact (the state there was the last one measured, or is recomputed).
-        if tau > 0.0:
-            rc = _advance_state(cur, tau, support, surface_z, method, gravity, drag_k, magnus_k,
-                                rtol, atol, params, friction, work, adapt, trial)
-            if rc < 0:
-                return ERR_SUBSTEPS, support
-            for i in range(9):
-                cur[i] = trial[i]
+        if tau > 0.0:  # the normal at the impact point (at tau = 0 it is the one just measured)
             _gap(cur[0:3], (t_done + tau) / h, table, floor_z, net, posts, bats, params, mask, normal, tmp)
         t_done += tau
         frac = t_done / h
