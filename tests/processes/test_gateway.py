@@ -279,7 +279,11 @@ def test_malformed_messages_are_dropped_counted_and_never_fatal(rig):
 
 @pytest.mark.timeout(30)
 def test_a_slow_spectator_loses_snapshots_not_the_match(rig):
-    r = rig(sndhwm=4, sndbuf=4096)
+    # A pipe's writer learns of reads only in credit batches of about hwm/2 messages, sent by the
+    # reader's I/O thread; with hwm 4 a loaded machine let a fast reader look full for one tick
+    # (CI, 2026-11-23). At 64 the credit lag of a reader that keeps up is far below the mark,
+    # while the slow reader, which never reads again, still fills it within a few hundred ticks.
+    r = rig(sndhwm=64, sndbuf=4096)
     fast = r.client(role="spectator")
     slow = r.client(role="spectator", socket_options={zmq.RCVHWM: 1, zmq.RCVBUF: 4096})
     r.join(fast)
