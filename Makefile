@@ -23,8 +23,11 @@ match: install
 lint: install
 	$(BIN)/lint-imports
 
+# Two workers: CI has two cores and a cold run is mostly numba compiling, one specialisation
+# per effect combination. A test file stays on one worker (loadfile), so its specialisations
+# compile once; the other worker finds them in numba's on-disk cache.
 test: lint
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 test-long: install
 	$(BIN)/python -m pytest -q -m long
