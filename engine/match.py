@@ -1,9 +1,15 @@
 """A whole match in one process: physics, referee, the AIs and the server's toss.
 
-This is the reference the multi-process match must reproduce bit for bit in lockstep. Each
-tick: at the AI's control ticks every AI computes its bat's force and torque from the state
-after the previous tick; the physics steps with those inputs; the referee judges the tick's
-contact events; a decided rally is followed by the next server's toss.
+This is the reference the multi-process match must reproduce bit for bit in lockstep. At each
+AI control tick B (every P ticks) the bats take the forces and torques the AIs decided from the
+state at B - P, and the AIs decide anew from the state at B; the physics then steps to B + P;
+the referee judges each tick's contact events; a decided rally is followed by the next
+server's toss.
+
+The one control period of latency is what lets the physics and the AI run at the same time in
+separate processes: the AI thinks about the state at B while the physics steps B .. B + P, and
+nothing waits unless the AI is slower than P ticks of physics. It is also nearer a player than
+no latency at all: a human's visuomotor delay is 100 ms and more, P is 4 ms.
 """
 from __future__ import annotations
 
@@ -95,11 +101,29 @@ def point_from_row(row) -> PointRecord:
                        int(row["shots"]), tuple(int(v) for v in row["score_after"]))
 
 
+class LocalAI:
+    """The AIs in this process (the reference): each control tick they decide at once."""
+
+    def __init__(self, ais: dict[int, BatAI]):
+        self.ais = ais
+
+    def collect(self, match: "Match") -> None:
+        """Nothing to wait for: request() already wrote match.ai_next."""
+
+    def request(self, match: "Match", now: float) -> None:
+        ref = match.referee
+        ai_inputs(self.ais, now, match.state.ball_y, match.state.bats, match.rally_key(), int(ref.phase), ref.server,
+                  ref.striker, match.ai_next)
+
+
 class Match:
     """A match between the scene's two bats, judged by the referee, AIs where the scene has them.
 
-    ai_driver(match, now) fills match.inputs at the AI's control ticks; by default the AIs run
-    here, in-process (the reference). The physics worker passes one that asks the AI worker.
+    At each AI control tick the match calls ai_driver.collect(match), which must leave in
+    match.ai_next the AIs' decision from the previous control tick, applies it, then
+    ai_driver.request(match, now), which starts the decision from the state now (to be collected
+    at the next control tick). By default the AIs run here (LocalAI, the reference); the
+    physics worker passes a driver that asks the AI worker.
     """
 
     def __init__(self, scene: Scene, seed: int = 0, ai_driver=None):
@@ -114,8 +138,10 @@ class Match:
         self.referee = Referee(best_of=spec.best_of, first_server="ab".index(spec.first_server))
         self.has_ai = any(bat.skill is not None for bat in scene.bats)
         self.ais = make_ais(scene, self.model, seed) if ai_driver is None else {}
-        self.ai_driver = ai_driver or Match._local_ai
-        self.inputs = np.zeros((len(scene.bats), 6))
+        self.ai_driver = ai_driver or LocalAI(self.ais)
+        self.ai_bats = [i for i, bat in enumerate(scene.bats) if bat.skill is not None]
+        self.inputs = np.zeros((len(scene.bats), 6))  # held by the bats until the next control tick
+        self.ai_next = np.zeros((len(scene.bats), 6))  # the AIs' decision, applied at the next control tick
         self.ai_every = max(1, int(round(1.0 / (spec.ai_hz * scene.dt))))
         self.rally = 0
         self.rally_started = 0.0
@@ -140,11 +166,6 @@ class Match:
         """Changes whenever the ball changes hands."""
         return (self.rally, self.referee.shots)
 
-    def _local_ai(self, now: float) -> None:
-        ref = self.referee
-        ai_inputs(self.ais, now, self.state.ball_y, self.state.bats, self.rally_key(), int(ref.phase), ref.server,
-                  ref.striker, self.inputs)
-
     def _sync_rally(self) -> None:
         """Write the referee and rally bookkeeping into the state record (only when they change)."""
         rally = self.state.record[0]["rally"]
@@ -157,7 +178,11 @@ class Match:
         copy_record(self.state.record, record, index)
 
     def restore(self, record, points: list[PointRecord]) -> None:
-        """Resume from a saved record and the point log (a restarted physics worker)."""
+        """Resume from a saved record and the point log (a restarted physics worker).
+
+        The AIs' decision in flight is not in the record: it belongs to the driver, whose
+        resume(tick) (if it has one) picks it up again (the AI worker keeps its last answer).
+        """
         self.state.ball[0] = record["ball"]
         self.state.bats[:] = record["bats"]
         self.state.world[0] = record["world"]
@@ -170,6 +195,9 @@ class Match:
         self.rally = int(rally["rally"])
         self.rally_started = float(rally["rally_started"])
         self._sync_rally()
+        resume = getattr(self.ai_driver, "resume", None)
+        if resume is not None:
+            resume(int(self.state.world[0]["tick"]), self.ai_every)
 
     def tick(self, max_ticks: int = 1) -> PointRecord | None:
         """Advance up to max_ticks ticks, stopping where the match must act; returns a point
@@ -187,7 +215,9 @@ class Match:
         if self.has_ai:
             if tick % self.ai_every == 0:
                 started = time.perf_counter()
-                self.ai_driver(self, float(world["time"]))
+                self.ai_driver.collect(self)
+                self.inputs[self.ai_bats] = self.ai_next[self.ai_bats]
+                self.ai_driver.request(self, float(world["time"]))
                 self.ai_seconds += time.perf_counter() - started
                 inputs = self.inputs
             n_max = min(n_max, self.ai_every - tick % self.ai_every)

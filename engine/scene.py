@@ -64,7 +64,7 @@ class MatchSpec:
 
     best_of: int = 5
     first_server: str = "a"
-    ai_hz: float = 250.0  # control rate of the AI; forces are held between its updates
+    ai_hz: float = 100.0  # control rate of the AI (scenes/match.toml says why); forces are held between its updates
     max_rally_s: float = 10.0  # a rally still undecided after this long is judged out of play
     toss_speed: float = 2.6  # m/s upwards: the toss rises ~34 cm (ITTF 2.6.2: at least 16 cm)
 
@@ -316,7 +316,7 @@ def parse_scene(data: dict, source: str) -> Scene:
         match = MatchSpec(
             best_of=int(best_of),
             first_server=r.string(m, "first_server", "match.first_server", "a", BAT_NAMES),
-            ai_hz=r.number(m, "ai_hz", "match.ai_hz", 250.0, low=10.0, high=2000.0),
+            ai_hz=r.number(m, "ai_hz", "match.ai_hz", 100.0, low=10.0, high=2000.0),
             max_rally_s=r.number(m, "max_rally_s", "match.max_rally_s", 10.0, low=1.0, high=120.0),
             toss_speed=r.number(m, "toss_speed", "match.toss_speed", 2.6, low=1.8, high=5.0),
         )

@@ -47,14 +47,23 @@ class Baton:
 
     # hub side
     def call(self, tick: int, timeout: float) -> None:
-        """Give the worker its turn for `tick` and wait until it is done with that tick.
+        """Give the worker its turn for `tick` and wait until it is done with that tick."""
+        self.give(tick)
+        self.wait_done(tick, timeout)
 
-        A 'done' for another tick (a late answer to a call that had timed out) is skipped.
-        """
+    def give(self, tick: int) -> None:
+        """Give the worker its turn for `tick` and return at once (the hub works on meanwhile)."""
         words = self._words
         words[0] = tick
         words[1] = RUN
         self._go.release()
+
+    def wait_done(self, tick: int, timeout: float) -> None:
+        """Wait until the worker is done with `tick`; raises HandoffTimeout after `timeout` s.
+
+        A 'done' for another tick (a late answer to a turn that had timed out) is skipped.
+        """
+        words = self._words
         deadline = time.monotonic() + timeout
         while True:
             left = deadline - time.monotonic()

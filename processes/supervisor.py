@@ -146,13 +146,17 @@ class Supervisor:
 
             arena.shared_array("inputs_header", MAILBOX_HEADER, 1)
             arena.shared_array("inputs", INPUT_DTYPE, 4)
+            # The state the AI decides from: written by the physics at a control tick, read by
+            # the AI during its turn; the turn (the baton) orders the two, so it needs no seqlock.
+            arena.shared_array("ai_view", snapshot, 1)
             self._baton = Baton("ai", self._ctx, arena.shared_array("baton", TICK_SLOT_DTYPE, 1).array)
         if "gateway" in self.kinds:
-            from processes.gateway import REMOTE_CAPACITY, REMOTE_INPUT_DTYPE
+            from processes.gateway import REMOTE_ACK_DTYPE, REMOTE_ACK_RING, REMOTE_CAPACITY, REMOTE_INPUT_DTYPE
 
             arena.shared_array("remote_header", MAILBOX_HEADER, 1)
             arena.shared_array("remote_inputs", REMOTE_INPUT_DTYPE, REMOTE_CAPACITY)
             arena.shared_array("remote_applied", np.dtype("<u8"), 2)  # seq of the last input applied per bat
+            arena.shared_array("remote_acks", REMOTE_ACK_DTYPE, REMOTE_ACK_RING)  # those seqs by published tick
             self._start_event = self._ctx.Event()
         return arena
 

@@ -1,9 +1,12 @@
 """The AI worker: one controller per AI-driven bat. It only applies forces, never sets positions.
 
-In lockstep the physics worker hands it the baton at every AI control tick; it reads the
-physics snapshot, computes every AI's force and torque with engine.match.ai_inputs (the very
-function the in-process match calls) and posts them to the bat-input mailbox, which the physics
-worker drains under its lock.
+At every AI control tick the physics worker copies the state into the AI's view and gives it
+its turn, then steps on; the AI computes every AI's force and torque from the view with
+engine.match.ai_inputs (the very function the in-process match calls) and posts them to the
+bat-input mailbox, which the physics worker drains under its lock at the next control tick.
+Asked again for the tick it last did (the physics restarted, or timed out waiting), it posts
+its last answer again rather than deciding twice: the AIs' plans and random draws move on once
+per control tick, as in the reference.
 """
 from __future__ import annotations
 
@@ -15,7 +18,7 @@ import numpy as np
 
 from engine.dtypes import physics_snapshot_dtype
 from engine.match import ai_inputs, make_ais
-from engine.world import build_model
+from engine.world import build_model, copy_record
 from processes.handoff import HandoffTimeout
 from processes.locks import LockTable
 from processes.mailbox import Mailbox
@@ -37,6 +40,7 @@ def ai_worker(control: Control, arena: Arena, scene, options: dict) -> None:
     baton = options["baton"].attach(arena["baton"].array)
     locks = LockTable(options["lock_path"], LOCK_NAMES, arena["lock_holders"])
     box = Mailbox("bat_inputs", arena["inputs_header"], arena["inputs"], locks)
+    view = arena["ai_view"].array
     snap = np.zeros(1, physics_snapshot_dtype(n_bats))
     ball_y = snap["ball"].view("<f8")  # views into the snapshot copy: nothing else is copied
     bats = snap["bats"][0]
@@ -52,6 +56,7 @@ def ai_worker(control: Control, arena: Arena, scene, options: dict) -> None:
     control.wait_for("go", STARTUP_TIMEOUT_S)
     control.set_state(WorkerState.RUNNING)
     busy = 0.0
+    last_tick = None
     try:
         while True:
             try:
@@ -62,10 +67,12 @@ def ai_worker(control: Control, arena: Arena, scene, options: dict) -> None:
             if tick is None:
                 break
             t0 = time.perf_counter()
-            arena["physics"].snapshot(snap)
-            ai_inputs(ais, float(world["time"]), ball_y, bats, (int(rally["rally"]), int(rally["shots"])),
-                      int(rally["phase"]), int(rally["server"]), int(rally["striker"]), inputs)
-            record["tick"] = tick
+            if tick != last_tick:
+                copy_record(view, snap)  # our own copy, byte for byte: the AIs keep views into it
+                ai_inputs(ais, float(world["time"]), ball_y, bats, (int(rally["rally"]), int(rally["shots"])),
+                          int(rally["phase"]), int(rally["server"]), int(rally["striker"]), inputs)
+                record["tick"] = tick
+                last_tick = tick
             box.post(record)
             busy += time.perf_counter() - t0
             baton.done()
@@ -75,5 +82,5 @@ def ai_worker(control: Control, arena: Arena, scene, options: dict) -> None:
         control.row["busy_s"] = float(control.row["busy_s"]) + busy
         control.send("done", {"tick": int(control.row["tick"]), "busy_s": busy})
     finally:
-        del snap, box, baton, ball_y, bats, rally, world
+        del view, snap, box, baton, ball_y, bats, rally, world
         locks.close()

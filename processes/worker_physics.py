@@ -93,40 +93,68 @@ def physics_worker(control: Control, arena: Arena, scene, options: dict) -> None
     control.send("done", {"tick": tick, "busy_s": busy})
 
 
-def _remote_ai(control: Control, arena: Arena, options: dict, n_bats: int):
-    """An ai_driver for engine.match.Match that asks the AI worker (lockstep hand-off)."""
-    from processes.locks import LockTable
-    from processes.mailbox import Mailbox
-    from processes.worker_ai import INPUT_DTYPE, LOCK_NAMES
+class _RemoteAI:
+    """An ai_driver for engine.match.Match that asks the AI worker, which thinks while we step.
 
-    baton = options["baton"].attach(arena["baton"].array)
-    locks = LockTable(options["lock_path"], LOCK_NAMES, arena["lock_holders"])  # a prefix of the run's order
-    box = Mailbox("bat_inputs", arena["inputs_header"], arena["inputs"], locks)
-    inbox = np.zeros(box.capacity, INPUT_DTYPE)
+    request(): copy the state into the AI's view and give the AI worker its turn, at once.
+    collect() at the next control tick: wait (bounded) until the AI is done with that turn and
+    drain its decision from the locked mailbox. The view is not written again before the turn
+    is collected, so the AI always decides from exactly the state the reference decides from.
+    """
 
-    def driver(match: Match, now: float) -> None:
-        started = time.perf_counter()
+    def __init__(self, control: Control, arena: Arena, options: dict, n_bats: int):
+        from processes.locks import LockTable
+        from processes.mailbox import Mailbox
+        from processes.worker_ai import INPUT_DTYPE, LOCK_NAMES
+
+        self.control = control
+        self.n_bats = n_bats
+        self.baton = options["baton"].attach(arena["baton"].array)
+        self.locks = LockTable(options["lock_path"], LOCK_NAMES, arena["lock_holders"])  # a prefix of the run's order
+        self.box = Mailbox("bat_inputs", arena["inputs_header"], arena["inputs"], self.locks)
+        self.inbox = np.zeros(self.box.capacity, INPUT_DTYPE)
+        self.view = arena["ai_view"].array
+        self.turn: int | None = None  # the tick whose decision is in flight
+        self.waits = 0.0  # wall time spent waiting for the AI (its work beyond our own)
+
+    def request(self, match: Match, now: float) -> None:
         tick = int(match.state.world[0]["tick"])
+        copy_record(match.state.record, self.view, 0)
+        self.baton.give(tick)
+        self.turn = tick
+
+    def collect(self, match: Match) -> None:
+        if self.turn is None:
+            return
+        started = time.perf_counter()
         deadline = time.monotonic() + AI_GIVE_UP_S
         while True:
             try:
-                baton.call(tick, AI_HANDOFF_S)
+                self.baton.wait_done(self.turn, AI_HANDOFF_S)
                 break
             except HandoffTimeout:
-                control.beat(tick)  # the AI worker may be restarting: stay alive and ask again
+                self.control.beat(self.turn)  # the AI worker may be restarting: stay alive and ask again
                 if time.monotonic() > deadline:
                     raise
-        n = box.drain(inbox)
+                self.baton.give(self.turn)  # the view still holds that tick's state
+        n = self.box.drain(self.inbox)
         for k in range(n):
-            mask = int(inbox[k]["mask"])
-            for bat in range(n_bats):
+            if int(self.inbox[k]["tick"]) != self.turn:
+                continue  # a stale answer to a turn that had timed out
+            mask = int(self.inbox[k]["mask"])
+            for bat in range(self.n_bats):
                 if mask >> bat & 1:
-                    match.inputs[bat] = inbox[k]["inputs"][bat]
-        waits[0] += time.perf_counter() - started
+                    match.ai_next[bat] = self.inbox[k]["inputs"][bat]
+        self.turn = None
+        self.waits += time.perf_counter() - started
 
-    waits = [0.0]  # wall time in hand-offs to the AI (its own work included)
-    driver.waits = waits
-    return driver
+    def resume(self, tick: int, period: int) -> None:
+        """After a restart at `tick`: the turn given at the last control tick before it is in flight."""
+        self.turn = (tick - 1) // period * period if tick > 0 else None
+
+    def close(self) -> None:
+        del self.view, self.box
+        self.locks.close()
 
 
 class _RemoteInputs:
@@ -141,6 +169,7 @@ class _RemoteInputs:
         self.box = Mailbox("remote_inputs", arena["remote_header"], arena["remote_inputs"], self.locks)
         self.inbox = np.zeros(self.box.capacity, REMOTE_INPUT_DTYPE)
         self.applied = arena["remote_applied"].array
+        self.acks = arena["remote_acks"].array
         self.match = match
 
     def apply(self) -> None:
@@ -156,8 +185,15 @@ class _RemoteInputs:
             bats[bat]["torque"] = values[3:6]
             self.applied[bat] = self.inbox[k]["seq"]
 
+    def publish_ack(self, tick: int) -> None:
+        """Before the snapshot of `tick` is published: the seqs it acknowledges (the inputs applied
+        so far, none of the next tick's), for the gateway to pair with that snapshot."""
+        from processes.gateway import write_ack
+
+        write_ack(self.acks, tick, self.applied)
+
     def close(self) -> None:
-        del self.applied, self.box
+        del self.applied, self.acks, self.box
         self.locks.close()
 
 
@@ -172,7 +208,7 @@ def _await_players(control: Control, options: dict, tick: int) -> None:
 def _match_worker(control: Control, arena: Arena, scene, options: dict) -> None:
     n_bats = len(scene.bats)
     has_ai = any(bat.skill is not None for bat in scene.bats)
-    driver = _remote_ai(control, arena, options, n_bats) if has_ai else None
+    driver = _RemoteAI(control, arena, options, n_bats) if has_ai else None
     match = Match(scene, options["seed"], ai_driver=driver)
     snapshots = arena["physics"]
     log = arena["events"].array
@@ -233,14 +269,17 @@ def _match_worker(control: Control, arena: Arena, scene, options: dict) -> None:
             copy_record(record, trace, tick)
         if frames is not None and tick % frame_every == 0 and tick // frame_every < len(frames):
             copy_record(record, frames, tick // frame_every)
+        if remote is not None:
+            remote.publish_ack(tick)
         snapshots.publish(record, tick)
         if tick == crash_at_tick:
             os.kill(os.getpid(), signal.SIGKILL)
         busy += time.perf_counter() - t0
         control.beat(tick)
-    handoff = driver.waits[0] if driver is not None else 0.0
+    handoff = driver.waits if driver is not None else 0.0
     if driver is not None:
         options["baton"].stop()
+        driver.close()
     if remote is not None:
         remote.close()
     # busy_s counts the physics' own work; the hand-offs to the AI (and the AI's work inside

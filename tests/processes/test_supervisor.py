@@ -51,8 +51,29 @@ def test_a_scene_starts_only_the_workers_it_needs():
     assert workers_for(load_scene("drop")) == ["physics"]  # no cloth net, no AI: no such workers
 
 
-def _wait_running(run_ids_before, timeout):
-    """Handshake through shared memory: the new run's physics worker reports RUNNING."""
+def _parent(pid: int) -> int:
+    with open(f"/proc/{pid}/stat") as stat:
+        return int(stat.read().rsplit(")", 1)[1].split()[1])
+
+
+def _started_by(pid: int, supervisor_pid: int) -> bool:
+    """The worker descends from the supervisor (through its forkserver)."""
+    for _ in range(3):
+        try:
+            pid = _parent(pid)
+        except (FileNotFoundError, ValueError, IndexError):
+            return False
+        if pid == supervisor_pid:
+            return True
+    return False
+
+
+def _wait_running(run_ids_before, supervisor_pid, timeout):
+    """Handshake through shared memory: the supervisor's physics worker reports RUNNING.
+
+    Other runs (other test workers) may start meanwhile: the run is the one whose worker
+    descends from our supervisor.
+    """
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         new = {name[2:].split("-")[0] for name in leftover_segments()} - run_ids_before
@@ -63,7 +84,7 @@ def _wait_running(run_ids_before, timeout):
                 continue
             try:
                 row = status["status"].array[0]
-                if row["state"] == WorkerState.RUNNING:
+                if row["state"] == WorkerState.RUNNING and _started_by(int(row["pid"]), supervisor_pid):
                     return run_id, int(row["pid"])
             finally:
                 status.close()
@@ -77,7 +98,7 @@ def test_sigint_to_the_supervisor_leaves_no_process_and_no_segment():
            "--ticks", "60000", "--json"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True)
     try:
-        run_id, worker_pid = _wait_running(before, timeout=60)
+        run_id, worker_pid = _wait_running(before, proc.pid, timeout=60)
         proc.send_signal(signal.SIGINT)
         proc.communicate(timeout=30)
         assert proc.returncode != 0
