@@ -45,6 +45,12 @@ from processes.wire import GoodbyeReason, InputMode, Kind, RejectReason, Role, S
 # One remote input on its way to the physics worker (the remote-input mailbox's record).
 REMOTE_INPUT_DTYPE = np.dtype([("tick", "<i8"), ("seq", "<u8"), ("bat", "<i8"), ("inputs", "<f8", (6,))])
 REMOTE_CAPACITY = 64  # inputs queued between two physics ticks; more are dropped and counted
+# The acknowledged input seq per bat at each published tick, written by the physics worker just
+# before it publishes that tick's snapshot, in a ring indexed by tick: the gateway pairs a
+# snapshot of tick T with the entry of tick T, so snapshot.input_seq names exactly the inputs
+# whose effect the snapshot shows (the last input applied before the step T-1 -> T).
+REMOTE_ACK_DTYPE = np.dtype([("tick", "<i8"), ("input_seq", "<u8", (2,))])
+REMOTE_ACK_RING = 1024  # ticks (1 s at 1 kHz): a reader this late gets None, never a wrong pair
 # Every arbitrated lock of a run, in the one global order of acquisition.
 RUN_LOCK_NAMES = ("bat_inputs", "remote_inputs")
 MAX_BAD = 64  # bad messages one session may send before it is kicked
@@ -102,6 +108,31 @@ class _Seat:
 
 def _zero_inputs():
     return np.zeros(6)
+
+
+def write_ack(ring: np.ndarray, tick: int, input_seq) -> None:
+    """Physics side: the acknowledged seqs of tick `tick`, written before that tick is published.
+
+    ring: (REMOTE_ACK_RING,) REMOTE_ACK_DTYPE in shared memory. The entry's tick is made invalid
+    (-1) while its seqs change and set last, so a reader never pairs a tick with a torn entry
+    (stores stay in order on x86-64, as processes/shm.py relies on too).
+    """
+    i = tick % len(ring)
+    ring["tick"][i] = -1
+    ring["input_seq"][i] = input_seq
+    ring["tick"][i] = tick
+
+
+def read_ack(ring: np.ndarray, tick: int) -> tuple[int, int] | None:
+    """Gateway side: the acknowledged seqs (bat A, bat B) of tick `tick`, or None if the ring no
+    longer (or not yet) holds that tick."""
+    i = tick % len(ring)
+    before = int(ring["tick"][i])
+    seqs = ring["input_seq"][i].copy()
+    after = int(ring["tick"][i])
+    if before != tick or after != tick:
+        return None
+    return int(seqs[0]), int(seqs[1])
 
 
 class Gateway:
@@ -439,6 +470,18 @@ class Gateway:
 
 
 # --- the worker ---------------------------------------------------------------------------------
+def _consistent_snapshot(snapshots, acks: np.ndarray, record: np.ndarray, tries: int = 3):
+    """The latest physics snapshot and the input seqs acknowledged at its very tick (None after
+    `tries` snapshots whose tick left the ring meanwhile)."""
+    for _ in range(tries):
+        snapshots.snapshot(record)
+        rec = record[0]
+        ack = read_ack(acks, int(rec["world"]["tick"]))
+        if ack is not None:
+            return rec, ack
+    return record[0], None
+
+
 def gateway_worker(control, arena, scene, options: dict) -> None:
     """Serve the run's match to network clients until the match ends or the supervisor stops it.
 
@@ -458,7 +501,7 @@ def gateway_worker(control, arena, scene, options: dict) -> None:
     config: GatewayConfig = options["gateway"]
     locks = LockTable(options["lock_path"], RUN_LOCK_NAMES, arena["lock_holders"])
     box = Mailbox("remote_inputs", arena["remote_header"], arena["remote_inputs"], locks)
-    applied = arena["remote_applied"].array
+    acks = arena["remote_acks"].array
     points = arena["points"].array
     snapshots = arena["physics"]
     record = np.zeros(1, physics_snapshot_dtype(len(scene.bats)))
@@ -486,16 +529,19 @@ def gateway_worker(control, arena, scene, options: dict) -> None:
         poll_ms = max(1, int(500 / config.snapshot_hz))
         while True:
             gateway.poll(poll_ms)
-            snapshots.snapshot(record)
-            rec = record[0]
-            gateway.service(rec, (int(applied[0]), int(applied[1])), points)
+            rec, ack = _consistent_snapshot(snapshots, acks, record)
+            if ack is None:
+                gateway.counts["snapshots_without_ack"] += 1  # the gateway fell a ring behind: skip one
+                gateway.service(None)
+                continue
+            gateway.service(rec, ack, points)
             if start_event is not None and not start_event.is_set() and gateway.seats_filled:
                 start_event.set()
             control.beat(gateway.tick)
             if crash_at_tick is not None and gateway.tick >= crash_at_tick:
                 os.kill(os.getpid(), signal.SIGKILL)  # fault injection (tests)
             if int(rec["rally"]["winner"]) >= 0 or gateway.tick >= n_ticks:
-                gateway.broadcast_snapshot(rec, (int(applied[0]), int(applied[1])))  # the final state
+                gateway.broadcast_snapshot(rec, ack)  # the final state
                 reason = GoodbyeReason.MATCH_OVER
                 break
     except StopRequested:
@@ -507,7 +553,7 @@ def gateway_worker(control, arena, scene, options: dict) -> None:
         stats["goodbyes_at_end"] = told
         gateway.close()
         zctx.term()
-        del record, applied, points, snapshots, box
+        del record, acks, points, snapshots, box
         locks.close()
         if reason == GoodbyeReason.MATCH_OVER:
             control.send("done", {"tick": gateway.tick, "gateway": stats})

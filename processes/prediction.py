@@ -1,0 +1,336 @@
+"""Client-side prediction (a player) and interpolation (a spectator) of the server's snapshots.
+
+A player's client runs the engine itself (engine.world.step, the kernel the server runs) from
+the last authoritative snapshot, applying its own inputs at the ticks it stamped them with,
+so the ball and its own bat move on its screen (and under its controller) at once instead of a
+round trip later. On each snapshot of tick T acknowledging input seq s it reconciles: rewind to
+the snapshot's state at T, keep only its inputs after s, and replay them up to the tick it was
+predicting. Before rewinding it compares what it had predicted for tick T with the snapshot:
+those position errors of the ball and of its own bat are the prediction error statistics.
+
+What the client cannot know, it predicts as follows, and the statistics measure the cost:
+- the opponent's bat coasts (its force is not on the wire): the ball meets it where it drifts;
+- an input holds from the tick it was stamped with (the server applies it on arrival, about a
+  one-way trip later), and an input not yet acknowledged at T holds from T at the earliest;
+- the ball at a snapshot is in flight (the wire has no support flag: a resting ball settles
+  again within a tick);
+- a new rally's toss moves the ball where no physics takes it: a snapshot whose rally differs
+  from the previous snapshot's is not scored (counted as `tosses`).
+
+A spectator renders `delay_s` (100 ms) behind the server's estimated present, between the two
+snapshots around that moment: positions by cubic Hermite interpolation on the snapshots' own
+positions and velocities (exact for motion of constant acceleration, such as a ball's flight
+without drag), orientations by spherical linear interpolation.
+"""
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+
+from processes.wire import Slot
+
+MAX_AHEAD_TICKS = 500  # a prediction runs at most this far past the last snapshot (0.5 s at 1 kHz)
+CLOCK_WINDOW = 64  # snapshots over which the least-delayed one sets the server's clock
+
+
+class ErrorStats:
+    """Samples of a distance in metres; summary in millimetres."""
+
+    def __init__(self):
+        self.samples: list[float] = []
+
+    def add(self, metres: float) -> None:
+        self.samples.append(float(metres))
+
+    def summary(self) -> dict:
+        """n, mean_mm, p50_mm, p99_mm, max_mm (None without samples)."""
+        if not self.samples:
+            return {"n": 0, "mean_mm": None, "p50_mm": None, "p99_mm": None, "max_mm": None}
+        mm = np.asarray(self.samples) * 1000.0
+        return {"n": len(mm), "mean_mm": float(mm.mean()), "p50_mm": float(np.percentile(mm, 50)),
+                "p99_mm": float(np.percentile(mm, 99)), "max_mm": float(mm.max())}
+
+
+class ServerClock:
+    """The server's tick now, estimated from the snapshots' ticks and arrival times.
+
+    Each snapshot of tick T arriving at wall time w says the server was at T at w minus its
+    one-way delay; the least-delayed of the last CLOCK_WINDOW snapshots sets the offset (late
+    ones would make the clock lag). Until the first snapshot there is no estimate (None).
+    """
+
+    def __init__(self, dt: float):
+        self.dt = dt
+        self._offsets: deque[float] = deque(maxlen=CLOCK_WINDOW)  # s: T * dt - arrival
+
+    def observe(self, tick: int, arrival: float) -> None:
+        self._offsets.append(tick * self.dt - arrival)
+
+    def tick_at(self, wall: float) -> float | None:
+        """Fractional server tick at wall time `wall` (s, the clock the arrivals were given in)."""
+        if not self._offsets:
+            return None
+        return (wall + max(self._offsets)) / self.dt
+
+
+class Predictor:
+    """The player's prediction of the ball and its own bat, reconciled on every snapshot.
+
+    Args:
+        scene: the served scene (engine.scene.Scene): the same physics as the server.
+        slot: our seat (Slot.A or Slot.B); its bat is the one our inputs drive.
+        history: ticks of predictions kept to compare with the snapshots that arrive later.
+    """
+
+    def __init__(self, scene, slot: Slot, history: int = 2048):
+        from engine.world import build_model, initial_state, new_events
+
+        if slot not in (Slot.A, Slot.B):
+            raise ValueError(f"a predictor drives a player's bat: slot must be A or B, got {slot!r}")
+        self.model = build_model(scene)
+        self.state = initial_state(scene)
+        self.events = new_events()
+        self.player = int(slot) - 1
+        self.dt = self.model.dt
+        self.tick: int | None = None  # the tick the predicted state is at; None before a snapshot
+        self._sent: list[tuple[int, int, np.ndarray]] = []  # (seq, tick, inputs) not yet acknowledged
+        self._held = np.zeros(6)  # our input in effect at the base snapshot (the acknowledged one)
+        self._next_input = 0  # index into _sent of the next input to take effect while predicting
+        self._base_tick = -1
+        self._base_rally: int | None = None
+        self._hist_tick = np.full(history, -1, np.int64)
+        self._hist = np.zeros((history, 6))  # ball pos, own bat pos after each predicted tick
+        self.ball_error = ErrorStats()
+        self.bat_error = ErrorStats()
+        self.counts = {"snapshots": 0, "scored": 0, "tosses": 0, "late": 0, "replayed_ticks": 0,
+                       "predicted_ticks": 0, "engine_errors": 0}
+        self.step(0.0)  # load (or compile) the kernels now, not at the first snapshot
+
+    def step(self, dt: float | None = None) -> None:
+        """One engine tick of the predicted state (dt=0: no change, loads the kernels)."""
+        from engine.world import step
+
+        step(self.model, self.state, None, self.events, dt=dt)
+
+    # --- inputs -----------------------------------------------------------------------------
+    def record_input(self, seq: int, tick: int, inputs) -> None:
+        """An input we sent: seq of its header, the tick it holds from, (6,) force N, torque N m."""
+        self._sent.append((int(seq), int(tick), np.array(inputs, dtype=np.float64)))
+
+    @property
+    def pending(self) -> int:
+        """Inputs sent and not acknowledged by the last snapshot."""
+        return len(self._sent)
+
+    # --- reconciliation -------------------------------------------------------------------------
+    def reconcile(self, snapshot) -> tuple[float, float] | None:
+        """Take the server's snapshot: score the prediction for its tick, rewind, replay.
+
+        Returns:
+            (ball error m, own bat error m) at the snapshot's tick, or None when not scored (the
+            first snapshot, a snapshot older than the base, or a new rally's toss).
+        """
+        tick = snapshot.tick
+        self.counts["snapshots"] += 1
+        if tick <= self._base_tick:
+            self.counts["late"] += 1  # reordered or repeated: the base is newer already
+            return None
+        errors = None
+        target = self.tick
+        if self.tick is not None:
+            if self.tick < tick:
+                self.advance_to(tick)  # what we would have shown at T, with what we knew before it
+            if snapshot["rally"] != self._base_rally:
+                self.counts["tosses"] += 1
+            elif self._hist_tick[tick % len(self._hist_tick)] == tick:
+                row = self._hist[tick % len(self._hist_tick)]
+                errors = (float(np.linalg.norm(row[0:3] - snapshot["ball_pos"])),
+                          float(np.linalg.norm(row[3:6] - snapshot["bat_pos"][self.player])))
+                self.ball_error.add(errors[0])
+                self.bat_error.add(errors[1])
+                self.counts["scored"] += 1
+        ack = int(snapshot["input_seq"][self.player])
+        keep = []
+        for seq, at, inputs in self._sent:
+            if seq <= ack:
+                self._held = inputs  # the last acknowledged input is the one in effect at T
+            else:
+                keep.append((seq, at, inputs))
+        self._sent = keep
+        self._load(snapshot)
+        self._base_tick, self._base_rally = tick, snapshot["rally"]
+        self.tick = tick
+        self._next_input = 0
+        self._record(tick)
+        if target is not None and target > tick:
+            before = self.counts["predicted_ticks"]
+            self.advance_to(target)
+            self.counts["replayed_ticks"] += self.counts["predicted_ticks"] - before
+        return errors
+
+    def _load(self, snapshot) -> None:
+        """The predicted state := the snapshot (our bat's input: the acknowledged one)."""
+        state = self.state
+        ball = state.ball[0]
+        ball["pos"], ball["vel"], ball["spin"] = snapshot["ball_pos"], snapshot["ball_vel"], snapshot["ball_spin"]
+        bats = state.bats
+        bats["pos"], bats["quat"] = snapshot["bat_pos"], snapshot["bat_quat"]
+        bats["vel"], bats["ang_vel"] = snapshot["bat_vel"], snapshot["bat_ang_vel"]
+        bats["force"], bats["torque"] = 0.0, 0.0  # the opponent's arm: unknown, it coasts
+        bats[self.player]["force"], bats[self.player]["torque"] = self._held[0:3], self._held[3:6]
+        world = state.world[0]
+        world["tick"], world["time"] = snapshot.tick, snapshot.tick * self.dt
+        world["ball_support"] = 0
+
+    # --- prediction -------------------------------------------------------------------------
+    def advance_to(self, tick: int) -> int:
+        """Predict up to `tick` (at most MAX_AHEAD_TICKS past the base); returns ticks stepped."""
+        from engine.world import SimulationError
+
+        if self.tick is None:
+            return 0
+        tick = min(int(tick), self._base_tick + MAX_AHEAD_TICKS)
+        bat = self.state.bats[self.player]
+        done = 0
+        while self.tick < tick:
+            while self._next_input < len(self._sent) and max(self._sent[self._next_input][1], self._base_tick) <= self.tick:
+                inputs = self._sent[self._next_input][2]
+                bat["force"], bat["torque"] = inputs[0:3], inputs[3:6]
+                self._next_input += 1
+            try:
+                self.step()
+            except SimulationError:
+                self.counts["engine_errors"] += 1  # e.g. a coasting bat traps the ball: wait for the server
+                return done
+            self.tick += 1
+            done += 1
+            self._record(self.tick)
+        self.counts["predicted_ticks"] += done
+        return done
+
+    def _record(self, tick: int) -> None:
+        i = tick % len(self._hist_tick)
+        self._hist_tick[i] = tick
+        self._hist[i, 0:3] = self.state.ball[0]["pos"]
+        self._hist[i, 3:6] = self.state.bats[self.player]["pos"]
+
+    @property
+    def ball(self):
+        """The predicted ball: one BALL_DTYPE record (pos, vel, spin)."""
+        return self.state.ball[0]
+
+    @property
+    def bat(self):
+        """Our predicted bat: one BAT_DTYPE record."""
+        return self.state.bats[self.player]
+
+    def stats(self) -> dict:
+        """Prediction errors at the snapshots' ticks (mm) and the counts above."""
+        return {"ball": self.ball_error.summary(), "bat": self.bat_error.summary(), **self.counts}
+
+
+# --- spectators -----------------------------------------------------------------------------------
+def hermite(t0: float, p0, v0, t1: float, p1, v1, t: float) -> np.ndarray:
+    """Cubic Hermite position at time t between (p0, v0) at t0 and (p1, v1) at t1.
+
+    p0, p1: (..., 3) m; v0, v1: m/s; times in s, t0 < t1. Exact for any cubic in time, so for
+    constant acceleration; t outside [t0, t1] extrapolates the same cubic.
+    """
+    span = t1 - t0
+    s = (t - t0) / span
+    h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
+    h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
+    return (h00 * np.asarray(p0) + h10 * span * np.asarray(v0) + h01 * np.asarray(p1)
+            + h11 * span * np.asarray(v1))
+
+
+def slerp(q0, q1, s: float) -> np.ndarray:
+    """Unit quaternion a fraction s of the way from q0 to q1 along the shorter arc, (w, x, y, z)."""
+    q0, q1 = np.asarray(q0, dtype=float), np.asarray(q1, dtype=float)
+    if float(q0 @ q1) < 0.0:
+        q1 = -q1
+    # the angle between them from atan2 of the chord and its complement: accurate also for the
+    # tiny angles between two snapshots 10 ms apart (acos of a dot product near 1 is not)
+    theta = 2.0 * math.atan2(float(np.linalg.norm(q1 - q0)), float(np.linalg.norm(q1 + q0)))
+    if theta < 1e-12:
+        return q0.copy()
+    return (math.sin((1 - s) * theta) * q0 + math.sin(s * theta) * q1) / math.sin(theta)
+
+
+class Interpolator:
+    """A spectator's view: the state `delay_s` behind the server's estimated present.
+
+    Args:
+        dt: s, the physics tick (ticks to seconds). delay_s: how far behind the view runs; a
+            snapshot lost or late within it costs nothing. capacity: snapshots kept.
+    """
+
+    def __init__(self, dt: float, delay_s: float = 0.1, capacity: int = 64):
+        self.dt = dt
+        self.delay_s = delay_s
+        self.clock = ServerClock(dt)
+        self._snapshots: deque = deque(maxlen=capacity)  # wire snapshot messages, by tick
+        self.counts = {"samples": 0, "between": 0, "held_newest": 0, "held_oldest": 0, "late_dropped": 0,
+                       "toss_steps": 0}
+
+    def push(self, snapshot, arrival: float) -> None:
+        """A snapshot that arrived at wall time `arrival` (s, time.monotonic)."""
+        self.clock.observe(snapshot.tick, arrival)
+        if self._snapshots and snapshot.tick <= self._snapshots[-1].tick:
+            self.counts["late_dropped"] += 1  # older than one we have: nothing to add
+            return
+        self._snapshots.append(snapshot)
+
+    def render_tick(self, wall: float) -> float | None:
+        """The (fractional) tick shown at wall time `wall`."""
+        now = self.clock.tick_at(wall)
+        return None if now is None else now - self.delay_s / self.dt
+
+    def sample(self, wall: float) -> dict | None:
+        """The state shown at `wall`: tick (fractional), ball_pos, ball_vel, bat_pos (2, 3),
+        bat_quat (2, 4), and the newest snapshot at or before it (`snapshot`, for the score)."""
+        render = self.render_tick(wall)
+        if render is None or not self._snapshots:
+            return None
+        return self.at(render)
+
+    def at(self, render_tick: float) -> dict:
+        """The state at a fractional tick: interpolated between the two snapshots around it,
+        held at the oldest or newest snapshot outside their span."""
+        self.counts["samples"] += 1
+        snaps = self._snapshots
+        if render_tick >= snaps[-1].tick:
+            self.counts["held_newest"] += 1
+            return _still(snaps[-1])
+        if render_tick <= snaps[0].tick:
+            self.counts["held_oldest"] += 1
+            return _still(snaps[0])
+        k = len(snaps) - 1
+        while snaps[k - 1].tick > render_tick:
+            k -= 1
+        a, b = snaps[k - 1], snaps[k]
+        if a["rally"] != b["rally"]:  # a toss between them: no motion joins the two, show the older
+            self.counts["toss_steps"] += 1
+            return _still(a)
+        self.counts["between"] += 1
+        t0, t1, t = a.tick * self.dt, b.tick * self.dt, render_tick * self.dt
+        s = (render_tick - a.tick) / (b.tick - a.tick)
+        ball_pos = hermite(t0, a["ball_pos"], a["ball_vel"], t1, b["ball_pos"], b["ball_vel"], t)
+        span = t1 - t0
+        ball_vel = ((6 * s**2 - 6 * s) * (a["ball_pos"] - b["ball_pos"]) / span
+                    + (3 * s**2 - 4 * s + 1) * a["ball_vel"] + (3 * s**2 - 2 * s) * b["ball_vel"])
+        bat_pos = hermite(t0, a["bat_pos"], a["bat_vel"], t1, b["bat_pos"], b["bat_vel"], t)
+        bat_quat = np.array([slerp(a["bat_quat"][i], b["bat_quat"][i], s) for i in range(2)])
+        return {"tick": render_tick, "ball_pos": ball_pos, "ball_vel": ball_vel, "bat_pos": bat_pos,
+                "bat_quat": bat_quat, "snapshot": a}
+
+
+def _still(snapshot) -> dict:
+    return {"tick": float(snapshot.tick), "ball_pos": np.array(snapshot["ball_pos"]),
+            "ball_vel": np.array(snapshot["ball_vel"]), "bat_pos": np.array(snapshot["bat_pos"]),
+            "bat_quat": np.array(snapshot["bat_quat"]), "snapshot": snapshot}
+
+
+__all__ = ["ErrorStats", "ServerClock", "Predictor", "Interpolator", "hermite", "slerp", "MAX_AHEAD_TICKS"]
