@@ -1,0 +1,163 @@
+"""The server under test of `pingpong stress`: a Supervisor serving a match, as `pingpong serve` runs it,
+plus a tick clock that publishes when each physics tick came out.
+
+Run as `python -m processes.stress_server SPEC_JSON` by processes/stress.py. It prints JSON lines:
+  {"listening": endpoint, "run_id", "pids": {kind: pid}, "server_pid"}    once every worker is ready
+  {"pids": {...}, "restarts": {...}, "tick": n}                            for each "pids" line on stdin
+  {"end": "match_over"|"stopped", "summary": {...}, "gateway": {...}, "points": [...], "final": {...}}
+It writes the tick log (SPEC "tick_log", .npz) at exit.
+
+Why a tick clock: the wire's snapshot carries the tick, not a timestamp. In realtime mode the
+physics worker starts tick k at start + k*dt (CLOCK_MONOTONIC, shared by every process of the
+machine), but `start` is known only inside it (it is reset when the remote players arrive and
+when a restarted worker resumes). A thread here reads the physics block's published tick (a word
+of shared memory) every ~0.2 ms and records when it first saw each tick. Per physics incarnation
+(its pid), the lower envelope min(seen - k*dt) is the schedule's start plus the smallest step cost,
+so T(k) = that + k*dt is the earliest time tick k can be out; a tick's lateness is seen(k) - T(k)
+(to within the sampling period, reported), and a client's latency is its receipt time - T(k).
+"""
+from __future__ import annotations
+
+import json
+import resource
+import signal
+import sys
+import threading
+import time
+from array import array
+
+import numpy as np
+
+SAMPLE_PERIOD_S = 0.0002
+
+
+def _print(obj) -> None:
+    sys.stdout.write(json.dumps(obj) + "\n")
+    sys.stdout.flush()
+
+
+class TickClock(threading.Thread):
+    """Records (tick, first time seen, physics pid) from the run's shared memory, and at the end
+    the score state and point log (which the supervisor does not return when it is stopped)."""
+
+    def __init__(self, layout: dict, kinds: list[str]):
+        super().__init__(name="tick-clock", daemon=True)
+        from processes.shm import Arena
+
+        self.arena = Arena.attach(layout)  # our own mapping: the supervisor unlinks, we close
+        self.kinds = kinds
+        self.stop_flag = threading.Event()
+        self.ticks = array("q")
+        self.times = array("d")
+        self.pids = array("q")
+        self.samples = 0
+
+    def pids_now(self) -> dict:
+        status = self.arena["status"].array
+        return {kind: int(status[i]["pid"]) for i, kind in enumerate(self.kinds)}
+
+    def restarts_now(self) -> dict:
+        status = self.arena["status"].array
+        return {kind: int(status[i]["restarts"]) for i, kind in enumerate(self.kinds)}
+
+    def state_now(self) -> dict:
+        """Worker pids and restarts, the physics tick and the score state, as the run has them now."""
+        record = np.zeros(1, self.arena["physics"].dtype)
+        self.arena["physics"].snapshot(record)
+        rally = record[0]["rally"]
+        return {"pids": self.pids_now(), "restarts": self.restarts_now(), "tick": int(record[0]["world"]["tick"]),
+                "score": rally["score"].tolist(), "games_won": rally["games_won"].tolist(),
+                "points_total": int(rally["points_total"])}
+
+    def run(self) -> None:
+        block = self.arena["physics"]
+        status = self.arena["status"].array
+        physics = self.kinds.index("physics")
+        last = -2
+        monotonic, sleep = time.monotonic, time.sleep
+        while not self.stop_flag.is_set():
+            tick = block.tick
+            now = monotonic()
+            self.samples += 1
+            if tick != last:
+                last = tick
+                self.ticks.append(tick)
+                self.times.append(now)
+                self.pids.append(int(status[physics]["pid"]))
+            sleep(SAMPLE_PERIOD_S)
+
+    def finish(self, path: str | None) -> dict:
+        """Stop sampling, save the log, read the final score state and point log, detach."""
+        from engine.dtypes import physics_snapshot_dtype
+
+        self.stop_flag.set()
+        self.join(5.0)
+        if path:
+            np.savez(path, ticks=np.frombuffer(self.ticks, np.int64), times=np.frombuffer(self.times, np.float64),
+                     pids=np.frombuffer(self.pids, np.int64), samples=self.samples)
+        record = np.zeros(1, self.arena["physics"].dtype)
+        self.arena["physics"].snapshot(record)
+        rally = record[0]["rally"]
+        total = int(rally["points_total"])
+        points = self.arena["points"].array[:total] if "points" in self.arena.blocks else []
+        final = {"tick": int(record[0]["world"]["tick"]), "score": rally["score"].tolist(),
+                 "games_won": rally["games_won"].tolist(), "points_total": total, "winner": int(rally["winner"])}
+        rows = [{"tick": int(p["tick"]), "game": int(p["game"]), "winner": int(p["winner"]),
+                 "score_after": p["score_after"].tolist()} for p in points]
+        del record, rally, points
+        self.arena.close()
+        return {"final": final, "points": rows}
+
+
+def main(argv: list[str]) -> int:
+    spec = json.loads(argv[0])
+    # one TCP connection is one descriptor in the gateway: lift the soft limit to the hard one
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if soft < hard:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (hard, hard))
+    from dataclasses import replace
+
+    from engine.scene import load_scene, with_remote_players
+    from processes.gateway import GatewayConfig
+    from processes.supervisor import Supervisor
+
+    scene = with_remote_players(load_scene(spec.get("scene", "match")), spec["players"])
+    if spec.get("best_of"):
+        scene = replace(scene, match=replace(scene.match, best_of=spec["best_of"]))
+    config = GatewayConfig(bind="tcp://127.0.0.1:0", snapshot_hz=spec["snapshot_hz"], heartbeat_s=spec["heartbeat_s"],
+                           timeout_s=spec["timeout_s"], grace_s=spec["grace_s"], max_spectators=spec["max_spectators"],
+                           sndhwm=spec.get("sndhwm", GatewayConfig.sndhwm))
+    supervisor = Supervisor(scene, spec["ticks"], "realtime", seed=spec.get("seed", 0), gateway=config,
+                            players_timeout=spec.get("players_timeout", 300.0))
+    clock: list[TickClock] = []
+
+    def commands() -> None:  # "pids" on stdin: the current worker pids (a restarted worker has a new one)
+        for line in sys.stdin:
+            if line.strip() == "pids" and clock:
+                _print(clock[0].state_now())
+
+    def ready(reports: dict) -> None:
+        clock.append(TickClock(supervisor.arena.layout(), list(supervisor.kinds)))
+        clock[0].start()
+        _print({"listening": reports["gateway"]["endpoint"], "run_id": supervisor.arena.run_id,
+                "pids": clock[0].pids_now(), "dt": scene.dt, "rlimit_nofile": resource.getrlimit(resource.RLIMIT_NOFILE)})
+        threading.Thread(target=commands, name="commands", daemon=True).start()
+
+    end, summary, gateway = "stopped", {}, {}
+    try:
+        result = supervisor.run(on_ready=ready)
+        end = "match_over"
+        workers = result.workers
+        gateway = workers.get("gateway", {}).get("gateway", {})
+        summary = {"ticks": result.ticks, "wall_seconds": result.wall_seconds,
+                   "workers": {k: {n: v for n, v in w.items() if n != "gateway"} for k, w in workers.items()}}
+    except (SystemExit, KeyboardInterrupt):
+        end = "stopped"
+    tail = clock[0].finish(spec.get("tick_log")) if clock else {"final": {}, "points": []}
+    _print({"end": end, "summary": summary, "gateway": gateway, **tail})
+    return 0
+
+
+if __name__ == "__main__":
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    sys.exit(main(sys.argv[1:]))
