@@ -9,7 +9,8 @@ from typing import Any
 
 from engine import equipment
 from engine.integrators import METHODS
-from net_kernel.topology import SOLVERS, NetSpec, validate_spec
+from net_kernel.sim import SAFETY
+from net_kernel.topology import SEMI_IMPLICIT, SOLVERS, NetSpec, build_topology, validate_spec
 
 SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
 
@@ -23,6 +24,9 @@ CLOTH_FLOATS = ("knot_mass", "spring_k", "spring_c", "mesh_tension", "cord_k", "
 CLOTH_INTS = ("cols", "rows")
 BAT_NAMES = ("a", "b")
 MATERIAL_BODIES = ("table", "floor", "net", "bat")
+# Explicit net substeps per tick beyond which a scene is refused: each is a full pass over the
+# net (~90 us for the default 184 x 16 net, which needs 25), so 1000 already makes a tick ~0.1 s.
+MAX_NET_SUBSTEPS = 1000
 
 
 class SceneError(ValueError):
@@ -205,6 +209,19 @@ def _read_cloth(r: _Reader, data: dict) -> NetSpec:
     return spec
 
 
+def _check_net_substeps(r: _Reader, cloth: NetSpec, dt: float) -> None:
+    """Refuse a cloth net whose explicit solver would need more than MAX_NET_SUBSTEPS substeps a tick."""
+    h_max = build_topology(cloth).h_max
+    if cloth.solver != SEMI_IMPLICIT or h_max == math.inf:
+        return
+    substeps = dt / (SAFETY * h_max)
+    if not substeps <= MAX_NET_SUBSTEPS:  # NaN too
+        raise r.fail("net", f"the explicit net solver would need {substeps:.3g} substeps a tick (tick "
+                            f"{dt:g} s, stability bound h_max = {h_max:.3g} s), more than {MAX_NET_SUBSTEPS}; use "
+                            'solver = "implicit", softer springs (spring_k, cord_k), heavier knots (knot_mass) or a '
+                            "shorter dt")
+
+
 def _read_bat(r: _Reader, name: str, data: Any) -> BatSpec:
     path = f"bats.{name}"
     keys = ("pos", "normal", "quat", "vel", "ang_vel", "force", "torque", "mass", "radius", "half_thickness", "skill",
@@ -336,6 +353,8 @@ def parse_scene(data: dict, source: str) -> Scene:
         )
 
     dt = r.number(data, "dt", "dt", 0.001, low=0.0, high=0.05, low_open=True)
+    if cloth is not None:
+        _check_net_substeps(r, cloth, dt)
     scene = Scene(
         name=r.string(data, "name", "name", Path(source).stem),
         source=source,

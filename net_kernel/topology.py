@@ -136,6 +136,8 @@ def validate_spec(spec: NetSpec) -> None:
         value = getattr(spec, name)
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
             raise _fail(name, value, "a finite number >= 0")
+    if not math.isfinite(1.0 / spec.knot_mass):  # the kernels divide by nothing else
+        raise _fail("knot_mass", spec.knot_mass, "a mass whose inverse 1/knot_mass is finite (not subnormal)")
     for name in ("cols", "rows"):
         value = getattr(spec, name)
         if isinstance(value, bool) or not isinstance(value, int) or not _MIN_KNOTS <= value <= _MAX_KNOTS:
