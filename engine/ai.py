@@ -33,43 +33,116 @@ HALF_LENGTH = equipment.TABLE_LENGTH / 2
 HALF_WIDTH = equipment.TABLE_WIDTH / 2
 
 
+# What a prediction looks for besides the path itself (predict_flight's stop_rule).
+STOP_EVENTS = 0  # nothing: run to n_max ticks, max_events events or the ball at rest
+STOP_SERVE_STRIKE = 1  # the tick to strike a tossed ball for a service
+STOP_RETURN_STRIKE = 2  # the tick to strike a ball after its bounce on this player's court
+NO_STRIKE = -1  # the ball is not this player's to strike
+_UNDECIDED = -2
+# The strike rules (BatAI._hit_index states them in numpy, as the reference).
+_SERVE_LOW, _SERVE_HIGH = 0.08, 0.28  # m: a tossed ball is struck on the way down between these heights
+_FALLING_Z = 0.05  # m: a ball below this height, falling, is back at table height
+_DEEP_X = HALF_LENGTH + 0.5  # m: a ball this far from the net is struck wherever it is
+_FAR_X = HALF_LENGTH - 0.6  # m: a ball nearer the net than this is waited for
+_TABLE, _FLOOR = int(Body.TABLE), int(Body.FLOOR)
+_W_BOUNCE, _W_FLOOR, _W_CANDIDATE, _W_LATER = 0, 1, 2, 3  # predict_flight's bookkeeping of a return
+
+
 @njit(cache=True)
-def predict_flight(y0, h, n_max, max_events, method, gravity, drag_k, magnus_k, rtol, atol,
+def _strike_row(traj, k, stop_rule, watch):
+    """Whether row k of a prediction (one with a successor) decides the strike.
+
+    Returns the strike tick, NO_STRIKE, or _UNDECIDED; `watch` keeps the return's bookkeeping.
+    """
+    z, vz = traj[k, 2], traj[k, 5]
+    if stop_rule == STOP_SERVE_STRIKE:
+        if vz < 0.0 and _SERVE_LOW < z < _SERVE_HIGH:
+            return k
+        return _UNDECIDED
+    if watch[_W_BOUNCE] < 0 or k < watch[_W_BOUNCE] + 2:
+        return _UNDECIDED
+    ax = abs(traj[k, 0])
+    if watch[_W_LATER] < 0 and ax >= _FAR_X and z > _FALLING_Z:
+        watch[_W_LATER] = k
+    if watch[_W_CANDIDATE] < 0 and (vz <= 0.0 or ax > _DEEP_X or (z < _FALLING_Z and vz < 0.0)):
+        watch[_W_CANDIDATE] = k
+    c = watch[_W_CANDIDATE]
+    if c >= 0:
+        if abs(traj[c, 0]) >= _FAR_X:
+            return c
+        if watch[_W_LATER] >= 0:
+            return watch[_W_LATER]
+    return _UNDECIDED
+
+
+@njit(cache=True)
+def _strike_end(traj, n, stop_rule, watch):
+    """The strike once the prediction has ended at row n (the last row, without a successor)."""
+    if stop_rule == STOP_SERVE_STRIKE or watch[_W_BOUNCE] < 0 or watch[_W_CANDIDATE] < 0:
+        return NO_STRIKE
+    if watch[_W_LATER] < 0 and n >= watch[_W_BOUNCE] + 2 and abs(traj[n, 0]) >= _FAR_X and traj[n, 2] > _FALLING_Z:
+        watch[_W_LATER] = n
+    return watch[_W_LATER] if watch[_W_LATER] >= 0 else watch[_W_CANDIDATE]
+
+
+@njit(cache=True)
+def predict_flight(y0, h, n_max, max_events, stop_rule, end_sign, method, gravity, drag_k, magnus_k, rtol, atol,
                    table, floor_z, net, posts, params, materials, work, scratch, adapt, tick_events,
                    traj, events, event_ticks):
     """The ball's path without bats, tick by tick, exactly as the physics would step it.
 
+    With a strike rule it also finds the tick at which the player of end_sign strikes the ball,
+    and stops as soon as that is decided: the answer is the one BatAI._hit_index gives on the
+    whole path (up to n_max ticks, max_events events or the ball at rest), without stepping
+    the rest of it.
+
     Args:
         y0: (9,) start state. h: tick, s. n_max: ticks at most. max_events: stop after this many.
+        stop_rule: STOP_EVENTS, STOP_SERVE_STRIKE or STOP_RETURN_STRIKE.
+        end_sign: -1 if the striking player's court is at x < 0 (strike rules only).
         method ... materials: as engine.collision.ball_tick.
         work, scratch, adapt, tick_events: scratch for ball_tick.
         traj: (n_max + 1, 9) written: traj[k] is the state after k ticks.
         events: (max_events, EVENT_ROW) written. event_ticks: (max_events,) tick of each event.
 
     Returns:
-        (ticks simulated, events recorded, error code of ball_tick or 0).
+        (ticks simulated, events recorded, error code of ball_tick or 0, strike tick or
+        NO_STRIKE; always NO_STRIKE for STOP_EVENTS).
     """
     for i in range(9):
         traj[0, i] = y0[i]
+    watch = np.full(4, -1, np.int64)
     support = 0
     n_events = 0
     for k in range(n_max):
+        if stop_rule != STOP_EVENTS:
+            strike = _strike_row(traj, k, stop_rule, watch)
+            if strike != _UNDECIDED:
+                return k, n_events, 0, strike
         for i in range(9):
             traj[k + 1, i] = traj[k, i]
         n, support = ball_tick(traj[k + 1], h, support, method, gravity, drag_k, magnus_k, rtol, atol,
                                table, floor_z, net, posts, None, params, materials, work, scratch, adapt,
                                tick_events)
         if n < 0:
-            return k + 1, n_events, n
+            return k + 1, n_events, n, _strike_end(traj, k + 1, stop_rule, watch)
         for e in range(n):
             if n_events < max_events:
                 for i in range(EVENT_ROW):
                     events[n_events, i] = tick_events[e, i]
                 event_ticks[n_events] = k
                 n_events += 1
+                if stop_rule == STOP_RETURN_STRIKE and watch[_W_BOUNCE] < 0:
+                    body, x = int(tick_events[e, E_BODY]), tick_events[e, E_POS]
+                    if body == _TABLE and ((x > 0.0 and end_sign > 0) or (x < 0.0 and end_sign < 0)):
+                        watch[_W_BOUNCE] = k
+                    elif body == _FLOOR and watch[_W_FLOOR] < 0:
+                        watch[_W_FLOOR] = k
+        if stop_rule == STOP_RETURN_STRIKE and watch[_W_FLOOR] >= 0 and watch[_W_BOUNCE] < 0:
+            return k + 1, n_events, 0, NO_STRIKE  # on the floor before any bounce on this court
         if n_events >= max_events or support != 0:
-            return k + 1, n_events, 0
-    return n_max, n_events, 0
+            return k + 1, n_events, 0, _strike_end(traj, k + 1, stop_rule, watch)
+    return n_max, n_events, 0, _strike_end(traj, n_max, stop_rule, watch)
 
 
 @njit(cache=True)
@@ -150,20 +223,35 @@ SEG_T0, SEG_T1, SEG_P0, SEG_V0, SEG_P1, SEG_V1 = 0, 1, 2, 5, 8, 11
 SEG_WIDTH = 14
 
 
+# The bat's fields in a BAT_DTYPE record seen as float64 (offsets in numbers), and the arm's
+# parameters of bat_control in one array (BatAI._params).
+BAT_POS, BAT_QUAT, BAT_VEL, BAT_ANG_VEL = (BAT_DTYPE.fields[name][1] // 8 for name in ("pos", "quat", "vel", "ang_vel"))
+BAT_FLOATS = BAT_DTYPE.itemsize // 8
+(ARM_MASS, ARM_INERTIA, ARM_KP, ARM_KD, ARM_K_ANGLE, ARM_D_ANGLE, ARM_MAX_FORCE, ARM_MAX_TORQUE,
+ ARM_MAX_SPEED) = range(9)
+ARM_SIZE = 9
+
+
 @njit(cache=True)
-def bat_control(now, segments, n_segments, hold_pos, normal_ref, pos, vel, quat, ang_vel, mass, inertia,
-                kp, kd, k_angle, d_angle, max_force, max_torque, max_speed, out):
+def bat_control(now, segments, n_segments, hold_pos, normal_ref, bat, arm, out):
     """Force and torque on a bat tracking a planned path, by PD control with feed-forward.
 
     Args:
         now: s. segments: (n, SEG_WIDTH) cubic Hermite pieces (t0, t1, p0, v0, p1, v1), in time
             order; with none left (n_segments = 0 or now past the last) the bat holds hold_pos.
-        normal_ref: (3,) unit face normal to turn to. pos, vel, quat, ang_vel: the bat's state.
-        mass: kg. inertia: kg m^2 about a diameter (the face turns about one).
-        kp, kd: (rad/s)^2 and rad/s gains of the position loop; k_angle, d_angle: of the face.
-        max_force: N, max_torque: N m, max_speed: m/s: the arm's limits.
+        normal_ref: (3,) unit face normal to turn to.
+        bat: (BAT_FLOATS,) the bat's BAT_DTYPE record as float64: pos m, quat, vel m/s, ang_vel rad/s
+            at BAT_POS, BAT_QUAT, BAT_VEL, BAT_ANG_VEL.
+        arm: (ARM_SIZE,) at ARM_*: mass kg; inertia kg m^2 about a diameter (the face turns about
+            one); kp, kd: (rad/s)^2 and rad/s gains of the position loop; k_angle, d_angle: of the
+            face; the arm's limits max_force N, max_torque N m, max_speed m/s.
         out: (6,) written: force N, torque N m.
     """
+    pos, vel = bat[BAT_POS:BAT_POS + 3], bat[BAT_VEL:BAT_VEL + 3]
+    quat, ang_vel = bat[BAT_QUAT:BAT_QUAT + 4], bat[BAT_ANG_VEL:BAT_ANG_VEL + 3]
+    mass, inertia, kp, kd = arm[ARM_MASS], arm[ARM_INERTIA], arm[ARM_KP], arm[ARM_KD]
+    k_angle, d_angle = arm[ARM_K_ANGLE], arm[ARM_D_ANGLE]
+    max_force, max_torque, max_speed = arm[ARM_MAX_FORCE], arm[ARM_MAX_TORQUE], arm[ARM_MAX_SPEED]
     p_ref = np.empty(3)
     v_ref = np.zeros(3)
     a_ref = np.zeros(3)
@@ -318,7 +406,12 @@ class BatAI:
         self.plan: Plan | None = None
         self._no_segments = np.zeros((0, SEG_WIDTH))
         self._segments = self._no_segments
+        self._plan_end = -math.inf  # s, end of the plan's last segment
         self._ready = {sign: self._make_ready(sign) for sign in (-1, 1)}
+        self._arm = np.zeros(ARM_SIZE)
+        self._arm[[ARM_MASS, ARM_INERTIA, ARM_KP, ARM_KD, ARM_K_ANGLE, ARM_D_ANGLE]] = (
+            self.mass, self.inertia[0], self.KP, self.KD, self.K_ANGLE, self.D_ANGLE)
+        self._arm[[ARM_MAX_FORCE, ARM_MAX_TORQUE, ARM_MAX_SPEED]] = skill.max_force_n, skill.max_torque_nm, skill.max_speed
         self.turn_key = None
         self.turn_seen_at = 0.0
         self.planned_key = None
@@ -330,9 +423,8 @@ class BatAI:
         self.solve_shot(np.array([1.6, 0.0, 0.2]), np.zeros(3), (-0.8, 0.0), 8.0, 1)
         bat = np.zeros(1, BAT_DTYPE)
         bat["quat"][0] = (1.0, 0.0, 0.0, 0.0)
-        bat_control(0.0, self._no_segments, 0, np.zeros(3), np.array([1.0, 0.0, 0.0]), bat["pos"][0], bat["vel"][0],
-                    bat["quat"][0], bat["ang_vel"][0], self.mass, float(self.inertia[0]), self.KP, self.KD,
-                    self.K_ANGLE, self.D_ANGLE, 1.0, 1.0, 1.0, np.zeros(6))
+        ready_pos, ready_normal = self._ready[1]
+        bat_control(0.0, self._no_segments, 0, ready_pos, ready_normal, self._bat_floats(bat[0]), self._arm, np.zeros(6))
 
     # --- prediction ---------------------------------------------------------------------
     def predict(self, y0: np.ndarray, seconds: float, max_events: int = 8, dt: float | None = None):
@@ -340,18 +432,24 @@ class BatAI:
         m = self.model
         h = m.dt if dt is None else dt
         n_max = min(int(round(seconds / h)), self._traj.shape[0] - 1)
-        self._adapt[:] = 0.0
-        n, n_ev, err = predict_flight(
-            np.ascontiguousarray(y0, dtype=np.float64), h, n_max, max_events, m.method, m.gravity,
-            m.drag_k, m.magnus_k, m.scene.rtol, m.scene.atol, m.table, m.floor_z, m.net, m.posts, m.ball_params,
-            m.materials, self._work, self._scratch, self._adapt, self._tick_events, self._traj, self._events,
-            self._event_ticks)
-        if err == ERR_SUBSTEPS:
-            raise RuntimeError("prediction failed: the integrator's substep limit was hit")
+        n, n_ev, _ = self._predict(y0, h, n_max, max_events, STOP_EVENTS, 0)
         times = np.arange(n + 1) * h
         events = [(int(self._event_ticks[i]), int(self._events[i, E_BODY]), self._events[i, E_POS:E_POS + 3].copy(),
                    float(self._events[i, E_TIME])) for i in range(n_ev)]
         return times, self._traj[: n + 1], events
+
+    def _predict(self, y0, h: float, n_max: int, max_events: int, stop_rule: int, end_sign: int):
+        """predict_flight into self._traj, self._events: (ticks, events, strike tick or NO_STRIKE)."""
+        m = self.model
+        self._adapt[:] = 0.0
+        n, n_ev, err, strike = predict_flight(
+            np.ascontiguousarray(y0, dtype=np.float64), h, n_max, max_events, stop_rule, end_sign, m.method,
+            m.gravity, m.drag_k, m.magnus_k, m.scene.rtol, m.scene.atol, m.table, m.floor_z, m.net, m.posts,
+            m.ball_params, m.materials, self._work, self._scratch, self._adapt, self._tick_events, self._traj,
+            self._events, self._event_ticks)
+        if err == ERR_SUBSTEPS:
+            raise RuntimeError("prediction failed: the integrator's substep limit was hit")
+        return n, n_ev, strike
 
     def _net_clearance(self, traj: np.ndarray, end_sign: int) -> float:
         """Height of the ball's bottom above the net's top where it crosses x = 0 (m, -inf if it never does)."""
@@ -380,10 +478,10 @@ class BatAI:
                    self._work, self._adapt, self._shoot_scratch, v)
         return v if ok else None
 
-    def _path(self, p, v, spin):
-        """The real path of a struck ball (with the table, net and floor), up to two contacts."""
+    def _path(self, p, v, spin, max_events: int = 2):
+        """The real path of a struck ball (with the table, net and floor), up to max_events contacts."""
         y0 = np.concatenate([p, v, spin])
-        _, traj, events = self.predict(y0, 2.0, max_events=2)
+        _, traj, events = self.predict(y0, 2.0, max_events=max_events)
         return traj.copy(), events
 
     def solve_stroke(self, v_in: np.ndarray, spin_in: np.ndarray, v_out: np.ndarray):
@@ -417,12 +515,14 @@ class BatAI:
                     end_sign: int, serve: bool) -> Plan | None:
         """Plan the next stroke from the ball's state now; None means let the ball go."""
         self.stats["plans"] += 1
-        times, traj, events = self.predict(ball_y, 2.0, max_events=3)
-        hit = self._hit_index(times, traj, events, end_sign, serve)
-        if hit is None:
+        h = self.model.dt
+        _, _, hit = self._predict(ball_y, h, int(round(2.0 / h)), 3, STOP_SERVE_STRIKE if serve else STOP_RETURN_STRIKE,
+                                  end_sign)
+        if hit == NO_STRIKE:
             self.stats["let_go"] += 1
             return None
-        t_hit = now + times[hit]
+        t_hit = now + hit * h
+        traj = self._traj
         p, v_in, spin_in = traj[hit, 0:3].copy(), traj[hit, 3:6].copy(), traj[hit, 6:9].copy()
         if serve:
             target = (end_sign * self.rng.uniform(0.6, 1.0), self.rng.uniform(-0.4, 0.4))
@@ -474,7 +574,8 @@ class BatAI:
 
     def _lands_well(self, p, v_out, spin_out, end_sign, serve) -> bool:
         """The real path clears the net and bounces where it must (own court first for a service)."""
-        traj, events = self._path(p, v_out, spin_out)
+        # A return is judged on its first contact, a service on its first two: predict no further.
+        traj, events = self._path(p, v_out, spin_out, max_events=2 if serve else 1)
         if not events or events[0][1] != Body.TABLE:
             return False
         margin = 0.05
@@ -489,7 +590,11 @@ class BatAI:
                 and self._net_clearance(traj, end_sign) > 0.01)
 
     def _hit_index(self, times, traj, events, end_sign, serve) -> int | None:
-        """Tick of the prediction at which to strike, None if the ball is not ours to play."""
+        """Tick of the prediction at which to strike, None if the ball is not ours to play.
+
+        The strike rules in numpy, on a whole predicted path: the reference that predict_flight's
+        strike rules (which stop the prediction as soon as the answer is known) are tested against.
+        """
         z, x = traj[:, 2], traj[:, 0]
         if serve:
             # The tossed ball: strike it on the way down, 10-30 cm above the surface.
@@ -545,17 +650,30 @@ class BatAI:
         if rally_key != self.turn_key:
             self.turn_key = rally_key
             self.turn_seen_at = now
+        floats = self._bat_floats(bat)
         if my_turn and self.planned_key != rally_key and now >= self.turn_seen_at + (0.0 if serve else self.skill.reaction_s):
             self.planned_key = rally_key
-            self.plan = self.plan_stroke(now, ball_y, np.array(bat["pos"]), np.array(bat["vel"]), end_sign, serve)
+            self.plan = self.plan_stroke(now, ball_y, floats[BAT_POS:BAT_POS + 3].copy(),
+                                         floats[BAT_VEL:BAT_VEL + 3].copy(), end_sign, serve)
             self._segments = self.plan.as_array() if self.plan is not None else self._no_segments
-        if self.plan is not None and now > self.plan.segments[-1].t1:
+            self._plan_end = self.plan.segments[-1].t1 if self.plan is not None else -math.inf
+        if self.plan is not None and now > self._plan_end:
             self.plan = None
             self._segments = self._no_segments
-        ready_pos, ready_normal = self.ready_pose(end_sign)
-        normal = self.plan.normal if self.plan is not None else ready_normal
-        out = np.zeros(6) if out is None else out
-        bat_control(now, self._segments, len(self._segments), ready_pos, normal, bat["pos"], bat["vel"], bat["quat"],
-                    bat["ang_vel"], self.mass, float(self.inertia[0]), self.KP, self.KD, self.K_ANGLE, self.D_ANGLE,
-                    self.skill.max_force_n, self.skill.max_torque_nm, self.skill.max_speed, out)
+        ready_pos, ready_normal = self._ready[end_sign]
+        if out is None:
+            out = np.zeros(6)
+        bat_control(now, self._segments, self._segments.shape[0], ready_pos,
+                    ready_normal if self.plan is None else self.plan.normal, floats, self._arm, out)
         return out
+
+    @staticmethod
+    def _bat_floats(bat) -> np.ndarray:
+        """A BAT_DTYPE record (numpy.void or 0-d array) as a read-only (BAT_FLOATS,) float64 view, no copy."""
+        if bat.dtype != BAT_DTYPE or bat.shape != ():
+            raise TypeError(f"BatAI.control: bat must be one engine.dtypes.BAT_DTYPE record (e.g. bats[player]), "
+                            f"got dtype {bat.dtype} and shape {bat.shape}")
+        floats = np.frombuffer(bat, np.float64)
+        if floats.flags.writeable:  # a 0-d array's buffer: read-only like a record's, one numba specialisation
+            floats.flags.writeable = False
+        return floats

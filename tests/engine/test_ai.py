@@ -2,8 +2,9 @@
 import numpy as np
 import pytest
 
-from engine.ai import SKILLS, BatAI
+from engine.ai import NO_STRIKE, SKILLS, STOP_RETURN_STRIKE, STOP_SERVE_STRIKE, BatAI
 from engine.contact import impact
+from engine.dtypes import BAT_DTYPE
 from engine.geometry import Body
 from engine.match import Match
 from engine.scene import load_scene
@@ -51,3 +52,48 @@ def test_top_skill_returns_most_serves():
                 returned += p.shots >= 2
     assert served >= 4
     assert returned / served >= 0.7  # issue 6: most serves returned at high skill
+
+
+def _incoming_balls(n, seed):
+    """Balls struck from A's end towards B's court (end_sign 1): short, long, wide, into the net."""
+    rng = np.random.default_rng(seed)
+    for _ in range(n):
+        yield np.array([-1.5, rng.uniform(-0.5, 0.5), rng.uniform(0.05, 0.45), rng.uniform(3.0, 16.0),
+                        rng.uniform(-1.5, 1.5), rng.uniform(-1.0, 3.0), rng.uniform(-50, 50), rng.uniform(-150, 150),
+                        rng.uniform(-50, 50)])
+
+
+def test_strike_search_stops_early_with_the_answer_of_the_whole_path(ai):
+    h = ai.model.dt
+    n_max = int(round(2.0 / h))
+    outcomes = {"none": 0, "strike": 0, "stopped_early": 0}
+    for y0 in _incoming_balls(40, seed=5):
+        times, traj, events = ai.predict(y0, 2.0, max_events=3)
+        want = ai._hit_index(times, traj.copy(), events, 1, False)
+        ticks, _, got = ai._predict(y0, h, n_max, 3, STOP_RETURN_STRIKE, 1)
+        assert got == (NO_STRIKE if want is None else want)  # exact: the same rule on the same ticks
+        outcomes["none" if want is None else "strike"] += 1
+        outcomes["stopped_early"] += ticks < len(times) - 1
+    for toss in np.linspace(1.8, 5.0, 5):  # the scene's toss_speed range
+        y0 = np.array([1.47, 0.0, 0.12, 0.0, 0.0, toss, 0.0, 0.0, 0.0])
+        times, traj, events = ai.predict(y0, 2.0, max_events=3)
+        want = ai._hit_index(times, traj.copy(), events, 1, True)
+        assert want is not None and ai._predict(y0, h, n_max, 3, STOP_SERVE_STRIKE, 1)[2] == want
+    assert min(outcomes.values()) >= 5, outcomes  # both answers and the early stop were exercised
+
+
+def test_control_takes_a_record_or_a_0d_array_and_refuses_other_layouts(ai):
+    bats = np.zeros(2, BAT_DTYPE)
+    bats["quat"] = (1.0, 0.0, 0.0, 0.0)
+    bats["pos"][1], bats["vel"][1] = (1.8, 0.1, 0.2), (0.3, -0.2, 0.1)
+    ball = np.array([1.0, 0.0, 0.3, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    from_record = ai.control(1.0, ball, bats[1], (0, 0), False, False, 1).copy()
+    single = np.zeros((), BAT_DTYPE)
+    single[()] = bats[1]
+    from_array = ai.control(1.0, ball, single, (0, 0), False, False, 1)
+    np.testing.assert_array_equal(from_record, from_array)  # the same numbers, so bit for bit
+    assert np.linalg.norm(from_record[0:3]) > 0.0  # the bat is off its ready pose: pulled back
+    with pytest.raises(TypeError, match="BAT_DTYPE"):
+        ai.control(1.0, ball, bats, (0, 0), False, False, 1)
+    with pytest.raises(TypeError, match="BAT_DTYPE"):
+        ai.control(1.0, ball, np.zeros(19), (0, 0), False, False, 1)
