@@ -12,6 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from net_kernel.kernels import GRID_CLASSES, GRID_CORD, GRID_MESH, GRID_SHEAR, GRID_VERTICAL
+
 # ITTF Laws of Table Tennis 2.2.2-2.2.3: the net's top is 15.25 cm above the playing surface
 # and its ends are 15.25 cm outside the side lines of the 1.525 m wide table: 1.83 m overall.
 NET_WIDTH = 1.83
@@ -98,6 +100,10 @@ class NetTopology:
         adj_knot: (2 n_springs,) uint32, the other knot of each slot.
         adj_spring: (2 n_springs,) uint32, the spring of each slot; slots of a knot in increasing spring order.
         h_max: s, the semi-implicit Euler stability bound (see stability_bound).
+        grid_params: (GRID_CLASSES, 3) k N/m, c N s/m, rest length m of each spring class
+            (kernels.GRID_MESH, GRID_VERTICAL, GRID_SHEAR, GRID_CORD) when the net is
+            build_topology's regular spec.rows x spec.cols grid, whose every spring takes its
+            class's values (the grid kernels need nothing else); None for other nets.
     """
 
     spec: NetSpec | None
@@ -112,6 +118,7 @@ class NetTopology:
     adj_knot: np.ndarray
     adj_spring: np.ndarray
     h_max: float = field(default=math.inf)
+    grid_params: np.ndarray | None = None
 
     @property
     def n_knots(self) -> int:
@@ -191,19 +198,29 @@ def build_topology(spec: NetSpec) -> NetTopology:
     ]
     spring_ij = np.concatenate([np.stack([a.ravel(), b.ravel()], axis=1) for a, b, _ in pairs])
     kind = np.concatenate([np.full(a.size, k) for a, _, k in pairs])
-    length = np.linalg.norm(knot_pos[spring_ij[:, 0]] - knot_pos[spring_ij[:, 1]], axis=1)
-    is_cord = (kind == 0) & (row[spring_ij[:, 0]] == rows - 1)
-    spring_k = np.where(is_cord, float(spec.cord_k), float(spec.spring_k))
-    spring_c = np.full(len(spring_ij), float(spec.spring_c))
-    tension = np.where(is_cord, float(spec.cord_tension), np.where(kind == 0, float(spec.mesh_tension), 0.0))
-    spring_rest = length - tension / spring_k
+    kind = np.array([GRID_MESH, GRID_VERTICAL, GRID_SHEAR])[kind]
+    kind[(kind == GRID_MESH) & (row[spring_ij[:, 0]] == rows - 1)] = GRID_CORD  # the top row's horizontals
+    # One value per spring class, so the grid kernels need no per-spring arrays: the rest
+    # length is the built length less the pretension's stretch T / k.
+    col_spacing = spec.width / (cols - 1)
+    row_spacing = spec.height / (rows - 1)
+    grid_params = np.zeros((GRID_CLASSES, 3))
+    grid_params[GRID_MESH] = spec.spring_k, spec.spring_c, col_spacing - spec.mesh_tension / spec.spring_k
+    grid_params[GRID_VERTICAL] = spec.spring_k, spec.spring_c, row_spacing
+    grid_params[GRID_SHEAR] = spec.spring_k, spec.spring_c, math.hypot(col_spacing, row_spacing)
+    grid_params[GRID_CORD] = spec.cord_k, spec.spring_c, col_spacing - spec.cord_tension / spec.cord_k
+    spring_k = grid_params[kind, 0]
+    spring_c = grid_params[kind, 1]
+    spring_rest = grid_params[kind, 2]
     keep = ~(fixed[spring_ij[:, 0]] & fixed[spring_ij[:, 1]])
     # Springs in order of their first knot, then second: the per-spring pass then sweeps the
     # knot arrays once instead of once per spring kind (measured on 1000 x 1000).
     order = np.lexsort((spring_ij[:, 1], spring_ij[:, 0]))
     order = order[keep[order]]
-    return make_topology(knot_pos, knot_mass, fixed, spring_ij[order], spring_rest[order], spring_k[order],
+    topo = make_topology(knot_pos, knot_mass, fixed, spring_ij[order], spring_rest[order], spring_k[order],
                          spring_c[order], spec=spec)
+    object.__setattr__(topo, "grid_params", grid_params)
+    return topo
 
 
 def make_topology(knot_pos, knot_mass, knot_fixed, spring_ij, spring_rest, spring_k, spring_c,
