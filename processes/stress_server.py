@@ -25,10 +25,12 @@ import sys
 import threading
 import time
 from array import array
+from collections import Counter
 
 import numpy as np
 
 SAMPLE_PERIOD_S = 0.0002
+ENCODE_EVERY = 10  # the tick clock checks one published state in this many for the wire's ranges
 
 
 def _print(obj) -> None:
@@ -51,6 +53,9 @@ class TickClock(threading.Thread):
         self.times = array("d")
         self.pids = array("q")
         self.samples = 0
+        self.encode_checked = 0
+        self.unencodable: Counter[str] = Counter()
+        self.unencodable_examples: dict[str, str] = {}
 
     def pids_now(self) -> dict:
         status = self.arena["status"].array
@@ -75,6 +80,7 @@ class TickClock(threading.Thread):
         physics = self.kinds.index("physics")
         last = -2
         monotonic, sleep = time.monotonic, time.sleep
+        record = np.zeros(1, block.dtype)
         while not self.stop_flag.is_set():
             tick = block.tick
             now = monotonic()
@@ -84,7 +90,21 @@ class TickClock(threading.Thread):
                 self.ticks.append(tick)
                 self.times.append(now)
                 self.pids.append(int(status[physics]["pid"]))
+                if tick % ENCODE_EVERY == 0:
+                    self._encodable(block, record)
             sleep(SAMPLE_PERIOD_S)
+
+    def _encodable(self, block, record) -> None:
+        """Can this state go on the wire? (The gateway skips, and only counts, a state it cannot encode.)"""
+        from processes import wire
+
+        block.snapshot(record)
+        self.encode_checked += 1
+        try:
+            wire.snapshot_from_physics(record[0], seq=1)
+        except wire.WireError as err:
+            self.unencodable[err.reason] += 1
+            self.unencodable_examples.setdefault(str(err).split(":")[0], f"tick {int(record[0]['world']['tick'])}: {err}")
 
     def finish(self, path: str | None) -> dict:
         """Stop sampling, save the log, read the final score state and point log, detach."""
@@ -106,7 +126,8 @@ class TickClock(threading.Thread):
                  "score_after": p["score_after"].tolist()} for p in points]
         del record, rally, points
         self.arena.close()
-        return {"final": final, "points": rows}
+        return {"final": final, "points": rows, "encode_checked": self.encode_checked,
+                "unencodable": dict(self.unencodable), "unencodable_examples": self.unencodable_examples}
 
 
 def main(argv: list[str]) -> int:

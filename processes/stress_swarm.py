@@ -149,6 +149,8 @@ def watch(spec: dict) -> dict:
                 if len(data) == wire.SIZES[Kind.SNAPSHOT] and data[6] == Kind.SNAPSHOT and data[:4] == wire.MAGIC:
                     _, _, _, _, seq, tick = HEADER.unpack_from(data)
                     w.snapshots += 1
+                    if w.snapshots == 1:
+                        w.first = t  # the rate is taken between the first and the last snapshot
                     if validate_every and w.snapshots % validate_every == 0:
                         if client.drops.decode(data) is None:
                             bad["snapshot"] += 1
@@ -183,8 +185,6 @@ def watch(spec: dict) -> dict:
                         w.welcomed = True
                         w.last_seq = seq
                         w.last = t
-                        if not w.first:
-                            w.first = t
                         continue
                     if message.kind == Kind.GOODBYE:
                         w.goodbye = message["reason"].name.lower()
@@ -265,7 +265,7 @@ def churn(spec: dict) -> dict:
     progress_every = max(1, cycles // 10)
     rss_start = None
 
-    def end(sock, graceful: bool) -> None:
+    def end(sock, graceful: bool, why: str | None = None) -> None:
         nonlocal finished
         client = live.pop(sock)[0]
         poller.unregister(sock)
@@ -274,7 +274,7 @@ def churn(spec: dict) -> dict:
             client.leave()
             counts["left_goodbye"] += 1
         else:
-            counts["left_abrupt"] += 1
+            counts[why or "left_abrupt"] += 1
         client.close()
         finished += 1
         if finished % progress_every == 0:
@@ -299,7 +299,7 @@ def churn(spec: dict) -> dict:
                     continue
             except Rejected as err:
                 counts[f"{role}_rejected.{err.reason.name.lower()}"] += 1
-                end(sock, graceful=False)  # the server closed the session already
+                end(sock, graceful=False, why="closed_after_reject")  # the server has no session for it
                 continue
             join_ms.append(1000 * (time.monotonic() - t0))
             counts[f"{role}_welcomed" if role == "spectator" else f"player_welcomed.{client.slot.name}"] += 1
@@ -311,11 +311,10 @@ def churn(spec: dict) -> dict:
         now = time.monotonic()
         for sock, (client, t0, role) in list(live.items()):
             if now - t0 > join_timeout:
-                counts["join_timeouts"] += 1
-                end(sock, graceful=False)
+                end(sock, graceful=False, why="join_timeouts")
     counts["not_started"] = cycles - begun
     for sock in list(live):
-        end(sock, graceful=False)
+        end(sock, graceful=False, why="unfinished")
     rss_end = rss_kb()
     zctx.term()
     ms = np.frombuffer(join_ms, np.float64)
@@ -581,8 +580,9 @@ def malformed(spec: dict) -> dict:
                         message = wire.decode(data)
                     except wire.WireError:
                         continue
-                    if message.kind in (Kind.WELCOME, Kind.REJECT):
-                        got = message
+                    if message.kind == Kind.WELCOME or (message.kind == Kind.REJECT
+                                                        and message["reason"] != RejectReason.VERSION):
+                        got = message  # (the replies to the wrong versions sent before are rejects too)
         if got is not None and got.kind == Kind.WELCOME:
             synced += 1
             sock.send(wire.encode(Kind.GOODBYE, seq=2, reason=GoodbyeReason.QUIT))
