@@ -8,7 +8,17 @@ import math
 
 import numpy as np
 
-from net_kernel.kernels import KNOT_WORK_ROWS, NO_CONTACT, SPRING_WORK_COLS, STEP_WORK_ROWS  # noqa: F401  (shared)
+from net_kernel.kernels import (  # noqa: F401  (shared)
+    GRID_CORD,
+    GRID_MESH,
+    GRID_SHEAR,
+    GRID_VERTICAL,
+    GRID_WORK_ROWS,
+    KNOT_WORK_ROWS,
+    NO_CONTACT,
+    SPRING_WORK_COLS,
+    STEP_WORK_ROWS,
+)
 
 
 def _slot_owner(adj_start):
@@ -52,6 +62,69 @@ def step_knots(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_sprin
 
 
 step_knots_serial = step_knots
+
+
+def _grid_t(xi, xj, vi, vj, k, c, rest):
+    """(3, ...) t = scale (x_j - x_i) per spring, kernels._grid_scale's operations in its order."""
+    d0, d1, d2 = xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]
+    e0, e1, e2 = vj[0] - vi[0], vj[1] - vi[1], vj[2] - vi[2]
+    length2 = d0 * d0 + d1 * d1 + d2 * d2
+    rate = e0 * d0 + e1 * d1 + e2 * d2
+    length = np.sqrt(length2)
+    inv_len = 1.0 / length
+    scale = (k * (length - rest) + c * rate * inv_len) * inv_len
+    return np.stack([scale * d0, scale * d1, scale * d2])
+
+
+def _below(a):
+    """a shifted up one row: row r holds a's row r - 1 (zeros in row 0)."""
+    out = np.zeros_like(a)
+    out[:, 1:] = a[:, :-1]
+    return out
+
+
+def _left(a):
+    """a shifted one column: column q holds a's column q - 1 (zeros in column 0)."""
+    out = np.zeros_like(a)
+    out[:, :, 1:] = a[:, :, :-1]
+    return out
+
+
+def step_grid(knot_state, src, knot_inv_mass, grid_params, gravity, drag, h, n_steps, grid_work):
+    """Numpy twin of kernels.step_grid (args, return and bits identical; grid_work is unused).
+
+    Every spring class at once over the whole grid; a missing spring's t is 0, as in the kernel.
+    """
+    rows, cols = knot_state.shape[3], knot_state.shape[4]
+    w = knot_inv_mass
+    fixed = w == 0.0
+    top = (np.arange(rows) == rows - 1)[:, None]
+    h_kind = np.where(top, GRID_CORD, GRID_MESH)  # (rows, 1): the top row's horizontals are the cord
+    for _ in range(n_steps):
+        x, v = knot_state[src, 0], knot_state[src, 1]
+        t_h = np.zeros((3, rows, cols))
+        t_v = np.zeros((3, rows, cols))
+        t_d1 = np.zeros((3, rows, cols))
+        t_d2 = np.zeros((3, rows, cols))
+        p = grid_params
+        t_h[:, :, :-1] = _grid_t(x[:, :, :-1], x[:, :, 1:], v[:, :, :-1], v[:, :, 1:], p[h_kind, 0], p[h_kind, 1],
+                                 p[h_kind, 2])
+        t_v[:, :-1] = _grid_t(x[:, :-1], x[:, 1:], v[:, :-1], v[:, 1:], *p[GRID_VERTICAL])
+        t_d1[:, :-1, :-1] = _grid_t(x[:, :-1, :-1], x[:, 1:, 1:], v[:, :-1, :-1], v[:, 1:, 1:], *p[GRID_SHEAR])
+        t_d2[:, :-1, :-1] = _grid_t(x[:, :-1, 1:], x[:, 1:, :-1], v[:, :-1, 1:], v[:, 1:, :-1], *p[GRID_SHEAR])
+        # The kernel's slot order: below-left, below, below-right, left, right, above-left, above, above-right.
+        f = (-_left(_below(t_d1)) - _below(t_v) - _below(t_d2) - _left(t_h) + t_h + _left(t_d2) + t_v + t_d1)
+        dst = 1 - src
+        for k in range(3):
+            g = gravity if k == 2 else 0.0
+            nv = v[k] + h * (w * f[k] - drag * v[k] - g)
+            knot_state[dst, 1, k] = np.where(fixed, v[k], nv)
+            knot_state[dst, 0, k] = np.where(fixed, x[k], x[k] + h * nv)
+        src = dst
+    return src
+
+
+step_grid_serial = step_grid
 
 
 def knot_speed_max(knot_pos, knot_vel):

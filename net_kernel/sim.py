@@ -2,10 +2,11 @@
 import math
 from typing import NamedTuple
 
+import numba
 import numpy as np
 
 from net_kernel import kernels, reference
-from net_kernel.kernels import KNOT_WORK_ROWS, NO_CONTACT, SPRING_WORK_COLS, STEP_WORK_ROWS
+from net_kernel.kernels import GRID_WORK_ROWS, KNOT_WORK_ROWS, NO_CONTACT, SPRING_WORK_COLS, STEP_WORK_ROWS
 from net_kernel.topology import IMPLICIT, NetTopology
 
 # One switch picks the backend; both modules expose the same kernel names and signatures.
@@ -46,13 +47,16 @@ class NetContact(NamedTuple):
 class NetSim:
     """A cloth net stepped tick by tick: knots, substeps, sleeping, ball contact.
 
-    The knot state lives in two preallocated buffer pairs that the kernel ping-pongs between;
-    `knot_pos`/`knot_vel` always name the current pair. `kernel_calls` counts every kernel
-    invocation (steps, rest checks, contact sweeps), so a sleeping net can be shown to cost none.
+    The knot state lives in two preallocated buffers that the kernel ping-pongs between;
+    `knot_pos`/`knot_vel` always name the current one. A net on build_topology's regular grid
+    is stepped by the grid kernels (kernels.step_grid: structure of arrays, all of a tick's
+    substeps in one call while the ball is away), any other net by the CSR kernels; both give
+    the same bits. `kernel_calls` counts every kernel invocation (steps, rest checks, contact
+    sweeps), so a sleeping net can be shown to cost none.
     """
 
     def __init__(self, topo: NetTopology, dt: float, substeps: int | None = None, backend: str = "numba",
-                 parallel: bool | None = None):
+                 parallel: bool | None = None, grid: bool | None = None):
         """Validate the tick against the stability bound and allocate everything once.
 
         Args:
@@ -63,9 +67,12 @@ class NetSim:
             backend: "numba" or "reference".
             parallel: numba backend: parallel knot loop (None: only for nets above
                 PARALLEL_MIN_KNOTS knots). Both variants give the same bits.
+            grid: step with the grid kernels (None: whenever the topology has grid_params
+                and the solver is semi-implicit); False forces the CSR kernels (same bits).
 
         Raises:
-            ValueError: dt <= 0, an unknown backend, or substeps too few for the bound.
+            ValueError: dt <= 0, an unknown backend, substeps too few for the bound, or
+                grid=True for a net without grid_params or with the implicit solver.
         """
         if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0):
             raise ValueError(f"dt = {dt!r} must be a finite number of seconds > 0")
@@ -94,17 +101,36 @@ class NetSim:
         mod = BACKENDS[backend]
         if parallel is None:
             parallel = topo.n_knots >= PARALLEL_MIN_KNOTS
+        if grid is None:
+            grid = topo.grid_params is not None and not self.implicit
+        if grid and (topo.grid_params is None or self.implicit):
+            raise ValueError("grid=True needs a net built by build_topology (grid_params) and the semi-implicit "
+                             "solver; use grid=None to pick the kernels from the net")
+        self.grid = bool(grid)
         self._step = mod.step_knots if parallel else mod.step_knots_serial
+        self._step_grid = mod.step_grid if parallel else mod.step_grid_serial
         self._implicit = mod.step_knots_implicit
         self._speed = mod.knot_speed_max
         self._collide = mod.collide_ball
         n = topo.n_knots
-        self._pos = [topo.knot_pos.copy(), topo.knot_pos.copy()]
-        self._vel = [np.zeros((n, 3)), np.zeros((n, 3))]
+        if self.grid:
+            rows, cols = topo.spec.rows, topo.spec.cols
+            # [buffer, position | velocity, axis, row, column]; knot_pos/knot_vel are (n, 3) views.
+            self._state = np.zeros((2, 2, 3, rows, cols))
+            self._state[:, 0] = topo.knot_pos.T.reshape(3, rows, cols)
+            self._pos = [self._state[b, 0].reshape(3, n).T for b in range(2)]
+            self._vel = [self._state[b, 1].reshape(3, n).T for b in range(2)]
+            self._grid_inv_mass = topo.knot_inv_mass.reshape(rows, cols)
+            # One scratch block per row block; the block count changes no bit (kernels.step_grid).
+            blocks = min(rows, max(1, numba.get_num_threads())) if parallel and backend == "numba" else 1
+            self._grid_work = np.zeros((blocks, GRID_WORK_ROWS, cols))
+        else:
+            self._pos = [topo.knot_pos.copy(), topo.knot_pos.copy()]
+            self._vel = [np.zeros((n, 3)), np.zeros((n, 3))]
         self._cur = 0
         self._knot_work = np.zeros((KNOT_WORK_ROWS, n, 3)) if self.implicit else np.zeros((KNOT_WORK_ROWS, 0, 3))
         self._spring_work = np.zeros((topo.n_springs if self.implicit else 0, SPRING_WORK_COLS))
-        self._step_work = np.zeros((STEP_WORK_ROWS, topo.n_springs))
+        self._step_work = np.zeros((STEP_WORK_ROWS, 0 if self.grid else topo.n_springs))
         self._impulse = np.zeros(3)
         self._offset = np.zeros(3)
         self._hit_impulse = np.zeros(3)
@@ -182,31 +208,40 @@ class NetSim:
             bv = self._ball[1]
             bp[:] = ball_pos
             bv[:] = ball_vel
-        for k in range(self.substeps):
-            if not far:
-                hit = self._collide(self._pos[self._cur], self._vel[self._cur], topo.knot_inv_mass, bp, bv,
-                                    float(ball_radius), float(ball_inv_mass), self.knot_radius, self.restitution,
-                                    self.h, MAX_HITS, self._hit_impulse, self._ball[2])
-                self.kernel_calls += 1
-                if hit != NO_CONTACT:
-                    if toi == NO_CONTACT:
-                        toi = (k + hit) / self.substeps
-                    self._impulse += self._hit_impulse
-                    bv += self._hit_impulse * ball_inv_mass
-                bp[:] = self._ball[2]
-            src, dst = self._cur, 1 - self._cur
-            if self.implicit:
-                self.cg_iterations += self._implicit(
-                    self._pos[src], self._vel[src], topo.knot_inv_mass, topo.adj_start, topo.adj_knot,
-                    topo.adj_spring, topo.spring_ij, topo.spring_rest, topo.spring_k, topo.spring_c, self.gravity,
-                    self.drag, self.h, CG_TOL, CG_MAX_ITER, self._knot_work, self._spring_work, self._pos[dst],
-                    self._vel[dst])
-            else:
-                self._step(self._pos[src], self._vel[src], topo.knot_inv_mass, topo.adj_start, topo.adj_knot,
-                           topo.adj_spring, topo.spring_ij, topo.spring_rest, topo.spring_k, topo.spring_c,
-                           self.gravity, self.drag, self.h, self._step_work, self._pos[dst], self._vel[dst])
-            self._cur = dst
+        if far and self.grid:
+            # No contact to sweep between substeps: the whole tick in one call.
+            self._cur = self._step_grid(self._state, self._cur, self._grid_inv_mass, topo.grid_params, self.gravity,
+                                        self.drag, self.h, self.substeps, self._grid_work)
             self.kernel_calls += 1
+        else:
+            for k in range(self.substeps):
+                if not far:
+                    hit = self._collide(self._pos[self._cur], self._vel[self._cur], topo.knot_inv_mass, bp, bv,
+                                        float(ball_radius), float(ball_inv_mass), self.knot_radius, self.restitution,
+                                        self.h, MAX_HITS, self._hit_impulse, self._ball[2])
+                    self.kernel_calls += 1
+                    if hit != NO_CONTACT:
+                        if toi == NO_CONTACT:
+                            toi = (k + hit) / self.substeps
+                        self._impulse += self._hit_impulse
+                        bv += self._hit_impulse * ball_inv_mass
+                    bp[:] = self._ball[2]
+                src, dst = self._cur, 1 - self._cur
+                if self.grid:
+                    self._step_grid(self._state, src, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag,
+                                    self.h, 1, self._grid_work)
+                elif self.implicit:
+                    self.cg_iterations += self._implicit(
+                        self._pos[src], self._vel[src], topo.knot_inv_mass, topo.adj_start, topo.adj_knot,
+                        topo.adj_spring, topo.spring_ij, topo.spring_rest, topo.spring_k, topo.spring_c, self.gravity,
+                        self.drag, self.h, CG_TOL, CG_MAX_ITER, self._knot_work, self._spring_work, self._pos[dst],
+                        self._vel[dst])
+                else:
+                    self._step(self._pos[src], self._vel[src], topo.knot_inv_mass, topo.adj_start, topo.adj_knot,
+                               topo.adj_spring, topo.spring_ij, topo.spring_rest, topo.spring_k, topo.spring_c,
+                               self.gravity, self.drag, self.h, self._step_work, self._pos[dst], self._vel[dst])
+                self._cur = dst
+                self.kernel_calls += 1
         if toi != NO_CONTACT:
             # Where the ball ended minus where it would have ended without the net.
             np.subtract(bp, ball_pos, out=self._offset)
