@@ -78,6 +78,12 @@ def _cmd_stress(args: argparse.Namespace) -> int:
     return stress_command(args)
 
 
+def _cmd_keys(args: argparse.Namespace) -> int:
+    from processes.client import keys_command
+
+    return keys_command(args)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The whole `pingpong` parser; subcommands share --seed/--json."""
     formatter = argparse.ArgumentDefaultsHelpFormatter
@@ -157,6 +163,8 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--grace", type=float, default=30.0, help="s, a dropped player's seat waits for its token")
     serve.add_argument("--wait", type=float, default=300.0, help="s, wait for the remote players, then start")
     serve.add_argument("--crash-gateway-at-tick", type=int, default=None, help=argparse.SUPPRESS)
+    serve.add_argument("--curve-secret", default=None, metavar="FILE",
+                       help="CURVE-encrypt every session with this server secret key file (`pingpong keys DIR`)")
     _add_common(serve)
     serve.set_defaults(func=_cmd_serve)
 
@@ -170,8 +178,18 @@ def build_parser() -> argparse.ArgumentParser:
     join.add_argument("--token", default=None, help="rejoin token (hex) from an earlier session")
     join.add_argument("--seconds", type=float, default=3600.0, help="leave after this long at most")
     join.add_argument("--join-timeout", type=float, default=10.0, help="s to wait for the welcome")
+    join.add_argument("--delay-ms", type=float, default=100.0, help="a spectator's view runs this far behind")
+    join.add_argument("--curve-server-key", default=None, metavar="FILE",
+                      help="the server's public key file: connect CURVE-encrypted (`pingpong keys DIR`)")
     _add_common(join)
     join.set_defaults(func=_cmd_join)
+
+    keys = sub.add_parser("keys", help="make a CURVE key pair for `serve --curve-secret` / `join --curve-server-key`",
+                          formatter_class=formatter)
+    keys.add_argument("dir", help="directory to write NAME.key (public) and NAME.key_secret into")
+    keys.add_argument("--name", default="server", help="file name stem")
+    keys.add_argument("--json", action="store_true", help="print one JSON object")
+    keys.set_defaults(func=_cmd_keys)
 
     stress = sub.add_parser("stress", help="stress-test the gateway: load, churn, pulled cables, kills, bad messages",
                             formatter_class=formatter)

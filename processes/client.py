@@ -22,6 +22,53 @@ NO_TOKEN = bytes(wire.TOKEN_SIZE)
 JOIN_TIMEOUT_S = 10.0
 
 
+def load_curve_key(path: str, secret: bool) -> tuple[bytes, bytes | None]:
+    """(public, secret) Z85 keys from a ZeroMQ certificate file (zmq.auth.create_certificates,
+    `pingpong keys DIR`); secret=True needs the secret file (NAME.key_secret)."""
+    import zmq.auth
+
+    try:
+        public, secret_key = zmq.auth.load_certificate(path)
+    except (OSError, ValueError) as err:
+        raise ValueError(f"{path}: not a ZeroMQ certificate ({err}); make one with `pingpong keys DIR`") from None
+    if public is None or len(public) != 40:
+        raise ValueError(f"{path}: no 40-character Z85 public key in it; make one with `pingpong keys DIR`")
+    if secret and (secret_key is None or len(secret_key) != 40):
+        raise ValueError(f"{path}: no secret key in it; the server needs the .key_secret file of `pingpong keys DIR`")
+    return public, secret_key
+
+
+def curve_client_options(server_key_file: str | None) -> dict:
+    """Socket options of a CURVE client of the server whose public key is in that file (a fresh
+    key pair of our own each session; the server authenticates itself, the session is
+    encrypted); {} without a file."""
+    if not server_key_file:
+        return {}
+    if not zmq.has("curve"):
+        raise ValueError("this libzmq has no CURVE support; install pyzmq's wheel (it bundles libsodium)")
+    server_public, _ = load_curve_key(server_key_file, secret=False)
+    public, secret = zmq.curve_keypair()
+    return {zmq.CURVE_SERVERKEY: server_public, zmq.CURVE_PUBLICKEY: public, zmq.CURVE_SECRETKEY: secret}
+
+
+def keys_command(args: argparse.Namespace) -> int:
+    """`pingpong keys DIR`: a server key pair for CURVE (server.key to give clients,
+    server.key_secret to keep)."""
+    import os
+
+    import zmq.auth
+
+    os.makedirs(args.dir, exist_ok=True)
+    public_file, secret_file = zmq.auth.create_certificates(args.dir, args.name)
+    os.chmod(secret_file, 0o600)
+    if args.json:
+        print(json.dumps({"public": public_file, "secret": secret_file}))
+    else:
+        print(f"public key (give it to clients): {public_file}\nsecret key (keep it): {secret_file}\n"
+              f"pingpong serve --curve-secret {secret_file}   pingpong join ADDRESS --curve-server-key {public_file}")
+    return 0
+
+
 class Rejected(RuntimeError):
     """The server turned the hello away; `reason` is a wire.RejectReason."""
 
@@ -200,22 +247,160 @@ class BotBrain:
                                phase == Phase.WAITING_SERVE, -1 if p == 0 else 1, self.out)
 
 
-def _score_line(snapshot: wire.Message) -> str:
-    s, g, b = snapshot["score"], snapshot["games_won"], snapshot["ball_pos"]
-    return (f"tick {snapshot.tick:>7}  games {g[0]}-{g[1]}  points {s[0]}-{s[1]}  rally {snapshot['rally']}  "
-            f"ball ({b[0]:+.2f}, {b[1]:+.2f}, {b[2]:+.2f}) m  |v| {float(np.linalg.norm(snapshot['ball_vel'])):.1f} m/s")
+def _score_line(snapshot: wire.Message, ball_pos=None, ball_vel=None, tick=None) -> str:
+    s, g = snapshot["score"], snapshot["games_won"]
+    b = snapshot["ball_pos"] if ball_pos is None else ball_pos
+    v = snapshot["ball_vel"] if ball_vel is None else ball_vel
+    tick = snapshot.tick if tick is None else tick
+    return (f"tick {tick:>9.1f}  games {g[0]}-{g[1]}  points {s[0]}-{s[1]}  rally {snapshot['rally']}  "
+            f"ball ({b[0]:+.2f}, {b[1]:+.2f}, {b[2]:+.2f}) m  |v| {float(np.linalg.norm(v)):.1f} m/s")
+
+
+def _error_line(name: str, stats: dict) -> str:
+    if not stats["n"]:
+        return f"{name}: no samples"
+    return (f"{name}: mean {stats['mean_mm']:.2f}  p50 {stats['p50_mm']:.2f}  p99 {stats['p99_mm']:.2f}  "
+            f"max {stats['max_mm']:.2f} mm  ({stats['n']} snapshots)")
+
+
+CONTROL_HZ = 100  # keyboard play: inputs per second (the server's AI arms decide at 100 Hz too)
+
+
+def run_session(client: Client, welcome: wire.Message, *, brain=None, pilot=None, keys=None, predictor=None,
+                view=None, seconds: float = 3600.0, show=None, show_every_s: float = 0.25,
+                clock=time.monotonic) -> dict:
+    """Play or watch until the server says goodbye, falls silent, the keys say quit or `seconds` pass.
+
+    Args:
+        client: joined (welcome taken). brain: a BotBrain (inputs from each snapshot).
+        pilot, keys: a keyboard.KeyboardPilot and a key source (inputs at CONTROL_HZ from the
+            predicted bat). predictor: a prediction.Predictor (a player): reconciled on each
+            snapshot, advanced to the server's estimated present, stamps our inputs.
+        view: a prediction.Interpolator (a spectator). show(summary, frame): called at most every
+            show_every_s with the summary so far and the frame to draw (the interpolated state
+            of a spectator, the predicted state of a player, else the last snapshot).
+
+    Returns:
+        The summary: snapshots, events, inputs_sent, goodbye, the last snapshot's tick and score,
+        prediction statistics (a player with a predictor) or interpolation counts (a spectator).
+    """
+    from processes.prediction import ServerClock
+
+    dt = welcome["dt"]
+    server_clock = ServerClock(dt)
+    summary = {"snapshots": 0, "events": [], "inputs_sent": 0}
+    deadline = clock() + seconds
+    next_control = next_show = 0.0
+    wait_ms = 2 if pilot is not None else (10 if predictor is not None else 50)
+    last = None
+    quit_pressed = False
+
+    def present() -> int:
+        estimate = server_clock.tick_at(clock())
+        return max(int(estimate), last.tick) if estimate is not None else client.tick
+
+    def send(inputs) -> None:
+        tick = present()
+        client.send_input(inputs, tick=tick)
+        summary["inputs_sent"] += 1
+        if predictor is not None:
+            predictor.record_input(client.seq, tick, inputs)
+
+    while clock() < deadline and client.goodbye is None and not client.server_lost and not quit_pressed:
+        client.heartbeat_if_due()
+        message = client.recv(wait_ms)
+        now = clock()
+        if message is not None and message.kind == Kind.SNAPSHOT:
+            summary["snapshots"] += 1
+            last = message
+            server_clock.observe(message.tick, now)
+            if predictor is not None:
+                predictor.reconcile(message)
+            if view is not None:
+                view.push(message, now)
+            if brain is not None:
+                send(brain.control(message, dt))
+        elif message is not None and message.kind == Kind.EVENT:
+            event = message.to_dict()
+            summary["events"].append({k: event[k] for k in ("event", "winner", "score", "games_won")})
+        if predictor is not None and last is not None:
+            predictor.advance_to(present())
+        if keys is not None:
+            for key in keys.poll():
+                if key == "quit":
+                    quit_pressed = True
+                elif pilot is not None:
+                    pilot.press(key, now)
+        if pilot is not None and predictor is not None and last is not None and now >= next_control:
+            next_control = max(next_control + 1.0 / CONTROL_HZ, now)
+            send(pilot.control(now, predictor.bat))
+        if show is not None and now >= next_show and last is not None:
+            next_show = now + show_every_s
+            show(summary, _frame(last, predictor, view, pilot, now))
+    if client.goodbye is None:
+        client.leave()
+    summary["goodbye"] = client.goodbye.name.lower() if client.goodbye else (
+        "server_lost" if client.server_lost else "quit" if quit_pressed else "left")
+    if last is not None:
+        summary.update(tick=last.tick, score=last["score"].tolist(), games_won=last["games_won"].tolist(),
+                       winner=int(last["winner"]), input_seq=last["input_seq"].tolist())
+    if predictor is not None:
+        summary["prediction"] = predictor.stats()
+    if view is not None:
+        summary["interpolation"] = {"delay_ms": view.delay_s * 1000.0, **view.counts}
+    summary["dropped"] = dict(client.drops.by_reason)
+    return summary
+
+
+def _frame(last: wire.Message, predictor, view, pilot, now: float) -> dict:
+    """What to draw now: positions, the tick they are at, the snapshot with the score."""
+    frame = {"snapshot": last, "tick": float(last.tick), "ball_pos": last["ball_pos"], "ball_vel": last["ball_vel"],
+             "bat_pos": np.array(last["bat_pos"]), "target": None}
+    if view is not None:
+        shown = view.sample(now)
+        if shown is not None:
+            frame.update(tick=shown["tick"], ball_pos=shown["ball_pos"], ball_vel=shown["ball_vel"],
+                         bat_pos=shown["bat_pos"], snapshot=shown["snapshot"])
+    if predictor is not None and predictor.tick is not None:
+        frame["bat_pos"][predictor.player] = predictor.bat["pos"]
+        frame.update(tick=float(predictor.tick), ball_pos=np.array(predictor.ball["pos"]),
+                     ball_vel=np.array(predictor.ball["vel"]))
+    if pilot is not None:
+        frame["target"] = pilot.aim(now)
+    return frame
+
+
+def keyboard_screen(summary: dict, frame: dict, slot: Slot, predictor=None) -> str:
+    """The keyboard player's screen: score, top view, keys, prediction error so far."""
+    from processes.keyboard import top_view
+
+    lines = [f"pingpong - you play {slot.name} (+ is your target)",
+             _score_line(frame["snapshot"], frame["ball_pos"], frame["ball_vel"], frame["tick"]), ""]
+    lines += top_view(frame["ball_pos"], frame["bat_pos"], frame["target"])
+    lines += ["", "w/s or up/down: forward/back   a/d or left/right: sideways   r/f: up/down   space: stroke   "
+                  "q: leave"]
+    if predictor is not None:
+        stats = predictor.stats()
+        lines += [_error_line("prediction error, ball", stats["ball"]), _error_line("prediction error, bat ", stats["bat"])]
+    lines.append(f"inputs sent {summary['inputs_sent']}  snapshots {summary['snapshots']}")
+    return "\n".join(lines)
 
 
 def join_command(args: argparse.Namespace) -> int:
     """`pingpong join ADDRESS --as player|spectator [--bot]`."""
-    if args.role == "player" and not args.bot:
-        print("pingpong join: keyboard play is not there yet; join a player with --bot, or --as spectator",
-              file=sys.stderr)
+    keyboard = args.role == "player" and not args.bot
+    if keyboard and not sys.stdin.isatty():
+        print("pingpong join: keyboard play needs a terminal (stdin is not a TTY); join a player with --bot, "
+              "or --as spectator", file=sys.stderr)
         return 2
     slot = {"any": Slot.NONE, "a": Slot.A, "b": Slot.B}[args.slot]
-    token = bytes.fromhex(args.token) if args.token else NO_TOKEN
-    client = Client(args.address, args.role, args.name, slot, token)
-    brain = None
+    try:
+        token = bytes.fromhex(args.token) if args.token else NO_TOKEN
+        socket_options = curve_client_options(getattr(args, "curve_server_key", None))
+    except (ValueError, OSError) as err:
+        print(f"pingpong join: {err}", file=sys.stderr)
+        return 2
+    client = Client(args.address, args.role, args.name, slot, token, socket_options=socket_options)
     summary = {"address": args.address, "role": args.role, "snapshots": 0, "events": [], "inputs_sent": 0}
     try:
         try:
@@ -229,43 +414,10 @@ def join_command(args: argparse.Namespace) -> int:
             return 4
         summary.update(slot=client.slot.name.lower(), scene=welcome["scene"], token=client.token.hex(),
                        snapshot_hz=welcome["snapshot_hz"])
-        if not args.json:
+        if not args.json and not keyboard:
             print(f"joined {welcome['scene']} as {'player ' + client.slot.name if client.slot else 'spectator'}"
                   f" (best of {welcome['best_of']}, {welcome['snapshot_hz']} snapshots/s)", flush=True)
-        if args.bot:
-            brain = BotBrain(welcome["scene"], client.slot, args.skill, args.seed)
-        dt = welcome["dt"]
-        deadline = time.monotonic() + args.seconds
-        last_print = 0.0
-        last = None
-        while time.monotonic() < deadline and client.goodbye is None and not client.server_lost:
-            client.heartbeat_if_due()
-            message = client.recv(100)
-            if message is None:
-                continue
-            if message.kind == Kind.SNAPSHOT:
-                summary["snapshots"] += 1
-                last = message
-                if brain is not None:
-                    client.send_input(brain.control(message, dt), tick=message.tick)
-                    summary["inputs_sent"] += 1
-                elif not args.json and time.monotonic() - last_print >= 0.25:
-                    last_print = time.monotonic()
-                    print(_score_line(message), flush=True)
-            elif message.kind == Kind.EVENT:
-                event = message.to_dict()
-                summary["events"].append({k: event[k] for k in ("event", "winner", "score", "games_won")})
-                if not args.json:
-                    who = "AB"[event["winner"]] if event["winner"] >= 0 else "-"
-                    print(f"{event['event']}: {who}  score {event['score']}  games {event['games_won']}", flush=True)
-        if client.goodbye is None:
-            client.leave()
-        summary["goodbye"] = client.goodbye.name.lower() if client.goodbye else (
-            "server_lost" if client.server_lost else "left")
-        if last is not None:
-            summary.update(tick=last.tick, score=last["score"].tolist(), games_won=last["games_won"].tolist(),
-                           winner=int(last["winner"]), input_seq=last["input_seq"].tolist())
-        summary["dropped"] = dict(client.drops.by_reason)
+        summary.update(_play(client, welcome, args, keyboard))
     except KeyboardInterrupt:
         client.leave()
         summary["goodbye"] = "interrupted"
@@ -276,7 +428,44 @@ def join_command(args: argparse.Namespace) -> int:
     else:
         print(f"session ended: {summary['goodbye']}; {summary['snapshots']} snapshots, "
               f"{len(summary['events'])} events")
+        if "prediction" in summary:
+            print(_error_line("prediction error at the snapshots' ticks, ball", summary["prediction"]["ball"]))
+            print(_error_line("prediction error at the snapshots' ticks, own bat", summary["prediction"]["bat"]))
     return 1 if summary["goodbye"] == "server_lost" else 0
+
+
+def _play(client: Client, welcome: wire.Message, args: argparse.Namespace, keyboard: bool) -> dict:
+    """The session of `pingpong join` once welcomed: bot, keyboard or spectator."""
+    from processes.prediction import Interpolator, Predictor
+
+    if client.slot == Slot.NONE:
+        view = Interpolator(welcome["dt"], args.delay_ms / 1000.0)
+
+        def show(summary, frame):
+            print(_score_line(frame["snapshot"], frame["ball_pos"], frame["ball_vel"], frame["tick"]), flush=True)
+
+        return run_session(client, welcome, view=view, seconds=args.seconds, show=None if args.json else show)
+    from engine.scene import load_scene
+
+    scene = load_scene(welcome["scene"])
+    predictor = Predictor(scene, client.slot)
+    if not keyboard:
+        brain = BotBrain(welcome["scene"], client.slot, args.skill, args.seed)
+        return run_session(client, welcome, brain=brain, predictor=predictor, seconds=args.seconds)
+    from rich.console import Console
+    from rich.live import Live
+    from rich.text import Text
+
+    from processes.keyboard import KeyboardPilot, TerminalKeys
+
+    pilot = KeyboardPilot(predictor.model, client.slot, args.skill)
+    with TerminalKeys(sys.stdin.fileno()) as keys, Live(Text("joining ..."), console=Console(),
+                                                        auto_refresh=False, transient=False) as live:
+        def show(summary, frame):
+            live.update(Text(keyboard_screen(summary, frame, client.slot, predictor)), refresh=True)
+
+        return run_session(client, welcome, pilot=pilot, keys=keys, predictor=predictor, seconds=args.seconds,
+                           show=show, show_every_s=0.05)
 
 
 def serve_command(args: argparse.Namespace) -> int:
@@ -296,8 +485,12 @@ def serve_command(args: argparse.Namespace) -> int:
                 raise SceneError(f"--best-of must be an odd number >= 1, got {args.best_of}")
             scene = replace(scene, match=replace(scene.match, best_of=args.best_of))
         ticks = scene.ticks if args.ticks is None else args.ticks
+        curve = {}
+        if getattr(args, "curve_secret", None):
+            public, secret = load_curve_key(args.curve_secret, secret=True)
+            curve = {"curve_public_key": public, "curve_secret_key": secret}
         config = GatewayConfig(bind=args.bind, snapshot_hz=args.snapshot_hz, timeout_s=args.timeout,
-                               grace_s=args.grace)
+                               grace_s=args.grace, **curve)
         crash = getattr(args, "crash_gateway_at_tick", None)
         supervisor = Supervisor(scene, ticks, "realtime", seed=args.seed, gateway=config,
                                 players_timeout=args.wait, crash_at_tick=crash, crash_worker="gateway")

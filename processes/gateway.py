@@ -53,6 +53,10 @@ REMOTE_ACK_DTYPE = np.dtype([("tick", "<i8"), ("input_seq", "<u8", (2,))])
 REMOTE_ACK_RING = 1024  # ticks (1 s at 1 kHz): a reader this late gets None, never a wrong pair
 # Every arbitrated lock of a run, in the one global order of acquisition.
 RUN_LOCK_NAMES = ("bat_inputs", "remote_inputs")
+# The seat table as it survives a gateway's restart (a SnapshotBlock the supervisor owns; the
+# gateway of the moment is its one writer): who holds each seat's token and its grace.
+SEAT_DTYPE = np.dtype([("slot", "u1"), ("taken", "u1"), ("token", "u1", (16,)), ("name", "u1", (32,)),
+                       ("grace_until", "<f8")])  # taken: a connection held it; grace_until: time.monotonic s
 MAX_BAD = 64  # bad messages one session may send before it is kicked
 MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messages
 MAX_FRAME_BYTES = 4096  # libzmq disconnects a peer sending a bigger frame (MAXMSGSIZE)
@@ -68,7 +72,9 @@ class GatewayConfig:
     often. timeout_s: a silent peer is dropped after this long. grace_s: a dropped player's
     seat waits this long for its token. sndhwm: messages queued per peer before its snapshots
     are dropped. sndbuf: the kernel's send buffer per connection in bytes, 0: the OS default.
-    max_spectators: more are told "full".
+    max_spectators: more are told "full". curve_secret_key, curve_public_key: Z85 keys of the
+    server (`pingpong keys DIR`): every session is then encrypted and a client must know the
+    public key to connect at all (libzmq accepts any client key pair: no ZAP handler runs).
     """
 
     bind: str = "tcp://127.0.0.1:0"
@@ -79,6 +85,8 @@ class GatewayConfig:
     sndhwm: int = 32
     sndbuf: int = 0
     max_spectators: int = 64
+    curve_secret_key: bytes = b""  # Z85; set: every session is CURVE-encrypted and the server authenticated
+    curve_public_key: bytes = b""  # Z85, the secret key's public half
 
 
 @dataclass
@@ -104,6 +112,35 @@ class _Seat:
     identity: bytes | None = None
     name: str = ""
     grace_until: float = 0.0  # while empty: only `token` may take it until then
+
+
+class SeatStore:
+    """The seat table in a processes.shm.SnapshotBlock of SEAT_DTYPE records (one per seat): a
+    restarted gateway finds its seats' tokens there, so a rejoin token outlives the gateway.
+    Double-buffered, so a gateway killed mid-save leaves the previous table intact."""
+
+    def __init__(self, block):
+        self.block = block
+        self._table = np.zeros(block.count, SEAT_DTYPE)
+
+    def save(self, seats) -> None:
+        table = self._table
+        table[:] = 0
+        for i, seat in enumerate(seats):
+            raw = seat.name.encode("utf-8")[:32]
+            table[i]["slot"], table[i]["taken"] = int(seat.slot), seat.identity is not None
+            table[i]["token"] = np.frombuffer(seat.token, np.uint8)
+            table[i]["name"] = np.frombuffer(raw.ljust(32, b"\0"), np.uint8)
+            table[i]["grace_until"] = seat.grace_until
+        self.block.publish(table, 0)
+
+    def load(self) -> np.ndarray | None:
+        """The last table saved, None if no gateway saved one yet."""
+        if self.block.version < 2:
+            return None
+        out = np.zeros(self.block.count, SEAT_DTYPE)
+        self.block.snapshot(out)
+        return out
 
 
 def _zero_inputs():
@@ -145,10 +182,13 @@ class Gateway:
         post_input(bat, seq, tick, inputs6) -> bool: hand an accepted input to the physics
             (False: it could not be queued; counted).
         clock: seconds, monotonic (tests may pass their own).
+        seat_store: a SeatStore the seat table is saved to on every change and restored from at
+            start (a restarted gateway: seats held at its predecessor's death wait `grace_s`
+            for their tokens); None: seats live and die with this object.
     """
 
     def __init__(self, zctx, config: GatewayConfig, *, scene_name: str, best_of: int, dt: float,
-                 remote_slots, post_input, clock=time.monotonic):
+                 remote_slots, post_input, clock=time.monotonic, seat_store: SeatStore | None = None):
         self.config = config
         self.scene_name = scene_name
         self.best_of = best_of
@@ -156,6 +196,7 @@ class Gateway:
         self.post_input = post_input
         self.clock = clock
         self.seats = {slot: _Seat(slot, slot in set(remote_slots)) for slot in (Slot.A, Slot.B)}
+        self.seat_store = seat_store
         self.sessions: dict[bytes, _Session] = {}
         self.counts: Counter[str] = Counter()
         self.drops = wire.DropCounter()
@@ -172,10 +213,38 @@ class Gateway:
         self.router.setsockopt(zmq.MAXMSGSIZE, MAX_FRAME_BYTES)
         if config.sndbuf:
             self.router.setsockopt(zmq.SNDBUF, config.sndbuf)
+        if config.curve_secret_key:  # before bind: the handshake is chosen per connection at accept
+            self.router.curve_server = True
+            self.router.curve_secretkey = config.curve_secret_key
+            if config.curve_public_key:
+                self.router.curve_publickey = config.curve_public_key
         self.router.bind(config.bind[:-2] + ":*" if config.bind.endswith(":0") else config.bind)
         self.endpoint = self.router.getsockopt_string(zmq.LAST_ENDPOINT)
+        if seat_store is not None:
+            self._restore_seats(seat_store.load())
 
     # --- state ---------------------------------------------------------------------------------
+    def _restore_seats(self, table) -> None:
+        """Seats from a predecessor's table: tokens kept; a seat whose connection was open then
+        waits grace_s from now for its token (that connection is gone with the old socket)."""
+        if table is None:
+            return
+        now = self.clock()
+        for row in table:
+            seat = self.seats.get(Slot(int(row["slot"]))) if int(row["slot"]) in (1, 2) else None
+            token = row["token"].tobytes()
+            if seat is None or not seat.remote or token == NO_TOKEN:
+                continue
+            seat.token = token
+            seat.name = row["name"].tobytes().rstrip(b"\0").decode("utf-8", errors="replace")
+            seat.grace_until = now + self.config.grace_s if row["taken"] else float(row["grace_until"])
+            self.counts["seats_restored"] += 1
+        self._save_seats()
+
+    def _save_seats(self) -> None:
+        if self.seat_store is not None:
+            self.seat_store.save(list(self.seats.values()))
+
     @property
     def seats_filled(self) -> bool:
         """Every remote seat has a connected player."""
@@ -336,6 +405,7 @@ class Gateway:
             seat.token = secrets.token_bytes(wire.TOKEN_SIZE)
             self.counts["players_joined"] += 1
         seat.identity, seat.name, seat.grace_until = identity, name, 0.0
+        self._save_seats()
         session = self._open(identity, Role.PLAYER, seat.slot, name, now, message.seq)
         self._welcome(session, seat.token)
 
@@ -368,6 +438,7 @@ class Gateway:
             seat.grace_until = self.clock() + self.config.grace_s
         else:
             seat.token, seat.name, seat.grace_until = NO_TOKEN, "", 0.0
+        self._save_seats()
 
     def _input(self, session: _Session, message: wire.Message) -> None:
         if session.role != Role.PLAYER:
@@ -489,9 +560,9 @@ def gateway_worker(control, arena, scene, options: dict) -> None:
     once every remote seat is taken: the physics worker waits for it), crash_at_tick (fault
     injection: SIGKILL this process once the physics reached that tick).
 
-    A restarted gateway binds the same endpoint but has lost its sessions and tokens: clients
-    hear nothing from it, and hello again (a rejoin by token after a gateway restart is for a
-    later session: the seats would have to live in shared memory).
+    A restarted gateway binds the same endpoint and has lost its sessions, not its seats: the
+    seat table lives in the supervisor's "seats" block (SeatStore), so clients that hear nothing
+    more hello again, a player with its token gets its seat back.
     """
     from engine.dtypes import physics_snapshot_dtype
     from processes.locks import LockTable
@@ -513,8 +584,9 @@ def gateway_worker(control, arena, scene, options: dict) -> None:
 
     remote = [Slot(i + 1) for i, bat in enumerate(scene.bats) if bat.remote]
     zctx = zmq.Context()
+    seat_store = SeatStore(arena["seats"]) if "seats" in arena.blocks else None
     gateway = Gateway(zctx, config, scene_name=scene.name, best_of=scene.match.best_of, dt=scene.dt,
-                      remote_slots=remote, post_input=post_input)
+                      remote_slots=remote, post_input=post_input, seat_store=seat_store)
     start_event = options.get("start_event")
     n_ticks = options["ticks"]
     crash_at_tick = options.get("crash_at_tick")
@@ -553,7 +625,7 @@ def gateway_worker(control, arena, scene, options: dict) -> None:
         stats["goodbyes_at_end"] = told
         gateway.close()
         zctx.term()
-        del record, acks, points, snapshots, box
+        del record, acks, points, snapshots, box, seat_store
         locks.close()
         if reason == GoodbyeReason.MATCH_OVER:
             control.send("done", {"tick": gateway.tick, "gateway": stats})

@@ -157,6 +157,9 @@ class Supervisor:
             arena.shared_array("remote_inputs", REMOTE_INPUT_DTYPE, REMOTE_CAPACITY)
             arena.shared_array("remote_applied", np.dtype("<u8"), 2)  # seq of the last input applied per bat
             arena.shared_array("remote_acks", REMOTE_ACK_DTYPE, REMOTE_ACK_RING)  # those seqs by published tick
+            from processes.gateway import SEAT_DTYPE
+
+            arena.snapshot_block("seats", SEAT_DTYPE, 2)  # the seat table, so a restarted gateway keeps its tokens
             self._start_event = self._ctx.Event()
         return arena
 

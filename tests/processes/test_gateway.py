@@ -51,14 +51,14 @@ def zctx():
 class Rig:
     """A Gateway on a random port of 127.0.0.1, its clients, and a physics record to serve."""
 
-    def __init__(self, zctx, remote=(Slot.A, Slot.B), **config):
+    def __init__(self, zctx, remote=(Slot.A, Slot.B), seat_store=None, **config):
         self.zctx = zctx
         self.clock = Clock()
         self.posted = []
-        settings = dict(snapshot_hz=1000, heartbeat_s=1.0, timeout_s=5.0, grace_s=30.0)
+        settings = dict(bind="tcp://127.0.0.1:0", snapshot_hz=1000, heartbeat_s=1.0, timeout_s=5.0, grace_s=30.0)
         settings.update(config)
-        self.gateway = Gateway(zctx, GatewayConfig(bind="tcp://127.0.0.1:0", **settings), scene_name="match",
-                               best_of=1, dt=0.001, remote_slots=remote, post_input=self._post, clock=self.clock)
+        self.gateway = Gateway(zctx, GatewayConfig(**settings), scene_name="match", best_of=1, dt=0.001,
+                               remote_slots=remote, post_input=self._post, clock=self.clock, seat_store=seat_store)
         self.record = np.zeros(1, physics_snapshot_dtype(2))[0]
         self.record["bats"]["quat"] = (1.0, 0.0, 0.0, 0.0)
         self.record["rally"]["winner"] = -1
@@ -335,8 +335,8 @@ def test_serving_a_scene_makes_its_bats_remote_and_starts_a_gateway():
 
 # --- served matches: pingpong serve and join as processes -------------------------------------
 def _pingpong(*args) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "processes.cli", *args], cwd=ROOT, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    return subprocess.Popen([sys.executable, "-m", "processes.cli", *args], cwd=ROOT, stdin=subprocess.DEVNULL,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
 
 
 def _line(proc: subprocess.Popen, timeout: float) -> str:
@@ -486,45 +486,54 @@ def test_a_remote_bat_needs_the_effect_and_no_skill():
 
 
 @pytest.mark.timeout(120)
-def test_a_killed_gateway_is_restarted_on_the_same_endpoint(served, zctx):
-    server = _pingpong("serve", "--players", "0", "--ticks", "6000", "--crash-gateway-at-tick", "500", "--json")
+def test_a_killed_gateway_is_restarted_on_the_same_endpoint_and_the_token_reclaims_the_seat(served, zctx):
+    server = _pingpong("serve", "--players", "1", "--ticks", "6000", "--crash-gateway-at-tick", "500", "--json")
     served.append(server)
     hello = json.loads(_line(server, 60))
-    watcher = Client(hello["listening"], "spectator", "eve", zctx=zctx)
+    player = Client(hello["listening"], "player", "ann", zctx=zctx)
+    thief = Client(hello["listening"], "player", "eve", Slot.A, zctx=zctx)
     try:
-        watcher.join(30)
+        first = player.join(30)
+        assert first["slot"] == Slot.A
         ticks = []
         for _ in range(3000):  # snapshots until the gateway falls silent (it dies at tick 500)
-            watcher.heartbeat_if_due()
-            message = watcher.recv(500)
+            player.heartbeat_if_due()
+            message = player.recv(500)
             if message is None:
                 break
             ticks.append(message.tick)
         assert ticks and max(ticks) < 6000
         welcome = None
-        for _ in range(15):  # hello again until the restarted gateway answers on the same endpoint
-            watcher.hello()
+        for _ in range(15):  # hello again, with the token, until the restarted gateway answers
+            player.hello()
             for _ in range(20):
-                message = watcher.recv(100)
-                if message is not None and watcher.accept(message):
+                message = player.recv(100)
+                if message is not None and player.accept(message):
                     welcome = message
                     break
             if welcome is not None:
                 break
+        # the seat table outlived the gateway: the token is still good and gives the same seat
         assert welcome is not None and welcome.tick > 500
+        assert welcome["slot"] == Slot.A and welcome["token"] == first["token"] and welcome["name_a"] == "ann"
+        with pytest.raises(Rejected) as refused:  # and nobody else may take it
+            thief.join(10)
+        assert refused.value.reason == RejectReason.FULL
         goodbye = None
         for _ in range(3000):
-            watcher.heartbeat_if_due()
-            message = watcher.recv(100)
+            player.heartbeat_if_due()
+            message = player.recv(100)
             if message is not None and message.kind == Kind.GOODBYE:
                 goodbye = message
                 break
         assert goodbye is not None and goodbye["reason"] == GoodbyeReason.MATCH_OVER
     finally:
-        watcher.close()
+        player.close()
+        thief.close()
     summary = json.loads(_line(server, 60))
     assert server.wait(30) == 0
     assert summary["workers"]["gateway"]["restarts"] == 1 and summary["ticks"] == 6000
+    assert summary["gateway"]["seats_restored"] == 1 and summary["gateway"]["rejoined"] == 1
     assert not shm.leftover_segments(hello["run_id"])
 
 
@@ -587,4 +596,80 @@ def test_a_snapshot_acknowledges_the_inputs_applied_before_its_tick_not_the_next
         gateway_locks.close()
         del applied, acks, box, match, physics
     finally:
+        arena.close()
+
+
+# --- CURVE ------------------------------------------------------------------------------------
+def _unanswered(r, client, rounds=40):
+    """True if the client hears nothing while the gateway is pumped `rounds` times (bounded)."""
+    client.hello()
+    for _ in range(rounds):
+        r.step(serve=True)
+        if client.recv(10) is not None:
+            return False
+    return True
+
+
+@pytest.mark.timeout(30)
+def test_a_curve_session_works_and_a_client_without_the_server_key_cannot_join(rig, tmp_path):
+    import zmq.auth
+
+    from processes.cli import main
+    from processes.client import curve_client_options, load_curve_key
+
+    assert main(["keys", str(tmp_path / "keys"), "--json"]) == 0  # `pingpong keys DIR`
+    public_file, secret_file = tmp_path / "keys" / "server.key", tmp_path / "keys" / "server.key_secret"
+    public, secret = load_curve_key(str(secret_file), secret=True)
+    r = rig(curve_secret_key=secret, curve_public_key=public)
+    good = r.client(name="ann", socket_options=curve_client_options(str(public_file)))
+    assert r.join(good)["slot"] == Slot.A
+    snapshot = r.until(good, lambda m: m.kind == Kind.SNAPSHOT, serve=True)
+    assert snapshot["winner"] == -1
+    (tmp_path / "other").mkdir()
+    other_public, _ = zmq.auth.create_certificates(str(tmp_path / "other"), "server")
+    wrong = r.client(name="eve", socket_options=curve_client_options(other_public))
+    assert _unanswered(r, wrong)  # its handshake fails: no message either way
+    plain = r.client(name="bob")  # no CURVE at all
+    assert _unanswered(r, plain)
+    assert len(r.gateway.sessions) == 1
+    assert r.gateway.stats()["players_joined"] == 1
+    with pytest.raises(ValueError, match="no secret key"):
+        load_curve_key(str(public_file), secret=True)
+    with pytest.raises(ValueError, match="not a ZeroMQ certificate"):
+        load_curve_key(str(tmp_path / "missing.key"), secret=False)
+
+
+# --- seats outlive a gateway --------------------------------------------------------------------
+@pytest.mark.timeout(30)
+def test_a_restarted_gateway_finds_its_seats_and_the_token_reclaims_one(zctx, no_leftovers):
+    from processes.gateway import SEAT_DTYPE, SeatStore
+
+    arena = shm.Arena()
+    first = second = None
+    try:
+        store = SeatStore(arena.snapshot_block("seats", SEAT_DTYPE, 2))
+        first = Rig(zctx, seat_store=store)
+        ann = first.client(name="ann")
+        welcome = first.join(ann)
+        token = welcome["token"]
+        first.gateway.close()  # killed: no goodbye, no last save; only what it saved on the way
+        # (the worker's successor binds the same endpoint: the served test below; here any port)
+        second = Rig(zctx, seat_store=store)
+        assert second.gateway.counts["seats_restored"] == 1
+        thief = second.client(name="eve", slot=Slot.A)
+        with pytest.raises(Rejected) as refused:  # the seat waits for its token
+            second.join(thief)
+        assert refused.value.reason == RejectReason.FULL
+        back = second.client(name="ann", token=token)
+        again = second.join(back)
+        assert again["slot"] == Slot.A and again["token"] == token and again["name_a"] == "ann"
+        assert second.gateway.stats()["rejoined"] == 1
+        del store
+    finally:
+        for r in (first, second):
+            if r is not None:
+                for client in r.clients:
+                    client.close()
+        if second is not None:
+            second.gateway.close()
         arena.close()
