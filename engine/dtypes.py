@@ -91,3 +91,13 @@ def physics_snapshot_dtype(n_bats: int) -> np.dtype:
     """Everything the physics worker owns at one tick, as one record: ball, bats, world, rally."""
     return np.dtype([("ball", BALL_DTYPE), ("bats", BAT_DTYPE, (n_bats,)), ("world", WORLD_DTYPE),
                      ("rally", RALLY_DTYPE)])
+
+
+def net_snapshot_dtype(n_knots: int) -> np.dtype:
+    """The cloth net's whole state at one tick, as one record (the net worker publishes it).
+
+    tick: physics ticks done when this state holds (the net steps tick `tick - 1` to get here);
+    sleeping, quiet_ticks: net_kernel.NetSim's sleep state; pos, vel: m, m/s per knot.
+    """
+    return np.dtype([("tick", "<i8"), ("sleeping", "<i8"), ("quiet_ticks", "<i8"),
+                     ("pos", "<f8", (n_knots, 3)), ("vel", "<f8", (n_knots, 3))])

@@ -18,6 +18,7 @@ STOP_GONE = 2
 STOP_SUPPORT = 3
 STOP_DEADLINE = 4
 STOP_WATCH = 5
+STOP_NET = 6  # engine.world: the cloth net was stepped this tick (a point where net and ball agree)
 
 
 @njit(cache=True)

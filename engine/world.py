@@ -32,7 +32,7 @@ from engine.forces import drag_factor, magnus_factor
 from engine.geometry import FLOOR_Z, NET_BOX, POST_BOXES, TABLE_BOX, Body
 from engine.integrators import METHODS, WORK_SHAPE
 from engine.scene import Scene
-from engine.tick import STOP_EVENT, STOP_LIMIT, STOP_WATCH, advance_ticks
+from engine.tick import STOP_EVENT, STOP_LIMIT, STOP_NET, STOP_WATCH, advance_ticks
 from net_kernel import NO_CONTACT, NetSim, build_topology
 from net_kernel.sim import WAKE_MARGIN
 
@@ -160,7 +160,7 @@ class State:
     adapt: np.ndarray
     event_rows: np.ndarray
     bat_tmp: np.ndarray
-    net_sim: NetSim | None = None  # the cloth net's knots (a scene with net kind "cloth")
+    net_sim: NetSim | None = None  # the cloth net (a scene with net kind "cloth"), or a stand-in with its step
 
 
 def initial_state(scene: Scene) -> State:
@@ -273,7 +273,13 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
                         gone_z: float, deadline: float) -> tuple[int, int, int]:
     """advance() with a cloth net: the ball's ticks by the kernel, and near the net (or while the
     net is awake) tick by tick, each followed by the net's step with the ball's contact
-    (net_kernel.NetSim.step: the net moves the ball by `offset` and gives it `impulse`)."""
+    (net_kernel.NetSim.step: the net moves the ball by `offset` and gives it `impulse`).
+
+    It returns after every tick the net was stepped (STOP_NET, unless another reason): a caller
+    that publishes its state after each call then always has a state the net's agrees with,
+    which a restarted net or physics worker resumes from exactly. `state.net_sim` is a NetSim,
+    or anything with its `sleeping` and `step` (processes.worker_net.RemoteNet).
+    """
     net = state.net_sim
     y = state.ball_y
     mass = float(model.ball_params[P_MASS])
@@ -302,8 +308,7 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
             _net_event(state, events, n, p0, v0, contact, h)
             n += 1
             reason = STOP_EVENT
-        if n or reason != STOP_LIMIT:
-            return done, n, reason
+        return done, n, STOP_NET if reason == STOP_LIMIT else reason
     return done, 0, STOP_LIMIT
 
 
