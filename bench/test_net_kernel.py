@@ -1,4 +1,4 @@
-"""pytest-benchmark suite of the net step: numba (parallel, serial) against the numpy twin.
+"""pytest-benchmark suite of the net step: numba (parallel, serial) against the numpy twin, CSR and grid kernels.
 
 Run with `make bench` (or `.venv/bin/python -m pytest bench/test_net_kernel.py --benchmark-enable`).
 Each benchmark compiles (or loads numba's cache) and warms up before timing, so compile
@@ -43,3 +43,32 @@ def test_net_step(benchmark, net, backend):
     benchmark.extra_info["springs"] = topo.n_springs
     benchmark.extra_info["msprings_per_s"] = topo.n_springs / benchmark.stats.stats.median / 1e6
     assert np.all(np.isfinite(out_pos))
+
+
+GRID_BACKENDS = {
+    "grid_numba_parallel": kernels.step_grid,
+    "grid_numba_serial": kernels.step_grid_serial,
+    "grid_reference": reference.step_grid,
+}
+STEPS_PER_CALL = 25  # the default net's substeps in a 1 ms tick, taken in one call by NetSim
+
+
+@pytest.mark.parametrize("backend", sorted(GRID_BACKENDS))
+def test_net_step_grid(benchmark, net, backend):
+    name, topo, pos, vel = net
+    step = GRID_BACKENDS[backend]
+    rows, cols = topo.spec.rows, topo.spec.cols
+    state = np.zeros((2, 2, 3, rows, cols))
+    state[0, 0] = pos.T.reshape(3, rows, cols)
+    state[0, 1] = vel.T.reshape(3, rows, cols)
+    blocks = 2 if backend == "grid_numba_parallel" else 1
+    steps = 1 if (backend == "grid_reference" and name.startswith("grid")) else STEPS_PER_CALL
+    args = (state, 0, topo.knot_inv_mass.reshape(rows, cols), topo.grid_params, 9.81, 5.0, 0.5 * topo.h_max, steps,
+            np.zeros((blocks, kernels.GRID_WORK_ROWS, cols)))
+    step(*args)  # compile / load the cache, outside the timing
+    rounds = 3 if name.startswith("grid") else 20
+    benchmark.pedantic(step, args=args, rounds=rounds, iterations=1, warmup_rounds=1)
+    benchmark.extra_info["springs"] = topo.n_springs
+    benchmark.extra_info["steps_per_call"] = steps
+    benchmark.extra_info["msprings_per_s"] = steps * topo.n_springs / benchmark.stats.stats.median / 1e6
+    assert np.all(np.isfinite(state))

@@ -2,14 +2,23 @@
 
 Plain dicts out (stdlib + numpy + numba only); processes/profile_net.py formats them.
 
-Byte model of one step (the compulsory traffic of the two passes, neighbours from cache):
-  per knot: spring pass reads knot_pos, knot_vel (48 B); knot pass reads knot_pos,
+Two kernel paths (both give the same bits): "csr", the general per-knot gather over the CSR
+adjacency (kernels.step_knots, one step a call), and "grid", the structured-grid kernel
+(kernels.step_grid, NetSim's path for build_topology's nets), timed as NetSim calls it while
+the ball is away: a 1 ms tick's substeps in one call (steps_per_call).
+
+Byte model of one step (the compulsory memory traffic, neighbours from cache):
+  csr, per knot: spring pass reads knot_pos, knot_vel (48 B); knot pass reads knot_pos,
             knot_vel (48 B), knot_inv_mass (8 B), adj_start (8 B), writes out_pos,
             out_vel (48 B)                                                    -> 160 B
-  per spring: spring pass reads spring_ij (uint32, 8 B), writes |L|^2 and the rate
+  csr, per spring: spring pass reads spring_ij (uint32, 8 B), writes |L|^2 and the rate
             (16 B), reads them back (16 B) with spring_rest, spring_k, spring_c (24 B),
             writes the scale (8 B); knot pass reads 2 slots of adj_knot, adj_spring
             (uint32, 16 B) and the scale twice (16 B)                           -> 104 B
+  grid, per knot: reads position and velocity (48 B) and knot_inv_mass (8 B), writes
+            the other buffer's position and velocity (48 B)                   -> 104 B
+  grid, per spring: nothing (class parameters; a row's spring forces stay in a scratch
+            of a few rows, in cache)                                            -> 0 B
 Write-allocate traffic is not counted, as it is not in the copy measurement
 (bytes = 2 x size: one read, one write).
 """
@@ -22,10 +31,16 @@ import numba
 import numpy as np
 
 from net_kernel import kernels, reference
+from net_kernel.sim import SAFETY
 from net_kernel.topology import build_topology, grid_spec
 
 BYTES_PER_KNOT = 160
 BYTES_PER_SPRING = 104
+GRID_BYTES_PER_KNOT = 104
+GRID_BYTES_PER_SPRING = 0
+PATHS = ("grid", "csr")
+# The tick whose substeps the grid path takes in one call (the engine's match tick).
+TICK_S = 1e-3
 # The copy that sets this machine's bandwidth: large enough to leave every cache (256 MiB).
 COPY_BYTES = 256 * 2**20
 REPEATS = 5
@@ -62,51 +77,89 @@ def _state(topo, seed=0):
     return pos, vel, np.empty_like(pos), np.empty_like(vel)
 
 
+def _substeps_per_tick(topo) -> int:
+    """Substeps NetSim takes in one TICK_S tick (its step count; the profile's step size is 0.5 h_max)."""
+    return max(1, math.ceil(TICK_S / (SAFETY * topo.h_max)))
+
+
 def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True, target_s: float = 1.0,
-                    repeats: int = REPEATS) -> dict:
-    """Time `steps` semi-implicit steps of `topo` with one backend (median of `repeats` runs).
+                    repeats: int = REPEATS, path: str = "csr", steps_per_call: int | None = None) -> dict:
+    """Time `steps` semi-implicit steps of `topo` with one backend and path (median of `repeats` runs).
 
     Args:
-        topo: the built net.
+        topo: the built net (a build_topology grid for path "grid").
         backend: "numba" or "reference".
         steps: steps per timed run; None sizes a run to about target_s / repeats.
         parallel: numba: the parallel kernel (else the serial twin of the same bits).
         target_s: s, rough total timing budget when steps is None.
         repeats: timed runs.
+        path: "csr" (step_knots, one step a call) or "grid" (step_grid).
+        steps_per_call: grid: steps per kernel call (None: a TICK_S tick's substeps, as
+            NetSim calls it); csr: always 1.
     """
+    if path not in PATHS:
+        raise ValueError(f"path {path!r} is not one of {', '.join(PATHS)}")
     mod = kernels if backend == "numba" else reference
-    step = mod.step_knots if parallel else mod.step_knots_serial
     pos, vel, out_pos, out_vel = _state(topo)
-    args = (topo.knot_inv_mass, topo.adj_start, topo.adj_knot, topo.adj_spring, topo.spring_ij, topo.spring_rest,
-            topo.spring_k, topo.spring_c, topo.spec.gravity, topo.spec.air_damping, 0.5 * topo.h_max,
-            np.zeros((kernels.STEP_WORK_ROWS, topo.n_springs)))
+    h = 0.5 * topo.h_max
+    if path == "grid":
+        rows, cols = topo.spec.rows, topo.spec.cols
+        step = mod.step_grid if parallel else mod.step_grid_serial
+        state = np.zeros((2, 2, 3, rows, cols))
+        state[0, 0] = pos.T.reshape(3, rows, cols)
+        state[0, 1] = vel.T.reshape(3, rows, cols)
+        blocks = min(rows, max(1, numba.get_num_threads())) if parallel and backend == "numba" else 1
+        work = np.zeros((blocks, kernels.GRID_WORK_ROWS, cols))
+        inv_mass = topo.knot_inv_mass.reshape(rows, cols)
+        per_call = steps_per_call or _substeps_per_tick(topo)
+        if steps is not None:
+            per_call = min(per_call, steps)
+        src = [0]
+
+        def call():
+            src[0] = step(state, src[0], inv_mass, topo.grid_params, topo.spec.gravity, topo.spec.air_damping, h,
+                          per_call, work)
+    else:
+        step = mod.step_knots if parallel else mod.step_knots_serial
+        args = (topo.knot_inv_mass, topo.adj_start, topo.adj_knot, topo.adj_spring, topo.spring_ij, topo.spring_rest,
+                topo.spring_k, topo.spring_c, topo.spec.gravity, topo.spec.air_damping, h,
+                np.zeros((kernels.STEP_WORK_ROWS, topo.n_springs)))
+        per_call = 1
+        buffers = [pos, vel, out_pos, out_vel]
+
+        def call():
+            p, v, po, vo = buffers
+            step(p, v, *args, po, vo)
+            buffers[:] = po, vo, p, v
     t0 = time.perf_counter()
-    step(pos, vel, *args, out_pos, out_vel)  # compiles (or loads the cache) on the first call
+    call()  # compiles (or loads the cache) on the first call
     first_call = time.perf_counter() - t0
-    # One step's time, the best of three (a shared machine's worst is noise, not the kernel).
+    # One call's time, the best of three (a shared machine's worst is noise, not the kernel).
     one = math.inf
     for _ in range(3):
         t0 = time.perf_counter()
-        step(pos, vel, *args, out_pos, out_vel)
+        call()
         one = min(one, time.perf_counter() - t0)
+    calls = max(1, (steps or per_call) // per_call)
     if steps is None:
-        steps = max(1, min(100_000, int(target_s / repeats / max(one, 1e-7))))
+        calls = max(1, min(100_000, int(target_s / repeats / max(one, 1e-7))))
     runs = []
     for _ in range(repeats):
-        p, v, po, vo = pos, vel, out_pos, out_vel
         t0 = time.perf_counter()
-        for _ in range(steps):
-            step(p, v, *args, po, vo)
-            p, po = po, p
-            v, vo = vo, v
-        runs.append((time.perf_counter() - t0) / steps)
+        for _ in range(calls):
+            call()
+        runs.append((time.perf_counter() - t0) / (calls * per_call))
     per_step = statistics.median(runs)
-    n_bytes = BYTES_PER_KNOT * topo.n_knots + BYTES_PER_SPRING * topo.n_springs
+    per_knot, per_spring = (GRID_BYTES_PER_KNOT, GRID_BYTES_PER_SPRING) if path == "grid" else (BYTES_PER_KNOT,
+                                                                                                  BYTES_PER_SPRING)
+    n_bytes = per_knot * topo.n_knots + per_spring * topo.n_springs
     return {
         "backend": backend,
+        "path": path,
         "parallel": bool(parallel) if backend == "numba" else False,
         "compile_s": max(0.0, first_call - one) if backend == "numba" else 0.0,
-        "steps": steps,
+        "steps": calls * per_call,
+        "steps_per_call": per_call,
         "repeats": repeats,
         "us_per_step": per_step * 1e6,
         "us_per_step_min": min(runs) * 1e6,
@@ -118,8 +171,8 @@ def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True
 
 
 def profile_net(cols: int, rows: int, steps: int | None = None, backends=("numba", "reference"),
-                target_s: float = 1.0) -> dict:
-    """The whole profile: net size, copy bandwidth, and one entry per backend (numba: parallel and serial).
+                target_s: float = 1.0, paths=PATHS) -> dict:
+    """The whole profile: net size, copy bandwidth, and one entry per path and backend (numba: parallel and serial).
 
     Returns:
         {"knots", "springs", "cols", "rows", "h_s", "byte_model", "copy": {...}, "results": [...]}
@@ -131,10 +184,11 @@ def profile_net(cols: int, rows: int, steps: int | None = None, backends=("numba
     copy = copy_bandwidth(n_bytes=min(COPY_BYTES, max(2**20, 64 * (BYTES_PER_KNOT * topo.n_knots
                                                                     + BYTES_PER_SPRING * topo.n_springs))))
     results = []
-    for backend in backends:
-        variants = (True, False) if backend == "numba" else (False,)
-        for parallel in variants:
-            results.append(profile_backend(topo, backend, steps, parallel=parallel, target_s=target_s))
+    for path in paths:
+        for backend in backends:
+            variants = (True, False) if backend == "numba" else (False,)
+            for parallel in variants:
+                results.append(profile_backend(topo, backend, steps, parallel=parallel, target_s=target_s, path=path))
     copy_again = copy_bandwidth(n_bytes=copy["bytes"] // 2)
     # Bandwidth is measured before and after the kernels; the share uses the better of the
     # two medians, since the machine is shared and the slower one saw more interference.
@@ -147,7 +201,10 @@ def profile_net(cols: int, rows: int, steps: int | None = None, backends=("numba
         "knots": topo.n_knots,
         "springs": topo.n_springs,
         "h_s": 0.5 * topo.h_max,
-        "byte_model": (f"{BYTES_PER_KNOT} B per knot (pos, vel read by both passes, written once; inv_mass; "
+        "substeps_per_tick": _substeps_per_tick(topo),
+        "byte_model": (f"grid: {GRID_BYTES_PER_KNOT} B per knot (position, velocity read and written; inv_mass), "
+                       f"{GRID_BYTES_PER_SPRING} B per spring (class parameters, row scratch in cache); "
+                       f"csr: {BYTES_PER_KNOT} B per knot (pos, vel read by both passes, written once; inv_mass; "
                        f"CSR start) + {BYTES_PER_SPRING} B per spring (ij, 2 slots as uint32; |L|^2, rate "
                        "out and in; rest, k, c; scale out and read twice; all f8); neighbours from cache"),
         "copy": {"gb_per_s": copy_best, "before": copy["gb_per_s"], "after": copy_again["gb_per_s"],

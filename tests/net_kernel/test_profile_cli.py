@@ -12,9 +12,11 @@ def test_profile_net_smoke():
     assert done.returncode == 0, done.stderr
     report = json.loads(done.stdout)
     assert report["knots"] == 160
-    assert {r["backend"] for r in report["results"]} == {"numba", "reference"}
+    assert {(r["path"], r["backend"]) for r in report["results"]} == {
+        (path, backend) for path in ("grid", "csr") for backend in ("numba", "reference")}
     for r in report["results"]:
         assert r["us_per_step"] > 0 and r["msprings_per_s"] > 0 and 0 < r["copy_share"]
+        assert r["steps"] == 2 and r["steps_per_call"] == (2 if r["path"] == "grid" else 1)
     assert report["copy"]["gb_per_s"] > 0
 
 
