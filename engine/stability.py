@@ -293,16 +293,18 @@ def run_case(case: Case | NetCase) -> Outcome:
                                          scene.bats[b].half_thickness, normal) - R)
             if gaps:
                 out.max_penetration_m = max(out.max_penetration_m, -min(gaps))
-            if net is not None and not net.sleeping:
+            if net is not None:
                 kp = net.knot_pos
-                d = kp - p
-                knot_gap = math.sqrt(float(np.einsum("ij,ij->i", d, d).min())) - knot_reach
-                knot_penetration = max(knot_penetration, -knot_gap)
-                out.max_abs_state = max(out.max_abs_state, float(np.abs(kp).max()), float(np.abs(net.knot_vel).max()))
+                if not net.sleeping:  # asleep, the knots keep their place and the ball is far
+                    d = kp - p
+                    knot_gap = math.sqrt(float(np.einsum("ij,ij->i", d, d).min())) - knot_reach
+                    knot_penetration = max(knot_penetration, -knot_gap)
+                    out.max_abs_state = max(out.max_abs_state, float(np.abs(kp).max()), float(np.abs(net.knot_vel).max()))
+                # The centre on the other side of the sheet from one tick to the next: through the net.
                 now = _cloth_side(p, kp, scene.cloth)
                 if not math.isnan(cloth_side) and not math.isnan(now) and cloth_side * now < 0:
                     out.tunnelled = True
-                cloth_side = now if not math.isnan(now) else cloth_side
+                cloth_side = now
             if case.conserves:
                 out.energy_gain = max(out.energy_gain, (energy() - e0) / max(abs(e0), 1e-12))
             now = _thin_side(state, model)
