@@ -186,16 +186,21 @@ def step_knots_serial(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, ad
 # regular grid (NetTopology.grid). Knot (r, c) finds its 8 springs by index arithmetic instead
 # of the CSR lists, spring parameters come per class (GRID_CLASSES) instead of per spring, and
 # the state is structure of arrays (knot_state below) so every loop runs along a row's
-# contiguous columns and vectorises. Spring and knot work are fused row by row: the scales of
+# contiguous columns and vectorises. Spring and knot work are fused row by row: the forces of
 # the springs above row r go to a rolling scratch of a few rows, then row r's knots gather and
 # step, so nothing of size n_springs goes to memory and back.
+#
+# In place, yet every spring sees the old state (springs act before knots move): row r is
+# stepped only after the springs of rows r - 1, r and r + 1 that touch it were evaluated, and
+# no spring evaluated later reads row r. Row blocks run in parallel: first every block
+# evaluates the springs below its first row (the only ones that read a row another block
+# steps), then all blocks step their rows. One buffer is half the memory traffic of two: no
+# second buffer to stream out (and read for ownership) each step.
 #
 # Bits: a knot sums its springs in the CSR slot order of build_topology (down-left, down,
 # down-right, left, right, up-left, up, up-right: increasing spring index), each spring's
 # scale is the same expression as step_knots', so step_grid gives step_knots' bits (a missing
-# spring at the border adds a +-0 term). Row blocks run in parallel; a block recomputes the
-# springs below its first row (same expression, same bits) instead of reading its
-# neighbour's, so any number of blocks gives the same bits.
+# spring at the border adds a +-0 term), for any number of blocks or threads.
 #
 # A spring's force is stored once as a vector t = scale (x_j - x_i) (force on its first knot
 # i; -t on j): -t is exactly scale (x_i - x_j), so the sums keep step_knots' bits, and the
@@ -209,10 +214,10 @@ def step_knots_serial(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, ad
 GRID_MESH, GRID_VERTICAL, GRID_SHEAR, GRID_CORD = 0, 1, 2, 3
 GRID_CLASSES = 4
 # Scratch rows of one row block (grid_work[block]), each (cols,): the row's horizontal
-# springs' t (3 rows), then two rolling bands of the springs between a row and the next:
-# vertical, shear / and shear \ t (9 rows each).
-GRID_WORK_ROWS = 21
-_H, _BAND = 0, 3
+# springs' t (3 rows), two rolling bands of the springs between a row and the next
+# (vertical, shear / and shear \ t: 9 rows each), and the band below the block's first row.
+GRID_WORK_ROWS = 30
+_H, _BAND, _EDGE = 0, 3, 21
 _V, _D1, _D2 = 0, 3, 6  # offsets within a band
 
 
@@ -281,39 +286,45 @@ def _grid_force(work, k, down, up, q, ql):
 
 
 @njit(inline="always", cache=True, error_model="numpy")
-def _grid_knot(state, src, dst, k, r, q, w, f, g, drag, h):
-    """Knot (r, q)'s component k: v' = v + h (w f - drag v - g), x' = x + h v'; fixed (w = 0) knots copied."""
-    xi = state[src, 0, k, r, q]
-    vi = state[src, 1, k, r, q]
+def _grid_knot(state, k, r, q, w, f, g, drag, h):
+    """Knot (r, q)'s component k in place: v' = v + h (w f - drag v - g), x' = x + h v'; fixed (w = 0) knots kept."""
+    xi = state[0, k, r, q]
+    vi = state[1, k, r, q]
     nv = vi + h * (w * f - drag * vi - g)
     fixed = w == 0.0
-    state[dst, 1, k, r, q] = vi if fixed else nv
-    state[dst, 0, k, r, q] = xi if fixed else xi + h * nv
+    state[1, k, r, q] = vi if fixed else nv
+    state[0, k, r, q] = xi if fixed else xi + h * nv
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
-def _grid_update(state, src, knot_inv_mass, r, down, up, work, gravity, drag, h):
-    """Row r's symplectic Euler step from state[src] into state[1 - src]."""
-    cols = state.shape[4]
-    dst = 1 - src
+def _grid_update(state, knot_inv_mass, r, down, up, work, gravity, drag, h):
+    """Row r's symplectic Euler step, in place."""
+    cols = state.shape[3]
     last = cols - 1
     for k in range(3):
         g = gravity if k == 2 else 0.0  # - 0.0 is exact: step_knots' bits on x and y
         for q in range(1, last):
-            _grid_knot(state, src, dst, k, r, q, knot_inv_mass[r, q], _grid_force(work, k, down, up, q, q - 1), g,
-                       drag, h)
+            _grid_knot(state, k, r, q, knot_inv_mass[r, q], _grid_force(work, k, down, up, q, q - 1), g, drag, h)
         # Border columns: the springs missing to the left sit in the zeroed last column.
-        _grid_knot(state, src, dst, k, r, 0, knot_inv_mass[r, 0], _grid_force(work, k, down, up, 0, last), g, drag, h)
-        _grid_knot(state, src, dst, k, r, last, knot_inv_mass[r, last], _grid_force(work, k, down, up, last, last - 1),
-                   g, drag, h)
+        _grid_knot(state, k, r, 0, knot_inv_mass[r, 0], _grid_force(work, k, down, up, 0, last), g, drag, h)
+        _grid_knot(state, k, r, last, knot_inv_mass[r, last], _grid_force(work, k, down, up, last, last - 1), g,
+                   drag, h)
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
-def _grid_block(state, src, knot_inv_mass, params, gravity, drag, h, work, r0, r1):
-    """Step rows r0 .. r1 - 1 from state[src] into state[1 - src]; work: this block's (GRID_WORK_ROWS, cols) scratch."""
-    x = state[src, 0]
-    v = state[src, 1]
+def _grid_edge(state, params, grid_work, b, r0):
+    """Block b's first phase: the band below its first row r0 into grid_work[b, _EDGE:] (none for r0 = 0)."""
+    if r0 > 0:
+        _grid_band(state[0], state[1], r0 - 1, params, grid_work[b], _EDGE)
+
+
+@njit(cache=True, fastmath=False, error_model="numpy")
+def _grid_block(state, knot_inv_mass, params, gravity, drag, h, grid_work, b, r0, r1):
+    """Block b's second phase: step rows r0 .. r1 - 1 in place; the band above r1 - 1 is block b + 1's edge."""
+    x = state[0]
+    v = state[1]
     rows = x.shape[1]
+    work = grid_work[b]
     for r in range(r0, r1):
         up = _BAND + 9 * (r % 2)
         down = _BAND + 9 * ((r + 1) % 2)
@@ -321,60 +332,59 @@ def _grid_block(state, src, knot_inv_mass, params, gravity, drag, h, work, r0, r
             if r == 0:
                 work[down:down + 9] = 0.0  # no springs below the bottom row
             else:
-                _grid_band(x, v, r - 1, params, work, down)  # the block below computes these too: same bits
-        if r < rows - 1:
-            _grid_band(x, v, r, params, work, up)
+                work[down:down + 9] = work[_EDGE:_EDGE + 9]
+        if r == rows - 1:
+            work[up:up + 9] = 0.0  # no springs above the top row
+        elif r == r1 - 1:
+            work[up:up + 9] = grid_work[b + 1, _EDGE:_EDGE + 9]  # evaluated before block b + 1 moved row r1
         else:
-            work[up:up + 9] = 0.0
+            _grid_band(x, v, r, params, work, up)
         _grid_row(x, v, r, params, work)
-        _grid_update(state, src, knot_inv_mass, r, down, up, work, gravity, drag, h)
+        _grid_update(state, knot_inv_mass, r, down, up, work, gravity, drag, h)
 
 
 @njit(cache=True, parallel=True, fastmath=False, error_model="numpy")
-def step_grid(knot_state, src, knot_inv_mass, grid_params, gravity, drag, h, n_steps, grid_work):
-    """n_steps semi-implicit Euler steps of a grid net, row blocks in parallel; step_knots' model and bits.
+def step_grid(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, grid_work):
+    """n_steps semi-implicit Euler steps of a grid net in place, row blocks in parallel; step_knots' model and bits.
 
-    The state ping-pongs between knot_state[0] and knot_state[1]; each step reads one buffer
-    whole (springs act before knots move: every spring sees the old positions) and writes
-    the other. Row blocks (one per grid_work block) run in parallel and never write what
-    another block reads. Bit-for-bit the same for any number of blocks or threads.
+    Every spring is evaluated on the state at the step's start (springs act before knots
+    move), though the state is updated in place (see the notes above). Row blocks (one per
+    grid_work block) run in parallel in two phases a step and never write what another
+    block reads in the same phase. Bit-for-bit the same for any number of blocks or threads.
 
     Args:
-        knot_state: (2, 2, 3, rows, cols) buffer, [position m | velocity m/s], axis, row, column;
-            knot (r, c) is knot r * cols + c of the topology.
-        src: buffer holding the state at the start (0 or 1).
+        knot_state: (2, 3, rows, cols), [position m | velocity m/s], axis, row, column; knot
+            (r, c) is knot r * cols + c of the topology. Updated in place.
         knot_inv_mass: (rows, cols) 1/kg; 0 marks a fixed knot.
         grid_params: (GRID_CLASSES, 3) per spring class: k N/m, c N s/m, rest length m.
         gravity: m/s^2 along -z.
         drag: 1/s, linear air damping of free knots.
         h: s, the step; stable below NetTopology.h_max.
         n_steps: steps to take (>= 0).
-        grid_work: (blocks, GRID_WORK_ROWS, cols) scratch; blocks <= rows row blocks step in parallel.
-
-    Returns:
-        The buffer holding the state after the steps: src if n_steps is even, else 1 - src.
+        grid_work: (blocks, GRID_WORK_ROWS, cols) scratch, 1 <= blocks <= rows: that many row
+            blocks step in parallel.
     """
-    rows = knot_state.shape[3]
+    rows = knot_state.shape[2]
     blocks = grid_work.shape[0]
     for _ in range(n_steps):
         for b in prange(blocks):
-            _grid_block(knot_state, src, knot_inv_mass, grid_params, gravity, drag, h, grid_work[b],
-                        b * rows // blocks, (b + 1) * rows // blocks)
-        src = 1 - src
-    return src
+            _grid_edge(knot_state, grid_params, grid_work, b, b * rows // blocks)
+        for b in prange(blocks):
+            _grid_block(knot_state, knot_inv_mass, grid_params, gravity, drag, h, grid_work, b, b * rows // blocks,
+                        (b + 1) * rows // blocks)
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
-def step_grid_serial(knot_state, src, knot_inv_mass, grid_params, gravity, drag, h, n_steps, grid_work):
-    """step_grid on one thread (same blocks in turn, same bits). Args and return as step_grid."""
-    rows = knot_state.shape[3]
+def step_grid_serial(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, grid_work):
+    """step_grid on one thread (the same blocks and phases in turn, same bits). Args as step_grid."""
+    rows = knot_state.shape[2]
     blocks = grid_work.shape[0]
     for _ in range(n_steps):
         for b in range(blocks):
-            _grid_block(knot_state, src, knot_inv_mass, grid_params, gravity, drag, h, grid_work[b],
-                        b * rows // blocks, (b + 1) * rows // blocks)
-        src = 1 - src
-    return src
+            _grid_edge(knot_state, grid_params, grid_work, b, b * rows // blocks)
+        for b in range(blocks):
+            _grid_block(knot_state, knot_inv_mass, grid_params, gravity, drag, h, grid_work, b, b * rows // blocks,
+                        (b + 1) * rows // blocks)
 
 
 @njit(cache=True, fastmath=False)

@@ -16,7 +16,7 @@ Byte model of one step (the compulsory memory traffic, neighbours from cache):
             writes the scale (8 B); knot pass reads 2 slots of adj_knot, adj_spring
             (uint32, 16 B) and the scale twice (16 B)                           -> 104 B
   grid, per knot: reads position and velocity (48 B) and knot_inv_mass (8 B), writes
-            the other buffer's position and velocity (48 B)                   -> 104 B
+            them back in place (48 B)                                         -> 104 B
   grid, per spring: nothing (class parameters; a row's spring forces stay in a scratch
             of a few rows, in cache)                                            -> 0 B
 Write-allocate traffic is not counted, as it is not in the copy measurement
@@ -105,20 +105,18 @@ def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True
     if path == "grid":
         rows, cols = topo.spec.rows, topo.spec.cols
         step = mod.step_grid if parallel else mod.step_grid_serial
-        state = np.zeros((2, 2, 3, rows, cols))
-        state[0, 0] = pos.T.reshape(3, rows, cols)
-        state[0, 1] = vel.T.reshape(3, rows, cols)
+        state = np.zeros((2, 3, rows, cols))
+        state[0] = pos.T.reshape(3, rows, cols)
+        state[1] = vel.T.reshape(3, rows, cols)
         blocks = min(rows, max(1, numba.get_num_threads())) if parallel and backend == "numba" else 1
         work = np.zeros((blocks, kernels.GRID_WORK_ROWS, cols))
         inv_mass = topo.knot_inv_mass.reshape(rows, cols)
         per_call = steps_per_call or _substeps_per_tick(topo)
         if steps is not None:
             per_call = min(per_call, steps)
-        src = [0]
 
         def call():
-            src[0] = step(state, src[0], inv_mass, topo.grid_params, topo.spec.gravity, topo.spec.air_damping, h,
-                          per_call, work)
+            step(state, inv_mass, topo.grid_params, topo.spec.gravity, topo.spec.air_damping, h, per_call, work)
     else:
         step = mod.step_knots if parallel else mod.step_knots_serial
         args = (topo.knot_inv_mass, topo.adj_start, topo.adj_knot, topo.adj_spring, topo.spring_ij, topo.spring_rest,

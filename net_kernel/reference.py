@@ -90,18 +90,18 @@ def _left(a):
     return out
 
 
-def step_grid(knot_state, src, knot_inv_mass, grid_params, gravity, drag, h, n_steps, grid_work):
-    """Numpy twin of kernels.step_grid (args, return and bits identical; grid_work is unused).
+def step_grid(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, grid_work):
+    """Numpy twin of kernels.step_grid (args, in-place update and bits identical; grid_work is unused).
 
     Every spring class at once over the whole grid; a missing spring's t is 0, as in the kernel.
     """
-    rows, cols = knot_state.shape[3], knot_state.shape[4]
+    rows, cols = knot_state.shape[2], knot_state.shape[3]
     w = knot_inv_mass
     fixed = w == 0.0
     top = (np.arange(rows) == rows - 1)[:, None]
     h_kind = np.where(top, GRID_CORD, GRID_MESH)  # (rows, 1): the top row's horizontals are the cord
     for _ in range(n_steps):
-        x, v = knot_state[src, 0], knot_state[src, 1]
+        x, v = knot_state[0].copy(), knot_state[1].copy()  # the step's start: every spring reads it
         t_h = np.zeros((3, rows, cols))
         t_v = np.zeros((3, rows, cols))
         t_d1 = np.zeros((3, rows, cols))
@@ -114,14 +114,11 @@ def step_grid(knot_state, src, knot_inv_mass, grid_params, gravity, drag, h, n_s
         t_d2[:, :-1, :-1] = _grid_t(x[:, :-1, 1:], x[:, 1:, :-1], v[:, :-1, 1:], v[:, 1:, :-1], *p[GRID_SHEAR])
         # The kernel's slot order: below-left, below, below-right, left, right, above-left, above, above-right.
         f = (-_left(_below(t_d1)) - _below(t_v) - _below(t_d2) - _left(t_h) + t_h + _left(t_d2) + t_v + t_d1)
-        dst = 1 - src
         for k in range(3):
             g = gravity if k == 2 else 0.0
             nv = v[k] + h * (w * f[k] - drag * v[k] - g)
-            knot_state[dst, 1, k] = np.where(fixed, v[k], nv)
-            knot_state[dst, 0, k] = np.where(fixed, x[k], x[k] + h * nv)
-        src = dst
-    return src
+            knot_state[1, k] = np.where(fixed, v[k], nv)
+            knot_state[0, k] = np.where(fixed, x[k], x[k] + h * nv)
 
 
 step_grid_serial = step_grid

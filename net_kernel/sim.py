@@ -47,11 +47,11 @@ class NetContact(NamedTuple):
 class NetSim:
     """A cloth net stepped tick by tick: knots, substeps, sleeping, ball contact.
 
-    The knot state lives in two preallocated buffers that the kernel ping-pongs between;
-    `knot_pos`/`knot_vel` always name the current one. A net on build_topology's regular grid
-    is stepped by the grid kernels (kernels.step_grid: structure of arrays, all of a tick's
-    substeps in one call while the ball is away), any other net by the CSR kernels; both give
-    the same bits. `kernel_calls` counts every kernel invocation (steps, rest checks, contact
+    A net on build_topology's regular grid is stepped by the grid kernels (kernels.step_grid:
+    structure of arrays stepped in place, all of a tick's substeps in one call while the ball
+    is away), any other net by the CSR kernels, whose state lives in two preallocated buffers
+    that they ping-pong between; both give the same bits. `knot_pos`/`knot_vel` always name
+    the current state. `kernel_calls` counts every kernel invocation (steps, rest checks, contact
     sweeps), so a sleeping net can be shown to cost none.
     """
 
@@ -115,11 +115,12 @@ class NetSim:
         n = topo.n_knots
         if self.grid:
             rows, cols = topo.spec.rows, topo.spec.cols
-            # [buffer, position | velocity, axis, row, column]; knot_pos/knot_vel are (n, 3) views.
-            self._state = np.zeros((2, 2, 3, rows, cols))
-            self._state[:, 0] = topo.knot_pos.T.reshape(3, rows, cols)
-            self._pos = [self._state[b, 0].reshape(3, n).T for b in range(2)]
-            self._vel = [self._state[b, 1].reshape(3, n).T for b in range(2)]
+            # [position | velocity, axis, row, column], stepped in place; knot_pos/knot_vel are (n, 3)
+            # views (both "buffers" name the one state).
+            self._state = np.zeros((2, 3, rows, cols))
+            self._state[0] = topo.knot_pos.T.reshape(3, rows, cols)
+            self._pos = [self._state[0].reshape(3, n).T] * 2
+            self._vel = [self._state[1].reshape(3, n).T] * 2
             self._grid_inv_mass = topo.knot_inv_mass.reshape(rows, cols)
             # One scratch block per row block; the block count changes no bit (kernels.step_grid).
             blocks = min(rows, max(1, numba.get_num_threads())) if parallel and backend == "numba" else 1
@@ -210,8 +211,8 @@ class NetSim:
             bv[:] = ball_vel
         if far and self.grid:
             # No contact to sweep between substeps: the whole tick in one call.
-            self._cur = self._step_grid(self._state, self._cur, self._grid_inv_mass, topo.grid_params, self.gravity,
-                                        self.drag, self.h, self.substeps, self._grid_work)
+            self._step_grid(self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag, self.h,
+                            self.substeps, self._grid_work)
             self.kernel_calls += 1
         else:
             for k in range(self.substeps):
@@ -228,7 +229,7 @@ class NetSim:
                     bp[:] = self._ball[2]
                 src, dst = self._cur, 1 - self._cur
                 if self.grid:
-                    self._step_grid(self._state, src, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag,
+                    self._step_grid(self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag,
                                     self.h, 1, self._grid_work)
                 elif self.implicit:
                     self.cg_iterations += self._implicit(
