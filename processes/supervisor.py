@@ -61,6 +61,8 @@ class ProcessRunResult:
 def workers_for(scene: Scene) -> list[str]:
     """The workers a scene needs, no more: a scene without a cloth net or AI starts none of those."""
     kinds = ["physics"]
+    if scene.cloth is not None and "net" in scene.effects:
+        kinds.append("net")
     if any(bat.skill is not None for bat in scene.bats):
         kinds.append("ai")
     if "remote" in scene.effects:
@@ -110,6 +112,7 @@ class Supervisor:
         self._tmp = None
         self._start_event = None
         self._baton = None
+        self._net_baton = None
         self.kinds = workers_for(scene)
         if "gateway" in self.kinds:
             from processes.gateway import GatewayConfig
@@ -118,7 +121,8 @@ class Supervisor:
         # forkserver: workers fork from a clean server that never ran threads or kernels.
         self._ctx = multiprocessing.get_context("forkserver")
         self._ctx.set_forkserver_preload(["engine.world", "engine.match", "processes.worker",
-                                          "processes.worker_physics", "processes.worker_ai", "processes.gateway"])
+                                          "processes.worker_physics", "processes.worker_ai", "processes.worker_net",
+                                          "processes.gateway"])
         self.arena: Arena | None = None
         self._workers: list[_Worker] = []
 
@@ -134,6 +138,16 @@ class Supervisor:
             arena.shared_array("points", POINT_DTYPE, POINT_LOG_CAPACITY)
             if self.frame_every:
                 arena.shared_array("frames", snapshot, self.ticks // self.frame_every + 1)
+        if "net" in self.kinds:
+            from engine.dtypes import net_snapshot_dtype
+            from net_kernel import build_topology
+            from processes.worker_net import NET_BLOCKS, NET_IO_DTYPE
+
+            knots = net_snapshot_dtype(build_topology(self.scene.cloth).n_knots)
+            for name in NET_BLOCKS:
+                arena.snapshot_block(name, knots, 1)
+            arena.shared_array("net_io", NET_IO_DTYPE, 1)
+            self._net_baton = Baton("net", self._ctx, arena.shared_array("net_baton", TICK_SLOT_DTYPE, 1).array)
         if "ai" in self.kinds or "gateway" in self.kinds:
             from processes.gateway import RUN_LOCK_NAMES
 
@@ -170,6 +184,8 @@ class Supervisor:
                    "seed": self.seed, "frame_every": self.frame_every}
         if self._baton is not None:
             options.update(baton=self._baton)
+        if self._net_baton is not None:
+            options.update(net_baton=self._net_baton)
         if self._tmp is not None:
             options.update(lock_path=self._lock_path)
         if self._start_event is not None:
@@ -288,8 +304,9 @@ class Supervisor:
             wall = time.monotonic() - start_wall
             return self._collect(wall, startup)
         finally:
-            if self._baton is not None:
-                self._baton.stop()  # an AI worker waiting for its turn exits at once
+            for baton in (self._baton, self._net_baton):
+                if baton is not None:
+                    baton.stop()  # an AI or net worker waiting for its turn exits at once
             for worker in self._workers:
                 self._reap(worker)
             self.arena.close()

@@ -112,6 +112,10 @@ def worker_entry(kind: str, conn, layout: dict, status_index: int, scene, option
             from processes.worker_ai import ai_worker
 
             ai_worker(control, arena, scene, options)
+        elif kind == "net":
+            from processes.worker_net import net_worker
+
+            net_worker(control, arena, scene, options)
         elif kind == "gateway":
             from processes.gateway import gateway_worker
 

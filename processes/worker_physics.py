@@ -62,6 +62,7 @@ def physics_worker(control: Control, arena: Arena, scene, options: dict) -> None
         if trace is not None:
             copy_record(record, trace, 0)
         snapshots.publish(record, 0)
+    net = _remote_net(control, arena, options, state)
     tick = int(state.world[0]["tick"])
     total_events = int(state.world[0]["events_total"])
     control.set_state(WorkerState.READY)
@@ -89,8 +90,28 @@ def physics_worker(control: Control, arena: Arena, scene, options: dict) -> None
             os.kill(os.getpid(), signal.SIGKILL)
         busy += time.perf_counter() - t0
         control.beat(tick)
-    control.row["busy_s"] = float(control.row["busy_s"]) + busy
-    control.send("done", {"tick": tick, "busy_s": busy})
+    handoff = _stop_net(net, options)
+    control.row["busy_s"] = float(control.row["busy_s"]) + busy - handoff
+    control.row["handoff_s"] = float(control.row["handoff_s"]) + handoff
+    control.send("done", {"tick": tick, "busy_s": busy - handoff, "handoff_s": handoff})
+
+
+def _remote_net(control: Control, arena: Arena, options: dict, state):
+    """With a net worker: the state's cloth net becomes its stand-in (after any resume)."""
+    if "net_baton" not in options:
+        return None
+    from processes.worker_net import RemoteNet
+
+    state.net_sim = RemoteNet(control, arena, options, state.world[0], state.net_sim)
+    return state.net_sim
+
+
+def _stop_net(net, options: dict) -> float:
+    """Tell the net worker the run is over; the wall time spent waiting for it."""
+    if net is None:
+        return 0.0
+    options["net_baton"].stop()
+    return net.waits
 
 
 class _RemoteAI:
@@ -227,6 +248,7 @@ def _match_worker(control: Control, arena: Arena, scene, options: dict) -> None:
         if trace is not None:
             copy_record(record, trace, 0)
         snapshots.publish(record, 0)
+    net = _remote_net(control, arena, options, match.state)
     world = match.state.world[0]
     tick = int(world["tick"])
     total_events = int(world["events_total"])
@@ -276,14 +298,14 @@ def _match_worker(control: Control, arena: Arena, scene, options: dict) -> None:
             os.kill(os.getpid(), signal.SIGKILL)
         busy += time.perf_counter() - t0
         control.beat(tick)
-    handoff = driver.waits if driver is not None else 0.0
+    handoff = (driver.waits if driver is not None else 0.0) + _stop_net(net, options)
     if driver is not None:
         options["baton"].stop()
         driver.close()
     if remote is not None:
         remote.close()
-    # busy_s counts the physics' own work; the hand-offs to the AI (and the AI's work inside
-    # them, which the AI worker reports itself) are reported apart.
+    # busy_s counts the physics' own work; the hand-offs to the AI and the net (and their work
+    # inside them, which they report themselves) are reported apart.
     control.row["busy_s"] = float(control.row["busy_s"]) + busy - handoff
     control.row["handoff_s"] = float(control.row["handoff_s"]) + handoff
     control.send("done", {"tick": tick, "busy_s": busy - handoff, "handoff_s": handoff})

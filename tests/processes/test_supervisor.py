@@ -80,7 +80,7 @@ def _wait_running(run_ids_before, supervisor_pid, timeout):
         for run_id in new:
             try:
                 status = Arena.attach({"run_id": run_id, "specs": {"status": ("array", STATUS_DTYPE, (1,))}})
-            except FileNotFoundError:
+            except (FileNotFoundError, ValueError):  # gone, or created and not yet sized ("empty file")
                 continue
             try:
                 row = status["status"].array[0]
