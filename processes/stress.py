@@ -559,7 +559,7 @@ def scenario_load(args, run: Run) -> dict:
         "gateway_snapshots_sent": stats.get("snapshots_sent"), "gateway_snapshots_dropped": stats.get("snapshots_dropped", 0),
         "rate_min_hz": round(min(r["rate_min"] for r in reports), 1) if reports else None,
         "rate_median_hz": round(float(np.median([r["rate_median"] for r in reports])), 1) if reports else None,
-        "goodbye_match_over": goodbyes, "bots": [{k: r.get(k) for k in ("slot", "goodbye", "snapshots", "inputs_sent")}
+        "goodbye_match_over": goodbyes, "bots_without_goodbye": len(late), "bots": [{k: r.get(k) for k in ("slot", "goodbye", "snapshots", "inputs_sent")}
                                                   for r in bot_reports],
         "points": end.get("final", {}).get("points_total"), "match_ticks": end.get("summary", {}).get("ticks"),
         "score_regressions": sum(r["regressions"]["score"] for r in reports),
@@ -610,7 +610,7 @@ def scenario_churn(args, run: Run) -> dict:
     # every abrupt leaver is dropped after the timeout and its seat freed after the grace
     wait = server.spec["timeout_s"] + server.spec["grace_s"] + 1.0
     until(lambda: time.monotonic() - churn_end > wait, wait + 1)
-    fill = run.add(swarm(_watch_spec(server.endpoint, places + 1, 3, "fill", duration=3.0, leave_at_end=True,
+    fill = run.add(swarm(_watch_spec(server.endpoint, places + 1, 3, "fill", duration=1.0, leave_at_end=True,
                                      join_timeout=20), "fill"))
     ready = fill.expect(lambda o: o.get("event") == "ready", 60, "fill ready")
     fill_report = fill.expect(lambda o: o.get("event") == "report", 60, "fill report")
@@ -824,7 +824,7 @@ def scenario_malformed(args, run: Run) -> dict:
     result = _base("malformed")
     shm_before = shm_names()
     n, rate = args.malformed, args.malformed_rate
-    seconds = n / rate * 2.0 + 10.0  # the match: the flood at its rate (a loaded machine is slower), then the round trips
+    seconds = n / rate * 4.0 + 12.0  # the match: the flood at its rate (a loaded machine is slower), then the round trips
     server = run.add(Server(run.tmp, players=2, heartbeat_s=0.25, timeout_s=5.0, max_spectators=32, seconds=seconds))
     gateway = server.pids["gateway"]
     legit = run.add(swarm(_watch_spec(server.endpoint, 4, 1, "ok", None, duration=seconds + 120, until_goodbye=True),
@@ -834,7 +834,7 @@ def scenario_malformed(args, run: Run) -> dict:
     meter = CpuMeter()
     meter.start(server.all_pids())
     flood = run.add(swarm({"task": "malformed", "address": server.endpoint, "n": n, "rate": rate, "seed": args.seed,
-                           "max_seconds": seconds - 5.0}, "malformed"))
+                           "max_seconds": seconds - 4.0}, "malformed"))
     report = flood.expect(lambda o: o.get("event") == "report", seconds + 60, "report")
     rss1 = rss_kb(gateway)
     result["cpu_pct"] = meter.stop()
