@@ -284,43 +284,49 @@ SEG_T0, SEG_T1, SEG_P0, SEG_V0, SEG_P1, SEG_V1 = 0, 1, 2, 5, 8, 11
 SEG_WIDTH = 14
 
 
-# The bat's fields in a BAT_DTYPE record seen as float64 (offsets in numbers), and the arm's
-# parameters of bat_control in one array (BatAI._params).
+# The bat's fields in a BAT_DTYPE record seen as float64 (offsets in numbers).
 BAT_POS, BAT_QUAT, BAT_VEL, BAT_ANG_VEL = (BAT_DTYPE.fields[name][1] // 8 for name in ("pos", "quat", "vel", "ang_vel"))
 BAT_FLOATS = BAT_DTYPE.itemsize // 8
-(ARM_MASS, ARM_INERTIA, ARM_KP, ARM_KD, ARM_K_ANGLE, ARM_D_ANGLE, ARM_MAX_FORCE, ARM_MAX_TORQUE,
- ARM_MAX_SPEED) = range(9)
-ARM_SIZE = 9
+# What bat_control tracks, in one float64 array (BatAI._ctl), at these offsets: the arm
+# (mass kg; inertia kg m^2 about a diameter, the face turns about one; kp, kd: (rad/s)^2 and
+# rad/s gains of the position loop; k_angle, d_angle: of the face; its limits max_force N,
+# max_torque N m, max_speed m/s), the pose to hold without a path (m) and the face normal to
+# turn to (unit), then the path: the number of segments and up to MAX_SEGMENTS of them.
+(CTL_MASS, CTL_INERTIA, CTL_KP, CTL_KD, CTL_K_ANGLE, CTL_D_ANGLE, CTL_MAX_FORCE, CTL_MAX_TORQUE,
+ CTL_MAX_SPEED) = range(9)
+CTL_HOLD, CTL_NORMAL, CTL_N_SEGMENTS, CTL_SEGMENTS = 9, 12, 15, 16
+MAX_SEGMENTS = 3  # backswing, swing, follow-through
+CTL_SIZE = CTL_SEGMENTS + MAX_SEGMENTS * SEG_WIDTH
 
 
 @njit(cache=True)
-def bat_control(now, segments, n_segments, hold_pos, normal_ref, bat, arm, out):
+def bat_control(now, bat, ctl, out):
     """Force and torque on a bat tracking a planned path, by PD control with feed-forward.
 
     Args:
-        now: s. segments: (n, SEG_WIDTH) cubic Hermite pieces (t0, t1, p0, v0, p1, v1), in time
-            order; with none left (n_segments = 0 or now past the last) the bat holds hold_pos.
-        normal_ref: (3,) unit face normal to turn to.
+        now: s.
         bat: (BAT_FLOATS,) the bat's BAT_DTYPE record as float64: pos m, quat, vel m/s, ang_vel rad/s
             at BAT_POS, BAT_QUAT, BAT_VEL, BAT_ANG_VEL.
-        arm: (ARM_SIZE,) at ARM_*: mass kg; inertia kg m^2 about a diameter (the face turns about
-            one); kp, kd: (rad/s)^2 and rad/s gains of the position loop; k_angle, d_angle: of the
-            face; the arm's limits max_force N, max_torque N m, max_speed m/s.
+        ctl: (CTL_SIZE,) at CTL_*: the arm, the hold pose, the face normal to turn to, and the
+            path: cubic Hermite segments (t0, t1, p0, v0, p1, v1) in time order; with none left
+            (no segments, or now past the last) the bat holds the hold pose.
         out: (6,) written: force N, torque N m.
     """
     pos, vel = bat[BAT_POS:BAT_POS + 3], bat[BAT_VEL:BAT_VEL + 3]
     quat, ang_vel = bat[BAT_QUAT:BAT_QUAT + 4], bat[BAT_ANG_VEL:BAT_ANG_VEL + 3]
-    mass, inertia, kp, kd = arm[ARM_MASS], arm[ARM_INERTIA], arm[ARM_KP], arm[ARM_KD]
-    k_angle, d_angle = arm[ARM_K_ANGLE], arm[ARM_D_ANGLE]
-    max_force, max_torque, max_speed = arm[ARM_MAX_FORCE], arm[ARM_MAX_TORQUE], arm[ARM_MAX_SPEED]
+    mass, inertia, kp, kd = ctl[CTL_MASS], ctl[CTL_INERTIA], ctl[CTL_KP], ctl[CTL_KD]
+    k_angle, d_angle = ctl[CTL_K_ANGLE], ctl[CTL_D_ANGLE]
+    max_force, max_torque, max_speed = ctl[CTL_MAX_FORCE], ctl[CTL_MAX_TORQUE], ctl[CTL_MAX_SPEED]
+    hold_pos, normal_ref = ctl[CTL_HOLD:CTL_HOLD + 3], ctl[CTL_NORMAL:CTL_NORMAL + 3]
+    n_segments = int(ctl[CTL_N_SEGMENTS])
     p_ref = np.empty(3)
     v_ref = np.zeros(3)
     a_ref = np.zeros(3)
     k = 0
-    while k < n_segments and now > segments[k, SEG_T1]:
+    while k < n_segments and now > ctl[CTL_SEGMENTS + k * SEG_WIDTH + SEG_T1]:
         k += 1
     if k < n_segments:
-        seg = segments[k]
+        seg = ctl[CTL_SEGMENTS + k * SEG_WIDTH:CTL_SEGMENTS + (k + 1) * SEG_WIDTH]
         T = seg[SEG_T1] - seg[SEG_T0]
         s = min(max((now - seg[SEG_T0]) / T, 0.0), 1.0)
         h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
@@ -476,14 +482,13 @@ class BatAI:
         self._tick_events = np.zeros((MAX_IMPACTS_PER_TICK, EVENT_ROW))
         self._shoot_scratch = np.zeros((4, 9))
         self.plan: Plan | None = None
-        self._no_segments = np.zeros((0, SEG_WIDTH))
-        self._segments = self._no_segments
         self._plan_end = -math.inf  # s, end of the plan's last segment
         self._ready = {sign: self._make_ready(sign) for sign in (-1, 1)}
-        self._arm = np.zeros(ARM_SIZE)
-        self._arm[[ARM_MASS, ARM_INERTIA, ARM_KP, ARM_KD, ARM_K_ANGLE, ARM_D_ANGLE]] = (
+        self._ctl = np.zeros(CTL_SIZE)  # what bat_control tracks; _track writes it when the plan or end changes
+        self._ctl[[CTL_MASS, CTL_INERTIA, CTL_KP, CTL_KD, CTL_K_ANGLE, CTL_D_ANGLE]] = (
             self.mass, self.inertia[0], self.KP, self.KD, self.K_ANGLE, self.D_ANGLE)
-        self._arm[[ARM_MAX_FORCE, ARM_MAX_TORQUE, ARM_MAX_SPEED]] = skill.max_force_n, skill.max_torque_nm, skill.max_speed
+        self._ctl[[CTL_MAX_FORCE, CTL_MAX_TORQUE, CTL_MAX_SPEED]] = skill.max_force_n, skill.max_torque_nm, skill.max_speed
+        self._tracking = (None, 0)  # (plan, end_sign) that self._ctl holds
         self.turn_key = None
         self.turn_seen_at = 0.0
         self.planned_key = None
@@ -495,8 +500,9 @@ class BatAI:
         self.solve_shot(np.array([1.6, 0.0, 0.2]), np.zeros(3), (-0.8, 0.0), 8.0, 1)
         bat = np.zeros(1, BAT_DTYPE)
         bat["quat"][0] = (1.0, 0.0, 0.0, 0.0)
-        ready_pos, ready_normal = self._ready[1]
-        bat_control(0.0, self._no_segments, 0, ready_pos, ready_normal, self._bat_floats(bat[0]), self._arm, np.zeros(6))
+        ctl = self._ctl.copy()
+        ctl[CTL_NORMAL] = 1.0
+        bat_control(0.0, self._bat_floats(bat[0]), ctl, np.zeros(6))
 
     # --- prediction ---------------------------------------------------------------------
     def predict(self, y0: np.ndarray, seconds: float, max_events: int = 8, dt: float | None = None):
@@ -734,25 +740,38 @@ class BatAI:
             self.planned_key = rally_key
             self.plan = self.plan_stroke(now, ball_y, floats[BAT_POS:BAT_POS + 3].copy(),
                                          floats[BAT_VEL:BAT_VEL + 3].copy(), end_sign, serve)
-            self._segments = self.plan.as_array() if self.plan is not None else self._no_segments
             self._plan_end = self.plan.segments[-1].t1 if self.plan is not None else -math.inf
         if self.plan is not None and now > self._plan_end:
             self.plan = None
-            self._segments = self._no_segments
-        ready_pos, ready_normal = self._ready[end_sign]
+        if self.plan is not self._tracking[0] or end_sign != self._tracking[1]:
+            self._track(self.plan, end_sign)
         if out is None:
             out = np.zeros(6)
-        bat_control(now, self._segments, self._segments.shape[0], ready_pos,
-                    ready_normal if self.plan is None else self.plan.normal, floats, self._arm, out)
+        bat_control(now, floats, self._ctl, out)
         return out
+
+    def _track(self, plan: Plan | None, end_sign: int) -> None:
+        """Write into self._ctl the plan's path and face normal, or the ready pose of end_sign without one."""
+        ctl = self._ctl
+        ready_pos, ready_normal = self._ready[end_sign]
+        ctl[CTL_HOLD:CTL_HOLD + 3] = ready_pos
+        ctl[CTL_NORMAL:CTL_NORMAL + 3] = ready_normal if plan is None else plan.normal
+        rows = plan.as_array() if plan is not None else np.zeros((0, SEG_WIDTH))
+        if len(rows) > MAX_SEGMENTS:
+            raise ValueError(f"a plan has {len(rows)} segments, bat_control tracks at most MAX_SEGMENTS = {MAX_SEGMENTS}")
+        ctl[CTL_N_SEGMENTS] = len(rows)
+        ctl[CTL_SEGMENTS:CTL_SEGMENTS + rows.size] = rows.ravel()
+        self._tracking = (plan, end_sign)
 
     @staticmethod
     def _bat_floats(bat) -> np.ndarray:
         """A BAT_DTYPE record (numpy.void or 0-d array) as a read-only (BAT_FLOATS,) float64 view, no copy."""
-        if bat.dtype != BAT_DTYPE or bat.shape != ():
+        if type(bat) is np.void and bat.dtype is BAT_DTYPE:  # the common case, checked cheaply
+            return np.frombuffer(bat, np.float64)  # read-only
+        if not isinstance(bat, (np.void, np.ndarray)) or bat.dtype != BAT_DTYPE or bat.shape != ():
             raise TypeError(f"BatAI.control: bat must be one engine.dtypes.BAT_DTYPE record (e.g. bats[player]), "
-                            f"got dtype {bat.dtype} and shape {bat.shape}")
+                            f"got {type(bat).__name__} of dtype {getattr(bat, 'dtype', None)} and shape "
+                            f"{getattr(bat, 'shape', None)}")
         floats = np.frombuffer(bat, np.float64)
-        if floats.flags.writeable:  # a 0-d array's buffer: read-only like a record's, one numba specialisation
-            floats.flags.writeable = False
+        floats.flags.writeable = False  # as a record's: one numba specialisation
         return floats
