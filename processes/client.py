@@ -171,6 +171,20 @@ class Client:
             self.goodbye = message["reason"]
         return message
 
+    def recv_batch(self, timeout_ms: int, limit: int = 256) -> list[wire.Message]:
+        """Every valid message waiting (at most `limit`), waiting at most timeout_ms for the
+        first: a loop that handles them all at once never falls behind the server."""
+        messages = []
+        if not self.sock.poll(timeout_ms, zmq.POLLIN):
+            return messages
+        for _ in range(limit):
+            message = self.recv(0)
+            if message is not None:
+                messages.append(message)
+            elif not self.sock.poll(0, zmq.POLLIN):
+                break
+        return messages
+
     def heartbeat_if_due(self) -> None:
         now = time.monotonic()
         if now >= self._next_beat:
@@ -226,15 +240,29 @@ class BotBrain:
         self._last = None
         self._turns = 0
 
-    def control(self, snapshot: wire.Message, dt: float) -> np.ndarray:
-        """(6,) force and torque for our bat after this snapshot."""
+    def control(self, snapshot: wire.Message, dt: float, predictor=None) -> np.ndarray:
+        """(6,) force and torque for our bat after this snapshot.
+
+        predictor: a prediction.Predictor reconciled with the snapshot: the AI then decides from
+        the predicted ball and bat at the predicted tick (the server's present, as far as the
+        client knows), not from the snapshot's past: the arm's PD loop would otherwise act on
+        states a round trip old, and a loop with kd = 60/s goes unstable beyond ~25 ms of delay.
+        The snapshot still says whose turn it is (phase, server, striker, rally).
+        """
         from engine.rules import Phase, next_striker
 
         p = self.player
-        self.ball_y[0:3], self.ball_y[3:6], self.ball_y[6:9] = (snapshot["ball_pos"], snapshot["ball_vel"],
-                                                                snapshot["ball_spin"])
-        self.bat["pos"], self.bat["quat"] = snapshot["bat_pos"][p], snapshot["bat_quat"][p]
-        self.bat["vel"], self.bat["ang_vel"] = snapshot["bat_vel"][p], snapshot["bat_ang_vel"][p]
+        if predictor is not None and predictor.tick is not None:
+            ball, bat, now = predictor.ball, predictor.bat, predictor.tick * dt
+            self.ball_y[0:3], self.ball_y[3:6], self.ball_y[6:9] = ball["pos"], ball["vel"], ball["spin"]
+            self.bat["pos"], self.bat["quat"], self.bat["vel"], self.bat["ang_vel"] = (
+                bat["pos"], bat["quat"], bat["vel"], bat["ang_vel"])
+        else:
+            now = snapshot.tick * dt
+            self.ball_y[0:3], self.ball_y[3:6], self.ball_y[6:9] = (snapshot["ball_pos"], snapshot["ball_vel"],
+                                                                    snapshot["ball_spin"])
+            self.bat["pos"], self.bat["quat"] = snapshot["bat_pos"][p], snapshot["bat_quat"][p]
+            self.bat["vel"], self.bat["ang_vel"] = snapshot["bat_vel"][p], snapshot["bat_ang_vel"][p]
         phase, server, striker, rally = int(snapshot["phase"]), snapshot["server"], snapshot["striker"], snapshot["rally"]
         last = self._last
         if last is None or rally != last[0]:
@@ -243,7 +271,7 @@ class BotBrain:
             self._turns += 1  # a strike: a return (the striker changed) or the service
         self._last = (rally, phase, striker)
         my_turn = next_striker(phase, int(server), int(striker)) == p
-        return self.ai.control(snapshot.tick * dt, self.ball_y, self.bat, (rally, self._turns), my_turn,
+        return self.ai.control(now, self.ball_y, self.bat, (rally, self._turns), my_turn,
                                phase == Phase.WAITING_SERVE, -1 if p == 0 else 1, self.out)
 
 
@@ -263,7 +291,7 @@ def _error_line(name: str, stats: dict) -> str:
             f"max {stats['max_mm']:.2f} mm  ({stats['n']} snapshots)")
 
 
-CONTROL_HZ = 100  # keyboard play: inputs per second (the server's AI arms decide at 100 Hz too)
+CONTROL_HZ = 100  # a predicting player's inputs per second (the server's AI arms decide at 100 Hz too)
 
 
 def run_session(client: Client, welcome: wire.Message, *, brain=None, pilot=None, keys=None, predictor=None,
@@ -272,7 +300,8 @@ def run_session(client: Client, welcome: wire.Message, *, brain=None, pilot=None
     """Play or watch until the server says goodbye, falls silent, the keys say quit or `seconds` pass.
 
     Args:
-        client: joined (welcome taken). brain: a BotBrain (inputs from each snapshot).
+        client: joined (welcome taken). brain: a BotBrain (with a predictor: inputs at CONTROL_HZ
+            from the predicted state; without: from each newest snapshot).
         pilot, keys: a keyboard.KeyboardPilot and a key source (inputs at CONTROL_HZ from the
             predicted bat). predictor: a prediction.Predictor (a player): reconciled on each
             snapshot, advanced to the server's estimated present, stamps our inputs.
@@ -308,21 +337,27 @@ def run_session(client: Client, welcome: wire.Message, *, brain=None, pilot=None
 
     while clock() < deadline and client.goodbye is None and not client.server_lost and not quit_pressed:
         client.heartbeat_if_due()
-        message = client.recv(wait_ms)
+        newest = None
+        for message in client.recv_batch(wait_ms):  # all that waits: only the newest state is acted on
+            now = clock()
+            if message.kind == Kind.SNAPSHOT:
+                summary["snapshots"] += 1
+                server_clock.observe(message.tick, now)
+                if view is not None:
+                    view.push(message, now)
+                if newest is None or message.tick > newest.tick:
+                    newest = message
+            elif message.kind == Kind.EVENT:
+                event = message.to_dict()
+                summary["events"].append({k: event[k] for k in ("event", "winner", "score", "games_won")})
         now = clock()
-        if message is not None and message.kind == Kind.SNAPSHOT:
-            summary["snapshots"] += 1
-            last = message
-            server_clock.observe(message.tick, now)
+        if newest is not None:
+            summary["snapshots_acted_on"] = summary.get("snapshots_acted_on", 0) + 1
+            last = newest
             if predictor is not None:
-                predictor.reconcile(message)
-            if view is not None:
-                view.push(message, now)
-            if brain is not None:
-                send(brain.control(message, dt))
-        elif message is not None and message.kind == Kind.EVENT:
-            event = message.to_dict()
-            summary["events"].append({k: event[k] for k in ("event", "winner", "score", "games_won")})
+                predictor.reconcile(newest)
+            if brain is not None and predictor is None:
+                send(brain.control(newest, dt))  # no prediction: decide from each newest snapshot
         if predictor is not None and last is not None:
             predictor.advance_to(present())
         if keys is not None:
@@ -331,12 +366,17 @@ def run_session(client: Client, welcome: wire.Message, *, brain=None, pilot=None
                     quit_pressed = True
                 elif pilot is not None:
                     pilot.press(key, now)
-        if pilot is not None and predictor is not None and last is not None and now >= next_control:
-            next_control = max(next_control + 1.0 / CONTROL_HZ, now)
-            send(pilot.control(now, predictor.bat))
-        if show is not None and now >= next_show and last is not None:
+        if predictor is not None and last is not None and now >= next_control and (pilot or brain) is not None:
+            next_control = max(next_control + 1.0 / CONTROL_HZ, now)  # from the predicted present
+            if predictor.stale:
+                summary["stale_controls_skipped"] = summary.get("stale_controls_skipped", 0) + 1
+            else:
+                send(pilot.control(now, predictor.bat) if pilot is not None else brain.control(last, dt, predictor))
+        if now >= next_show and last is not None:
             next_show = now + show_every_s
-            show(summary, _frame(last, predictor, view, pilot, now))
+            frame = _frame(last, predictor, view, pilot, now)  # sampled also unseen: the counts report it
+            if show is not None:
+                show(summary, frame)
     if client.goodbye is None:
         client.leave()
     summary["goodbye"] = client.goodbye.name.lower() if client.goodbye else (
@@ -400,6 +440,8 @@ def join_command(args: argparse.Namespace) -> int:
     except (ValueError, OSError) as err:
         print(f"pingpong join: {err}", file=sys.stderr)
         return 2
+    if args.role == "player":
+        _warm_up(args.skill)  # before the hello: a cold numba cache compiles for minutes, no heartbeats meanwhile
     client = Client(args.address, args.role, args.name, slot, token, socket_options=socket_options)
     summary = {"address": args.address, "role": args.role, "snapshots": 0, "events": [], "inputs_sent": 0}
     try:
@@ -432,6 +474,16 @@ def join_command(args: argparse.Namespace) -> int:
             print(_error_line("prediction error at the snapshots' ticks, ball", summary["prediction"]["ball"]))
             print(_error_line("prediction error at the snapshots' ticks, own bat", summary["prediction"]["bat"]))
     return 1 if summary["goodbye"] == "server_lost" else 0
+
+
+def _warm_up(skill: str) -> None:
+    """Load (or compile) every kernel a player's client runs, with the bundled match scene: the
+    kernels depend on types, not on the scene, so the served scene's objects build at once later."""
+    from engine.scene import load_scene
+    from processes.prediction import Predictor
+
+    Predictor(load_scene("match"), Slot.A).advance_to(0)
+    BotBrain("match", Slot.A, skill)
 
 
 def _play(client: Client, welcome: wire.Message, args: argparse.Namespace, keyboard: bool) -> dict:

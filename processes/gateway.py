@@ -57,6 +57,10 @@ RUN_LOCK_NAMES = ("bat_inputs", "remote_inputs")
 # gateway of the moment is its one writer): who holds each seat's token and its grace.
 SEAT_DTYPE = np.dtype([("slot", "u1"), ("taken", "u1"), ("token", "u1", (16,)), ("name", "u1", (32,)),
                        ("grace_until", "<f8")])  # taken: a connection held it; grace_until: time.monotonic s
+# A remote arm's input holds at most this long: a client that stalls (or whose snapshots stop)
+# must not leave its bat pushed by a constant force (120 N on a 0.17 kg bat is 70 m/s in 0.1 s).
+# After it, the gateway posts a zero input (same seq) until the next input comes.
+INPUT_HOLD_S = 0.1
 MAX_BAD = 64  # bad messages one session may send before it is kicked
 MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messages
 MAX_FRAME_BYTES = 4096  # libzmq disconnects a peer sending a bigger frame (MAXMSGSIZE)
@@ -70,7 +74,8 @@ class GatewayConfig:
     bind: ZeroMQ endpoint; port 0 or * picks a free port (see Gateway.endpoint).
     snapshot_hz: snapshots per second to every session. heartbeat_s: a heartbeat at least this
     often. timeout_s: a silent peer is dropped after this long. grace_s: a dropped player's
-    seat waits this long for its token. sndhwm: messages queued per peer before its snapshots
+    seat waits this long for its token. input_hold_s: a player's input is let go of (zero
+    force) this long after it arrived unless another came. sndhwm: messages queued per peer before its snapshots
     are dropped. sndbuf: the kernel's send buffer per connection in bytes, 0: the OS default.
     max_spectators: more are told "full". curve_secret_key, curve_public_key: Z85 keys of the
     server (`pingpong keys DIR`): every session is then encrypted and a client must know the
@@ -85,6 +90,7 @@ class GatewayConfig:
     sndhwm: int = 32
     sndbuf: int = 0
     max_spectators: int = 64
+    input_hold_s: float = INPUT_HOLD_S
     curve_secret_key: bytes = b""  # Z85; set: every session is CURVE-encrypted and the server authenticated
     curve_public_key: bytes = b""  # Z85, the secret key's public half
 
@@ -100,6 +106,8 @@ class _Session:
     seq_out: int = 0
     seq_in: int = 0  # highest seq received
     input_seq: int = 0  # seq of the last input accepted
+    input_at: float = 0.0  # when it arrived (clock s)
+    holding: bool = False  # it pushes (non-zero) and has not expired
     bad: int = 0
     snapshots_dropped: int = 0
 
@@ -457,6 +465,7 @@ class Gateway:
             return
         session.input_seq = message.seq
         inputs = np.concatenate([message["force"], message["torque"]])
+        session.input_at, session.holding = self.clock(), bool(inputs.any())
         if self.post_input(int(session.slot) - 1, message.seq, message.tick, inputs):
             self.counts["inputs_accepted"] += 1
         else:
@@ -475,9 +484,15 @@ class Gateway:
                 self.counts["timeouts"] += 1
                 self._goodbye(session, GoodbyeReason.TIMEOUT)
                 self._end(session, keep_seat=True)
-            elif now >= session.next_beat:
+                continue
+            if now >= session.next_beat:
                 session.next_beat = now + self.config.heartbeat_s
                 self._send(session, wire.encode(Kind.HEARTBEAT, tick=self.tick, ack=session.seq_in), "heartbeats")
+            if session.holding and now - session.input_at > self.config.input_hold_s:
+                session.holding = False  # the arm lets go: its last input expired
+                self.counts["inputs_expired"] += 1
+                if not self.post_input(int(session.slot) - 1, session.input_seq, self.tick, _zero_inputs()):
+                    self.counts["mailbox_full"] += 1
         if record is None:
             return
         self.tick = int(record["world"]["tick"])
@@ -492,8 +507,9 @@ class Gateway:
     def broadcast_snapshot(self, record, input_seq=(0, 0)) -> None:
         try:
             data = wire.snapshot_from_physics(record, seq=0, input_seq=input_seq)
-        except wire.WireError:
+        except wire.WireError as err:
             self.counts["snapshots_unencodable"] += 1  # e.g. a bat beyond the wire's ranges
+            self.counts[f"snapshots_unencodable.{err.reason}"] += 1
             return
         for session in list(self.sessions.values()):
             self._send(session, data, "snapshots")

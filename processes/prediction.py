@@ -12,6 +12,8 @@ What the client cannot know, it predicts as follows, and the statistics measure 
 - the opponent's bat coasts (its force is not on the wire): the ball meets it where it drifts;
 - an input holds from the tick it was stamped with (the server applies it on arrival, about a
   one-way trip later), and an input not yet acknowledged at T holds from T at the earliest;
+  it holds for the gateway's INPUT_HOLD_S at most (then the server's arm lets go: zero), counted
+  in ticks from its stamp (the gateway counts from its arrival);
 - the ball at a snapshot is in flight (the wire has no support flag: a resting ball settles
   again within a tick);
 - a new rally's toss moves the ball where no physics takes it: a snapshot whose rally differs
@@ -32,7 +34,8 @@ import numpy as np
 from processes.wire import Slot
 
 MAX_AHEAD_TICKS = 500  # a prediction runs at most this far past the last snapshot (0.5 s at 1 kHz)
-CLOCK_WINDOW = 64  # snapshots over which the least-delayed one sets the server's clock
+CLOCK_WINDOW = 16  # snapshots over which the least-delayed one sets the server's clock (short: a
+# server slower than realtime must pull the estimate back within ~0.16 s)
 
 
 class ErrorStats:
@@ -84,8 +87,9 @@ class Predictor:
         history: ticks of predictions kept to compare with the snapshots that arrive later.
     """
 
-    def __init__(self, scene, slot: Slot, history: int = 2048):
+    def __init__(self, scene, slot: Slot, history: int = 2048, input_hold_s: float | None = None):
         from engine.world import build_model, initial_state, new_events
+        from processes.gateway import INPUT_HOLD_S
 
         if slot not in (Slot.A, Slot.B):
             raise ValueError(f"a predictor drives a player's bat: slot must be A or B, got {slot!r}")
@@ -97,6 +101,9 @@ class Predictor:
         self.tick: int | None = None  # the tick the predicted state is at; None before a snapshot
         self._sent: list[tuple[int, int, np.ndarray]] = []  # (seq, tick, inputs) not yet acknowledged
         self._held = np.zeros(6)  # our input in effect at the base snapshot (the acknowledged one)
+        self._held_from = 0  # the tick it was stamped with
+        self._input_from = 0  # the stamp of the input in effect while predicting
+        self.hold_ticks = int(round((INPUT_HOLD_S if input_hold_s is None else input_hold_s) / self.model.dt))
         self._next_input = 0  # index into _sent of the next input to take effect while predicting
         self._base_tick = -1
         self._base_rally: int | None = None
@@ -155,7 +162,7 @@ class Predictor:
         keep = []
         for seq, at, inputs in self._sent:
             if seq <= ack:
-                self._held = inputs  # the last acknowledged input is the one in effect at T
+                self._held, self._held_from = inputs, at  # the last acknowledged input: in effect at T
             else:
                 keep.append((seq, at, inputs))
         self._sent = keep
@@ -163,6 +170,7 @@ class Predictor:
         self._base_tick, self._base_rally = tick, snapshot["rally"]
         self.tick = tick
         self._next_input = 0
+        self._input_from = self._held_from
         self._record(tick)
         if target is not None and target > tick:
             before = self.counts["predicted_ticks"]
@@ -196,9 +204,12 @@ class Predictor:
         done = 0
         while self.tick < tick:
             while self._next_input < len(self._sent) and max(self._sent[self._next_input][1], self._base_tick) <= self.tick:
-                inputs = self._sent[self._next_input][2]
+                _, at, inputs = self._sent[self._next_input]
                 bat["force"], bat["torque"] = inputs[0:3], inputs[3:6]
+                self._input_from = max(at, self._base_tick)
                 self._next_input += 1
+            if self.tick - self._input_from >= self.hold_ticks:
+                bat["force"], bat["torque"] = 0.0, 0.0  # expired: the server's arm let go
             try:
                 self.step()
             except SimulationError:
@@ -215,6 +226,12 @@ class Predictor:
         self._hist_tick[i] = tick
         self._hist[i, 0:3] = self.state.ball[0]["pos"]
         self._hist[i, 3:6] = self.state.bats[self.player]["pos"]
+
+    @property
+    def stale(self) -> bool:
+        """The prediction reached MAX_AHEAD_TICKS past the last snapshot: it no longer says
+        where things are (the server fell silent, or its snapshots stopped)."""
+        return self.tick is None or self.tick >= self._base_tick + MAX_AHEAD_TICKS
 
     @property
     def ball(self):

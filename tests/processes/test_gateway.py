@@ -167,6 +167,26 @@ def test_a_player_moves_only_its_own_bat_and_the_refusals_are_counted(rig):
 
 
 @pytest.mark.timeout(30)
+def test_an_input_expires_after_the_hold_time_and_the_arm_lets_go(rig):
+    r = rig(remote=(Slot.A,), input_hold_s=0.1, timeout_s=5.0)
+    a = r.client()
+    r.join(a)
+    a.send_input([30.0, 0, 0, 0, 0, 0], tick=3)
+    r.settle(lambda: r.gateway.counts["inputs_accepted"] == 1)
+    r.clock.now += 0.09  # within the hold: nothing happens
+    r.step()
+    assert len(r.posted) == 1
+    r.clock.now += 0.02  # 0.11 s after it arrived: the gateway posts a zero input, same seq
+    r.step()
+    assert r.gateway.counts["inputs_expired"] == 1 and len(r.posted) == 2
+    (_, seq, _, first), (bat, seq_zero, _, zero) = r.posted
+    assert bat == 0 and seq_zero == seq and not zero.any() and first[0] == 30.0
+    r.clock.now += 1.0
+    r.step()
+    assert len(r.posted) == 2  # let go once; a zero input is not held again
+
+
+@pytest.mark.timeout(30)
 def test_a_silent_player_is_dropped_and_its_token_reclaims_the_seat(rig):
     r = rig(remote=(Slot.A,), heartbeat_s=1.0, timeout_s=5.0, grace_s=30.0)
     player = r.client(name="ann")
@@ -414,6 +434,10 @@ def test_two_bot_players_and_a_spectator_play_a_served_match(served):
         assert report["snapshots"] > 0 and report["dropped"] == {}
     for bot in reports[:2]:  # the physics applied this bot's inputs: the snapshots echo their seq
         assert bot["inputs_sent"] > 0 and bot["input_seq"]["ab".index(bot["slot"])] > 0
+        prediction = bot["prediction"]  # each bot predicted and scored its prediction on the snapshots
+        assert prediction["scored"] > 0 and prediction["ball"]["n"] == prediction["bat"]["n"] == prediction["scored"]
+        assert prediction["ball"]["max_mm"] >= prediction["ball"]["p99_mm"] >= prediction["ball"]["p50_mm"] >= 0.0
+    assert reports[2]["interpolation"]["samples"] > 0  # the spectator's view was interpolated
     gateway = summary["gateway"]
     assert summary["ticks"] == 2500 or summary["winner"] is not None
     assert gateway["players_joined"] == 2 and gateway["spectators_joined"] == 1
