@@ -128,15 +128,24 @@ class KeyboardPilot:
             raise ValueError(f"keyboard play drives a player's bat: slot must be A or B, got {slot!r}")
         self.player = int(slot) - 1
         self.end_sign = -1 if self.player == 0 else 1
-        # The AI's own arm: between strokes BatAI.control holds the bat at its ready pose with
-        # bat_control (PD, feed-forward, the skill's force, torque and speed limits); the pose it
-        # holds is the keys' aim, so the keyboard drives the bat exactly as the AI's arm would.
-        self.arm = BatAI(model, self.player, SKILLS[skill], seed=0)
-        ready, normal = self.arm.ready_pose(self.end_sign)
-        self.target = np.array(ready, dtype=np.float64)
-        self.normal = np.array(normal, dtype=np.float64)  # the face looks at the net
+        # The AI's own arm: bat_control (PD with feed-forward, the skill's force, torque and speed
+        # limits) holding the pose in its control array; the pose is the keys' aim, so the
+        # keyboard drives the bat exactly as the AI's arm drives its bat between strokes.
+        from engine.ai import (CTL_D_ANGLE, CTL_INERTIA, CTL_K_ANGLE, CTL_KD, CTL_KP, CTL_MASS, CTL_MAX_FORCE,
+                               CTL_MAX_SPEED, CTL_MAX_TORQUE, CTL_SIZE)
+
+        skill = SKILLS[skill]
+        self.ctl = np.zeros(CTL_SIZE)
+        self.ctl[[CTL_MASS, CTL_INERTIA, CTL_KP, CTL_KD, CTL_K_ANGLE, CTL_D_ANGLE]] = (
+            float(model.bat_mass[self.player]), float(model.bat_inertia[self.player][0]), BatAI.KP, BatAI.KD,
+            BatAI.K_ANGLE, BatAI.D_ANGLE)
+        self.ctl[[CTL_MAX_FORCE, CTL_MAX_TORQUE, CTL_MAX_SPEED]] = skill.max_force_n, skill.max_torque_nm, skill.max_speed
+        from engine.ai import HALF_LENGTH
+
+        # start where the AI waits (BatAI.ready_pose): 40 cm behind the end line, face to the net
+        self.target = np.array([self.end_sign * (HALF_LENGTH + 0.4), 0.0, 0.15])
+        self.normal = np.array([-self.end_sign, 0.0, 0.0])
         self.stroke_until = -1.0
-        self._ball = np.zeros(9)  # the arm holds a pose: the ball does not enter its law
         self.out = np.zeros(6)
         self.presses = 0
 
@@ -170,8 +179,14 @@ class KeyboardPilot:
 
     def control(self, now: float, bat) -> np.ndarray:
         """(6,) force N and torque N m for our bat (one BAT_DTYPE record) towards the aim."""
-        self.arm._ready[self.end_sign] = (self.aim(now), self.normal)  # the pose the arm holds
-        return self.arm.control(now, self._ball, bat, (0, 0), False, False, self.end_sign, self.out)
+        from engine.ai import CTL_HOLD, CTL_N_SEGMENTS, CTL_NORMAL, bat_control
+
+        self.ctl[CTL_HOLD:CTL_HOLD + 3] = self.aim(now)
+        self.ctl[CTL_NORMAL:CTL_NORMAL + 3] = self.normal
+        self.ctl[CTL_N_SEGMENTS] = 0  # no path: hold the pose
+        floats = np.frombuffer(bat, np.float64) if isinstance(bat, np.void) else np.ascontiguousarray(bat).view(np.float64)
+        bat_control(now, floats, self.ctl, self.out)
+        return self.out
 
 
 # --- the terminal picture -------------------------------------------------------------------------

@@ -69,6 +69,17 @@ def test_keys_move_the_target_in_the_players_own_frame_within_reach():
         KeyboardPilot(model, Slot.NONE)
     with pytest.raises(ValueError, match="unknown keys"):
         IterableKeys([["jump"]]).poll()
+    # the force follows the target at every call (not only the first): PD towards the aim
+    bat = initial_state(load_scene("match")).bats[0]
+    a.target = np.array([-1.77, 0.0, 0.15])
+    assert np.abs(a.control(5.0, bat)[0:3]).max() < 1e-9  # the bat rests where it should: no force
+    a.press("up", 5.0)
+    assert a.control(5.0, bat)[0] > 0.0  # target ahead: pushed towards the net
+    a.press("down", 5.0)
+    a.press("down", 5.0)
+    assert a.control(5.0, bat)[0] < 0.0  # target behind: pulled back
+    np.testing.assert_allclose(np.linalg.norm(a.control(5.0, bat)[0:3]), 900.0 * 0.05 * model.bat_mass[0],
+                               rtol=1e-12)  # m kp |error| (kp = 30^2 /s^2, 5 cm), under the 120 N limit
     rows = top_view((0.0, 0.0, 0.1), np.array([[-1.77, 0.0, 0.1], [1.77, 0.0, 0.1]]), a.target)
     assert len(rows) == 15 and "A" in "".join(rows) and "B" in "".join(rows) and "o" in "".join(rows)
 
