@@ -37,6 +37,7 @@ HALF_WIDTH = equipment.TABLE_WIDTH / 2
 STOP_EVENTS = 0  # nothing: run to n_max ticks, max_events events or the ball at rest
 STOP_SERVE_STRIKE = 1  # the tick to strike a tossed ball for a service
 STOP_RETURN_STRIKE = 2  # the tick to strike a ball after its bounce on this player's court
+STOP_CONTACT = 3  # also at the end of the first tick with a contact
 NO_STRIKE = -1  # the ball is not this player's to strike
 _UNDECIDED = -2
 # The strike rules (BatAI._hit_index states them in numpy, as the reference).
@@ -78,7 +79,7 @@ def _strike_row(traj, k, stop_rule, watch):
 @njit(cache=True)
 def _strike_end(traj, n, stop_rule, watch):
     """The strike once the prediction has ended at row n (the last row, without a successor)."""
-    if stop_rule == STOP_SERVE_STRIKE or watch[_W_BOUNCE] < 0 or watch[_W_CANDIDATE] < 0:
+    if stop_rule != STOP_RETURN_STRIKE or watch[_W_BOUNCE] < 0 or watch[_W_CANDIDATE] < 0:
         return NO_STRIKE
     if watch[_W_LATER] < 0 and n >= watch[_W_BOUNCE] + 2 and abs(traj[n, 0]) >= _FAR_X and traj[n, 2] > _FALLING_Z:
         watch[_W_LATER] = n
@@ -98,7 +99,7 @@ def predict_flight(y0, h, n_max, max_events, stop_rule, end_sign, method, gravit
 
     Args:
         y0: (9,) start state. h: tick, s. n_max: ticks at most. max_events: stop after this many.
-        stop_rule: STOP_EVENTS, STOP_SERVE_STRIKE or STOP_RETURN_STRIKE.
+        stop_rule: STOP_EVENTS, STOP_CONTACT, STOP_SERVE_STRIKE or STOP_RETURN_STRIKE.
         end_sign: -1 if the striking player's court is at x < 0 (strike rules only).
         method ... materials: as engine.collision.ball_tick.
         work, scratch, adapt, tick_events: scratch for ball_tick.
@@ -107,7 +108,9 @@ def predict_flight(y0, h, n_max, max_events, stop_rule, end_sign, method, gravit
 
     Returns:
         (ticks simulated, events recorded, error code of ball_tick or 0, strike tick or
-        NO_STRIKE; always NO_STRIKE for STOP_EVENTS).
+        NO_STRIKE (always NO_STRIKE for STOP_EVENTS), support at the end). The path goes on
+        exactly as if never stopped when called again from its last row with the same adapt
+        and work, if that support is 0.
     """
     for i in range(9):
         traj[0, i] = y0[i]
@@ -115,17 +118,17 @@ def predict_flight(y0, h, n_max, max_events, stop_rule, end_sign, method, gravit
     support = 0
     n_events = 0
     for k in range(n_max):
-        if stop_rule != STOP_EVENTS:
+        if stop_rule == STOP_SERVE_STRIKE or stop_rule == STOP_RETURN_STRIKE:
             strike = _strike_row(traj, k, stop_rule, watch)
             if strike != _UNDECIDED:
-                return k, n_events, 0, strike
+                return k, n_events, 0, strike, support
         for i in range(9):
             traj[k + 1, i] = traj[k, i]
         n, support = ball_tick(traj[k + 1], h, support, method, gravity, drag_k, magnus_k, rtol, atol,
                                table, floor_z, net, posts, None, params, materials, work, scratch, adapt,
                                tick_events)
         if n < 0:
-            return k + 1, n_events, n, _strike_end(traj, k + 1, stop_rule, watch)
+            return k + 1, n_events, n, _strike_end(traj, k + 1, stop_rule, watch), support
         for e in range(n):
             if n_events < max_events:
                 for i in range(EVENT_ROW):
@@ -139,10 +142,10 @@ def predict_flight(y0, h, n_max, max_events, stop_rule, end_sign, method, gravit
                     elif body == _FLOOR and watch[_W_FLOOR] < 0:
                         watch[_W_FLOOR] = k
         if stop_rule == STOP_RETURN_STRIKE and watch[_W_FLOOR] >= 0 and watch[_W_BOUNCE] < 0:
-            return k + 1, n_events, 0, NO_STRIKE  # on the floor before any bounce on this court
-        if n_events >= max_events or support != 0:
-            return k + 1, n_events, 0, _strike_end(traj, k + 1, stop_rule, watch)
-    return n_max, n_events, 0, _strike_end(traj, n_max, stop_rule, watch)
+            return k + 1, n_events, 0, NO_STRIKE, support  # on the floor before any bounce on this court
+        if n_events >= max_events or support != 0 or (stop_rule == STOP_CONTACT and n > 0):
+            return k + 1, n_events, 0, _strike_end(traj, k + 1, stop_rule, watch), support
+    return n_max, n_events, 0, _strike_end(traj, n_max, stop_rule, watch), support
 
 
 @njit(cache=True)
@@ -481,6 +484,8 @@ class BatAI:
         self._adapt = np.zeros(ADAPT_SIZE)
         self._tick_events = np.zeros((MAX_IMPACTS_PER_TICK, EVENT_ROW))
         self._shoot_scratch = np.zeros((4, 9))
+        self._free_work, self._free_adapt = np.zeros(WORK_SHAPE), np.zeros(ADAPT_SIZE)
+        self._free_scratch = np.zeros((3, 9))
         self.plan: Plan | None = None
         self._plan_end = -math.inf  # s, end of the plan's last segment
         self._ready = {sign: self._make_ready(sign) for sign in (-1, 1)}
@@ -510,24 +515,38 @@ class BatAI:
         m = self.model
         h = m.dt if dt is None else dt
         n_max = min(int(round(seconds / h)), self._traj.shape[0] - 1)
-        n, n_ev, _ = self._predict(y0, h, n_max, max_events, STOP_EVENTS, 0)
-        times = np.arange(n + 1) * h
-        events = [(int(self._event_ticks[i]), int(self._events[i, E_BODY]), self._events[i, E_POS:E_POS + 3].copy(),
-                   float(self._events[i, E_TIME])) for i in range(n_ev)]
-        return times, self._traj[: n + 1], events
+        n, n_ev, _, _ = self._predict(y0, h, n_max, max_events, STOP_EVENTS, 0)
+        return np.arange(n + 1) * h, self._traj[: n + 1], self._event_list(n_ev)
 
-    def _predict(self, y0, h: float, n_max: int, max_events: int, stop_rule: int, end_sign: int):
-        """predict_flight into self._traj, self._events: (ticks, events, strike tick or NO_STRIKE)."""
+    def _predict(self, y0, h: float, n_max: int, max_events: int, stop_rule: int, end_sign: int, resume=None):
+        """predict_flight into self._traj, self._events: (ticks, events, strike tick or NO_STRIKE, support).
+
+        resume: (ticks, events) of the prediction in self._traj and self._events, to go on with
+        it from its last row exactly as if it had not stopped (y0 is then ignored); n_max and
+        max_events count from the start.
+        """
         m = self.model
-        self._adapt[:] = 0.0
-        n, n_ev, err, strike = predict_flight(
-            np.ascontiguousarray(y0, dtype=np.float64), h, n_max, max_events, stop_rule, end_sign, m.method,
+        if resume is None:
+            self._adapt[:] = 0.0
+            t0, e0 = 0, 0
+            y0 = np.ascontiguousarray(y0, dtype=np.float64)
+        else:
+            t0, e0 = resume
+            y0 = self._traj[t0].copy()
+        n, n_ev, err, strike, support = predict_flight(
+            y0, h, n_max - t0, max_events - e0, stop_rule, end_sign, m.method,
             m.gravity, m.drag_k, m.magnus_k, m.scene.rtol, m.scene.atol, m.table, m.floor_z, m.net, m.posts,
-            m.ball_params, m.materials, self._work, self._scratch, self._adapt, self._tick_events, self._traj,
-            self._events, self._event_ticks)
+            m.ball_params, m.materials, self._work, self._scratch, self._adapt, self._tick_events, self._traj[t0:],
+            self._events[e0:], self._event_ticks[e0:])
         if err == ERR_SUBSTEPS:
             raise RuntimeError("prediction failed: the integrator's substep limit was hit")
-        return n, n_ev, strike
+        self._event_ticks[e0:e0 + n_ev] += t0
+        return t0 + n, e0 + n_ev, strike if strike == NO_STRIKE else t0 + strike, support
+
+    def _event_list(self, n_ev: int) -> list:
+        """The first n_ev events of the last prediction as (tick, body, pos, time of impact)."""
+        return [(int(self._event_ticks[i]), int(self._events[i, E_BODY]), self._events[i, E_POS:E_POS + 3].copy(),
+                 float(self._events[i, E_TIME])) for i in range(n_ev)]
 
     def _net_clearance(self, traj: np.ndarray, end_sign: int) -> float:
         """Height of the ball's bottom above the net's top where it crosses x = 0 (m, -inf if it never does)."""
@@ -583,7 +602,7 @@ class BatAI:
         """Plan the next stroke from the ball's state now; None means let the ball go."""
         self.stats["plans"] += 1
         h = self.model.dt
-        _, _, hit = self._predict(ball_y, h, int(round(2.0 / h)), 3, STOP_SERVE_STRIKE if serve else STOP_RETURN_STRIKE,
+        _, _, hit, _ = self._predict(ball_y, h, int(round(2.0 / h)), 3, STOP_SERVE_STRIKE if serve else STOP_RETURN_STRIKE,
                                   end_sign)
         if hit == NO_STRIKE:
             self.stats["let_go"] += 1
@@ -646,7 +665,10 @@ class BatAI:
     def _lands_well(self, p, v_out, spin_out, end_sign, serve) -> bool:
         """The real path clears the net and bounces where it must (own court first for a service)."""
         # A return is judged on its first contact, a service on its first two: predict no further.
-        traj, events = self._path(p, v_out, spin_out, max_events=2 if serve else 1)
+        if serve:
+            traj, events = self._service_path(p, v_out, spin_out, end_sign)
+        else:
+            traj, events = self._path(p, v_out, spin_out, max_events=1)
         if not events or events[0][1] != Body.TABLE:
             return False
         margin = self.COURT_MARGIN_M
@@ -658,21 +680,40 @@ class BatAI:
         return (_on_court(events[0][2], end_sign, margin) and _on_court(events[1][2], -end_sign, margin)
                 and self._net_clearance(traj, end_sign) > 0.01)
 
+    def _service_path(self, p: np.ndarray, v: np.ndarray, spin: np.ndarray, end_sign: int):
+        """_path(p, v, spin, max_events=2) of a service, or less of it when that is sure to fail
+        _lands_well: after the tick of its first contact, the bounce on the server's court, it
+        flies free to the next; if that flight passes the net too low or comes down off the
+        receiver's court, the path stops there."""
+        h = self.model.dt
+        n_max = int(round(2.0 / h))
+        n, n_ev, _, support = self._predict(np.concatenate([p, v, spin]), h, n_max, 2, STOP_CONTACT, 0)
+        first_ok = (n_ev == 1 and support == 0 and int(self._events[0, E_BODY]) == Body.TABLE
+                    and _on_court(self._events[0, E_POS:E_POS + 2], end_sign, self.COURT_MARGIN_M))
+        if first_ok and not self._free_flight_misses(self._traj[n], -end_sign, 0.01):
+            n, n_ev, _, _ = self._predict(None, h, n_max, 2, STOP_EVENTS, 0, resume=(n, n_ev))
+        return self._traj[: n + 1], self._event_list(n_ev)
+
     def _cannot_land_well(self, p: np.ndarray, v: np.ndarray, spin: np.ndarray, end_sign: int) -> bool:
-        """A return that _lands_well would refuse, told from its free flight (no table, net or floor;
-        SHOOTING_DT steps), which is what the real path is up to its first contact: it passes the
-        net too low, or comes down to table height off the court. A few free steps instead of
-        predicting the whole path at the engine's tick; the tolerances keep it to sure cases."""
+        """A return that _lands_well would refuse, told from its free flight (see _free_flight_misses)."""
+        return self._free_flight_misses(np.concatenate([p, v, spin]), -end_sign, self.NET_MARGIN_M)
+
+    def _free_flight_misses(self, y: np.ndarray, court_sign: int, clearance: float) -> bool:
+        """Whether the free flight from y (no table, net or floor; SHOOTING_DT steps), which is the
+        real path up to its next contact, passes the net lower than `clearance` or comes down to
+        table height off the court of court_sign. A few free steps instead of the path at the
+        engine's tick; the tolerances keep it to sure cases. Own scratch: a prediction in
+        self._traj may go on after it."""
         m = self.model
-        self._adapt[:] = 0.0
-        out = self._shoot_scratch[3, 0:3]
-        free_flight_marks(p, v, spin, self.radius, self.SHOOTING_DT, int(2.0 / self.SHOOTING_DT), m.method, m.gravity,
-                          m.drag_k, m.magnus_k, m.scene.rtol, m.scene.atol, self._work, self._adapt,
-                          self._shoot_scratch[0], self._shoot_scratch[1], out)
-        if out[0] - self.radius - equipment.NET_HEIGHT < self.NET_MARGIN_M - self.CLEARANCE_TOLERANCE_M:
+        self._free_adapt[:] = 0.0
+        out = self._free_scratch[2, 0:3]
+        free_flight_marks(y[0:3], y[3:6], y[6:9], self.radius, self.SHOOTING_DT, int(2.0 / self.SHOOTING_DT), m.method,
+                          m.gravity, m.drag_k, m.magnus_k, m.scene.rtol, m.scene.atol, self._free_work,
+                          self._free_adapt, self._free_scratch[0], self._free_scratch[1], out)
+        if out[0] - self.radius - equipment.NET_HEIGHT < clearance - self.CLEARANCE_TOLERANCE_M:
             return True
-        return (p[2] > self.radius and not math.isnan(out[1])
-                and not _on_court(out[1:3], -end_sign, self.COURT_MARGIN_M - self.LANDING_TOLERANCE_M))
+        return (y[2] > self.radius and not math.isnan(out[1])
+                and not _on_court(out[1:3], court_sign, self.COURT_MARGIN_M - self.LANDING_TOLERANCE_M))
 
     def _hit_index(self, times, traj, events, end_sign, serve) -> int | None:
         """Tick of the prediction at which to strike, None if the ball is not ours to play.

@@ -70,7 +70,7 @@ def test_strike_search_stops_early_with_the_answer_of_the_whole_path(ai):
     for y0 in _incoming_balls(40, seed=5):
         times, traj, events = ai.predict(y0, 2.0, max_events=3)
         want = ai._hit_index(times, traj.copy(), events, 1, False)
-        ticks, _, got = ai._predict(y0, h, n_max, 3, STOP_RETURN_STRIKE, 1)
+        ticks, _, got, _ = ai._predict(y0, h, n_max, 3, STOP_RETURN_STRIKE, 1)
         assert got == (NO_STRIKE if want is None else want)  # exact: the same rule on the same ticks
         outcomes["none" if want is None else "strike"] += 1
         outcomes["stopped_early"] += ticks < len(times) - 1
