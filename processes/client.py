@@ -471,8 +471,11 @@ def join_command(args: argparse.Namespace) -> int:
         print(f"session ended: {summary['goodbye']}; {summary['snapshots']} snapshots, "
               f"{len(summary['events'])} events")
         if "prediction" in summary:
-            print(_error_line("prediction error at the snapshots' ticks, ball", summary["prediction"]["ball"]))
-            print(_error_line("prediction error at the snapshots' ticks, own bat", summary["prediction"]["bat"]))
+            prediction, stale = summary["prediction"], summary["prediction"]["without_prediction"]
+            print(_error_line("prediction error at the snapshots' ticks, ball", prediction["ball"]))
+            print(_error_line("prediction error at the snapshots' ticks, own bat", prediction["bat"]))
+            print(_error_line("without prediction (the previous snapshot), ball", stale["ball"]))
+            print(_error_line("without prediction (the previous snapshot), own bat", stale["bat"]))
     return 1 if summary["goodbye"] == "server_lost" else 0
 
 

@@ -111,6 +111,11 @@ class Predictor:
         self._hist = np.zeros((history, 6))  # ball pos, own bat pos after each predicted tick
         self.ball_error = ErrorStats()
         self.bat_error = ErrorStats()
+        # The baseline measured in the same run: a client without prediction shows the last
+        # snapshot until the next arrives; its error at tick T is |state(previous) - state(T)|.
+        self.ball_stale = ErrorStats()
+        self.bat_stale = ErrorStats()
+        self._base_pos = np.zeros(6)  # ball pos, own bat pos of the base snapshot
         self.counts = {"snapshots": 0, "scored": 0, "tosses": 0, "late": 0, "replayed_ticks": 0,
                        "predicted_ticks": 0, "engine_errors": 0}
         self.step(0.0)  # load (or compile) the kernels now, not at the first snapshot
@@ -157,6 +162,8 @@ class Predictor:
                           float(np.linalg.norm(row[3:6] - snapshot["bat_pos"][self.player])))
                 self.ball_error.add(errors[0])
                 self.bat_error.add(errors[1])
+                self.ball_stale.add(float(np.linalg.norm(self._base_pos[0:3] - snapshot["ball_pos"])))
+                self.bat_stale.add(float(np.linalg.norm(self._base_pos[3:6] - snapshot["bat_pos"][self.player])))
                 self.counts["scored"] += 1
         ack = int(snapshot["input_seq"][self.player])
         keep = []
@@ -168,6 +175,7 @@ class Predictor:
         self._sent = keep
         self._load(snapshot)
         self._base_tick, self._base_rally = tick, snapshot["rally"]
+        self._base_pos[0:3], self._base_pos[3:6] = snapshot["ball_pos"], snapshot["bat_pos"][self.player]
         self.tick = tick
         self._next_input = 0
         self._input_from = self._held_from
@@ -244,8 +252,11 @@ class Predictor:
         return self.state.bats[self.player]
 
     def stats(self) -> dict:
-        """Prediction errors at the snapshots' ticks (mm) and the counts above."""
-        return {"ball": self.ball_error.summary(), "bat": self.bat_error.summary(), **self.counts}
+        """Prediction errors at the snapshots' ticks (mm), the same for showing the previous
+        snapshot instead (`without_prediction`, the baseline), and the counts above."""
+        return {"ball": self.ball_error.summary(), "bat": self.bat_error.summary(),
+                "without_prediction": {"ball": self.ball_stale.summary(), "bat": self.bat_stale.summary()},
+                **self.counts}
 
 
 # --- spectators -----------------------------------------------------------------------------------

@@ -212,3 +212,14 @@ def test_the_server_clock_follows_the_least_delayed_snapshot():
     clock.observe(100, arrival=0.150)  # 50 ms late
     clock.observe(110, arrival=0.112)  # 2 ms late
     assert clock.tick_at(0.2) == pytest.approx(198.0, abs=1e-9)
+
+
+def test_the_baseline_without_prediction_is_measured_alongside():
+    client = _play(delay_ticks=2)
+    stats = client.stats()
+    stale = stats["without_prediction"]
+    assert stale["ball"]["n"] == stats["ball"]["n"] == stats["scored"]
+    # showing the previous snapshot lags the ball by 10 ms of a ~6 m/s flight: ~60 mm, against
+    # the prediction's 0 (no bat in its way); the bat under ~48 N moves mm per snapshot interval
+    assert stale["ball"]["p50_mm"] > 30.0 and stats["ball"]["max_mm"] < 1e-3
+    assert stale["bat"]["mean_mm"] > stats["bat"]["mean_mm"]
