@@ -6,10 +6,12 @@ L = x_j - x_i, n = L/|L|, the force on knot i is
 
     f_i = (k_s (|L| - L_rest) + k_d ((v_j - v_i) . n)) n,      f_j = -f_i.
 
-Determinism: every sum over springs here is a per-knot gather over the CSR adjacency (knot i
-sums its own springs in the topology's fixed slot order); per-spring passes write one value
+Determinism: every sum over springs here is a per-knot gather in a fixed order: over the CSR
+adjacency (knot i sums its own springs in the topology's slot order), or, in the grid kernels
+(step_grid), over the 8 grid neighbours in that same order; per-spring passes write one value
 per spring. So `parallel=True` changes no bit: no prange scatter-add, no prange reduction;
-reductions (CG dot products, speed maximum) are serial loops. fastmath stays off. No kernel allocates; scratch comes in as arguments.
+reductions (CG dot products, speed maximum) are serial loops. fastmath stays off. No kernel
+allocates; scratch comes in as arguments.
 
 Every kernel has a numpy twin with the same signature in net_kernel/reference.py.
 """
