@@ -4,6 +4,11 @@ A client says hello, waits (bounded) for welcome or reject, then exchanges wire 
 sends a heartbeat at least as often as the welcome asks, inputs for its own bat, and goodbye
 when it leaves; it takes snapshots, events, heartbeats and the server's goodbye. Every wait is
 bounded and a server silent past the welcome's timeout ends the session.
+
+`run_session` is the loop of `pingpong join`: a player (bot or keyboard) predicts with the
+engine and reconciles on each snapshot (processes/prediction.py) and sends its inputs from the
+predicted present; a spectator shows the state interpolated 100 ms behind. CURVE keys
+(`pingpong keys DIR`) make the session encrypted and the server authenticated.
 """
 from __future__ import annotations
 
@@ -441,6 +446,8 @@ def join_command(args: argparse.Namespace) -> int:
         print(f"pingpong join: {err}", file=sys.stderr)
         return 2
     if args.role == "player":
+        if not args.json:
+            print("loading the engine's kernels (compiled on a first run) ...", file=sys.stderr, flush=True)
         _warm_up(args.skill)  # before the hello: a cold numba cache compiles for minutes, no heartbeats meanwhile
     client = Client(args.address, args.role, args.name, slot, token, socket_options=socket_options)
     summary = {"address": args.address, "role": args.role, "snapshots": 0, "events": [], "inputs_sent": 0}

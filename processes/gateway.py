@@ -19,6 +19,13 @@ One ROUTER socket carries everything. A client is a DEALER that sends one-frame 
   pipe is at its high-water mark (SNDHWM), and that peer's snapshot is dropped and counted,
   so a slow spectator stalls nobody.
 - goodbye to every session on shutdown (shutdown) or at the end of the match (match_over).
+- a snapshot of tick T says in input_seq the inputs applied before the step into T (the
+  physics writes them per tick into the remote_acks ring before publishing T), so a client
+  rewinds to T and replays exactly its later inputs; an input holds input_hold_s at most.
+- the seat table (tokens, names, grace) is saved to a SeatStore on every change: a gateway
+  restarted after a crash restores it and a player's token still reclaims its seat.
+- with a CURVE key pair (`pingpong keys`, `serve --curve-secret`) every session is encrypted and
+  only clients that know the server's public key can connect.
 
 Every message from outside that fails wire.decode, or arrives in more than one frame, or comes
 from a peer without a session, is dropped and counted by reason, never fatal. A session that

@@ -299,7 +299,8 @@ class Input(_Spec):
 
     Header tick: the tick from which the input holds (the client's predicted tick); header seq
     is echoed back in snapshot.input_seq once the server applied it. The gateway refuses an
-    input whose slot is not the session's own.
+    input whose slot is not the session's own, and lets go of it (zero force, same seq) if no
+    other input follows within its input_hold_s (0.1 s by default).
 
     Layout, 130 bytes:
         off  size  field        type      unit / meaning
@@ -348,7 +349,9 @@ class Snapshot(_Spec):
         144    64  bat_quat     <f8[2,4]   (w, x, y, z) bat -> world, unit within 1e-6
         208    48  bat_vel      <f8[2,3]   m/s, |bat_vel[i]| <= 100
         256    48  bat_ang_vel  <f8[2,3]   rad/s, world frame, |bat_ang_vel[i]| <= 1000
-        304    16  input_seq    <u8[2]     seq of the last input applied to bat A, B (0: none)
+        304    16  input_seq    <u8[2]     seq of the last input applied to bat A, B before the step
+                                           into this tick (0: none): the snapshot shows the effect
+                                           of exactly the inputs up to it (client reconciliation)
         320     4  rally        <u4        rallies started since the match began
         324     4  score        <u2[2]     points of A, B in the current game
         328     2  games_won    u1[2]      games won by A, B, <= 5
