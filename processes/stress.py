@@ -838,7 +838,7 @@ def scenario_malformed(args, run: Run) -> dict:
     result = _base("malformed")
     shm_before = shm_names()
     n, rate = args.malformed, args.malformed_rate
-    seconds = n / rate * 4.0 + 12.0  # the match: the flood at its rate (a loaded machine is slower), then the round trips
+    seconds = n / rate * 4.0 + 9.0  # the match: the flood at its rate (a loaded machine is slower), then the round trips
     server = run.add(Server(run.tmp, players=2, heartbeat_s=0.25, timeout_s=5.0, max_spectators=32, seconds=seconds))
     gateway = server.pids["gateway"]
     legit = run.add(swarm(_watch_spec(server.endpoint, 4, 1, "ok", None, duration=seconds + 120, until_goodbye=True),
