@@ -47,6 +47,7 @@ _DEEP_X = HALF_LENGTH + 0.5  # m: a ball this far from the net is struck whereve
 _FAR_X = HALF_LENGTH - 0.6  # m: a ball nearer the net than this is waited for
 _TABLE, _FLOOR = int(Body.TABLE), int(Body.FLOOR)
 _W_BOUNCE, _W_FLOOR, _W_CANDIDATE, _W_LATER = 0, 1, 2, 3  # predict_flight's bookkeeping of a return
+_PASS, _MISS, _UNSURE = 1, 0, -1  # BatAI._free_flight_verdict
 
 
 @njit(cache=True)
@@ -455,11 +456,11 @@ class BatAI:
     # striker's own court; players keep a margin (measured effect in the SKILLS comment).
     NET_MARGIN_M = 0.06
     COURT_MARGIN_M = 0.05  # a stroke is planned to land this far inside the court's edges
-    # Tolerances of _cannot_land_well: the free flight at SHOOTING_DT and the real path at the
-    # engine's tick are the same integrator to its tolerance, interpolated linearly between
-    # steps; they pass the net within 0.03 mm of each other (measured, seed 0, 272 returns).
-    CLEARANCE_TOLERANCE_M = 0.005
-    LANDING_TOLERANCE_M = 0.005
+    SERVICE_NET_MARGIN_M = 0.01
+    # How far from every limit of _lands_well a free flight's verdict must be to stand for the
+    # predicted path's: measured, the two pass the net within 0.03 mm of each other with the
+    # free flight at 4 ms (seed 0, 272 returns); at the engine's own tick they agree closer still.
+    FREE_FLIGHT_TOLERANCE_M = 0.005
     RECOVER_S = 0.35
     KP = 30.0**2  # (rad/s)^2: position loop natural frequency 30 rad/s, critically damped
     KD = 2 * 30.0
@@ -636,8 +637,6 @@ class BatAI:
                     normal, bat_vel, spin_out = self.solve_stroke(v_in, spin_in, shot)
                 if shot is None:
                     continue
-                if not serve and self._cannot_land_well(p, shot, spin_out, end_sign):
-                    continue
                 if self._lands_well(p, shot, spin_out, end_sign, serve):
                     solution = (normal, bat_vel)
                     target = aim
@@ -663,12 +662,20 @@ class BatAI:
         return Plan(segments, normal, t_hit, target)
 
     def _lands_well(self, p, v_out, spin_out, end_sign, serve) -> bool:
-        """The real path clears the net and bounces where it must (own court first for a service)."""
-        # A return is judged on its first contact, a service on its first two: predict no further.
+        """The real path clears the net and bounces where it must (own court first for a service):
+        _judge_path on the path predicted at the engine's tick, or, where that is sure, the same
+        answer from the free flight to the next contact (see _free_flight_verdict)."""
         if serve:
-            traj, events = self._service_path(p, v_out, spin_out, end_sign)
-        else:
-            traj, events = self._path(p, v_out, spin_out, max_events=1)
+            return self._service_lands_well(p, v_out, spin_out, end_sign)
+        y0 = np.concatenate([p, v_out, spin_out])
+        verdict = self._free_flight_verdict(y0, -end_sign, self.NET_MARGIN_M, int(round(2.0 / self.model.dt)))
+        if verdict != _UNSURE:
+            return verdict == _PASS
+        traj, events = self._path(p, v_out, spin_out, max_events=1)  # a return is judged on its first contact
+        return self._judge_path(traj, events, end_sign, False)
+
+    def _judge_path(self, traj: np.ndarray, events: list, end_sign: int, serve: bool) -> bool:
+        """_lands_well on a predicted path (the first contact of a return, the first two of a service)."""
         if not events or events[0][1] != Body.TABLE:
             return False
         margin = self.COURT_MARGIN_M
@@ -678,42 +685,53 @@ class BatAI:
         if len(events) < 2 or events[1][1] != Body.TABLE:
             return False
         return (_on_court(events[0][2], end_sign, margin) and _on_court(events[1][2], -end_sign, margin)
-                and self._net_clearance(traj, end_sign) > 0.01)
+                and self._net_clearance(traj, end_sign) > self.SERVICE_NET_MARGIN_M)
 
-    def _service_path(self, p: np.ndarray, v: np.ndarray, spin: np.ndarray, end_sign: int):
-        """_path(p, v, spin, max_events=2) of a service, or less of it when that is sure to fail
-        _lands_well: after the tick of its first contact, the bounce on the server's court, it
-        flies free to the next; if that flight passes the net too low or comes down off the
-        receiver's court, the path stops there."""
+    def _service_lands_well(self, p: np.ndarray, v: np.ndarray, spin: np.ndarray, end_sign: int) -> bool:
+        """_lands_well of a service: its path predicted to the tick of its first contact, which
+        must be a bounce on the server's court; from there it flies free to the next contact, so
+        _free_flight_verdict judges the rest, or the prediction goes on (exactly as if it had
+        not stopped) to that contact when the free flight is too near a limit to tell."""
         h = self.model.dt
         n_max = int(round(2.0 / h))
         n, n_ev, _, support = self._predict(np.concatenate([p, v, spin]), h, n_max, 2, STOP_CONTACT, 0)
-        first_ok = (n_ev == 1 and support == 0 and int(self._events[0, E_BODY]) == Body.TABLE
-                    and _on_court(self._events[0, E_POS:E_POS + 2], end_sign, self.COURT_MARGIN_M))
-        if first_ok and not self._free_flight_misses(self._traj[n], -end_sign, 0.01):
-            n, n_ev, _, _ = self._predict(None, h, n_max, 2, STOP_EVENTS, 0, resume=(n, n_ev))
-        return self._traj[: n + 1], self._event_list(n_ev)
+        if not (n_ev == 1 and support == 0 and int(self._events[0, E_BODY]) == Body.TABLE
+                and _on_court(self._events[0, E_POS:E_POS + 2], end_sign, self.COURT_MARGIN_M)):
+            # Not a bounce on the server's court (or two contacts in one tick, or the ball at
+            # rest): the path so far is all the judge needs.
+            return self._judge_path(self._traj[: n + 1], self._event_list(n_ev), end_sign, True)
+        verdict = self._free_flight_verdict(self._traj[n], -end_sign, self.SERVICE_NET_MARGIN_M, n_max - n)
+        if verdict != _UNSURE:
+            return verdict == _PASS
+        n, n_ev, _, _ = self._predict(None, h, n_max, 2, STOP_EVENTS, 0, resume=(n, n_ev))
+        return self._judge_path(self._traj[: n + 1], self._event_list(n_ev), end_sign, True)
 
-    def _cannot_land_well(self, p: np.ndarray, v: np.ndarray, spin: np.ndarray, end_sign: int) -> bool:
-        """A return that _lands_well would refuse, told from its free flight (see _free_flight_misses)."""
-        return self._free_flight_misses(np.concatenate([p, v, spin]), -end_sign, self.NET_MARGIN_M)
-
-    def _free_flight_misses(self, y: np.ndarray, court_sign: int, clearance: float) -> bool:
-        """Whether the free flight from y (no table, net or floor; SHOOTING_DT steps), which is the
-        real path up to its next contact, passes the net lower than `clearance` or comes down to
-        table height off the court of court_sign. A few free steps instead of the path at the
-        engine's tick; the tolerances keep it to sure cases. Own scratch: a prediction in
-        self._traj may go on after it."""
+    def _free_flight_verdict(self, y: np.ndarray, court_sign: int, clearance: float, max_ticks: int) -> int:
+        """_PASS, _MISS or _UNSURE: whether a ball in flight at y, over the striker's court, passes
+        the net with the clearance and bounces next on the court of court_sign within max_ticks,
+        told from its free flight (no table, net or floor) at the engine's tick. Up to its next contact that is
+        the real path (the two differ only where a tick is split at a contact, by the
+        integrator's error), so a verdict more than the tolerances from every limit is the one
+        the predicted path gets. _PASS also needs the ball above table height from the start:
+        it then touches nothing before it comes down through table height, over the court, past
+        a net it clears. Own scratch: a prediction in self._traj may go on after it."""
         m = self.model
         self._free_adapt[:] = 0.0
         out = self._free_scratch[2, 0:3]
-        free_flight_marks(y[0:3], y[3:6], y[6:9], self.radius, self.SHOOTING_DT, int(2.0 / self.SHOOTING_DT), m.method,
+        free_flight_marks(y[0:3], y[3:6], y[6:9], self.radius, m.dt, max_ticks, m.method,
                           m.gravity, m.drag_k, m.magnus_k, m.scene.rtol, m.scene.atol, self._free_work,
                           self._free_adapt, self._free_scratch[0], self._free_scratch[1], out)
-        if out[0] - self.radius - equipment.NET_HEIGHT < clearance - self.CLEARANCE_TOLERANCE_M:
-            return True
-        return (y[2] > self.radius and not math.isnan(out[1])
-                and not _on_court(out[1:3], court_sign, self.COURT_MARGIN_M - self.LANDING_TOLERANCE_M))
+        above_net = out[0] - self.radius - equipment.NET_HEIGHT - clearance
+        margin, tolerance = self.COURT_MARGIN_M, self.FREE_FLIGHT_TOLERANCE_M
+        if above_net < -tolerance:
+            return _MISS
+        if math.isnan(out[1]) or y[2] <= self.radius:
+            return _UNSURE
+        if not _on_court(out[1:3], court_sign, margin - tolerance):
+            return _MISS
+        if above_net > tolerance and _on_court(out[1:3], court_sign, margin + tolerance):
+            return _PASS
+        return _UNSURE
 
     def _hit_index(self, times, traj, events, end_sign, serve) -> int | None:
         """Tick of the prediction at which to strike, None if the ball is not ours to play.

@@ -97,3 +97,33 @@ def test_control_takes_a_record_or_a_0d_array_and_refuses_other_layouts(ai):
         ai.control(1.0, ball, bats, (0, 0), False, False, 1)
     with pytest.raises(TypeError, match="BAT_DTYPE"):
         ai.control(1.0, ball, np.zeros(19), (0, 0), False, False, 1)
+
+
+def test_lands_well_agrees_with_judging_the_predicted_path(ai):
+    """Where the free flight is sure, _lands_well answers without predicting: the same answers."""
+    rng = np.random.default_rng(11)
+    answers = {("return", True): 0, ("return", False): 0, ("service", True): 0, ("service", False): 0}
+    for _ in range(80):
+        p = np.array([rng.uniform(1.3, 2.0), rng.uniform(-0.5, 0.5), rng.uniform(0.05, 0.4)])
+        spin = rng.uniform(-150.0, 150.0, 3)
+        aim = (-rng.uniform(0.3, 1.6), rng.uniform(-0.9, 0.9))  # some off the court
+        v = ai.solve_shot(p, spin, aim, rng.uniform(4.0, 12.0), 1)
+        if v is None:
+            continue
+        v += rng.normal(0.0, 0.3, 3)  # some into the net, some near every limit
+        traj, events = ai._path(p, v, spin, max_events=1)
+        want = ai._judge_path(traj, events, 1, False)
+        assert ai._lands_well(p, v, spin, 1, False) == want
+        answers[("return", want)] += 1
+    for _ in range(80):
+        p = np.array([rng.uniform(1.4, 1.6), rng.uniform(-0.3, 0.3), rng.uniform(0.08, 0.28)])
+        spin = rng.uniform(-150.0, 150.0, 3)
+        v = ai.solve_shot(p, spin, (rng.uniform(0.3, 1.1), rng.uniform(-0.5, 0.5)), rng.uniform(4.0, 7.5), 1)
+        if v is None:
+            continue
+        v += rng.normal(0.0, 0.2, 3)
+        traj, events = ai._path(p, v, spin, max_events=2)
+        want = ai._judge_path(traj, events, 1, True)
+        assert ai._lands_well(p, v, spin, 1, True) == want
+        answers[("service", want)] += 1
+    assert min(answers.values()) >= 5, answers  # both answers of both kinds were exercised
