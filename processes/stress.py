@@ -571,6 +571,8 @@ def scenario_load(args, run: Run) -> dict:
         "score_regressions": sum(r["regressions"]["score"] for r in reports),
         "tick_regressions": sum(r["regressions"]["tick"] for r in reports),
         "invalid_snapshots": sum(sum(r["invalid"].values()) for r in reports),
+        "gateway_timeouts": stats.get("timeouts", 0),
+        "swarm_heartbeat_gap_max_s": max((r.get("sweep_gap_max_s", 0.0) for r in reports), default=0.0),
     }
     sends = sum(v for k, v in stats.items() if k.endswith("_sent"))
     if gateway_cpu and sends:

@@ -121,6 +121,8 @@ def watch(spec: dict) -> dict:
     end = started + spec.get("duration", 10.0)
     rss_start = None
     next_sweep = 0.0
+    last_sweep = 0.0
+    sweep_gap = 0.0
     done = set()
 
     def finished(w: _Watcher) -> bool:
@@ -198,6 +200,9 @@ def watch(spec: dict) -> dict:
                 w.last = t
         now = time.monotonic()
         if now >= next_sweep:
+            if ready_sent and last_sweep:
+                sweep_gap = max(sweep_gap, now - last_sweep)  # our own stalls: a heartbeat may be late by this
+            last_sweep = now
             next_sweep = now + 0.05
             for w in watchers:
                 if finished(w):
@@ -243,7 +248,7 @@ def watch(spec: dict) -> dict:
             "rate_median": float(np.median(rates)) if rates else 0.0, "rate_max": max(rates, default=0.0),
             "seconds": stopped - started, "fds_before": fds_before, "fds_after": fds_after,
             "rss_start_kb": rss_start or rss_end, "rss_end_kb": rss_end,
-            "last_tick": max((w.last_tick for w in watchers), default=-1)}
+            "last_tick": max((w.last_tick for w in watchers), default=-1), "sweep_gap_max_s": round(sweep_gap, 3)}
 
 
 # --- churn ---------------------------------------------------------------------------------------
