@@ -951,16 +951,19 @@ def print_table(results: list[dict]) -> None:
     from rich.table import Table
 
     table = Table(title="pingpong stress")
-    for column in ("scenario", "ok", "what happened", "crashes", "lost pts", "leaked fds", "leaked shm", "RSS %",
-                   "latency ms p50/p99/max", "tick jitter ms p99/max"):
-        table.add_column(column)
+    for column in ("scenario", "ok", "crashes", "lost points", "leaked fds", "leaked shm", "RSS growth %"):
+        table.add_column(column, no_wrap=column == "scenario")
     for r in results:
-        jit = r.get("tick_jitter_ms") or {}
-        table.add_row(r["scenario"], "yes" if r["ok"] else "NO", _summary(r), str(r["crashes"]), str(r["lost_points"]),
-                      str(r["leaked_fds"]), str(r["leaked_shm"]), _fmt(r["rss_growth_pct"]), _fmt(r["latency_ms"]),
-                      f"{_fmt(jit.get('p99'))}/{_fmt(jit.get('max'))}" if jit else "-")
+        table.add_row(r["scenario"], "yes" if r["ok"] else "NO", str(r["crashes"]), str(r["lost_points"]),
+                      str(r["leaked_fds"]), str(r["leaked_shm"]), _fmt(r["rss_growth_pct"]))
     console = Console()
     console.print(table)
+    for r in results:
+        jit = r.get("tick_jitter_ms") or {}
+        timing = (f"; latency ms p50/p99/max {_fmt(r['latency_ms'])}, tick jitter ms p99/max "
+                  f"{_fmt(jit.get('p99'))}/{_fmt(jit.get('max'))}" if r.get("latency_ms") else "")
+        console.print(f"[bold]{r['scenario']}[/]: {_summary(r)}{timing}; load average before/after "
+                      f"{r.get('loadavg_before_after')}")
     for r in results:
         if r.get("cpu_pct"):
             console.print(f"[bold]{r['scenario']}[/] CPU % of one core: " +
