@@ -518,7 +518,11 @@ def scenario_load(args, run: Run) -> dict:
     swarms = [run.add(swarm(_watch_spec(server.endpoint, k, 0, f"s{i}_", records[i], duration=seconds + 120,
                                         until_goodbye=True), f"swarm{i}")) for i, k in enumerate(_split(n)) if k]
     readies = [s.expect(lambda o: o.get("event") == "ready", 60 + n / 20, "ready") for s in swarms]
-    bots = [run.add(bot(server.endpoint, seconds + 120, seed)) for seed in range(args.players)]
+    if getattr(args, "still_players", False):  # players that hold their bats still: the fan-out alone
+        bots = [run.add(swarm(_watch_spec(server.endpoint, 0, 2, "still", None, duration=seconds + 120,
+                                          until_goodbye=True), "still_players"))]
+    else:
+        bots = [run.add(bot(server.endpoint, seconds + 120, seed)) for seed in range(args.players)]
     until(lambda: (server.tick() or 0) > 0, 120, 0.2)
     gateway = server.pids["gateway"]
     meter = CpuMeter()
@@ -537,6 +541,11 @@ def scenario_load(args, run: Run) -> dict:
     bot_reports = []
     for b in bots:
         try:
+            if b.name == "still_players":
+                report = b.expect(lambda o: o.get("event") == "report", 30, "report")
+                bot_reports.append({"slot": "a+b", "goodbye": next(iter(report["goodbyes"]), "server_lost"),
+                                    "snapshots": report["snapshots"], "inputs_sent": report["inputs"]})
+                continue
             bot_reports.append(b.expect(lambda o: "goodbye" in o, 30, "summary"))
             b.wait(10)
         except StressError:  # still reading behind, long after the match: a finding, then killed
