@@ -223,43 +223,48 @@ _H, _BAND, _EDGE = 0, 3, 21
 _V, _D1, _D2 = 0, 3, 6  # offsets within a band
 
 
-@njit(inline="always", cache=True, error_model="numpy")
-def _grid_scale(d0, d1, d2, e0, e1, e2, k, c, rest):
-    """N/m, step_knots' scale of one spring: d = x_j - x_i, e = v_j - v_i (same operations, same order)."""
-    length2 = d0 * d0 + d1 * d1 + d2 * d2
-    rate = e0 * d0 + e1 * d1 + e2 * d2
-    length = math.sqrt(length2)
-    inv_len = 1.0 / length
-    return (k * (length - rest) + c * rate * inv_len) * inv_len
+@njit(cache=True, fastmath=False, error_model="numpy")
+def _grid_line(x, v, ri, rj, qi, qj, n, k, c, rest, work, row):
+    """t = scale (x_j - x_i) of n springs from knots (ri, qi + q) to (rj, qj + q) into work[row : row + 3, q].
 
-
-@njit(inline="always", cache=True, error_model="numpy")
-def _grid_spring(x, v, ri, qi, rj, qj, k, c, rest, work, row, q):
-    """t = scale (x_j - x_i) of the spring from knot (ri, qi) to (rj, qj) into work[row : row + 3, q]."""
-    d0 = x[0, rj, qj] - x[0, ri, qi]
-    d1 = x[1, rj, qj] - x[1, ri, qi]
-    d2 = x[2, rj, qj] - x[2, ri, qi]
-    s = _grid_scale(d0, d1, d2, v[0, rj, qj] - v[0, ri, qi], v[1, rj, qj] - v[1, ri, qi],
-                    v[2, rj, qj] - v[2, ri, qi], k, c, rest)
-    work[row, q] = s * d0
-    work[row + 1, q] = s * d1
-    work[row + 2, q] = s * d2
+    The scale is step_knots' expression, same operations in the same order. Indices are
+    unsigned: numba then skips the negative-index test, and LLVM sees plain strides and
+    vectorises. Written out, not built from inline helpers: numba's IR inlining multiplied
+    the grid kernels' compile time (and the runtime was no better).
+    """
+    for q in range(n):
+        i = qi + q
+        j = qj + q
+        d0 = x[0, rj, j] - x[0, ri, i]
+        d1 = x[1, rj, j] - x[1, ri, i]
+        d2 = x[2, rj, j] - x[2, ri, i]
+        e0 = v[0, rj, j] - v[0, ri, i]
+        e1 = v[1, rj, j] - v[1, ri, i]
+        e2 = v[2, rj, j] - v[2, ri, i]
+        length2 = d0 * d0 + d1 * d1 + d2 * d2
+        rate = e0 * d0 + e1 * d1 + e2 * d2
+        length = math.sqrt(length2)
+        inv_len = 1.0 / length
+        scale = (k * (length - rest) + c * rate * inv_len) * inv_len
+        work[row, q] = scale * d0
+        work[row + 1, q] = scale * d1
+        work[row + 2, q] = scale * d2
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
 def _grid_band(x, v, r, params, work, band):
     """t of the springs between rows r and r + 1 into the band at work[band : band + 9]."""
     cols = x.shape[2]
+    u = np.uint64
+    ri, rj, n, zero, one = u(r), u(r + 1), u(cols), u(0), u(1)
     k, c, rest = params[GRID_VERTICAL, 0], params[GRID_VERTICAL, 1], params[GRID_VERTICAL, 2]
-    for q in range(cols):
-        _grid_spring(x, v, r, q, r + 1, q, k, c, rest, work, band + _V, q)
+    _grid_line(x, v, ri, rj, zero, zero, n, k, c, rest, work, band + _V)
     k, c, rest = params[GRID_SHEAR, 0], params[GRID_SHEAR, 1], params[GRID_SHEAR, 2]
-    for q in range(cols - 1):  # shear /: (r, q) to (r + 1, q + 1)
-        _grid_spring(x, v, r, q, r + 1, q + 1, k, c, rest, work, band + _D1, q)
-    for q in range(cols - 1):  # shear \: (r, q + 1) to (r + 1, q)
-        _grid_spring(x, v, r, q + 1, r + 1, q, k, c, rest, work, band + _D2, q)
+    _grid_line(x, v, ri, rj, zero, one, n - one, k, c, rest, work, band + _D1)  # shear /: (r, q) to (r + 1, q + 1)
+    _grid_line(x, v, ri, rj, one, zero, n - one, k, c, rest, work, band + _D2)  # shear \: (r, q + 1) to (r + 1, q)
     # No spring leaves the last column: zeros there are the border's missing terms.
-    work[band + _D1:band + _D2 + 3, cols - 1] = 0.0
+    for row in range(band + _D1, band + _D2 + 3):
+        work[row, cols - 1] = 0.0
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
@@ -267,50 +272,64 @@ def _grid_row(x, v, r, params, work):
     """t of row r's horizontal springs (the top cord on the last row) into work[_H : _H + 3]."""
     cols = x.shape[2]
     kind = GRID_CORD if r == x.shape[1] - 1 else GRID_MESH
-    k, c, rest = params[kind, 0], params[kind, 1], params[kind, 2]
-    for q in range(cols - 1):
-        _grid_spring(x, v, r, q, r, q + 1, k, c, rest, work, _H, q)
-    work[_H:_H + 3, cols - 1] = 0.0
+    u = np.uint64
+    _grid_line(x, v, u(r), u(r), u(0), u(1), u(cols - 1), params[kind, 0], params[kind, 1], params[kind, 2], work, _H)
+    for row in range(_H, _H + 3):
+        work[row, cols - 1] = 0.0
 
 
-@njit(inline="always", cache=True, error_model="numpy")
-def _grid_force(work, k, down, up, q, ql):
-    """N, force component k on knot (r, q), its springs in CSR slot order; ql: the column of the springs to the left."""
-    f = -work[down + _D1 + k, ql]  # shear / from below-left (the knot is its j)
-    f -= work[down + _V + k, q]  # vertical from below
-    f -= work[down + _D2 + k, q]  # shear \ from below-right
-    f -= work[_H + k, ql]  # horizontal, left
-    f += work[_H + k, q]  # horizontal, right (the knot is its i)
-    f += work[up + _D2 + k, ql]  # shear \ to above-left
-    f += work[up + _V + k, q]  # vertical to above
-    f += work[up + _D1 + k, q]  # shear / to above-right
-    return f
-
-
-@njit(inline="always", cache=True, error_model="numpy")
-def _grid_knot(state, k, r, q, w, f, g, drag, h):
-    """Knot (r, q)'s component k in place: v' = v + h (w f - drag v - g), x' = x + h v'; fixed (w = 0) knots kept."""
-    xi = state[0, k, r, q]
-    vi = state[1, k, r, q]
-    nv = vi + h * (w * f - drag * vi - g)
-    fixed = w == 0.0
-    state[1, k, r, q] = vi if fixed else nv
-    state[0, k, r, q] = xi if fixed else xi + h * nv
+@njit(cache=True, fastmath=False, error_model="numpy")
+def _grid_border(state, knot_inv_mass, r, q, ql, down, up, work, gravity, drag, h):
+    """Knot (r, q) on a border column stepped in place as _grid_update does; ql: the column of the
+    springs to its left (the zeroed last column when q = 0)."""
+    w = knot_inv_mass[r, q]
+    for k in range(3):
+        f = -work[down + _D1 + k, ql]
+        f -= work[down + _V + k, q]
+        f -= work[down + _D2 + k, q]
+        f -= work[_H + k, ql]
+        f += work[_H + k, q]
+        f += work[up + _D2 + k, ql]
+        f += work[up + _V + k, q]
+        f += work[up + _D1 + k, q]
+        g = gravity if k == 2 else 0.0
+        xi = state[0, k, r, q]
+        vi = state[1, k, r, q]
+        nv = vi + h * (w * f - drag * vi - g)
+        state[1, k, r, q] = vi if w == 0.0 else nv
+        state[0, k, r, q] = xi if w == 0.0 else xi + h * nv
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
 def _grid_update(state, knot_inv_mass, r, down, up, work, gravity, drag, h):
-    """Row r's symplectic Euler step, in place."""
+    """Row r's symplectic Euler step in place: v' = v + h (w f - drag v - g), x' = x + h v'; fixed (w = 0) knots kept.
+
+    The force f on knot (r, q) sums its springs' t in CSR slot order: -t of the springs of
+    which it is the second knot (below-left, below, below-right, left), +t of the others
+    (right, above-left, above, above-right).
+    """
     cols = state.shape[3]
     last = cols - 1
     for k in range(3):
         g = gravity if k == 2 else 0.0  # - 0.0 is exact: step_knots' bits on x and y
         for q in range(1, last):
-            _grid_knot(state, k, r, q, knot_inv_mass[r, q], _grid_force(work, k, down, up, q, q - 1), g, drag, h)
-        # Border columns: the springs missing to the left sit in the zeroed last column.
-        _grid_knot(state, k, r, 0, knot_inv_mass[r, 0], _grid_force(work, k, down, up, 0, last), g, drag, h)
-        _grid_knot(state, k, r, last, knot_inv_mass[r, last], _grid_force(work, k, down, up, last, last - 1), g,
-                   drag, h)
+            f = -work[down + _D1 + k, q - 1]  # shear / from below-left
+            f -= work[down + _V + k, q]  # vertical from below
+            f -= work[down + _D2 + k, q]  # shear \ from below-right
+            f -= work[_H + k, q - 1]  # horizontal, left
+            f += work[_H + k, q]  # horizontal, right
+            f += work[up + _D2 + k, q - 1]  # shear \ to above-left
+            f += work[up + _V + k, q]  # vertical to above
+            f += work[up + _D1 + k, q]  # shear / to above-right
+            w = knot_inv_mass[r, q]
+            xi = state[0, k, r, q]
+            vi = state[1, k, r, q]
+            nv = vi + h * (w * f - drag * vi - g)
+            state[1, k, r, q] = vi if w == 0.0 else nv
+            state[0, k, r, q] = xi if w == 0.0 else xi + h * nv
+    # Border columns: the springs missing to the left sit in the zeroed last column.
+    _grid_border(state, knot_inv_mass, r, 0, last, down, up, work, gravity, drag, h)
+    _grid_border(state, knot_inv_mass, r, last, last - 1, down, up, work, gravity, drag, h)
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
@@ -325,20 +344,19 @@ def _grid_block(state, knot_inv_mass, params, gravity, drag, h, grid_work, b, r0
     """Block b's second phase: step rows r0 .. r1 - 1 in place; the band above r1 - 1 is block b + 1's edge."""
     x = state[0]
     v = state[1]
-    rows = x.shape[1]
+    rows, cols = x.shape[1], x.shape[2]
     work = grid_work[b]
     for r in range(r0, r1):
         up = _BAND + 9 * (r % 2)
         down = _BAND + 9 * ((r + 1) % 2)
         if r == r0:
-            if r == 0:
-                work[down:down + 9] = 0.0  # no springs below the bottom row
-            else:
-                work[down:down + 9] = work[_EDGE:_EDGE + 9]
-        if r == rows - 1:
-            work[up:up + 9] = 0.0  # no springs above the top row
-        elif r == r1 - 1:
-            work[up:up + 9] = grid_work[b + 1, _EDGE:_EDGE + 9]  # evaluated before block b + 1 moved row r1
+            for row in range(9):
+                for q in range(cols):  # no springs below the bottom row; else this block's edge band
+                    work[down + row, q] = 0.0 if r == 0 else work[_EDGE + row, q]
+        if r == rows - 1 or r == r1 - 1:
+            for row in range(9):
+                for q in range(cols):  # none above the top row; else block b + 1's edge, evaluated before it moved row r1
+                    work[up + row, q] = 0.0 if r == rows - 1 else grid_work[b + 1, _EDGE + row, q]
         else:
             _grid_band(x, v, r, params, work, up)
         _grid_row(x, v, r, params, work)
