@@ -291,6 +291,7 @@ SEG_WIDTH = 14
 # The bat's fields in a BAT_DTYPE record seen as float64 (offsets in numbers).
 BAT_POS, BAT_QUAT, BAT_VEL, BAT_ANG_VEL = (BAT_DTYPE.fields[name][1] // 8 for name in ("pos", "quat", "vel", "ang_vel"))
 BAT_FLOATS = BAT_DTYPE.itemsize // 8
+_FLOAT64 = np.dtype(np.float64)
 # What bat_control tracks, in one float64 array (BatAI._ctl), at these offsets: the arm
 # (mass kg; inertia kg m^2 about a diameter, the face turns about one; kp, kd: (rad/s)^2 and
 # rad/s gains of the position loop; k_angle, d_angle: of the face; its limits max_force N,
@@ -785,7 +786,9 @@ class BatAI:
         """Force and torque (6,) for the bat now.
 
         Args:
-            now: s. ball_y: (9,) ball state. bat: one BAT_DTYPE record of this AI's bat.
+            now: s. ball_y: (9,) ball state. bat: one BAT_DTYPE record of this AI's bat, or the
+                same bytes as a (BAT_FLOATS,) float64 array (a row of
+                bats.view('<f8').reshape(len(bats), BAT_FLOATS)), which is cheaper to pass on.
             rally_key: changes whenever the ball changes hands (new rally or a strike).
             my_turn: the ball is this bat's to strike next. serve: that strike is a service.
             end_sign: -1 if this bat's court is at x < 0.
@@ -824,12 +827,17 @@ class BatAI:
 
     @staticmethod
     def _bat_floats(bat) -> np.ndarray:
-        """A BAT_DTYPE record (numpy.void or 0-d array) as a read-only (BAT_FLOATS,) float64 view, no copy."""
-        if type(bat) is np.void and bat.dtype is BAT_DTYPE:  # the common case, checked cheaply
+        """The bat as a (BAT_FLOATS,) float64 array, no copy: a float64 row as it is, a BAT_DTYPE
+        record (numpy.void or 0-d array) as a read-only view of its bytes."""
+        kind = type(bat)
+        if kind is np.ndarray and bat.dtype is _FLOAT64 and bat.shape == (BAT_FLOATS,) and bat.flags.c_contiguous:
+            return bat  # the cheapest for numba to take: no view to make, writable
+        if kind is np.void and bat.dtype is BAT_DTYPE:
             return np.frombuffer(bat, np.float64)  # read-only
         if not isinstance(bat, (np.void, np.ndarray)) or bat.dtype != BAT_DTYPE or bat.shape != ():
-            raise TypeError(f"BatAI.control: bat must be one engine.dtypes.BAT_DTYPE record (e.g. bats[player]), "
-                            f"got {type(bat).__name__} of dtype {getattr(bat, 'dtype', None)} and shape "
+            raise TypeError(f"BatAI.control: bat must be one engine.dtypes.BAT_DTYPE record (e.g. bats[player]) or "
+                            f"its ({BAT_FLOATS},) float64 view (bats.view('<f8').reshape(len(bats), {BAT_FLOATS})"
+                            f"[player]), got {kind.__name__} of dtype {getattr(bat, 'dtype', None)} and shape "
                             f"{getattr(bat, 'shape', None)}")
         floats = np.frombuffer(bat, np.float64)
         floats.flags.writeable = False  # as a record's: one numba specialisation

@@ -82,7 +82,7 @@ def test_strike_search_stops_early_with_the_answer_of_the_whole_path(ai):
     assert min(outcomes.values()) >= 5, outcomes  # both answers and the early stop were exercised
 
 
-def test_control_takes_a_record_or_a_0d_array_and_refuses_other_layouts(ai):
+def test_control_takes_a_record_a_0d_array_or_a_float_row_and_refuses_other_layouts(ai):
     bats = np.zeros(2, BAT_DTYPE)
     bats["quat"] = (1.0, 0.0, 0.0, 0.0)
     bats["pos"][1], bats["vel"][1] = (1.8, 0.1, 0.2), (0.3, -0.2, 0.1)
@@ -92,11 +92,13 @@ def test_control_takes_a_record_or_a_0d_array_and_refuses_other_layouts(ai):
     single[()] = bats[1]
     from_array = ai.control(1.0, ball, single, (0, 0), False, False, 1)
     np.testing.assert_array_equal(from_record, from_array)  # the same numbers, so bit for bit
+    rows = bats.view("<f8").reshape(len(bats), -1)
+    np.testing.assert_array_equal(ai.control(1.0, ball, rows[1], (0, 0), False, False, 1), from_record)
     assert np.linalg.norm(from_record[0:3]) > 0.0  # the bat is off its ready pose: pulled back
     with pytest.raises(TypeError, match="BAT_DTYPE"):
         ai.control(1.0, ball, bats, (0, 0), False, False, 1)
     with pytest.raises(TypeError, match="BAT_DTYPE"):
-        ai.control(1.0, ball, np.zeros(19), (0, 0), False, False, 1)
+        ai.control(1.0, ball, np.zeros(18), (0, 0), False, False, 1)
 
 
 def test_lands_well_agrees_with_judging_the_predicted_path(ai):
