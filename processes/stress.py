@@ -591,6 +591,7 @@ def scenario_load(args, run: Run) -> dict:
         result["counts"]["gateway_cpu_us_per_message"] = round(per_send_us, 1)
         result["counts"]["fanout_ceiling_hz_one_core"] = round(1e6 / (per_send_us * max(n, 1)), 1)
     result["counts"]["gateway_snapshots_unencodable"] = stats.get("snapshots_unencodable", 0)
+    result["counts"]["unencodable_examples"] = end.get("unencodable_examples", {})
     result["counts"]["states_beyond_wire_ranges"] = f"{sum(end.get('unencodable', {}).values())} of " \
                                                     f"{end.get('encode_checked')} checked"
     if stats.get("snapshots_unencodable"):
