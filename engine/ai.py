@@ -504,12 +504,15 @@ class BatAI:
     def warm_up(self) -> None:
         """Load (or compile) every kernel the AI uses, without touching its state or its RNG."""
         self.predict(np.array([0.0, 0.0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), 0.01)
-        self.solve_shot(np.array([1.6, 0.0, 0.2]), np.zeros(3), (-0.8, 0.0), 8.0, 1)
+        v_out = self.solve_shot(np.array([1.6, 0.0, 0.2]), np.zeros(3), (-0.8, 0.0), 8.0, 1)
+        self.solve_stroke(np.array([5.0, 0.0, 1.0]), np.zeros(3), v_out)
+        self._free_flight_verdict(np.array([1.6, 0.0, 0.2, *v_out, 0.0, 0.0, 0.0]), -1, self.NET_MARGIN_M, 10)
         bat = np.zeros(1, BAT_DTYPE)
         bat["quat"][0] = (1.0, 0.0, 0.0, 0.0)
         ctl = self._ctl.copy()
         ctl[CTL_NORMAL] = 1.0
-        bat_control(0.0, self._bat_floats(bat[0]), ctl, np.zeros(6))
+        bat_control(0.0, self._bat_floats(bat[0]), ctl, np.zeros(6))  # a record's read-only view
+        bat_control(0.0, bat.view(np.float64), ctl, np.zeros(6))  # a float64 row
 
     # --- prediction ---------------------------------------------------------------------
     def predict(self, y0: np.ndarray, seconds: float, max_events: int = 8, dt: float | None = None):
