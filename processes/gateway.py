@@ -21,7 +21,8 @@ One ROUTER socket carries everything. A client is a DEALER that sends one-frame 
 - goodbye to every session on shutdown (shutdown) or at the end of the match (match_over).
 - a snapshot of tick T says in input_seq the inputs applied before the step into T (the
   physics writes them per tick into the remote_acks ring before publishing T), so a client
-  rewinds to T and replays exactly its later inputs; an input holds input_hold_s at most.
+  rewinds to T and replays exactly its later inputs; an input holds input_hold_s at most, then
+  the idle arm (also that of a seat without a player) brakes its bat to rest (brake_force).
 - the seat table (tokens, names, grace) is saved to a SeatStore on every change: a gateway
   restarted after a crash restores it and a player's token still reclaims its seat.
 - with a CURVE key pair (`pingpong keys`, `serve --curve-secret`) every session is encrypted and
@@ -68,6 +69,25 @@ SEAT_DTYPE = np.dtype([("slot", "u1"), ("taken", "u1"), ("token", "u1", (16,)), 
 # must not leave its bat pushed by a constant force (120 N on a 0.17 kg bat is 70 m/s in 0.1 s).
 # After it, the gateway posts a zero input (same seq) until the next input comes.
 INPUT_HOLD_S = 0.1
+# An idle arm (its input expired, or no player holds the seat) stops its bat instead of letting
+# it coast off (a coasting bat leaves the wire's +-8 m and no snapshot can be sent any more):
+# force = -mass * BRAKE_PER_S * bat velocity, at most BRAKE_MAX_N, posted every BRAKE_EVERY_S
+# while the bat moves faster than BRAKE_MIN_SPEED. The AI arm's own damping and weakest limit.
+BRAKE_PER_S = 60.0  # 1/s, engine.ai.BatAI.KD
+BRAKE_MAX_N = 50.0  # N, the novice arm's max_force_n
+BRAKE_EVERY_S = 0.01
+BRAKE_MIN_SPEED = 0.01  # m/s
+
+
+def brake_force(mass: float, vel, out: np.ndarray) -> np.ndarray:
+    """out[0:6] := an idle arm's force (N) on a bat of `mass` kg moving at `vel` (m/s), no torque."""
+    out[:] = 0.0
+    out[0:3] = vel
+    out[0:3] *= -mass * BRAKE_PER_S
+    norm = float(np.sqrt(out[0:3] @ out[0:3]))
+    if norm > BRAKE_MAX_N:
+        out[0:3] *= BRAKE_MAX_N / norm
+    return out
 MAX_BAD = 64  # bad messages one session may send before it is kicked
 MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messages
 MAX_FRAME_BYTES = 4096  # libzmq disconnects a peer sending a bigger frame (MAXMSGSIZE)
@@ -127,6 +147,8 @@ class _Seat:
     identity: bytes | None = None
     name: str = ""
     grace_until: float = 0.0  # while empty: only `token` may take it until then
+    last_seq: int = 0  # seq of the last input posted for this bat (what an idle arm's posts carry)
+    next_brake: float = 0.0
 
 
 class SeatStore:
@@ -200,10 +222,13 @@ class Gateway:
         seat_store: a SeatStore the seat table is saved to on every change and restored from at
             start (a restarted gateway: seats held at its predecessor's death wait `grace_s`
             for their tokens); None: seats live and die with this object.
+        bat_mass: kg per bat (A, B): an idle remote arm brakes its bat (brake_force, from the
+            served record's velocity); None: an idle arm only lets go (zero force).
     """
 
     def __init__(self, zctx, config: GatewayConfig, *, scene_name: str, best_of: int, dt: float,
-                 remote_slots, post_input, clock=time.monotonic, seat_store: SeatStore | None = None):
+                 remote_slots, post_input, clock=time.monotonic, seat_store: SeatStore | None = None,
+                 bat_mass=None):
         self.config = config
         self.scene_name = scene_name
         self.best_of = best_of
@@ -212,6 +237,8 @@ class Gateway:
         self.clock = clock
         self.seats = {slot: _Seat(slot, slot in set(remote_slots)) for slot in (Slot.A, Slot.B)}
         self.seat_store = seat_store
+        self.bat_mass = None if bat_mass is None else tuple(float(m) for m in bat_mass)
+        self._brake = np.zeros(6)
         self.sessions: dict[bytes, _Session] = {}
         self.counts: Counter[str] = Counter()
         self.drops = wire.DropCounter()
@@ -473,6 +500,7 @@ class Gateway:
         session.input_seq = message.seq
         inputs = np.concatenate([message["force"], message["torque"]])
         session.input_at, session.holding = self.clock(), bool(inputs.any())
+        self.seats[session.slot].last_seq = message.seq
         if self.post_input(int(session.slot) - 1, message.seq, message.tick, inputs):
             self.counts["inputs_accepted"] += 1
         else:
@@ -503,6 +531,8 @@ class Gateway:
         if record is None:
             return
         self.tick = int(record["world"]["tick"])
+        if self.bat_mass is not None:
+            self._brake_idle_arms(record, now)
         if points is not None:
             self._events(record, points)
         if now < self._next_snapshot:
@@ -510,6 +540,23 @@ class Gateway:
         # on a fixed grid (no drift from the poll loop's latency); after a stall, restart from now
         self._next_snapshot = max(self._next_snapshot + 1.0 / self.config.snapshot_hz, now)
         self.broadcast_snapshot(record, input_seq)
+
+    def _brake_idle_arms(self, record, now: float) -> None:
+        """Stop the bats of remote seats whose arm is idle: no player, or its input expired."""
+        for seat in self.seats.values():
+            if not seat.remote or now < seat.next_brake:
+                continue
+            session = self.sessions.get(seat.identity) if seat.identity is not None else None
+            if session is not None and now - session.input_at <= self.config.input_hold_s:
+                continue  # the player's own input holds
+            bat = int(seat.slot) - 1
+            vel = record["bats"]["vel"][bat]
+            if float(np.abs(vel).max()) < BRAKE_MIN_SPEED:
+                continue
+            seat.next_brake = now + BRAKE_EVERY_S
+            self.counts["idle_arm_brakes"] += 1
+            if not self.post_input(bat, seat.last_seq, self.tick, brake_force(self.bat_mass[bat], vel, self._brake)):
+                self.counts["mailbox_full"] += 1
 
     def broadcast_snapshot(self, record, input_seq=(0, 0)) -> None:
         try:
@@ -609,7 +656,8 @@ def gateway_worker(control, arena, scene, options: dict) -> None:
     zctx = zmq.Context()
     seat_store = SeatStore(arena["seats"]) if "seats" in arena.blocks else None
     gateway = Gateway(zctx, config, scene_name=scene.name, best_of=scene.match.best_of, dt=scene.dt,
-                      remote_slots=remote, post_input=post_input, seat_store=seat_store)
+                      remote_slots=remote, post_input=post_input, seat_store=seat_store,
+                      bat_mass=[bat.mass for bat in scene.bats])
     start_event = options.get("start_event")
     n_ticks = options["ticks"]
     crash_at_tick = options.get("crash_at_tick")

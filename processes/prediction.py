@@ -12,8 +12,9 @@ What the client cannot know, it predicts as follows, and the statistics measure 
 - the opponent's bat coasts (its force is not on the wire): the ball meets it where it drifts;
 - an input holds from the tick it was stamped with (the server applies it on arrival, about a
   one-way trip later), and an input not yet acknowledged at T holds from T at the earliest;
-  it holds for the gateway's INPUT_HOLD_S at most (then the server's arm lets go: zero), counted
-  in ticks from its stamp (the gateway counts from its arrival);
+  it holds for the gateway's INPUT_HOLD_S at most (then the server's idle arm brakes the bat,
+  processes.gateway.brake_force), counted in ticks from its stamp (the gateway counts from its
+  arrival, and brakes every 10 ms where the prediction brakes every tick);
 - the ball at a snapshot is in flight (the wire has no support flag: a resting ball settles
   again within a tick);
 - a new rally's toss moves the ball where no physics takes it: a snapshot whose rally differs
@@ -31,6 +32,7 @@ from collections import deque
 
 import numpy as np
 
+from processes.gateway import brake_force
 from processes.wire import Slot
 
 MAX_AHEAD_TICKS = 500  # a prediction runs at most this far past the last snapshot (0.5 s at 1 kHz)
@@ -104,6 +106,8 @@ class Predictor:
         self._held_from = 0  # the tick it was stamped with
         self._input_from = 0  # the stamp of the input in effect while predicting
         self.hold_ticks = int(round((INPUT_HOLD_S if input_hold_s is None else input_hold_s) / self.model.dt))
+        self._bat_mass = float(self.model.bat_mass[int(slot) - 1])
+        self._brake = np.zeros(6)
         self._next_input = 0  # index into _sent of the next input to take effect while predicting
         self._base_tick = -1
         self._base_rally: int | None = None
@@ -216,8 +220,9 @@ class Predictor:
                 bat["force"], bat["torque"] = inputs[0:3], inputs[3:6]
                 self._input_from = max(at, self._base_tick)
                 self._next_input += 1
-            if self.tick - self._input_from >= self.hold_ticks:
-                bat["force"], bat["torque"] = 0.0, 0.0  # expired: the server's arm let go
+            if self.tick - self._input_from >= self.hold_ticks:  # expired: the server's idle arm brakes
+                brake_force(self._bat_mass, bat["vel"], self._brake)
+                bat["force"], bat["torque"] = self._brake[0:3], self._brake[3:6]
             try:
                 self.step()
             except SimulationError:

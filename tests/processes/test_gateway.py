@@ -51,14 +51,15 @@ def zctx():
 class Rig:
     """A Gateway on a random port of 127.0.0.1, its clients, and a physics record to serve."""
 
-    def __init__(self, zctx, remote=(Slot.A, Slot.B), seat_store=None, **config):
+    def __init__(self, zctx, remote=(Slot.A, Slot.B), seat_store=None, bat_mass=None, **config):
         self.zctx = zctx
         self.clock = Clock()
         self.posted = []
         settings = dict(bind="tcp://127.0.0.1:0", snapshot_hz=1000, heartbeat_s=1.0, timeout_s=5.0, grace_s=30.0)
         settings.update(config)
         self.gateway = Gateway(zctx, GatewayConfig(**settings), scene_name="match", best_of=1, dt=0.001,
-                               remote_slots=remote, post_input=self._post, clock=self.clock, seat_store=seat_store)
+                               remote_slots=remote, post_input=self._post, clock=self.clock, seat_store=seat_store,
+                               bat_mass=bat_mass)
         self.record = np.zeros(1, physics_snapshot_dtype(2))[0]
         self.record["bats"]["quat"] = (1.0, 0.0, 0.0, 0.0)
         self.record["rally"]["winner"] = -1
@@ -184,6 +185,41 @@ def test_an_input_expires_after_the_hold_time_and_the_arm_lets_go(rig):
     r.clock.now += 1.0
     r.step()
     assert len(r.posted) == 2  # let go once; a zero input is not held again
+
+
+@pytest.mark.timeout(30)
+def test_an_idle_arm_brakes_its_bat_and_a_players_input_takes_over(rig):
+    from processes.gateway import BRAKE_MAX_N, BRAKE_PER_S
+
+    mass = 0.17
+    r = rig(input_hold_s=0.1, bat_mass=(mass, mass))
+    r.record["bats"]["vel"][0] = (2.0, 0.0, 0.0)  # bat A moves; nobody holds seat A yet
+    r.record["bats"]["vel"][1] = (0.0, -3.0, 4.0)  # bat B too: 5 m/s, the brake is clipped
+    r.step(serve=True)
+    (bat_a, _, _, brake_a), (bat_b, _, _, brake_b) = r.posted
+    np.testing.assert_allclose(brake_a, [-mass * BRAKE_PER_S * 2.0, 0, 0, 0, 0, 0], rtol=1e-12)  # 20.4 N
+    np.testing.assert_allclose(brake_b, [0, 3.0 / 5.0 * BRAKE_MAX_N, -4.0 / 5.0 * BRAKE_MAX_N, 0, 0, 0], rtol=1e-12)
+    r.step(serve=True)
+    assert len(r.posted) == 2  # once per BRAKE_EVERY_S, not per round
+    a = r.client()
+    r.join(a)
+    a.send_input([30.0, 0, 0, 0, 0, 0], tick=3)
+    r.clock.now += 0.05
+    r.settle(lambda: r.gateway.counts["inputs_accepted"] == 1)
+    r.step(serve=True)
+    assert [bat for bat, *_ in r.posted[2:]].count(0) == 1  # A: its player's input only; B still braked
+    seq = next(seq for bat, seq, _, inputs in r.posted if inputs[0] == 30.0)  # the player's input
+    count = len(r.posted)
+    r.clock.now += 0.2  # the input expired: the arm lets go, then brakes (with the input's seq)
+    r.step(serve=True)
+    assert r.gateway.counts["inputs_expired"] == 1
+    new = [(bat, seq_, inputs[0]) for bat, seq_, _, inputs in r.posted[count:]]
+    assert new[0] == (0, seq, 0.0) and new[1][0:2] == (0, seq) and new[1][2] < 0.0 and new[2][0] == 1
+    r.record["bats"]["vel"][:] = 0.0  # at rest: nothing more to brake
+    r.clock.now += 1.0
+    count = len(r.posted)
+    r.step(serve=True)
+    assert len(r.posted) == count
 
 
 @pytest.mark.timeout(30)
