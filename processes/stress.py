@@ -687,7 +687,6 @@ def scenario_cable(args, run: Run) -> dict:
     import zmq
 
     from processes.client import Client, Rejected
-    from processes.wire import Slot
 
     result = _base("cable")
     shm_before = shm_names()

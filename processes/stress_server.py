@@ -108,8 +108,6 @@ class TickClock(threading.Thread):
 
     def finish(self, path: str | None) -> dict:
         """Stop sampling, save the log, read the final score state and point log, detach."""
-        from engine.dtypes import physics_snapshot_dtype
-
         self.stop_flag.set()
         self.join(5.0)
         if path:
