@@ -310,23 +310,29 @@ def _grid_update(state, knot_inv_mass, r, down, up, work, gravity, drag, h):
     """
     cols = state.shape[3]
     last = cols - 1
+    w_row = knot_inv_mass[r]
     for k in range(3):
         g = gravity if k == 2 else 0.0  # - 0.0 is exact: step_knots' bits on x and y
+        x_row = state[0, k, r]
+        v_row = state[1, k, r]
+        below_left, below, below_right = work[down + _D1 + k], work[down + _V + k], work[down + _D2 + k]
+        horizontal = work[_H + k]
+        above_left, above, above_right = work[up + _D2 + k], work[up + _V + k], work[up + _D1 + k]
         for q in range(1, last):
-            f = -work[down + _D1 + k, q - 1]  # shear / from below-left
-            f -= work[down + _V + k, q]  # vertical from below
-            f -= work[down + _D2 + k, q]  # shear \ from below-right
-            f -= work[_H + k, q - 1]  # horizontal, left
-            f += work[_H + k, q]  # horizontal, right
-            f += work[up + _D2 + k, q - 1]  # shear \ to above-left
-            f += work[up + _V + k, q]  # vertical to above
-            f += work[up + _D1 + k, q]  # shear / to above-right
-            w = knot_inv_mass[r, q]
-            xi = state[0, k, r, q]
-            vi = state[1, k, r, q]
+            f = -below_left[q - 1]  # shear / from below-left
+            f -= below[q]  # vertical from below
+            f -= below_right[q]  # shear \ from below-right
+            f -= horizontal[q - 1]  # horizontal, left
+            f += horizontal[q]  # horizontal, right
+            f += above_left[q - 1]  # shear \ to above-left
+            f += above[q]  # vertical to above
+            f += above_right[q]  # shear / to above-right
+            w = w_row[q]
+            xi = x_row[q]
+            vi = v_row[q]
             nv = vi + h * (w * f - drag * vi - g)
-            state[1, k, r, q] = vi if w == 0.0 else nv
-            state[0, k, r, q] = xi if w == 0.0 else xi + h * nv
+            v_row[q] = vi if w == 0.0 else nv
+            x_row[q] = xi if w == 0.0 else xi + h * nv
     # Border columns: the springs missing to the left sit in the zeroed last column.
     _grid_border(state, knot_inv_mass, r, 0, last, down, up, work, gravity, drag, h)
     _grid_border(state, knot_inv_mass, r, last, last - 1, down, up, work, gravity, drag, h)
