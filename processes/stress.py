@@ -555,9 +555,9 @@ def scenario_load(args, run: Run) -> dict:
     if late:  # `pingpong join` exits 1 when its server went silent without a goodbye
         result["findings"].append(
             f"{len(late)} bot(s) got no goodbye and ended by timeout or were still reading 30 s on (last tick read "
-            f"{[r.get('tick') for r in late]} of {ticks}): the gateway sends its goodbye without blocking and closes "
-            "its socket with linger 0 right after, so a goodbye still queued for a peer that reads behind is "
-            "discarded (or dropped at the high-water mark)")
+            f"{[r.get('tick') for r in late]} of {ticks}); the gateway sends its goodbye without blocking (dropped "
+            "at the high-water mark like a snapshot) and closes its socket with linger 0 right after (a goodbye "
+            "still queued is discarded), so a peer reading behind can miss it")
     clock = server.tick_clock()
     result["latency_ms"] = latency(clock, server.dt, records)
     result["tick_jitter_ms"] = jitter(clock, server.dt, t0, t1)
