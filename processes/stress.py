@@ -690,7 +690,7 @@ def scenario_cable(args, run: Run) -> dict:
 
     result = _base("cable")
     shm_before = shm_names()
-    server = run.add(Server(run.tmp, players=2, heartbeat_s=0.25, timeout_s=1.0, grace_s=1.5, max_spectators=4))
+    server = run.add(Server(run.tmp, players=2, heartbeat_s=0.25, timeout_s=1.0, grace_s=2.0, max_spectators=4))
     gateway = server.pids["gateway"]
     fds0, harness0 = fd_count(gateway), fd_count(os.getpid())
     port = int(server.endpoint.rsplit(":", 1)[1])
@@ -720,7 +720,7 @@ def scenario_cable(args, run: Run) -> dict:
         counts["snapshots_through_proxy"] = pulled.received
         proxy.black_hole()  # the cable is pulled: connections open, nothing passes
         t_pull = time.monotonic()
-        _pump([direct], timeout + 0.5)
+        _pump([direct], timeout + 1.0)  # past the timeout with room for a busy gateway, within the grace
         counts["during_grace_newcomer"] = outcome(client("player", name="cy"))
         proxy.restore()  # what the server sent into the hole comes out now: its goodbye
         counts["pulled_goodbye"] = getattr(_goodbye(pulled, 3.0), "name", None)
