@@ -40,6 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
+from processes import shm
+
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = ("load", "churn", "cable", "kill", "malformed")
 PER_SWARM = 250  # clients per swarm process (each one socket, two descriptors)
@@ -367,9 +369,22 @@ class Run:
         self.children.append(child)
         return child
 
-    def close(self) -> None:
+    def close(self) -> list[str]:
+        """Kill every child (whole sessions, so a server's resource tracker dies too) and remove
+        what a killed server left in /dev/shm; returns those segment names."""
         for child in self.children:
             child.close()
+        left = []
+        for child in self.children:
+            run_id = getattr(child, "run_id", None)
+            if run_id:
+                for name in shm.leftover_segments(run_id):
+                    left.append(name)
+                    try:
+                        os.unlink(shm.SHM_DIR / name)
+                    except FileNotFoundError:
+                        pass
+        return left
 
 
 def percentiles_ms(values: np.ndarray) -> dict:
@@ -911,14 +926,17 @@ def run_scenario(name: str, args) -> dict:
         try:
             result = RUNNERS[name](args, run)
             result["loadavg_before_after"] = [before, loadavg()]
-            return result
         except StressError as err:
             result = _base(name)
             result["crashes"] = 1
             result["problems"].append(str(err))
-            return result
         finally:
-            run.close()
+            removed = run.close()
+        if removed:  # a server that had to be killed: its segments are removed here, and counted
+            result["leaked_shm"] = max(result["leaked_shm"], len(removed))
+            result["problems"].append(f"segments of a killed server removed by the harness: {len(removed)}")
+            result["ok"] = False
+        return result
 
 
 # --- report ---------------------------------------------------------------------------------------
