@@ -318,10 +318,11 @@ def run_session(client: Client, welcome: wire.Message, *, brain=None, pilot=None
         The summary: snapshots, events, inputs_sent, goodbye, the last snapshot's tick and score,
         prediction statistics (a player with a predictor) or interpolation counts (a spectator).
     """
-    from processes.prediction import ServerClock
+    from processes.prediction import RoundTrip, ServerClock
 
     dt = welcome["dt"]
     server_clock = ServerClock(dt)
+    round_trip = RoundTrip()
     summary = {"snapshots": 0, "events": [], "inputs_sent": 0}
     deadline = clock() + seconds
     next_control = next_show = 0.0
@@ -330,12 +331,17 @@ def run_session(client: Client, welcome: wire.Message, *, brain=None, pilot=None
     quit_pressed = False
 
     def present() -> int:
+        """The tick an input sent now takes effect at on the server: its estimated present
+        (which lags by the one-way trip) plus the round trip."""
         estimate = server_clock.tick_at(clock())
-        return max(int(estimate), last.tick) if estimate is not None else client.tick
+        if estimate is None:
+            return client.tick
+        return max(int(estimate + round_trip.seconds / dt), last.tick)
 
     def send(inputs) -> None:
         tick = present()
         client.send_input(inputs, tick=tick)
+        round_trip.sent(client.seq, clock())
         summary["inputs_sent"] += 1
         if predictor is not None:
             predictor.record_input(client.seq, tick, inputs)
@@ -359,6 +365,8 @@ def run_session(client: Client, welcome: wire.Message, *, brain=None, pilot=None
         if newest is not None:
             summary["snapshots_acted_on"] = summary.get("snapshots_acted_on", 0) + 1
             last = newest
+            if client.slot != Slot.NONE:
+                round_trip.acked(int(newest["input_seq"][int(client.slot) - 1]), now)
             if predictor is not None:
                 predictor.reconcile(newest)
             if brain is not None and predictor is None:
@@ -391,6 +399,8 @@ def run_session(client: Client, welcome: wire.Message, *, brain=None, pilot=None
                        winner=int(last["winner"]), input_seq=last["input_seq"].tolist())
     if predictor is not None:
         summary["prediction"] = predictor.stats()
+    if summary["inputs_sent"]:
+        summary["round_trip"] = round_trip.summary()
     if view is not None:
         summary["interpolation"] = {"delay_ms": view.delay_s * 1000.0, **view.counts}
     summary["dropped"] = dict(client.drops.by_reason)

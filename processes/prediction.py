@@ -80,6 +80,44 @@ class ServerClock:
         return (wall + max(self._offsets)) / self.dt
 
 
+class RoundTrip:
+    """The round trip from sending an input to the first snapshot that acknowledges it.
+
+    The least of the last `window` samples: each sample is the true round trip plus the wait
+    for the physics' next tick and the gateway's next snapshot (up to one snapshot interval),
+    which the least of many removes. A player stamps its inputs that far ahead of the server's
+    estimated present (the clock lags the server by the one-way trip, the input takes another).
+    """
+
+    def __init__(self, window: int = 32):
+        self._sent: deque[tuple[int, float]] = deque(maxlen=4096)  # (seq, wall s) awaiting an ack
+        self._samples: deque[float] = deque(maxlen=window)
+        self._acked = 0
+
+    def sent(self, seq: int, wall: float) -> None:
+        self._sent.append((seq, wall))
+
+    def acked(self, seq: int, wall: float) -> None:
+        """A snapshot arriving at `wall` acknowledges inputs up to `seq`."""
+        if seq <= self._acked:
+            return
+        self._acked = seq
+        newest = None
+        while self._sent and self._sent[0][0] <= seq:
+            newest = self._sent.popleft()
+        if newest is not None and newest[0] == seq:
+            self._samples.append(wall - newest[1])
+
+    @property
+    def seconds(self) -> float:
+        """The estimate in s (0 before the first sample)."""
+        return min(self._samples) if self._samples else 0.0
+
+    def summary(self) -> dict:
+        return {"n": len(self._samples), "min_ms": self.seconds * 1000.0,
+                "median_ms": float(np.median(self._samples)) * 1000.0 if self._samples else None}
+
+
 class Predictor:
     """The player's prediction of the ball and its own bat, reconciled on every snapshot.
 
@@ -366,4 +404,4 @@ def _still(snapshot) -> dict:
             "bat_quat": np.array(snapshot["bat_quat"]), "snapshot": snapshot}
 
 
-__all__ = ["ErrorStats", "ServerClock", "Predictor", "Interpolator", "hermite", "slerp", "MAX_AHEAD_TICKS"]
+__all__ = ["ErrorStats", "ServerClock", "RoundTrip", "Predictor", "Interpolator", "hermite", "slerp", "MAX_AHEAD_TICKS"]

@@ -223,3 +223,18 @@ def test_the_baseline_without_prediction_is_measured_alongside():
     # the prediction's 0 (no bat in its way); the bat under ~48 N moves mm per snapshot interval
     assert stale["ball"]["p50_mm"] > 30.0 and stats["ball"]["max_mm"] < 1e-3
     assert stale["bat"]["mean_mm"] > stats["bat"]["mean_mm"]
+
+
+def test_the_round_trip_is_the_least_time_from_an_input_to_its_first_acknowledgement():
+    from processes.prediction import RoundTrip
+
+    trip = RoundTrip(window=4)
+    assert trip.seconds == 0.0
+    for seq, sent, acked in ((1, 0.000, 0.009), (2, 0.010, 0.013), (3, 0.020, 0.027)):
+        trip.sent(seq, sent)
+        trip.acked(seq, acked)
+    trip.acked(3, 0.050)  # acknowledged again by a later snapshot: no new sample
+    trip.sent(4, 0.030)
+    trip.sent(5, 0.031)
+    trip.acked(5, 0.040)  # 4 and 5 acknowledged together: the sample is 5's (9 ms), not 4's (10 ms)
+    assert trip.summary()["n"] == 4 and trip.seconds == pytest.approx(0.003, abs=1e-12)
