@@ -99,8 +99,8 @@ class RoundTrip:
 
     def acked(self, seq: int, wall: float) -> None:
         """A snapshot arriving at `wall` acknowledges inputs up to `seq`."""
-        if seq <= self._acked:
-            return
+        if seq <= self._acked or not self._sent or seq > self._sent[-1][0]:
+            return  # old news, or a seq we never sent (the previous session's at this seat)
         self._acked = seq
         newest = None
         while self._sent and self._sent[0][0] <= seq:
@@ -147,6 +147,7 @@ class Predictor:
         self._bat_mass = float(self.model.bat_mass[int(slot) - 1])
         self._brake = np.zeros(6)
         self._next_input = 0  # index into _sent of the next input to take effect while predicting
+        self._max_seq = 0  # the highest seq we sent
         self._base_tick = -1
         self._base_rally: int | None = None
         self._hist_tick = np.full(history, -1, np.int64)
@@ -172,6 +173,7 @@ class Predictor:
     def record_input(self, seq: int, tick: int, inputs) -> None:
         """An input we sent: seq of its header, the tick it holds from, (6,) force N, torque N m."""
         self._sent.append((int(seq), int(tick), np.array(inputs, dtype=np.float64)))
+        self._max_seq = max(self._max_seq, int(seq))
 
     @property
     def pending(self) -> int:
@@ -208,6 +210,8 @@ class Predictor:
                 self.bat_stale.add(float(np.linalg.norm(self._base_pos[3:6] - snapshot["bat_pos"][self.player])))
                 self.counts["scored"] += 1
         ack = int(snapshot["input_seq"][self.player])
+        if ack > self._max_seq:
+            ack = 0  # a seq we never sent: the previous session's at this seat (we rejoined), not ours
         keep = []
         for seq, at, inputs in self._sent:
             if seq <= ack:

@@ -238,3 +238,17 @@ def test_the_round_trip_is_the_least_time_from_an_input_to_its_first_acknowledge
     trip.sent(5, 0.031)
     trip.acked(5, 0.040)  # 4 and 5 acknowledged together: the sample is 5's (9 ms), not 4's (10 ms)
     assert trip.summary()["n"] == 4 and trip.seconds == pytest.approx(0.003, abs=1e-12)
+
+
+def test_a_rejoined_client_ignores_the_previous_sessions_acknowledgement():
+    scene = _scene()
+    server = Server(scene)
+    client = Predictor(scene, Slot.A)
+    server.acked = 5000  # the seat's previous session got that far before we rejoined
+    client.reconcile(server.snapshot())
+    client.record_input(1, 0, _force(1))  # our first input, seq 1 of our new session
+    for _ in range(SNAPSHOT_EVERY):
+        server.step()
+    client.advance_to(server.tick)
+    client.reconcile(server.snapshot())  # still acknowledges 5000: not ours, our input stays pending
+    assert client.pending == 1
