@@ -716,9 +716,9 @@ class BatAI:
         told from its free flight (no table, net or floor) at the engine's tick. Up to its next contact that is
         the real path (the two differ only where a tick is split at a contact, by the
         integrator's error), so a verdict more than the tolerances from every limit is the one
-        the predicted path gets. _PASS also needs the ball above table height from the start:
-        it then touches nothing before it comes down through table height, over the court, past
-        a net it clears. Own scratch: a prediction in self._traj may go on after it."""
+        the predicted path gets. _PASS also needs the ball above table height from the start
+        (it then touches nothing before it comes down through table height, over the court, past
+        a net and posts it clears) and a table to bounce on. Own scratch: a prediction in self._traj may go on after it."""
         m = self.model
         self._free_adapt[:] = 0.0
         out = self._free_scratch[2, 0:3]
@@ -733,7 +733,7 @@ class BatAI:
             return _UNSURE
         if not _on_court(out[1:3], court_sign, margin - tolerance):
             return _MISS
-        if above_net > tolerance and _on_court(out[1:3], court_sign, margin + tolerance):
+        if above_net > tolerance and _on_court(out[1:3], court_sign, margin + tolerance) and m.table is not None:
             return _PASS
         return _UNSURE
 
