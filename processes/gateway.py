@@ -637,7 +637,7 @@ def gateway_worker(control, arena, scene, options: dict) -> None:
     from engine.dtypes import physics_snapshot_dtype
     from processes.locks import LockTable
     from processes.mailbox import Mailbox
-    from processes.worker import StopRequested, WorkerState
+    from processes.worker import GO_TIMEOUT_S, StopRequested, WorkerState
 
     config: GatewayConfig = options["gateway"]
     locks = LockTable(options["lock_path"], RUN_LOCK_NAMES, arena["lock_holders"])
@@ -667,7 +667,7 @@ def gateway_worker(control, arena, scene, options: dict) -> None:
     try:
         control.set_state(WorkerState.READY)
         control.send("ready", {"endpoint": gateway.endpoint})
-        control.wait_for("go", 30.0)
+        control.wait_for("go", GO_TIMEOUT_S)
         control.set_state(WorkerState.RUNNING)
         poll_ms = max(1, int(500 / config.snapshot_hz))
         while True:

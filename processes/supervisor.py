@@ -26,11 +26,10 @@ from processes.handoff import TICK_SLOT_DTYPE, Baton
 from processes.locks import HOLDER_DTYPE, LockTable
 from processes.mailbox import MAILBOX_HEADER
 from processes.shm import Arena
-from processes.worker import STATUS_DTYPE, WorkerState, worker_entry
+from processes.worker import READY_TIMEOUT_S, STATUS_DTYPE, WorkerState, worker_entry
 
 EVENT_LOG_CAPACITY = 1 << 16
 POINT_LOG_CAPACITY = 1 << 12  # a best-of-9 match has at most a few hundred rallies
-READY_TIMEOUT_S = 120.0  # a cold numba cache compiles the kernels before the first tick
 STOP_TIMEOUT_S = 5.0
 STALL_TIMEOUT_S = 10.0  # a RUNNING worker silent this long is killed and restarted
 MAX_RESTARTS = 3

@@ -38,6 +38,12 @@ class WorkerState(enum.IntEnum):
     STOPPED = 6
 
 
+READY_TIMEOUT_S = 120.0  # a cold numba cache compiles the kernels before the first tick
+# A ready worker waits for "go" until every sibling is ready too, each within READY_TIMEOUT_S
+# (one of each kind at most); an orphan still stops at once (Control.check_parent).
+GO_TIMEOUT_S = READY_TIMEOUT_S * 4
+
+
 class StopRequested(Exception):
     """The supervisor asked the worker to stop, or went away."""
 

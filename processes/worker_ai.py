@@ -23,13 +23,12 @@ from processes.handoff import HandoffTimeout
 from processes.locks import LockTable
 from processes.mailbox import Mailbox
 from processes.shm import Arena
-from processes.worker import Control, WorkerState
+from processes.worker import GO_TIMEOUT_S, Control, WorkerState
 
 MAX_BATS = 2
 # One record per AI tick carries every AI bat's inputs (one locked post, not one per bat).
 INPUT_DTYPE = np.dtype([("tick", "<i8"), ("mask", "<i8"), ("inputs", "<f8", (MAX_BATS, 6))])
 LOCK_NAMES = ("bat_inputs",)
-STARTUP_TIMEOUT_S = 30.0
 
 
 def ai_worker(control: Control, arena: Arena, scene, options: dict) -> None:
@@ -53,7 +52,7 @@ def ai_worker(control: Control, arena: Arena, scene, options: dict) -> None:
         ai.warm_up()
     control.set_state(WorkerState.READY)
     control.send("ready", 0)
-    control.wait_for("go", STARTUP_TIMEOUT_S)
+    control.wait_for("go", GO_TIMEOUT_S)
     control.set_state(WorkerState.RUNNING)
     busy = 0.0
     last_tick = None

@@ -25,7 +25,7 @@ from engine.dtypes import net_snapshot_dtype
 from net_kernel import NO_CONTACT, NetContact, NetSim, build_topology
 from processes.handoff import HandoffTimeout
 from processes.shm import Arena
-from processes.worker import Control, WorkerState
+from processes.worker import GO_TIMEOUT_S, Control, WorkerState
 
 NET_IO_DTYPE = np.dtype([
     ("tick", "<i8"),  # the tick to step (the physics' tick at its start)
@@ -35,7 +35,6 @@ NET_IO_DTYPE = np.dtype([
     ("sleeping", "<i8"),  # the net sleeps after this step
 ])
 NET_BLOCKS = ("net_even", "net_odd")  # by the parity of the tick a state holds
-STARTUP_TIMEOUT_S = 30.0
 NET_HANDOFF_S = 1.0  # one wait's bound; retried while a killed net worker is restarted
 NET_GIVE_UP_S = 60.0
 
@@ -96,7 +95,7 @@ def net_worker(control: Control, arena: Arena, scene, options: dict) -> None:
         blocks[0].publish(state, net_tick)
     control.set_state(WorkerState.READY)
     control.send("ready", net_tick)
-    control.wait_for("go", STARTUP_TIMEOUT_S)
+    control.wait_for("go", GO_TIMEOUT_S)
     control.set_state(WorkerState.RUNNING)
     busy = 0.0
     steps = 0

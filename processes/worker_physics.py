@@ -15,9 +15,8 @@ from engine.match import Match, point_from_row, point_row
 from engine.world import build_model, copy_record, initial_state, new_events, step
 from processes.handoff import HandoffTimeout
 from processes.shm import Arena
-from processes.worker import Control, WorkerState
+from processes.worker import GO_TIMEOUT_S, Control, WorkerState
 
-STARTUP_TIMEOUT_S = 30.0
 AI_HANDOFF_S = 1.0  # one call's bound; retried while a killed AI worker is restarted
 AI_GIVE_UP_S = 60.0
 
@@ -67,7 +66,7 @@ def physics_worker(control: Control, arena: Arena, scene, options: dict) -> None
     total_events = int(state.world[0]["events_total"])
     control.set_state(WorkerState.READY)
     control.send("ready", tick)
-    start_wall = control.wait_for("go", STARTUP_TIMEOUT_S)
+    start_wall = control.wait_for("go", GO_TIMEOUT_S)
     control.set_state(WorkerState.RUNNING)
     pacer = _Pacer(start_wall, model.dt, control.row) if options["mode"] == "realtime" else None
     n_ticks = options["ticks"]
@@ -255,7 +254,7 @@ def _match_worker(control: Control, arena: Arena, scene, options: dict) -> None:
     points_logged = len(match.referee.points)
     control.set_state(WorkerState.READY)
     control.send("ready", tick)
-    start_wall = control.wait_for("go", STARTUP_TIMEOUT_S)
+    start_wall = control.wait_for("go", GO_TIMEOUT_S)
     control.set_state(WorkerState.RUNNING)
     remote = _RemoteInputs(arena, options, match) if "remote" in scene.effects else None
     if remote is not None:
