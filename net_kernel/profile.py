@@ -5,7 +5,8 @@ Plain dicts out (stdlib + numpy + numba only); processes/profile_net.py formats 
 Two kernel paths (both give the same bits): "csr", the general per-knot gather over the CSR
 adjacency (kernels.step_knots, one step a call), and "grid", the structured-grid kernel
 (kernels.step_grid, NetSim's path for build_topology's nets), timed as NetSim calls it while
-the ball is away: a 1 ms tick's substeps in one call (steps_per_call).
+the ball is away: a 1 ms tick's substeps in one call (steps_per_call; fewer on big nets, where
+one call would outlast a timed run).
 
 Byte model of one step (the compulsory memory traffic, neighbours from cache):
   csr, per knot: spring pass reads knot_pos, knot_vel (48 B); knot pass reads knot_pos,
@@ -95,7 +96,7 @@ def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True
         repeats: timed runs.
         path: "csr" (step_knots, one step a call) or "grid" (step_grid).
         steps_per_call: grid: steps per kernel call (None: a TICK_S tick's substeps, as
-            NetSim calls it); csr: always 1.
+            NetSim calls it, or fewer if a call would outlast one timed run); csr: always 1.
     """
     if path not in PATHS:
         raise ValueError(f"path {path!r} is not one of {', '.join(PATHS)}")
@@ -111,41 +112,46 @@ def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True
         blocks = min(rows, max(1, numba.get_num_threads())) if parallel and backend == "numba" else 1
         work = np.zeros((blocks, kernels.GRID_WORK_ROWS, cols))
         inv_mass = topo.knot_inv_mass.reshape(rows, cols)
-        per_call = steps_per_call or _substeps_per_tick(topo)
-        if steps is not None:
-            per_call = min(per_call, steps)
 
-        def call():
-            step(state, inv_mass, topo.grid_params, topo.spec.gravity, topo.spec.air_damping, h, per_call, work)
+        def call(n):
+            step(state, inv_mass, topo.grid_params, topo.spec.gravity, topo.spec.air_damping, h, n, work)
     else:
         step = mod.step_knots if parallel else mod.step_knots_serial
         args = (topo.knot_inv_mass, topo.adj_start, topo.adj_knot, topo.adj_spring, topo.spring_ij, topo.spring_rest,
                 topo.spring_k, topo.spring_c, topo.spec.gravity, topo.spec.air_damping, h,
                 np.zeros((kernels.STEP_WORK_ROWS, topo.n_springs)))
-        per_call = 1
         buffers = [pos, vel, out_pos, out_vel]
 
-        def call():
+        def call(n):  # the CSR kernel takes one step a call
             p, v, po, vo = buffers
             step(p, v, *args, po, vo)
             buffers[:] = po, vo, p, v
     t0 = time.perf_counter()
-    call()  # compiles (or loads the cache) on the first call
+    call(1)  # compiles (or loads the cache) on the first call
     first_call = time.perf_counter() - t0
-    # One call's time, the best of three (a shared machine's worst is noise, not the kernel).
+    # One step's time, the best of three (a shared machine's worst is noise, not the kernel).
     one = math.inf
     for _ in range(3):
         t0 = time.perf_counter()
-        call()
+        call(1)
         one = min(one, time.perf_counter() - t0)
+    budget = target_s / repeats  # s, one timed run
+    per_call = 1
+    if path == "grid":
+        # A tick's substeps (NetSim's call), fewer where that would not fit one timed run
+        # (1000 x 1000: ~650 substeps of ~30 ms).
+        per_call = steps_per_call or max(1, min(_substeps_per_tick(topo), int(budget / max(one, 1e-7))))
+        if steps is not None:
+            per_call = min(per_call, steps)
     calls = max(1, (steps or per_call) // per_call)
     if steps is None:
-        calls = max(1, min(100_000, int(target_s / repeats / max(one, 1e-7))))
+        calls = max(1, min(100_000, int(budget / max(one * per_call, 1e-7))))
+    call(per_call)  # warm: the first call of a new step count
     runs = []
     for _ in range(repeats):
         t0 = time.perf_counter()
         for _ in range(calls):
-            call()
+            call(per_call)
         runs.append((time.perf_counter() - t0) / (calls * per_call))
     per_step = statistics.median(runs)
     per_knot, per_spring = (GRID_BYTES_PER_KNOT, GRID_BYTES_PER_SPRING) if path == "grid" else (BYTES_PER_KNOT,
