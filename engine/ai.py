@@ -12,6 +12,12 @@ It then drives the bat there with forces and torques only: a planned path (backs
 follow-through, recovery) tracked by PD control with feed-forward, clipped at a human arm's
 force, torque, speed and reach. Skill (reaction delay, aim and face-angle noise, force limits)
 decides how often that goes wrong; the noise comes from a seeded generator, so matches repeat.
+
+A plan predicts no more than its answer needs: the incoming ball until the strike tick is
+decided, a candidate stroke until its first contact (a service's until its bounce), and a
+candidate's flight after that (free until its next contact) from free steps when they are
+clearly on one side of every limit. The choices are the same, bit for bit, as predicting the
+whole path at the engine's tick (tests/engine/test_ai.py).
 """
 from __future__ import annotations
 
