@@ -133,6 +133,8 @@ def build_parser() -> argparse.ArgumentParser:
     profile.add_argument("--knots", default="184x16", help="knot grid, COLUMNSxROWS")
     profile.add_argument("--steps", type=int, default=None, help="timed steps (default: sized to ~1 s per backend)")
     profile.add_argument("--backend", choices=["numba", "reference", "both"], default="both")
+    profile.add_argument("--path", choices=["grid", "csr", "both"], default="both",
+                         help="kernel path: the grid kernel NetSim uses, the general CSR kernel, or both")
     profile.add_argument("--json", action="store_true", help="print one JSON object")
     profile.set_defaults(func=_cmd_profile_net)
     bench = sub.add_parser("bench", help="measured answers to 'what does it cost'", formatter_class=formatter)

@@ -6,6 +6,13 @@ and costs no CPU) plus a shared tick slot; the data itself crosses through Snaps
 mailboxes, never through the baton, so nothing is pickled per tick. The hub calls only the
 workers a tick needs (a sleeping net, an AI between its control ticks, the ball in free flight
 wake nobody), always in the same order, which keeps lockstep deterministic.
+
+Both sides spin briefly (SPIN_S, polling the semaphore without blocking) before they sleep.
+glibc's sem_post makes the futex wake-up call only when a waiter is asleep, so when the other
+side answers within the spin nobody enters the kernel: no wake-up, and above all no wake-up
+preemption, where the woken worker takes the CPU from the one that woke it (on this 2-core
+machine under load a release took 0.9 ms). `pingpong bench handoff`, same run, load 0.6:
+55.8 us a hand-off with the spin, 85.4 us without (semaphore ping-pong 31-35 us).
 """
 from __future__ import annotations
 
@@ -20,6 +27,21 @@ class HandoffTimeout(TimeoutError):
 
 TICK_SLOT_DTYPE = np.dtype([("tick", "<i8"), ("command", "<i8"), ("done_tick", "<i8")])
 RUN, STOP = 1, 2
+# How long a side polls before it sleeps: about one AI turn or ten physics ticks, so a turn
+# answered in that time costs no system call; a longer wait sleeps and costs no CPU.
+SPIN_S = 100e-6
+
+
+def _acquire(semaphore, timeout: float) -> bool:
+    """Take the semaphore: spin up to SPIN_S, then sleep up to the rest of `timeout`."""
+    if semaphore.acquire(False):
+        return True
+    clock = time.perf_counter
+    start = clock()
+    while clock() - start < SPIN_S:
+        if semaphore.acquire(False):
+            return True
+    return semaphore.acquire(timeout=max(timeout - SPIN_S, 0.0))
 
 
 class Baton:
@@ -67,7 +89,7 @@ class Baton:
         deadline = time.monotonic() + timeout
         while True:
             left = deadline - time.monotonic()
-            if left <= 0 or not self._done.acquire(timeout=left):
+            if left <= 0 or not _acquire(self._done, left):
                 raise HandoffTimeout(f"{self.name}: worker did not finish tick {tick} within {timeout} s")
             if words[2] == tick:
                 return
@@ -79,7 +101,7 @@ class Baton:
     # worker side
     def wait_turn(self, timeout: float) -> int | None:
         """The tick to do, None when told to stop; raises HandoffTimeout after `timeout` s."""
-        if not self._go.acquire(timeout=timeout):
+        if not _acquire(self._go, timeout):
             raise HandoffTimeout(f"{self.name}: no turn given within {timeout} s")
         if self._words[1] == STOP:
             return None

@@ -17,7 +17,7 @@ def profile_net_command(args: argparse.Namespace) -> int:
         if args.steps is not None and args.steps < 1:
             raise ValueError(f"--steps {args.steps}: must be >= 1")
         backends = ("numba", "reference") if args.backend == "both" else (args.backend,)
-        path = getattr(args, "path", "both")  # the grid and the CSR kernels unless a --path narrows it
+        path = args.path
         paths = ("grid", "csr") if path == "both" else (path,)
         report = profile_net(cols, rows, steps=args.steps, backends=backends, paths=paths)
     except ValueError as exc:
