@@ -4,6 +4,21 @@ The player's arm holds the bat's weight, so gravity is not applied: the inputs a
 arm adds beyond holding it. Inputs are held constant over a tick (zero-order hold), so a
 higher-order integrator would buy nothing: semi-implicit Euler for the linear and angular
 velocity, then the exact rotation by the tick's angular velocity (exponential map).
+
+An arm can move a bat only so fast and so far, so every tick ends with the bat inside those
+limits (an input that asks for more gets the limit: the arm saturates, as the AI's own
+controller does with its max_force and max_speed):
+
+- speed at most BAT_MAX_SPEED, spin (|angular velocity|) at most BAT_MAX_SPIN;
+- the centre inside the hall (HALL_LO..HALL_HI): a wall stops the bat (the velocity component
+  into it becomes 0).
+
+The spin limit also bounds a defect of the explicit gyroscopic term: a disc spinning about a
+tilted axis (w_z != 0 in the bat frame) gains |w_xy| by a factor sqrt(1 + (w_z h)^2) every tick,
+so without a bound a bat left spinning by a valid input (50 N m held 0.1 s is ~2e4 rad/s) grew
+to overflow and NaN within half a second. The AI's bats stay far inside every limit (full
+matches of seeds 0-3: at most 24.5 m/s, 30.2 rad/s, |x| <= 2.2 m, |y| <= 1.4 m, z <= 0.77 m),
+so no limit ever acts in their matches, which are unchanged bit for bit.
 """
 import math
 
@@ -12,6 +27,25 @@ from numba import njit
 
 from engine.collision import BAT_ANG_VEL, BAT_AXIS0, BAT_AXIS1, BAT_POS0, BAT_POS1
 from engine.dtypes import BAT_DTYPE
+from engine.geometry import FLOOR_Z
+
+# m/s: 1.4x the AI's fastest stroke (24.5 m/s) and as fast as a bat may go for
+# the ball it strikes to stay within the wire's 100 m/s (processes/wire.py MAX_SPEED_MS): a bat
+# at v returns a ball arriving at u at about (1 + e) v + e u, e = 0.85 (equipment.BAT_RESTITUTION),
+# so 35 m/s against a 30 m/s smash gives 90 m/s.
+BAT_MAX_SPEED = 35.0
+# rad/s: the fastest human joint rotation measured is the shoulder's internal rotation in
+# baseball pitching, about 7000 deg/s = 120 rad/s (Fleisig et al. 1995, "Kinetics of baseball
+# pitching", Am J Sports Med 23(2)); a bat's spin sums the rates of trunk, shoulder, elbow and
+# wrist, bounded here by 200 rad/s (~11,500 deg/s, 6.6x the AI's fastest 30.2 rad/s), well
+# within the wire's 1000 rad/s (MAX_BAT_ANG_VEL_RADS).
+BAT_MAX_SPIN = 200.0
+# m, world frame, the bat's centre: the hall is the ITTF's playing space for international
+# competitions ("rectangular and not less than 14m long, 7m wide and 5m high", ITTF Handbook,
+# Regulations for International Competitions), centred on the table, from the floor up; inside
+# the wire's +-8 m (MAX_POS_M).
+HALL_LO_X, HALL_LO_Y, HALL_LO_Z = -7.0, -3.5, FLOOR_Z
+HALL_HI_X, HALL_HI_Y, HALL_HI_Z = 7.0, 3.5, FLOOR_Z + 5.0
 
 
 def _offset(field: str) -> int:
@@ -62,6 +96,8 @@ def bat_step(bats, h, mass, inertia, motion, tmp):
         h: s. mass: (n_bats,) kg. inertia: (n_bats, 3) principal moments, kg m^2, bat frame.
         motion: (n_bats, collision.BAT_ROW) written: poses at the start and end, angular velocity.
         tmp: (3, 3) scratch.
+
+    Each bat ends the tick within the arm's limits (BAT_MAX_SPEED, BAT_MAX_SPIN, the hall).
     """
     w_body = tmp[1]
     alpha = tmp[2]
@@ -82,7 +118,12 @@ def bat_step(bats, h, mass, inertia, motion, tmp):
         face_normal(q, motion[b, BAT_AXIS0:BAT_AXIS0 + 3])
         for i in range(3):
             bat[VEL_AT + i] += h * bat[FORCE_AT + i] / mass[b]
+        _at_most(bat, VEL_AT, BAT_MAX_SPEED)
+        for i in range(3):
             bat[POS_AT + i] += h * bat[VEL_AT + i]
+        _in_hall(bat, 0, HALL_LO_X, HALL_HI_X)
+        _in_hall(bat, 1, HALL_LO_Y, HALL_HI_Y)
+        _in_hall(bat, 2, HALL_LO_Z, HALL_HI_Z)
         # Euler's equations in the bat frame: I dw/dt = tau - w x (I w).
         _rotate_conj(q, bat[ANG_VEL_AT:ANG_VEL_AT + 3], w_body)
         _rotate_conj(q, bat[TORQUE_AT:TORQUE_AT + 3], alpha)
@@ -94,6 +135,7 @@ def bat_step(bats, h, mass, inertia, motion, tmp):
         rotate(q, alpha, alpha)
         for i in range(3):
             bat[ANG_VEL_AT + i] += h * alpha[i]
+        _at_most(bat, ANG_VEL_AT, BAT_MAX_SPIN)
         # Exact rotation by the (new) angular velocity over h, applied on the left (world frame).
         wx, wy, wz = bat[ANG_VEL_AT], bat[ANG_VEL_AT + 1], bat[ANG_VEL_AT + 2]
         rate = math.sqrt(wx * wx + wy * wy + wz * wz)
@@ -113,6 +155,38 @@ def bat_step(bats, h, mass, inertia, motion, tmp):
             motion[b, BAT_POS1 + i] = bat[POS_AT + i]
             motion[b, BAT_ANG_VEL + i] = bat[ANG_VEL_AT + i]
         face_normal(q, motion[b, BAT_AXIS1:BAT_AXIS1 + 3])
+
+
+@njit(inline="always", cache=True)
+def _at_most(bat, at, limit):
+    """Scale the 3-vector bat[at:at + 3] down to norm `limit` if it is longer (the arm's limit).
+
+    Within the limit nothing is written (the same bits). Beyond it, a vector with a component
+    beyond the limit is first scaled by that component, so its norm cannot overflow (a huge
+    finite force); a non-finite vector stays non-finite, for the engine's check to name.
+    """
+    x, y, z = bat[at], bat[at + 1], bat[at + 2]
+    if x * x + y * y + z * z > limit * limit:
+        big = max(abs(x), abs(y), abs(z))
+        if big > limit:
+            # (an inf component gives nan here: left for the engine's check to name)
+            x, y, z = x / big * limit, y / big * limit, z / big * limit
+        norm = math.sqrt(x * x + y * y + z * z)
+        bat[at], bat[at + 1], bat[at + 2] = x / norm * limit, y / norm * limit, z / norm * limit
+
+
+@njit(inline="always", cache=True)
+def _in_hall(bat, i, low, high):
+    """Keep the bat's centre inside the hall along axis i: a wall stops it (no bounce)."""
+    p = bat[POS_AT + i]
+    if p < low:
+        bat[POS_AT + i] = low
+        if bat[VEL_AT + i] < 0.0:
+            bat[VEL_AT + i] = 0.0
+    elif p > high:
+        bat[POS_AT + i] = high
+        if bat[VEL_AT + i] > 0.0:
+            bat[VEL_AT + i] = 0.0
 
 
 @njit(inline="always", cache=True)

@@ -27,7 +27,7 @@ from engine.collision import (
     P_REST_SPEED,
     SCRATCH_SHAPE,
 )
-from engine.dtypes import CONTACT_DTYPE, physics_snapshot_dtype
+from engine.dtypes import BAT_DTYPE, CONTACT_DTYPE, physics_snapshot_dtype
 from engine.forces import drag_factor, magnus_factor
 from engine.geometry import FLOOR_Z, NET_BOX, POST_BOXES, TABLE_BOX, Body
 from engine.integrators import METHODS, WORK_SHAPE
@@ -219,6 +219,30 @@ def _check_inputs(inputs: np.ndarray, n_bats: int) -> None:
         raise ValueError(f"bat {'ab'[bat]} {quantity}[{column % 3}] is {inputs[bat, column]}; inputs must be finite")
 
 
+_BAT_FIELDS = tuple((name, BAT_DTYPE.fields[name][1] // 8, BAT_DTYPE.fields[name][0].shape[0])
+                    for name in BAT_DTYPE.names)
+
+
+def _check_bats(model: Model, state: State, when: str, verb: str, detail: str) -> None:
+    """Raise SimulationError naming the first non-finite number of the bats' records (state,
+    force, torque), if any: called when their sum is not finite (as in _check_inputs, a sum is
+    finite exactly when every term is, unless finite terms overflow it)."""
+    flat = state.bat_flat
+    if np.isfinite(flat).all():
+        return
+    bat, column = np.argwhere(~np.isfinite(flat))[0]
+    for name, start, size in _BAT_FIELDS:
+        if start <= column < start + size:
+            axis = ("w", "x", "y", "z")[column - start] if name == "quat" else "xyz"[column - start]
+            quantity = f"{name}[{axis}]"
+            break
+    row = state.bats[bat]
+    raise SimulationError(f"{when}: bat {model.scene.bats[bat].name}'s {quantity} {verb} {flat[bat, column]} "
+                          f"{detail} (pos {row['pos'].tolist()}, vel {row['vel'].tolist()}, ang_vel "
+                          f"{row['ang_vel'].tolist()}, force {row['force'].tolist()}, torque "
+                          f"{row['torque'].tolist()}); inputs must be finite")
+
+
 def step(model: Model, state: State, inputs: np.ndarray | None, events: np.ndarray, dt: float | None = None) -> int:
     """Advance the world by one tick, in place.
 
@@ -256,6 +280,11 @@ def advance(model: Model, state: State, n_max: int, inputs: np.ndarray | None, e
         state.bat_flat[:, FORCE_AT:FORCE_AT + 3] = inputs[:, 0:3]
         state.bat_flat[:, TORQUE_AT:TORQUE_AT + 3] = inputs[:, 3:6]
     tick = int(state.world[0]["tick"])
+    if has_bats:
+        # The bats' records may be written around _check_inputs (a restored record, a worker's
+        # mailbox): refuse to step from a non-finite one, naming it, with the state untouched.
+        if not math.isfinite(float(state.bat_flat.sum())):  # one reduction; the precise check names it
+            _check_bats(model, state, f"tick {tick}", "is", "before the tick; nothing was stepped")
     ticks, n, reason, error = advance_ticks(
         n_max, h, state.world, state.bat_flat if has_bats else None, model.bat_mass, model.bat_inertia,
         state.bat_motion if has_bats else None, state.bat_tmp, state.ball_y[0:9], model.method, model.gravity,
@@ -264,6 +293,12 @@ def advance(model: Model, state: State, n_max: int, inputs: np.ndarray | None, e
         gone_radius * gone_radius, gone_z, deadline, watch)
     if error:
         _raise(error, tick + ticks, model, state)
+    if has_bats:
+        # From finite records engine.bat.bat_step keeps the bats finite (and inside the arm's
+        # limits); this catches what its bounds cannot (a finite input so large that the
+        # arithmetic overflows).
+        if not math.isfinite(float(state.bat_flat.sum())):
+            _check_bats(model, state, f"ticks {tick}..{tick + ticks}", "became", "during the kernel's run")
     if n:
         _copy_events(state, events, n, int(state.world[0]["tick"]) - 1)
     return ticks, n, reason

@@ -551,7 +551,11 @@ class Gateway:
                 continue  # the player's own input holds
             bat = int(seat.slot) - 1
             vel = record["bats"]["vel"][bat]
-            if float(np.abs(vel).max()) < BRAKE_MIN_SPEED:
+            speed = float(np.abs(vel).max())  # nan for a nan component
+            if speed < BRAKE_MIN_SPEED:
+                continue
+            if not np.isfinite(speed):  # no force to brake it with (nor would the physics take one)
+                self.counts["idle_arm.non_finite_bat"] += 1
                 continue
             seat.next_brake = now + BRAKE_EVERY_S
             self.counts["idle_arm_brakes"] += 1

@@ -4,9 +4,11 @@ It owns the physics snapshot (published every tick), the event log and the point
 """
 from __future__ import annotations
 
+import math
 import os
 import signal
 import time
+from collections import Counter
 
 import numpy as np
 
@@ -15,6 +17,7 @@ from engine.match import Match, point_from_row, point_row
 from engine.world import build_model, copy_record, initial_state, new_events, step
 from processes.handoff import HandoffTimeout
 from processes.shm import Arena
+from processes.wire import MAX_FORCE_N, MAX_TORQUE_NM
 from processes.worker import GO_TIMEOUT_S, Control, WorkerState
 
 AI_HANDOFF_S = 1.0  # one call's bound; retried while a killed AI worker is restarted
@@ -177,8 +180,41 @@ class _RemoteAI:
         self.locks.close()
 
 
+def remote_input_refusal(bat: int, values, remote_bats: frozenset[int]) -> str | None:
+    """Why the physics refuses a remote input (None: it is applied).
+
+    The gateway posts only inputs that wire.decode accepted (finite, |force| <= MAX_FORCE_N,
+    |torque| <= MAX_TORQUE_NM) and its idle arms' brakes; these writes bypass
+    engine.world._check_inputs (they go straight into the bats' records), so the same rules
+    are checked again here, where they are applied: a bad input is refused and counted by
+    the caller, never applied.
+
+    Args:
+        bat: the mailbox entry's bat index. values: (6,) force N, torque N m, world frame.
+        remote_bats: the indices of the scene's remote bats (the only ones a remote arm drives).
+
+    Returns:
+        "not_remote_bat", "non_finite", "force_out_of_range", "torque_out_of_range" or None.
+    """
+    if bat not in remote_bats:
+        return "not_remote_bat"
+    fx, fy, fz, tx, ty, tz = (float(v) for v in values)
+    if not all(math.isfinite(v) for v in (fx, fy, fz, tx, ty, tz)):
+        return "non_finite"
+    if math.sqrt(fx * fx + fy * fy + fz * fz) > MAX_FORCE_N:  # a square that overflows to inf is beyond it too
+        return "force_out_of_range"
+    if math.sqrt(tx * tx + ty * ty + tz * tz) > MAX_TORQUE_NM:
+        return "torque_out_of_range"
+    return None
+
+
 class _RemoteInputs:
-    """The remote players' inputs: drained from the gateway's locked mailbox before each tick."""
+    """The remote players' inputs: drained from the gateway's locked mailbox before each tick.
+
+    Each is checked again before it touches a bat (remote_input_refusal); a refused one is
+    counted in `refused` by reason (reported with the worker's "done") and its seq is not
+    acknowledged.
+    """
 
     def __init__(self, arena: Arena, options: dict, match: Match):
         from processes.gateway import REMOTE_INPUT_DTYPE, RUN_LOCK_NAMES
@@ -191,6 +227,8 @@ class _RemoteInputs:
         self.applied = arena["remote_applied"].array
         self.acks = arena["remote_acks"].array
         self.match = match
+        self.remote_bats = frozenset(i for i, bat in enumerate(match.scene.bats) if bat.remote)
+        self.refused: Counter[str] = Counter()
 
     def apply(self) -> None:
         """Each input holds from now on: in the bat's record (held between AI ticks) and in the
@@ -200,6 +238,10 @@ class _RemoteInputs:
         for k in range(n):
             bat = int(self.inbox[k]["bat"])
             values = self.inbox[k]["inputs"]
+            reason = remote_input_refusal(bat, values, self.remote_bats)
+            if reason is not None:
+                self.refused[reason] += 1
+                continue
             self.match.inputs[bat] = values
             bats[bat]["force"] = values[0:3]
             bats[bat]["torque"] = values[3:6]
@@ -301,10 +343,13 @@ def _match_worker(control: Control, arena: Arena, scene, options: dict) -> None:
     if driver is not None:
         options["baton"].stop()
         driver.close()
+    refused = {}
     if remote is not None:
+        refused = dict(remote.refused)
         remote.close()
     # busy_s counts the physics' own work; the hand-offs to the AI and the net (and their work
     # inside them, which they report themselves) are reported apart.
     control.row["busy_s"] = float(control.row["busy_s"]) + busy - handoff
     control.row["handoff_s"] = float(control.row["handoff_s"]) + handoff
-    control.send("done", {"tick": tick, "busy_s": busy - handoff, "handoff_s": handoff})
+    control.send("done", {"tick": tick, "busy_s": busy - handoff, "handoff_s": handoff,
+                          "remote_inputs_refused": refused})
