@@ -610,8 +610,10 @@ class Gateway:
             self.sessions.pop(session.identity, None)
         return told
 
-    def close(self) -> None:
-        self.router.close(linger=0)
+    def close(self, linger_ms: int = 500) -> None:
+        """Close the socket; what is still queued (the goodbyes of shutdown) gets up to linger_ms
+        to leave (linger 0 discarded them: `pingpong stress` saw bots miss their goodbye)."""
+        self.router.close(linger=linger_ms)
 
 
 # --- the worker ---------------------------------------------------------------------------------

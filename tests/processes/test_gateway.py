@@ -482,11 +482,12 @@ def test_two_bot_players_and_a_spectator_play_a_served_match(served):
     assert not shm.leftover_segments(hello["run_id"])
 
 
-@pytest.mark.timeout(60)
+@pytest.mark.timeout(180)
 def test_serve_and_join_smoke_runs(served):
     server = _pingpong("serve", "--players", "0", "--ticks", "2", "--json")
     served.append(server)
-    assert json.loads(_line(server, 40))["players"] == 0
+    # The first line comes once the workers are ready: on a cold numba cache (CI) they compile first.
+    assert json.loads(_line(server, 120))["players"] == 0
     summary = json.loads(_line(server, 40))
     assert summary["ticks"] == 2 and summary["gateway"]["goodbyes_at_end"] == 0
     assert server.wait(20) == 0
