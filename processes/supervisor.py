@@ -329,6 +329,8 @@ class Supervisor:
                 "busy_s": float(status[w.index]["busy_s"]),
                 "handoff_s": float(status[w.index]["handoff_s"]),
                 **({"gateway": w.report.get("gateway", {})} if w.kind == "gateway" else {}),
+                **({"remote_inputs_refused": w.report["remote_inputs_refused"]}
+                   if "remote_inputs_refused" in w.report else {}),
             }
             for w in self._workers
         }
