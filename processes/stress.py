@@ -864,7 +864,10 @@ def scenario_malformed(args, run: Run) -> dict:
     result = _base("malformed")
     shm_before = shm_names()
     n, rate = args.malformed, args.malformed_rate
-    seconds = n / rate * 4.0 + 9.0  # the match: the flood at its rate (a loaded machine is slower), then the round trips
+    # The match must outlast the flood at its rate (4x: a loaded machine is slower) and the round
+    # trips after it: the gateway reports its counters when the match ends. 20 s of margin: with
+    # 9 s a cold-cache CI run (two test workers compiling) saw the match end before the round trips.
+    seconds = n / rate * 4.0 + 20.0
     server = run.add(Server(run.tmp, players=2, heartbeat_s=0.25, timeout_s=5.0, max_spectators=32, seconds=seconds))
     gateway = server.pids["gateway"]
     legit = run.add(swarm(_watch_spec(server.endpoint, 4, 1, "ok", None, duration=seconds + 120, until_goodbye=True),
