@@ -431,10 +431,20 @@ def _alive(pid: int) -> bool:
 
 @pytest.fixture
 def served():
-    """`pingpong` processes of a test: killed (whole session) and reaped at the end, whatever happened."""
+    """`pingpong` processes of a test: stopped and reaped at the end, whatever happened.
+
+    SIGTERM first, so a server's supervisor removes its shared memory (a SIGKILLed supervisor
+    cannot: a test that failed mid-match left its segments in /dev/shm); then SIGKILL to the
+    whole session for whatever is left."""
     started = []
     yield started
     for proc in started:
+        if proc.poll() is None:
+            proc.terminate()
+            try:
+                proc.wait(10)
+            except subprocess.TimeoutExpired:
+                pass
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
         proc.wait(10)
