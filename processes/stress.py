@@ -868,7 +868,10 @@ def scenario_malformed(args, run: Run) -> dict:
     # trips after it: the gateway reports its counters when the match ends. 20 s of margin: with
     # 9 s a cold-cache CI run (two test workers compiling) saw the match end before the round trips.
     seconds = n / rate * 4.0 + 20.0
-    server = run.add(Server(run.tmp, players=2, heartbeat_s=0.25, timeout_s=5.0, max_spectators=32, seconds=seconds))
+    # A 30 s silence timeout: the flood's own player and watcher share a process with the flood,
+    # and a cold-cache CI run starved their heartbeats past 5 s, so the gateway dropped them and
+    # counted their later messages as sessionless (this scenario counts drops, not timeouts).
+    server = run.add(Server(run.tmp, players=2, heartbeat_s=0.25, timeout_s=30.0, max_spectators=32, seconds=seconds))
     gateway = server.pids["gateway"]
     legit = run.add(swarm(_watch_spec(server.endpoint, 4, 1, "ok", None, duration=seconds + 120, until_goodbye=True),
                           "legit"))
