@@ -141,7 +141,7 @@ class NetSim:
         self.kernel_calls = 0
         self.cg_iterations = 0
         self.sleeping = False
-        self._quiet_ticks = 0
+        self.quiet_ticks = 0  # ticks in a row with every knot below SLEEP_SPEED (state: a restart restores it)
         self.knot_radius = KNOT_RADIUS
         self.restitution = NET_RESTITUTION
 
@@ -167,7 +167,7 @@ class NetSim:
     def wake(self) -> None:
         """Wake the net (contact, or the caller moved a knot)."""
         self.sleeping = False
-        self._quiet_ticks = 0
+        self.quiet_ticks = 0
 
     def step(self, ball_pos=None, ball_vel=None, ball_radius: float = BALL_RADIUS,
              ball_inv_mass: float = 1.0 / BALL_MASS) -> NetContact:
@@ -253,8 +253,8 @@ class NetSim:
         self.kernel_calls += 1
         if not math.isfinite(speed):
             raise FloatingPointError("a knot position or velocity is not finite after the net's tick")
-        self._quiet_ticks = self._quiet_ticks + 1 if speed < SLEEP_SPEED else 0
-        if self._quiet_ticks >= SLEEP_TICKS and far:
+        self.quiet_ticks = self.quiet_ticks + 1 if speed < SLEEP_SPEED else 0
+        if self.quiet_ticks >= SLEEP_TICKS and far:
             self.sleeping = True
             self.knot_vel[:] = 0.0
         return NetContact(toi, self._impulse, self._offset)
