@@ -94,6 +94,24 @@ class Baton:
             if words[2] == tick:
                 return
 
+    def wait_done_or_retry(self, tick: int, timeout: float, give_up: float, on_wait) -> None:
+        """wait_done, and while the worker may be restarting, give it the turn again.
+
+        Every `timeout` s without an answer: on_wait(tick) (a heartbeat), then the turn is given
+        again (its inputs are still in place, and the worker answers a repeated turn as the
+        first); raises HandoffTimeout after `give_up` s.
+        """
+        deadline = time.monotonic() + give_up
+        while True:
+            try:
+                self.wait_done(tick, timeout)
+                return
+            except HandoffTimeout:
+                on_wait(tick)
+                if time.monotonic() > deadline:
+                    raise
+                self.give(tick)
+
     def stop(self) -> None:
         self._words[1] = STOP
         self._go.release()

@@ -65,13 +65,13 @@ def _load(sim: NetSim, state) -> None:
     sim.knot_pos[:] = state["pos"]
     sim.knot_vel[:] = state["vel"]
     sim.sleeping = bool(state["sleeping"])
-    sim._quiet_ticks = int(state["quiet_ticks"])  # noqa: SLF001 - the sleep counter is part of the state
+    sim.quiet_ticks = int(state["quiet_ticks"])
 
 
 def _save(sim: NetSim, tick: int, state) -> None:
     state["tick"] = tick
     state["sleeping"] = sim.sleeping
-    state["quiet_ticks"] = sim._quiet_ticks  # noqa: SLF001
+    state["quiet_ticks"] = sim.quiet_ticks
     state["pos"] = sim.knot_pos
     state["vel"] = sim.knot_vel
 
@@ -172,16 +172,8 @@ class RemoteNet:
         row["radius"] = ball_radius
         row["inv_mass"] = ball_inv_mass
         self.baton.give(tick)
-        deadline = time.monotonic() + NET_GIVE_UP_S
-        while True:
-            try:
-                self.baton.wait_done(tick, NET_HANDOFF_S)
-                break
-            except HandoffTimeout:
-                self.control.beat(tick)  # the net worker may be restarting: stay alive and ask again
-                if time.monotonic() > deadline:
-                    raise
-                self.baton.give(tick)  # net_io still holds this tick's ball
+        # The net worker may be restarting: stay alive and ask again (net_io still holds the ball).
+        self.baton.wait_done_or_retry(tick, NET_HANDOFF_S, NET_GIVE_UP_S, self.control.beat)
         self.sleeping = bool(row["sleeping"])
         self.waits += time.perf_counter() - started
         return NetContact(float(row["toi"]), row["impulse"].copy(), row["offset"].copy())

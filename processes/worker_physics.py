@@ -15,7 +15,6 @@ import numpy as np
 from engine.dtypes import physics_snapshot_dtype
 from engine.match import Match, point_from_row, point_row
 from engine.world import build_model, copy_record, initial_state, new_events, step
-from processes.handoff import HandoffTimeout
 from processes.shm import Arena
 from processes.wire import MAX_FORCE_N, MAX_TORQUE_NM
 from processes.worker import GO_TIMEOUT_S, Control, WorkerState
@@ -150,16 +149,8 @@ class _RemoteAI:
         if self.turn is None:
             return
         started = time.perf_counter()
-        deadline = time.monotonic() + AI_GIVE_UP_S
-        while True:
-            try:
-                self.baton.wait_done(self.turn, AI_HANDOFF_S)
-                break
-            except HandoffTimeout:
-                self.control.beat(self.turn)  # the AI worker may be restarting: stay alive and ask again
-                if time.monotonic() > deadline:
-                    raise
-                self.baton.give(self.turn)  # the view still holds that tick's state
+        # The AI worker may be restarting: stay alive and ask again (the view still holds the state).
+        self.baton.wait_done_or_retry(self.turn, AI_HANDOFF_S, AI_GIVE_UP_S, self.control.beat)
         n = self.box.drain(self.inbox)
         for k in range(n):
             if int(self.inbox[k]["tick"]) != self.turn:
