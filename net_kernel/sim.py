@@ -21,8 +21,11 @@ SAFETY = 0.9
 PARALLEL_MIN_KNOTS = 20_000
 # Sleep: the net falls asleep after SLEEP_TICKS ticks with every knot slower than
 # SLEEP_SPEED, and the ball farther than WAKE_MARGIN plus one tick's travel from the net's box.
+# A sleeping net is frozen; only the ball's touch wakes it (a ball passing close by does not).
 SLEEP_SPEED = 1e-3  # m/s
 SLEEP_TICKS = 20
+# An awake net's knots move within the tick: the ball counts as near when it comes this close to
+# the box of their positions at the tick's start (a 20 m/s ball bulges the default net by a few cm).
 WAKE_MARGIN = 0.05  # m
 # Ball-knot contact defaults: a net thread is about 1 mm thick; the cloth's give comes from
 # its springs, so each knot-ball impact is taken as perfectly inelastic.
@@ -136,8 +139,10 @@ class NetSim:
         self._offset = np.zeros(3)
         self._hit_impulse = np.zeros(3)
         self._ball = np.zeros((3, 3))  # ball position, velocity, position after a sweep
-        self._box_lo = topo.knot_pos.min(axis=0)
-        self._box_hi = topo.knot_pos.max(axis=0)
+        # (2, 3) m, lo and hi corners of the knots' box: of the shape it froze in while the net
+        # sleeps, of the tick's start shape while it is awake (net_box).
+        self.box = net_box(topo.knot_pos)
+        self._probe = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(3), np.zeros(3))
         self.kernel_calls = 0
         self.cg_iterations = 0
         self.sleeping = False
@@ -156,13 +161,24 @@ class NetSim:
         return self._vel[self._cur]
 
     def ball_far(self, ball_pos, ball_vel, ball_radius: float) -> bool:
-        """True when the ball cannot reach the net's box (plus margin) within this tick."""
-        if ball_pos is None:
-            return True
-        reach = ball_radius + WAKE_MARGIN + float(np.linalg.norm(ball_vel)) * self.dt
-        lo = self._box_lo - reach
-        hi = self._box_hi + reach
-        return bool(np.any(ball_pos < lo) or np.any(ball_pos > hi))
+        """True when the ball cannot touch the net within this tick (ball_far_from_box on self.box)."""
+        return ball_far_from_box(self.box, self.sleeping, self.knot_radius, self.dt, ball_pos, ball_vel, ball_radius)
+
+    def touches(self, ball_pos, ball_vel, ball_radius: float, ball_inv_mass: float) -> bool:
+        """Would the ball, moving straight over this tick, touch the net frozen as it is now?
+
+        The sweep (kernels.collide_ball over the whole tick, knots at rest) runs on a copy, so
+        the net is left exactly as it was: a sleeping net stays asleep, bit for bit, unless the
+        ball really reaches it.
+        """
+        pos, vel, impulse, end = self._probe
+        pos[:] = self.knot_pos
+        vel[:] = 0.0
+        hit = self._collide(pos, vel, self.topo.knot_inv_mass, np.asarray(ball_pos, dtype=float),
+                            np.asarray(ball_vel, dtype=float), float(ball_radius), float(ball_inv_mass),
+                            self.knot_radius, self.restitution, self.dt, 1, impulse, end)
+        self.kernel_calls += 1
+        return hit != NO_CONTACT
 
     def wake(self) -> None:
         """Wake the net (contact, or the caller moved a knot)."""
@@ -199,7 +215,7 @@ class NetSim:
         self._offset[:] = 0.0
         far = self.ball_far(ball_pos, ball_vel, ball_radius)
         if self.sleeping:
-            if far:
+            if far or not self.touches(ball_pos, ball_vel, ball_radius, ball_inv_mass):
                 return NetContact(NO_CONTACT, self._impulse, self._offset)
             self.wake()
         topo = self.topo
@@ -257,4 +273,34 @@ class NetSim:
         if self.quiet_ticks >= SLEEP_TICKS and far:
             self.sleeping = True
             self.knot_vel[:] = 0.0
+        net_box(self.knot_pos, out=self.box)
         return NetContact(toi, self._impulse, self._offset)
+
+
+def net_box(knot_pos: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """(2, 3) m: the lo and hi corners of the box around the knots (in `out` if given)."""
+    if out is None:
+        out = np.empty((2, 3))
+    knot_pos.min(axis=0, out=out[0])
+    knot_pos.max(axis=0, out=out[1])
+    return out
+
+
+def ball_far_from_box(box: np.ndarray, sleeping: bool, knot_radius: float, dt: float, ball_pos, ball_vel,
+                      ball_radius: float) -> bool:
+    """True when the ball cannot touch a net whose knots lie in `box` within a tick of dt s.
+
+    A sleeping net's knots stay where they are: the ball is far when the box around its straight
+    path over the tick stays farther than ball_radius + knot_radius from the knots' box. An awake
+    net's knots move within the tick, so the reach grows by WAKE_MARGIN. No ball (None) is
+    always far.
+    """
+    if ball_pos is None:
+        return True
+    reach = ball_radius + knot_radius + (0.0 if sleeping else WAKE_MARGIN)
+    for i in range(3):
+        start = float(ball_pos[i])
+        end = start + float(ball_vel[i]) * dt
+        if min(start, end) > box[1, i] + reach or max(start, end) < box[0, i] - reach:
+            return True
+    return False

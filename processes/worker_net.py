@@ -1,7 +1,7 @@
 """The net worker: the cloth net (net_kernel.NetSim) in a process of its own.
 
-The physics worker gives it the baton for every tick the net must step (the net is awake, or
-the ball is near it; a sleeping net with the ball far away wakes nobody). The ball's state at
+The physics worker gives it the baton for every tick the net must step or test (the net is
+awake, or the ball is near its frozen shape; a sleeping net with the ball far away wakes nobody). The ball's state at
 the tick's start crosses in the shared `net_io` record and the net's answer (time of impact,
 impulse, offset, whether it now sleeps) comes back in it; the baton orders the two sides, so
 the record needs no lock. The physics then applies the answer exactly as the in-process engine
@@ -23,6 +23,7 @@ import numpy as np
 
 from engine.dtypes import net_snapshot_dtype
 from net_kernel import NO_CONTACT, NetContact, NetSim, build_topology
+from net_kernel.sim import ball_far_from_box, net_box
 from processes.handoff import HandoffTimeout
 from processes.shm import Arena
 from processes.worker import GO_TIMEOUT_S, Control, WorkerState
@@ -33,6 +34,7 @@ NET_IO_DTYPE = np.dtype([
     ("radius", "<f8"), ("inv_mass", "<f8"),  # m, 1/kg
     ("toi", "<f8"), ("impulse", "<f8", 3), ("offset", "<f8", 3),  # NetSim.step's answer
     ("sleeping", "<i8"),  # the net sleeps after this step
+    ("box", "<f8", (2, 3)),  # m, lo and hi corners of the knots' box after this step (NetSim.box)
 ])
 NET_BLOCKS = ("net_even", "net_odd")  # by the parity of the tick a state holds
 NET_HANDOFF_S = 1.0  # one wait's bound; retried while a killed net worker is restarted
@@ -66,6 +68,7 @@ def _load(sim: NetSim, state) -> None:
     sim.knot_vel[:] = state["vel"]
     sim.sleeping = bool(state["sleeping"])
     sim.quiet_ticks = int(state["quiet_ticks"])
+    net_box(sim.knot_pos, out=sim.box)
 
 
 def _save(sim: NetSim, tick: int, state) -> None:
@@ -119,6 +122,7 @@ def net_worker(control: Control, arena: Arena, scene, options: dict) -> None:
             row["impulse"] = contact.impulse
             row["offset"] = contact.offset
             row["sleeping"] = sim.sleeping
+            row["box"] = sim.box
             net_tick = tick + 1
             _save(sim, net_tick, state[0])
             blocks[net_tick % 2].publish(state, net_tick)
@@ -141,8 +145,11 @@ class RemoteNet:
         control: the physics worker's Control (heartbeats while it waits).
         arena, options: the run's (net_io, the two net blocks, net_baton).
         world: the physics state's world record (its tick says which tick is being stepped).
-        local: a NetSim of the same net, used only for its geometry (NetSim.ball_far), so a
-            sleeping net and a far ball cost no hand-off, exactly as NetSim.step returns early.
+        local: a NetSim of the same net as built (its knot radius, tick and built shape).
+
+    A sleeping net and a ball that cannot touch its frozen shape cost no hand-off, exactly as
+    NetSim.step returns early: the stand-in keeps the box the net froze in (from net_io after
+    each step; on a resume, from the state it resumes from, as the net worker does).
     """
 
     def __init__(self, control: Control, arena: Arena, options: dict, world, local: NetSim):
@@ -156,11 +163,18 @@ class RemoteNet:
         # The net's sleep state at the tick we resume from (a fresh run: the net as built).
         state = np.zeros(1, net_snapshot_dtype(local.topo.n_knots))
         tick = int(world["tick"])
-        self.sleeping = bool(state[0]["sleeping"]) if newest_state(net_blocks(arena), state, tick) else local.sleeping
+        if newest_state(net_blocks(arena), state, tick):
+            self.sleeping = bool(state[0]["sleeping"])
+            self.box = net_box(state[0]["pos"])
+        else:
+            self.sleeping = local.sleeping
+            self.box = local.box.copy()
 
     def step(self, ball_pos, ball_vel, ball_radius: float, ball_inv_mass: float) -> NetContact:
         """NetSim.step, done by the net worker (called after the ball's tick, as engine.world does)."""
-        if self.sleeping and self.local.ball_far(ball_pos, ball_vel, ball_radius):
+        local = self.local
+        if self.sleeping and ball_far_from_box(self.box, True, local.knot_radius, local.dt, ball_pos, ball_vel,
+                                               ball_radius):
             self._none[:] = 0.0
             return NetContact(NO_CONTACT, self._none, self._none)
         started = time.perf_counter()
@@ -175,5 +189,6 @@ class RemoteNet:
         # The net worker may be restarting: stay alive and ask again (net_io still holds the ball).
         self.baton.wait_done_or_retry(tick, NET_HANDOFF_S, NET_GIVE_UP_S, self.control.beat)
         self.sleeping = bool(row["sleeping"])
+        self.box[:] = row["box"]
         self.waits += time.perf_counter() - started
         return NetContact(float(row["toi"]), row["impulse"].copy(), row["offset"].copy())
