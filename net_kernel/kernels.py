@@ -669,61 +669,64 @@ def _sweep(x, v, j, p0, p1, p2, b0, b1, b2, reach, t0, t1):
     return t if t <= t1 else math.inf
 
 
+# Ball near the net: the contact sweep visits only the knots the ball can reach this call (its
+# cull), gathered by one cheap pass into a scratch list in index order, so every sum and
+# minimum runs over the same knots in the same order as the full sweep: the same bits.
+# Conservative: a knot is left out only if, on every axis, its offset from the ball's start
+# exceeds near_radius + dt |v_j|_1 (|.|_inf <= |.|_2 and |.|_2 <= |.|_1, so its distance to
+# the ball's start stays above near_radius over the call); the ball's path is piecewise linear,
+# so its largest distance from the start is at a segment's end, and while that stays within
+# near_radius - NEAR_SLACK x touch distance, a left-out knot never comes within touch
+# distance. If a contact turns the ball so far (a rebound faster than it came) the sweep falls
+# back to all knots for the rest of the call: never wrong, only slower.
+NEAR_SLACK = 1.5  # touch distances kept between the cull's sphere and the ball's furthest point
+_ALL_KNOTS = np.zeros(0, dtype=np.int64)  # the full sweep's "list": never read (n_near = -1)
+
+
 @njit(cache=True, fastmath=False)
-def collide_ball(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_radius, ball_inv_mass, knot_radius,
-                 restitution, dt, max_hits, out_impulse, out_ball_pos):
-    """Swept-sphere contact of the ball with the knots over one tick; impulses both ways.
+def _gather_near(knot_pos, knot_vel, p0, p1, p2, near_radius, dt, near):
+    """Indices (increasing) of the knots that can come within near_radius of (p0, p1, p2) over dt into near; their count."""
+    count = 0
+    for j in range(knot_pos.shape[0]):
+        grow = near_radius + dt * (abs(knot_vel[j, 0]) + abs(knot_vel[j, 1]) + abs(knot_vel[j, 2]))
+        if (abs(knot_pos[j, 0] - p0) <= grow and abs(knot_pos[j, 1] - p1) <= grow
+                and abs(knot_pos[j, 2] - p2) <= grow):
+            near[count] = j
+            count += 1
+    return count
 
-    Contract: free knots found inside the ball at the start are first moved onto its surface
-    (radially). Then the ball moves on the straight line ball_pos + ball_vel t, the knots on
-    knot_pos + knot_vel t, for t in [0, dt]. The earliest contact (time of impact, ball
-    surface meets a knot sphere of radius knot_radius) is resolved with one impulse against
-    every knot then within contact distance (reach + 10 %), treated as one body of their summed
-    mass: along the mean contact normal Newton's restitution law with `restitution`, across it
-    sticking (the threads grip the ball); fixed knots make that body immovable (and then only
-    the normal part acts). Then the ball goes on from there with its new velocity and
-    the search repeats, up to max_hits contacts. A struck knot's velocity changes in place and
-    its knot_pos shifts by -dv t_hit, so knot_pos + knot_vel t stays its path (old velocity
-    before the hit, new after): the next net step from knot_pos ends where the knot should. No tunnelling as long as the ball cannot pass
-    between knots: the mesh's cell diagonal must stay below 2 (ball_radius + knot_radius)
-    (1.4 cm for the default net against 4 cm), any speed.
 
-    out_ball_pos is where that piecewise-linear path ends at dt: the ball's position change
-    due to the net is out_ball_pos - (ball_pos + ball_vel dt), its velocity change
-    out_impulse * ball_inv_mass. Call it over short intervals (NetSim does, once per substep)
-    so that the knots' own motion within dt stays small against the ball's radius.
+@njit(cache=True, fastmath=False)
+def _ball_within(q0, q1, q2, s0, s1, s2, limit):
+    """|q - s| <= limit (m): the ball's point q is within the cull's guarantee around its start s."""
+    e0 = q0 - s0
+    e1 = q1 - s1
+    e2 = q2 - s2
+    return e0 * e0 + e1 * e1 + e2 * e2 <= limit * limit
 
-    Args:
-        knot_pos: (n_knots, 3) m, at the tick's start; struck knots shifted in place.
-        knot_vel: (n_knots, 3) m/s, struck knots changed in place.
-        knot_inv_mass: (n_knots,) 1/kg, 0 for fixed knots.
-        ball_pos: (3,) m, ball centre at the tick's start.
-        ball_vel: (3,) m/s, over the tick.
-        ball_radius: m.
-        ball_inv_mass: 1/kg.
-        knot_radius: m, the thread's half thickness.
-        restitution: in [0, 1].
-        dt: s, the tick.
-        max_hits: contacts resolved in this tick at most.
-        out_impulse: (3,) N s, written: the total impulse on the ball.
-        out_ball_pos: (3,) m, written: the ball centre at dt on its path with the contacts.
 
-    Returns:
-        Fraction of dt at the first contact, in [0, 1], or NO_CONTACT (-1.0).
-    """
+@njit(cache=True, fastmath=False)
+def _collide(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_radius, ball_inv_mass, knot_radius,
+             restitution, dt, max_hits, out_impulse, out_ball_pos, near, n_near, limit):
+    """collide_ball's contract over the first n_near knots listed in `near` (_gather_near), or every knot
+    for n_near < 0; limit: m, how far from its start the ball's path may go before that list stops
+    covering it (see the notes above _gather_near)."""
     out_impulse[0] = 0.0
     out_impulse[1] = 0.0
     out_impulse[2] = 0.0
     reach = ball_radius + knot_radius
+    touch = 1.1 * reach
     p0, p1, p2 = ball_pos[0], ball_pos[1], ball_pos[2]
     b0, b1, b2 = ball_vel[0], ball_vel[1], ball_vel[2]
     t_now = 0.0
     first = NO_CONTACT
-    n = knot_pos.shape[0]
+    cull = n_near >= 0
+    n = n_near if cull else knot_pos.shape[0]
     # Knots the springs pulled inside the ball since the last sweep go back onto its surface
     # (a position projection, as cloth solvers do against colliders): a knot left inside
     # would count as separating and let the ball through.
-    for j in range(n):
+    for idx in range(n):
+        j = near[idx] if cull else idx
         if knot_inv_mass[j] == 0.0:
             continue
         e0 = knot_pos[j, 0] - p0
@@ -735,10 +738,16 @@ def collide_ball(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_rad
             knot_pos[j, 0] = p0 + e0 * push
             knot_pos[j, 1] = p1 + e1 * push
             knot_pos[j, 2] = p2 + e2 * push
+    s0, s1, s2 = p0, p1, p2  # the ball's start: the cull's centre
     for _ in range(max_hits):
+        if cull and not _ball_within(p0 + b0 * (dt - t_now), p1 + b1 * (dt - t_now), p2 + b2 * (dt - t_now),
+                                     s0, s1, s2, limit):
+            # The ball's new path leaves the cull's guarantee: every knot from here on.
+            cull = False
+            n = knot_pos.shape[0]
         t_hit = math.inf
-        for j in range(n):
-            t = _sweep(knot_pos, knot_vel, j, p0, p1, p2, b0, b1, b2, reach, t_now, dt)
+        for idx in range(n):
+            t = _sweep(knot_pos, knot_vel, near[idx] if cull else idx, p0, p1, p2, b0, b1, b2, reach, t_now, dt)
             if t < t_hit:
                 t_hit = t
         if t_hit == math.inf:
@@ -755,8 +764,8 @@ def collide_ball(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_rad
         mom1 = 0.0
         mom2 = 0.0
         pinned = False
-        touch = 1.1 * reach
-        for j in range(n):
+        for idx in range(n):
+            j = near[idx] if cull else idx
             e0 = knot_pos[j, 0] + knot_vel[j, 0] * t_hit - c0
             e1 = knot_pos[j, 1] + knot_vel[j, 1] * t_hit - c1
             e2 = knot_pos[j, 2] + knot_vel[j, 2] * t_hit - c2
@@ -827,7 +836,8 @@ def collide_ball(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_rad
             dv0 = j0 * inv_knots
             dv1 = j1 * inv_knots
             dv2 = j2 * inv_knots
-            for j in range(n):
+            for idx in range(n):
+                j = near[idx] if cull else idx
                 w = knot_inv_mass[j]
                 if w == 0.0:
                     continue
@@ -852,3 +862,77 @@ def collide_ball(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_rad
     out_ball_pos[1] = p1 + b1 * (dt - t_now)
     out_ball_pos[2] = p2 + b2 * (dt - t_now)
     return first
+
+
+@njit(cache=True, fastmath=False)
+def collide_ball(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_radius, ball_inv_mass, knot_radius,
+                 restitution, dt, max_hits, out_impulse, out_ball_pos):
+    """Swept-sphere contact of the ball with the knots over one tick; impulses both ways.
+
+    Contract: free knots found inside the ball at the start are first moved onto its surface
+    (radially). Then the ball moves on the straight line ball_pos + ball_vel t, the knots on
+    knot_pos + knot_vel t, for t in [0, dt]. The earliest contact (time of impact, ball
+    surface meets a knot sphere of radius knot_radius) is resolved with one impulse against
+    every knot then within contact distance (reach + 10 %), treated as one body of their summed
+    mass: along the mean contact normal Newton's restitution law with `restitution`, across it
+    sticking (the threads grip the ball); fixed knots make that body immovable (and then only
+    the normal part acts). Then the ball goes on from there with its new velocity and
+    the search repeats, up to max_hits contacts. A struck knot's velocity changes in place and
+    its knot_pos shifts by -dv t_hit, so knot_pos + knot_vel t stays its path (old velocity
+    before the hit, new after): the next net step from knot_pos ends where the knot should. No tunnelling as long as the ball cannot pass
+    between knots: the mesh's cell diagonal must stay below 2 (ball_radius + knot_radius)
+    (1.4 cm for the default net against 4 cm), any speed.
+
+    out_ball_pos is where that piecewise-linear path ends at dt: the ball's position change
+    due to the net is out_ball_pos - (ball_pos + ball_vel dt), its velocity change
+    out_impulse * ball_inv_mass. Call it over short intervals (NetSim does, once per substep)
+    so that the knots' own motion within dt stays small against the ball's radius.
+
+    Args:
+        knot_pos: (n_knots, 3) m, at the tick's start; struck knots shifted in place.
+        knot_vel: (n_knots, 3) m/s, struck knots changed in place.
+        knot_inv_mass: (n_knots,) 1/kg, 0 for fixed knots.
+        ball_pos: (3,) m, ball centre at the tick's start.
+        ball_vel: (3,) m/s, over the tick.
+        ball_radius: m.
+        ball_inv_mass: 1/kg.
+        knot_radius: m, the thread's half thickness.
+        restitution: in [0, 1].
+        dt: s, the tick.
+        max_hits: contacts resolved in this tick at most.
+        out_impulse: (3,) N s, written: the total impulse on the ball.
+        out_ball_pos: (3,) m, written: the ball centre at dt on its path with the contacts.
+
+    Returns:
+        Fraction of dt at the first contact, in [0, 1], or NO_CONTACT (-1.0).
+    """
+    return _collide(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_radius, ball_inv_mass, knot_radius,
+                    restitution, dt, max_hits, out_impulse, out_ball_pos, _ALL_KNOTS, -1, 0.0)
+
+
+@njit(cache=True, fastmath=False)
+def collide_ball_near(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_radius, ball_inv_mass, knot_radius,
+                      restitution, dt, max_hits, out_impulse, out_ball_pos, near):
+    """collide_ball over only the knots the ball can reach in dt: the same contacts and the same bits.
+
+    One cheap pass (a box test per knot, no root) lists the knots whose path can come near the
+    ball's (see the notes above _gather_near); every other pass of the sweep (projection, time of
+    impact, touching knots, impulses) runs over that list, in index order. A contact that
+    throws the ball further than the list covers switches to all knots for the rest of the call.
+
+    Args:
+        knot_pos ... out_ball_pos: as collide_ball.
+        near: (n_knots,) int64 scratch, written: the listed knots' indices.
+
+    Returns:
+        As collide_ball.
+    """
+    if near.shape[0] < knot_pos.shape[0]:
+        raise ValueError("collide_ball_near: near must hold one int64 per knot (shape (n_knots,))")
+    touch = 1.1 * (ball_radius + knot_radius)  # _collide's touch distance
+    travel = math.sqrt(ball_vel[0] * ball_vel[0] + ball_vel[1] * ball_vel[1] + ball_vel[2] * ball_vel[2]) * dt
+    # Twice the straight path's length plus a margin: a rebound up to as fast as the ball came stays culled.
+    near_radius = 2.0 * travel + (NEAR_SLACK + 1.5) * touch
+    n_near = _gather_near(knot_pos, knot_vel, ball_pos[0], ball_pos[1], ball_pos[2], near_radius, dt, near)
+    return _collide(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_radius, ball_inv_mass, knot_radius,
+                    restitution, dt, max_hits, out_impulse, out_ball_pos, near, n_near, near_radius - NEAR_SLACK * touch)

@@ -260,3 +260,12 @@ def collide_ball(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_rad
         t_now = t_hit
     out_ball_pos[:] = p + b * (dt - t_now)
     return first
+
+
+def collide_ball_near(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_radius, ball_inv_mass, knot_radius,
+                      restitution, dt, max_hits, out_impulse, out_ball_pos, near):
+    """Numpy twin of kernels.collide_ball_near: the full sweep (the cull changes no result); near unused."""
+    if near.shape[0] < knot_pos.shape[0]:
+        raise ValueError("collide_ball_near: near must hold one int64 per knot (shape (n_knots,))")
+    return collide_ball(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_radius, ball_inv_mass, knot_radius,
+                        restitution, dt, max_hits, out_impulse, out_ball_pos)

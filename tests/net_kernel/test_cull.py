@@ -1,0 +1,117 @@
+"""The culled contact sweep (kernels.collide_ball_near) gives the full sweep's bits: same contacts, same sums."""
+import functools
+
+import numpy as np
+import pytest
+
+from net_kernel import NetSim, NetSpec, build_topology, kernels, reference
+
+BALL_MASS = 2.7e-3  # kg, ITTF 2.3.2
+BALL_RADIUS = 0.02  # m, ITTF 2.3.1
+KNOT_RADIUS = 0.5e-3  # m, NetSim's default
+DT = 1e-3
+
+
+def _sweep_both(topo, pos, vel, ball_pos, ball_vel, dt, restitution=0.0, inv_mass=None):
+    """(full, culled): each (toi, impulse, ball end, knot_pos, knot_vel) from the same start."""
+    inv_mass = topo.knot_inv_mass if inv_mass is None else inv_mass
+    results = []
+    for culled in (False, True):
+        p, v = pos.copy(), vel.copy()
+        impulse, end = np.zeros(3), np.zeros(3)
+        args = (p, v, inv_mass, np.asarray(ball_pos, float), np.asarray(ball_vel, float), BALL_RADIUS,
+                1.0 / BALL_MASS, KNOT_RADIUS, restitution, dt, 8, impulse, end)
+        if culled:
+            toi = kernels.collide_ball_near(*args, np.zeros(topo.n_knots, dtype=np.int64))
+        else:
+            toi = kernels.collide_ball(*args)
+        results.append((toi, impulse, end, p, v))
+    return results
+
+
+def _assert_same_bits(full, culled):
+    assert full[0] == culled[0]  # exact: the same time of impact
+    for a, b in zip(full[1:], culled[1:]):
+        assert np.array_equal(a, b)  # exact: the same knots summed in the same order
+
+
+@pytest.fixture(scope="module")
+def strip():
+    """A 0.5 m strip of the default 1 cm mesh, shaken: knots displaced by ~1 mm, moving at ~0.3 m/s."""
+    topo = build_topology(NetSpec(width=0.5, cols=51, knot_mass=NetSpec().knot_mass))
+    rng = np.random.default_rng(7)
+    free = (topo.knot_inv_mass > 0)[:, None]
+    pos = topo.knot_pos + free * rng.normal(0.0, 1e-3, topo.knot_pos.shape)
+    vel = free * rng.normal(0.0, 0.3, topo.knot_pos.shape)
+    return topo, pos, vel
+
+
+def test_random_hits_and_near_misses_give_the_full_sweeps_bits(strip):
+    topo, pos, vel = strip
+    rng = np.random.default_rng(11)
+    hits = misses = 0
+    for _ in range(200):
+        # Around the strip's plane (x = 0), within a ball's width of it or a tick's travel away.
+        ball_pos = np.array([rng.uniform(-0.06, 0.06), rng.uniform(-0.3, 0.3), rng.uniform(-0.03, 0.18)])
+        speed = rng.choice([0.5, 5.0, 20.0, 40.0])
+        direction = rng.normal(size=3)
+        ball_vel = speed * direction / np.linalg.norm(direction)
+        dt = rng.choice([DT / 25, DT])
+        full, culled = _sweep_both(topo, pos, vel, ball_pos, ball_vel, dt, restitution=rng.choice([0.0, 0.5]))
+        _assert_same_bits(full, culled)
+        hits += full[0] >= 0.0
+        misses += full[0] < 0.0
+    assert hits >= 20 and misses >= 20  # both kinds were exercised (observed: about half each)
+
+
+def test_rebound_beyond_the_cull_falls_back_to_every_knot(strip):
+    """Heavy knots flying at a slow ball at 30 m/s throw it back, onto a knot that the cull left out."""
+    topo, pos, _ = strip
+    free = topo.knot_inv_mass > 0
+    vel = free[:, None] * np.array([-30.0, 0.0, 0.0])
+    ball_pos = np.array([-0.025, 0.0, 0.08])
+    # One free knot, still, 8 cm behind the ball: outside the cull's box (2 x the ball's 1 mm path
+    # + 3 touch distances = 6.9 cm, kernels.collide_ball_near), but in the rebounding ball's way.
+    pos = pos.copy()
+    behind = int(np.flatnonzero(free)[0])
+    pos[behind] = ball_pos + [-0.08, 0.0, 0.0]
+    vel[behind] = 0.0
+    full, culled = _sweep_both(topo, pos, vel, ball_pos, [0.5, 0.0, 0.0], 2 * DT, restitution=1.0,
+                               inv_mass=1e-3 * topo.knot_inv_mass)
+    assert full[0] >= 0.0
+    assert not np.array_equal(full[4][behind], vel[behind])  # the full sweep's ball struck it
+    _assert_same_bits(full, culled)
+
+
+def test_near_list_too_short_is_refused(strip):
+    topo, pos, vel = strip
+    for mod in (kernels, reference):
+        with pytest.raises(ValueError, match="one int64 per knot"):
+            mod.collide_ball_near(pos.copy(), vel.copy(), topo.knot_inv_mass, np.zeros(3), np.ones(3), BALL_RADIUS,
+                                  1.0 / BALL_MASS, KNOT_RADIUS, 0.0, DT, 8, np.zeros(3), np.zeros(3),
+                                  np.zeros(3, dtype=np.int64))
+
+
+@pytest.mark.parametrize("speed", [20.0, 40.0])
+def test_netsim_impact_with_the_cull_gives_the_full_sweeps_bits(speed):
+    """test_ball's impact (a straight ball into a rested strip), tick by tick, with either sweep."""
+    topo = build_topology(NetSpec(width=0.5, cols=51, knot_mass=NetSpec().knot_mass))
+    sims = [NetSim(topo, dt=DT) for _ in range(2)]
+    near = np.zeros(topo.n_knots, dtype=np.int64)
+    # NetSim's contact call, with and without the cull (the change proposed for net_kernel/sim.py).
+    sims[0]._collide = kernels.collide_ball
+    sims[1]._collide = functools.partial(kernels.collide_ball_near, near=near)
+    balls = []
+    for sim in sims:
+        pos, vel = np.array([-0.2, 0.0, 0.08]), np.array([speed, 0.0, 0.0])
+        hits = 0
+        for _ in range(60):
+            contact = sim.step(pos, vel, BALL_RADIUS, 1.0 / BALL_MASS)
+            pos = pos + vel * DT + contact.offset
+            vel = vel + contact.impulse / BALL_MASS
+            hits += contact.toi >= 0
+        balls.append((pos, vel, hits))
+    assert balls[0][2] > 0  # the ball met the net
+    assert np.array_equal(balls[0][0], balls[1][0]) and np.array_equal(balls[0][1], balls[1][1])  # exact
+    assert np.array_equal(sims[0].knot_pos, sims[1].knot_pos)  # exact
+    assert np.array_equal(sims[0].knot_vel, sims[1].knot_vel)  # exact
