@@ -3,7 +3,11 @@
 A client says hello, waits (bounded) for welcome or reject, then exchanges wire messages: it
 sends a heartbeat at least as often as the welcome asks, inputs for its own bat, and goodbye
 when it leaves; it takes snapshots, events, heartbeats and the server's goodbye. Every wait is
-bounded and a server silent past the welcome's timeout ends the session.
+bounded and a server silent past the welcome's timeout ends the session. A spectator whose
+welcome names a feed (welcome.feed_port) subscribes to it (a SUB socket, CURVE like the
+session) and takes its snapshots and events there; the session still carries heartbeats and
+goodbye, and only the session says whether the server is alive. Gaps in the feed's sequence
+numbers are the messages the gateway dropped at the high-water mark (`feed_missed`).
 
 `run_session` is the loop of `pingpong join`: a player (bot or keyboard) predicts with the
 engine and reconciles on each snapshot (processes/prediction.py) and sends its inputs from the
@@ -74,6 +78,13 @@ def keys_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def feed_address(session_address: str, port: int) -> str:
+    """The feed's endpoint: the session's tcp:// host with the welcome's feed_port."""
+    if not session_address.startswith("tcp://") or not 0 < port < 65536:
+        raise ValueError(f"a feed on port {port} needs a tcp:// session address, got {session_address!r}")
+    return f"{session_address.rsplit(':', 1)[0]}:{port}"
+
+
 class Rejected(RuntimeError):
     """The server turned the hello away; `reason` is a wire.RejectReason."""
 
@@ -102,12 +113,19 @@ class Client:
         self.token = token
         self._own_ctx = zctx is None
         self.zctx = zctx or zmq.Context()
+        self.socket_options = dict(socket_options or {})
         self.sock = self.zctx.socket(zmq.DEALER)
         self.sock.setsockopt(zmq.LINGER, 0)
         self.sock.setsockopt(zmq.RCVHWM, 256)
-        for option, value in (socket_options or {}).items():
+        for option, value in self.socket_options.items():
             self.sock.setsockopt(option, value)
         self.sock.connect(address)
+        self.feed = None  # the SUB socket of a spectator's feed, once a welcome names one
+        self.feed_address = ""
+        self.feed_seq = 0  # last seq seen on the feed
+        self.feed_missed = 0  # gaps in the feed's seqs: messages dropped at the gateway's high-water mark
+        self._poller = zmq.Poller()
+        self._poller.register(self.sock, zmq.POLLIN)
         self.seq = 0
         self.tick = 0
         self.slot = Slot.NONE
@@ -148,7 +166,39 @@ class Client:
         self.heartbeat_s = message["heartbeat_ms"] / 1000.0
         self.timeout_s = message["timeout_ms"] / 1000.0
         self._next_beat = time.monotonic() + self.heartbeat_s
+        self.subscribe(message["feed_port"])
         return True
+
+    def subscribe(self, port: int) -> None:
+        """Take snapshots and events from the feed on `port` of the session's host (0: none,
+        they come on the session). A welcome of a restarted gateway may name another port: the
+        old feed is closed and the new one subscribed."""
+        address = feed_address(self.address, port) if port else ""
+        if address == self.feed_address:
+            return
+        if self.feed is not None:
+            self._poller.unregister(self.feed)
+            self.feed.close(linger=0)
+            self.feed = None
+        self.feed_address, self.feed_seq = address, 0
+        if not address:
+            return
+        feed = self.zctx.socket(zmq.SUB)
+        feed.setsockopt(zmq.LINGER, 0)
+        feed.setsockopt(zmq.RCVHWM, 256)
+        for option, value in self.socket_options.items():
+            feed.setsockopt(option, value)
+        feed.setsockopt(zmq.SUBSCRIBE, b"")
+        feed.connect(address)
+        self.feed = feed
+        self._poller.register(feed, zmq.POLLIN)
+
+    def _waiting(self, timeout_ms: int):
+        """The sockets with a message waiting (the session first), after at most timeout_ms."""
+        if self.feed is None:
+            return [self.sock] if self.sock.poll(timeout_ms, zmq.POLLIN) else []
+        ready = dict(self._poller.poll(timeout_ms))
+        return [sock for sock in (self.sock, self.feed) if sock in ready]
 
     def join(self, timeout_s: float = JOIN_TIMEOUT_S) -> wire.Message:
         """Say hello and wait (bounded) for the welcome; raises Rejected or TimeoutError."""
@@ -161,17 +211,31 @@ class Client:
         raise TimeoutError(f"no welcome from {self.address} within {timeout_s} s")
 
     def recv(self, timeout_ms: int) -> wire.Message | None:
-        """The next valid message within timeout_ms, or None (bad ones are counted and dropped)."""
-        if not self.sock.poll(timeout_ms, zmq.POLLIN):
+        """The next valid message within timeout_ms, session or feed, or None (bad ones are
+        counted and dropped)."""
+        waiting = self._waiting(timeout_ms)
+        if not waiting:
             return None
-        data = self.sock.recv(flags=zmq.NOBLOCK)
+        sock = waiting[0]
+        try:
+            data = sock.recv(flags=zmq.NOBLOCK)
+        except zmq.Again:
+            return None
         message = self.drops.decode(data)
         if message is None:
             return None
         self.received += 1
-        self.last_seen = time.monotonic()
-        self.max_seq_in = max(self.max_seq_in, message.seq)
         self.tick = max(self.tick, message.tick)
+        if sock is self.feed:
+            if message.kind not in (Kind.SNAPSHOT, Kind.EVENT):
+                self.drops.by_reason["not_on_feed"] += 1  # only snapshots and events go out on the feed
+                return None
+            if self.feed_seq and message.seq > self.feed_seq:
+                self.feed_missed += message.seq - self.feed_seq - 1
+            self.feed_seq = message.seq
+            return message
+        self.last_seen = time.monotonic()  # only the session says the server is alive
+        self.max_seq_in = max(self.max_seq_in, message.seq)
         if message.kind == Kind.GOODBYE:
             self.goodbye = message["reason"]
         return message
@@ -180,13 +244,13 @@ class Client:
         """Every valid message waiting (at most `limit`), waiting at most timeout_ms for the
         first: a loop that handles them all at once never falls behind the server."""
         messages = []
-        if not self.sock.poll(timeout_ms, zmq.POLLIN):
+        if not self._waiting(timeout_ms):
             return messages
         for _ in range(limit):
             message = self.recv(0)
             if message is not None:
                 messages.append(message)
-            elif not self.sock.poll(0, zmq.POLLIN):
+            elif not self._waiting(0):
                 break
         return messages
 
@@ -215,6 +279,8 @@ class Client:
             pass
 
     def close(self) -> None:
+        if self.feed is not None:
+            self.feed.close(linger=0)
         self.sock.close(linger=0)
         if self._own_ctx:
             self.zctx.term()
@@ -404,6 +470,8 @@ def run_session(client: Client, welcome: wire.Message, *, brain=None, pilot=None
     if view is not None:
         summary["interpolation"] = {"delay_ms": view.delay_s * 1000.0, **view.counts}
     summary["dropped"] = dict(client.drops.by_reason)
+    if client.feed_address:
+        summary["feed_missed"] = client.feed_missed  # snapshots and events the gateway dropped at the mark
     return summary
 
 

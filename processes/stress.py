@@ -206,14 +206,17 @@ class Server(Child):
 
     def __init__(self, tmp: str, players: int = 2, snapshot_hz: int = 120, heartbeat_s: float = 0.5,
                  timeout_s: float = 5.0, grace_s: float = 30.0, max_spectators: int = 64, seconds: float = 3600.0,
-                 best_of: int = 9):
-        self.tick_log = os.path.join(tmp, f"ticks-{time.monotonic_ns()}.npz")
+                 best_of: int = 9, feed: bool = True):
+        stamp = time.monotonic_ns()
+        self.tick_log = os.path.join(tmp, f"ticks-{stamp}.npz")
         self.spec = {"players": players, "snapshot_hz": snapshot_hz, "heartbeat_s": heartbeat_s,
                      "timeout_s": timeout_s, "grace_s": grace_s, "max_spectators": max_spectators,
-                     "ticks": int(seconds * 1000), "best_of": best_of, "tick_log": self.tick_log}
+                     "ticks": int(seconds * 1000), "best_of": best_of, "tick_log": self.tick_log, "feed": feed,
+                     "gateway_stats": os.path.join(tmp, f"gateway-{stamp}.json")}
         super().__init__(["-m", "processes.stress_server", json.dumps(self.spec)], "server")
         hello = self.expect(lambda o: "listening" in o, 120, "listening line")
         self.endpoint, self.run_id, self.pids, self.dt = hello["listening"], hello["run_id"], hello["pids"], hello["dt"]
+        self.feed = hello.get("feed", "")
         self.rlimit_nofile = hello["rlimit_nofile"]
         self.end: dict | None = None
 
@@ -528,7 +531,9 @@ def scenario_load(args, run: Run) -> dict:
     result = _base("load")
     shm_before = shm_names()
     n, seconds = args.spectators, args.duration
-    server = run.add(Server(run.tmp, players=2, snapshot_hz=args.hz, max_spectators=max(n, 1), seconds=seconds))
+    fanout = getattr(args, "fanout", "pub")  # pub: the feed; router: one send per session (protocol 1's way)
+    server = run.add(Server(run.tmp, players=2, snapshot_hz=args.hz, max_spectators=max(n, 1), seconds=seconds,
+                            feed=fanout == "pub"))
     records = [os.path.join(run.tmp, f"load-{i}.npz") for i in range(len(_split(n)))]
     swarms = [run.add(swarm(_watch_spec(server.endpoint, k, 0, f"s{i}_", records[i], duration=seconds + 120,
                                         until_goodbye=True), f"swarm{i}")) for i, k in enumerate(_split(n)) if k]
@@ -550,6 +555,9 @@ def scenario_load(args, run: Run) -> dict:
     rss1 = rss_kb(gateway)
     gateway_cpu = cpu_seconds(gateway)  # its whole life so far: set against every message it sent
     result["cpu_pct"] = meter.stop()
+    sides = {"server": set(server.all_pids()), "swarm": {s.name for s in swarms}, "players": {b.name for b in bots}}
+    result["cpu_pct_by_side"] = {side: round(sum(v for k, v in result["cpu_pct"].items() if k in names), 1)
+                                 for side, names in sides.items()}
     t1 = time.monotonic()
     end = server.finish(60)
     reports = [s.expect(lambda o: o.get("event") == "report", 60, "report") for s in swarms]
@@ -582,10 +590,16 @@ def scenario_load(args, run: Run) -> dict:
     welcomed = sum(r["welcomed"] for r in reports)
     snapshots = sum(r["snapshots"] for r in reports)
     missed = sum(r["missed"] for r in reports)
+    feed_missed = sum(r.get("feed_missed", 0) for r in reports)
+    on_feed = sum(r.get("on_feed", 0) for r in reports)
     goodbyes = sum(r["goodbyes"].get("match_over", 0) for r in reports)
     result["counts"] = {
         "spectators": n, "welcomed": welcomed, "rejected": sum(sum(r["rejected"].values()) for r in readies),
-        "snapshot_hz": args.hz, "snapshots_received": snapshots, "snapshots_missed": missed,
+        "fanout": fanout, "on_feed": on_feed, "feed": server.feed,
+        "snapshot_hz": args.hz, "snapshots_received": snapshots, "snapshots_missed": missed + feed_missed,
+        "feed_missed": feed_missed, "feed_missed_max": max((r.get("feed_missed_max", 0) for r in reports), default=0),
+        "session_messages_missed": missed,
+        "gateway_snapshots_published": stats.get("snapshots_published", 0),
         "gateway_snapshots_sent": stats.get("snapshots_sent"), "gateway_snapshots_dropped": stats.get("snapshots_dropped", 0),
         "rate_min_hz": round(min(r["rate_min"] for r in reports), 1) if reports else None,
         "rate_median_hz": round(float(np.median([r["rate_median"] for r in reports])), 1) if reports else None,
@@ -598,8 +612,11 @@ def scenario_load(args, run: Run) -> dict:
         "gateway_timeouts": stats.get("timeouts", 0),
         "swarm_heartbeat_gap_max_s": max((r.get("sweep_gap_max_s", 0.0) for r in reports), default=0.0),
     }
-    sends = sum(v for k, v in stats.items() if k.endswith("_sent"))
-    if gateway_cpu and sends:
+    sends = sum(v for k, v in stats.items() if k.endswith("_sent") or k.endswith("_published"))
+    if gateway_cpu and stats.get("snapshots_published"):
+        # the feed: the gateway's whole CPU per snapshot it published (the session traffic included)
+        result["counts"]["gateway_cpu_us_per_snapshot"] = round(1e6 * gateway_cpu / stats["snapshots_published"], 1)
+    elif gateway_cpu and sends:
         # the fan-out's own ceiling: one gateway process on one core sends this many snapshots a
         # second to each of n sessions (its CPU per message sent, heartbeats and polls included)
         per_send_us = 1e6 * gateway_cpu / sends
@@ -616,6 +633,8 @@ def scenario_load(args, run: Run) -> dict:
             "out for those slots, so the per-client rate is below the snapshot rate")
     result["lost_points"] = result["counts"]["score_regressions"] + result["counts"]["tick_regressions"]
     _check(result, welcomed == n, f"{n - welcomed} spectators not welcomed")
+    if fanout == "pub":
+        _check(result, on_feed == welcomed, f"{welcomed - on_feed} of {welcomed} spectators not on the feed")
     _check(result, goodbyes == welcomed, f"{welcomed - goodbyes} spectators without the match_over goodbye")
     _check(result, end.get("end") == "match_over", f"server ended {end.get('end')}")
     _check(result, result["counts"]["invalid_snapshots"] == 0, "snapshots failed validation")
@@ -902,13 +921,15 @@ def scenario_malformed(args, run: Run) -> dict:
                         "legit_inputs": legit_report["inputs"], "gateway_inputs_accepted": stats.get("inputs_accepted"),
                         "mismatched_counters": mismatched, "unexpected_counters": extra,
                         "synced": f"{report['synced_sockets']}/{report['sockets']} sockets, "
-                                  f"{report['sessions_synced']}/2 sessions"}
+                                  f"{report['sessions_synced']}/2 sessions",
+                        "unsynced": report.get("unsynced", []),
+                        "late_replies_at_sync": report.get("late_replies_at_sync", {})}
     result["rss_growth_pct"] = round(100.0 * (rss1 - rss0) / rss0, 2) if rss0 and rss1 else None
     result["lost_points"] = legit_report["regressions"]["score"] + legit_report["regressions"]["tick"]
     _check(result, end.get("end") == "match_over", f"server ended {end.get('end')} (no gateway counters)")
     _check(result, report["sent_total"] == n, f"{n - report['sent_total']} of {n} messages not sent")
     _check(result, report["synced_sockets"] == report["sockets"] and report["sessions_synced"] == 2,
-           f"round trips: {result['counts']['synced']}")
+           f"round trips: {result['counts']['synced']} (unsynced: {result['counts']['unsynced']})")
     _check(result, not mismatched, f"gateway counters differ from the sender's (expected, counted): {mismatched}")
     _check(result, not extra, f"gateway counted drops nobody sent: {extra}")
     _check(result, legit_report["goodbyes"] == {"match_over": 5}, f"legit clients ended {legit_report['goodbyes']}")
@@ -958,9 +979,11 @@ def _summary(result: dict) -> str:
     c = result["counts"]
     name = result["scenario"]
     if name == "load":
-        return (f"{c.get('welcomed')}/{c.get('spectators')} spectators at {c.get('snapshot_hz')} Hz, rate median "
+        return (f"{c.get('welcomed')}/{c.get('spectators')} spectators at {c.get('snapshot_hz')} Hz "
+                f"({c.get('fanout')} fan-out, {c.get('on_feed')} on the feed), rate median "
                 f"{c.get('rate_median_hz')} min {c.get('rate_min_hz')} Hz, missed {c.get('snapshots_missed')} "
-                f"(gateway dropped {c.get('gateway_snapshots_dropped')}), {c.get('points')} points")
+                f"(feed gaps {c.get('feed_missed')}, gateway dropped {c.get('gateway_snapshots_dropped')}), "
+                f"{c.get('points')} points")
     if name == "churn":
         return (f"{c.get('cycles')} cycles in {c.get('seconds')} s ({c.get('cycles_per_s')}/s), "
                 f"{c.get('left_abrupt', 0)} without goodbye; fill after: {c.get('fill_welcomed')} welcomed, "
@@ -1001,6 +1024,9 @@ def print_table(results: list[dict]) -> None:
         if r.get("cpu_pct"):
             console.print(f"[bold]{r['scenario']}[/] CPU % of one core: " +
                           ", ".join(f"{k} {v}" for k, v in r["cpu_pct"].items()))
+        if r.get("cpu_pct_by_side"):
+            console.print(f"[bold]{r['scenario']}[/] CPU % of one core by side: " +
+                          ", ".join(f"{k} {v}" for k, v in r["cpu_pct_by_side"].items()))
         for problem in r["problems"]:
             console.print(f"[red]{r['scenario']}: {problem}[/]")
         for finding in r.get("findings", []):

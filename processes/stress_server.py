@@ -5,6 +5,8 @@ Run as `python -m processes.stress_server SPEC_JSON` by processes/stress.py. It 
   {"listening": endpoint, "run_id", "pids": {kind: pid}, "server_pid"}    once every worker is ready
   {"pids": {...}, "restarts": {...}, "tick": n}                            for each "pids" line on stdin
   {"end": "match_over"|"stopped", "summary": {...}, "gateway": {...}, "points": [...], "final": {...}}
+("gateway": its counters, from the supervisor at a match's end, else from the file the gateway
+writes when it stops, SPEC "gateway_stats").
 It writes the tick log (SPEC "tick_log", .npz) at exit.
 
 Why a tick clock: the wire's snapshot carries the tick, not a timestamp. In realtime mode the
@@ -145,7 +147,8 @@ def main(argv: list[str]) -> int:
         scene = replace(scene, match=replace(scene.match, best_of=spec["best_of"]))
     config = GatewayConfig(bind="tcp://127.0.0.1:0", snapshot_hz=spec["snapshot_hz"], heartbeat_s=spec["heartbeat_s"],
                            timeout_s=spec["timeout_s"], grace_s=spec["grace_s"], max_spectators=spec["max_spectators"],
-                           sndhwm=spec.get("sndhwm", GatewayConfig.sndhwm))
+                           sndhwm=spec.get("sndhwm", GatewayConfig.sndhwm), feed=spec.get("feed", True),
+                           stats_path=spec.get("gateway_stats", ""))
     supervisor = Supervisor(scene, spec["ticks"], "realtime", seed=spec.get("seed", 0), gateway=config,
                             players_timeout=spec.get("players_timeout", 300.0))
     clock: list[TickClock] = []
@@ -158,7 +161,8 @@ def main(argv: list[str]) -> int:
     def ready(reports: dict) -> None:
         clock.append(TickClock(supervisor.arena.layout(), list(supervisor.kinds)))
         clock[0].start()
-        _print({"listening": reports["gateway"]["endpoint"], "run_id": supervisor.arena.run_id,
+        _print({"listening": reports["gateway"]["endpoint"], "feed": reports["gateway"].get("feed", ""),
+                "run_id": supervisor.arena.run_id,
                 "pids": clock[0].pids_now(), "dt": scene.dt, "rlimit_nofile": resource.getrlimit(resource.RLIMIT_NOFILE)})
         threading.Thread(target=commands, name="commands", daemon=True).start()
 
@@ -172,6 +176,14 @@ def main(argv: list[str]) -> int:
                    "workers": {k: {n: v for n, v in w.items() if n != "gateway"} for k, w in workers.items()}}
     except (SystemExit, KeyboardInterrupt):
         end = "stopped"
+    if not gateway and spec.get("gateway_stats"):
+        # stopped: the supervisor never reads a stopped worker's last report, so the counters come
+        # from the file the gateway writes at its end (and every second before it)
+        try:
+            with open(spec["gateway_stats"]) as f:
+                gateway = json.load(f)
+        except (OSError, ValueError):
+            gateway = {}
     tail = clock[0].finish(spec.get("tick_log")) if clock else {"final": {}, "points": []}
     _print({"end": end, "summary": summary, "gateway": gateway, **tail})
     return 0

@@ -7,8 +7,10 @@ Run as `python -m processes.stress_swarm SPEC_JSON`; prints JSON lines on stdout
 - watch: N spectators and M players (players send a zero force at input_hz: an arm at rest) take
   every message; per snapshot the receipt time (CLOCK_MONOTONIC) and tick go to SPEC "record"
   (.npz) for the latency; per client the snapshots, the messages missed (gaps in the server's
-  sequence numbers: the gateway numbers every message it tries to send a session, so a gap is a
-  message dropped at the high-water mark), score or tick regressions, goodbyes. With "rejoin"
+  sequence numbers: the gateway numbers every message it tries to send a session, and its feed
+  numbers every message it publishes, so a gap is a message dropped at the high-water mark),
+  score or tick regressions, goodbyes. A spectator subscribes to the feed its welcome names
+  (its snapshots and events come there, heartbeats and goodbye on the session). With "rejoin"
   a client silent for silence_s says hello again (a restarted gateway lost its sessions).
 - churn: join and leave in a loop, `concurrency` sessions in flight: players claim and free
   seats, spectators come and go, a fraction leaves without goodbye (socket closed, linger 0).
@@ -16,7 +18,12 @@ Run as `python -m processes.stress_swarm SPEC_JSON`; prints JSON lines on stdout
   gateway counter computed here with wire.decode on the same bytes), plus a player session
   sending the other player's bat and replayed inputs and a spectator session sending inputs
   (each kicked after MAX_BAD and joining again), and oversized frames (libzmq drops the
-  connection). Every socket ends with a round trip, so everything before it was handled.
+  connection). Every socket ends with a round trip, so everything before it was handled: a
+  spectator's hello and its welcome (only the welcome counts: a reject that comes then answers a
+  flood message, e.g. "full" for one of the valid player hellos in the mix, which a loaded
+  gateway answered after the flood's last drain). The oversized frames' round trip is on a new
+  connection: libzmq drops the connection that carried a frame beyond MAXMSGSIZE, and with it
+  whatever followed that frame on it (a hello sent behind the last one is lost).
 
 Snapshots are parsed by their header and score bytes on the hot path (fixed offsets of
 wire.Snapshot); one in `validate_every` is decoded in full and every other message always is.
@@ -77,8 +84,12 @@ class _Watcher:
         self.welcomed = False
         self.snapshots = 0
         self.first = self.last = 0.0
+        self.last_snapshot = 0.0
         self.last_seq = 0
         self.missed = 0
+        self.feed = None  # the client's feed socket as registered with the poller
+        self.feed_seq = 0
+        self.feed_missed = 0
         self.seq_resets = 0
         self.last_tick = -1
         self.last_score = (-1, -1)
@@ -93,7 +104,7 @@ class _Watcher:
 def watch(spec: dict) -> dict:
     n_spec, n_play = spec.get("spectators", 0), spec.get("players", 0)
     fds_before = fd_count()
-    zctx = _context(n_spec + n_play)
+    zctx = _context(2 * n_spec + n_play)  # a spectator has two sockets: its session and its feed
     watchers = [_Watcher(Client(spec["address"], "spectator", f"{spec.get('name', 'w')}{i}", zctx=zctx), "spectator")
                 for i in range(n_spec)]
     watchers += [_Watcher(Client(spec["address"], "player", f"{spec.get('name', 'w')}p{i}", zctx=zctx), "player")
@@ -142,6 +153,7 @@ def watch(spec: dict) -> dict:
         for sock, _ in poller.poll(20):
             w = by_sock[sock]
             client = w.client
+            on_feed = sock is w.feed
             for _ in range(64):
                 try:
                     data = sock.recv(zmq.NOBLOCK)
@@ -150,7 +162,12 @@ def watch(spec: dict) -> dict:
                 t = time.monotonic()
                 if len(data) == wire.SIZES[Kind.SNAPSHOT] and data[6] == Kind.SNAPSHOT and data[:4] == wire.MAGIC:
                     _, _, _, _, seq, tick = HEADER.unpack_from(data)
+                    if on_feed:
+                        if w.feed_seq and seq > w.feed_seq:
+                            w.feed_missed += seq - w.feed_seq - 1
+                        w.feed_seq = seq
                     w.snapshots += 1
+                    w.last_snapshot = t
                     if w.snapshots == 1:
                         w.first = t  # the rate is taken between the first and the last snapshot
                     if validate_every and w.snapshots % validate_every == 0:
@@ -166,6 +183,8 @@ def watch(spec: dict) -> dict:
                         regressions["tick"] += 1
                     w.last_score, w.last_tick = score, tick
                     client.tick = max(client.tick, tick)
+                    if on_feed:
+                        continue  # the feed's seqs are its own stream, not the session's
                 else:
                     message = client.drops.decode(data)
                     if message is None:
@@ -173,6 +192,15 @@ def watch(spec: dict) -> dict:
                         continue
                     seq = message.seq
                     kinds[message.kind.name.lower()] += 1
+                    if on_feed:
+                        if message.kind not in (Kind.SNAPSHOT, Kind.EVENT):
+                            bad["not_on_feed"] += 1
+                            continue
+                        if w.feed_seq and seq > w.feed_seq:
+                            w.feed_missed += seq - w.feed_seq - 1
+                        w.feed_seq = seq
+                        events += message.kind == Kind.EVENT
+                        continue
                     if message.kind in (Kind.WELCOME, Kind.REJECT):
                         try:
                             client.accept(message)
@@ -187,6 +215,14 @@ def watch(spec: dict) -> dict:
                         w.welcomed = True
                         w.last_seq = seq
                         w.last = t
+                        if client.feed is not w.feed:  # subscribed (or, after a restart, to a new port)
+                            if w.feed is not None:
+                                poller.unregister(w.feed)
+                                by_sock.pop(w.feed, None)
+                            w.feed, w.feed_seq = client.feed, 0
+                            if w.feed is not None:
+                                poller.register(w.feed, zmq.POLLIN)
+                                by_sock[w.feed] = w
                         continue
                     if message.kind == Kind.GOODBYE:
                         w.goodbye = message["reason"].name.lower()
@@ -234,10 +270,14 @@ def watch(spec: dict) -> dict:
     fds_after = fd_count()
     if spec.get("record"):
         np.savez(spec["record"], ticks=np.frombuffer(ticks, np.int64), times=np.frombuffer(times, np.float64))
-    rates = [w.snapshots / (w.last - w.first) for w in watchers if w.snapshots > 1 and w.last > w.first]
+    rates = [(w.snapshots - 1) / (w.last_snapshot - w.first) for w in watchers
+             if w.snapshots > 1 and w.last_snapshot > w.first]
     return {"clients": len(watchers), "welcomed": sum(w.welcomed for w in watchers), "rejected": dict(rejected),
             "snapshots": sum(w.snapshots for w in watchers), "missed": sum(w.missed for w in watchers),
             "missed_max": max((w.missed for w in watchers), default=0),
+            "feed_missed": sum(w.feed_missed for w in watchers),
+            "feed_missed_max": max((w.feed_missed for w in watchers), default=0),
+            "on_feed": sum(w.feed is not None for w in watchers),
             "seq_resets": sum(w.seq_resets for w in watchers), "rejoined": sum(w.rejoined for w in watchers),
             "hellos": sum(w.hellos for w in watchers), "inputs": sum(w.inputs for w in watchers),
             "goodbyes": dict(Counter(w.goodbye for w in watchers if w.goodbye)),
@@ -409,7 +449,7 @@ def _bad(cls: str, rng: random.Random, replays: list) -> list[bytes]:
     if cls == "bad_magic":
         return [rng.randbytes(4) + _valid(rng)[4:]]
     if cls == "wrong_version":
-        return [_patched(_valid(rng), 4, struct.pack("<H", rng.choice([0, 2, 3, 255, 65535])))]
+        return [_patched(_valid(rng), 4, struct.pack("<H", rng.choice([0, 1, 3, 255, 65535])))]
     if cls == "wrong_type":
         return [_patched(_valid(rng), 6, bytes([rng.choice([0, *range(9, 256)])]))]
     if cls == "bad_flags":
@@ -592,35 +632,46 @@ def malformed(spec: dict) -> dict:
             if left > 0:
                 sockets[0].poll(int(left * 1000) + 1, zmq.POLLIN)
     # round trips: a hello on each sessionless socket; its welcome means everything before was handled
+    oversized.close(linger=0)  # what followed an oversized frame on its connection is lost: a new one
+    after_oversized = zctx.socket(zmq.DEALER)
+    after_oversized.setsockopt(zmq.LINGER, 0)
+    after_oversized.connect(spec["address"])
     synced = 0
-    for sock in sockets + [oversized]:
+    unsynced = []
+    replies_at_sync: Counter[str] = Counter()
+    for i, sock in enumerate(sockets + [after_oversized]):
         sock.send(wire.encode(Kind.HELLO, role=Role.SPECTATOR, slot=Slot.NONE, name="sync", token=NO_TOKEN))
         expected["hello"] += 1
         deadline = time.monotonic() + 10.0
-        got = None
-        while got is None and time.monotonic() < deadline:
+        welcomed = False
+        while not welcomed and time.monotonic() < deadline:
             if sock.poll(100, zmq.POLLIN):
                 for data in _drain(sock):
                     try:
                         message = wire.decode(data)
                     except wire.WireError:
                         continue
-                    if message.kind == Kind.WELCOME or (message.kind == Kind.REJECT
-                                                        and message["reason"] != RejectReason.VERSION):
-                        got = message  # (the replies to the wrong versions sent before are rejects too)
-        if got is not None and got.kind == Kind.WELCOME:
+                    if message.kind == Kind.WELCOME:
+                        welcomed = True
+                    else:  # late answers to the flood: rejects of wrong versions and of player hellos
+                        reason = message.fields.get("reason")
+                        replies_at_sync[f"{message.kind.name.lower()}.{getattr(reason, 'name', reason)}".lower()] += 1
+        if welcomed:
             synced += 1
             sock.send(wire.encode(Kind.GOODBYE, seq=2, reason=GoodbyeReason.QUIT))
+        else:
+            unsynced.append("after_oversized" if sock is after_oversized else f"sessionless{i}")
     sessions_synced = sum(s.sync() for s in (player, watcher) if s.ok)
     for s in (player, watcher):
         s.client.sock.setsockopt(zmq.LINGER, 1000)
         s.client.leave()
         s.client.close()
-    for sock in sockets + [oversized]:
+    for sock in sockets + [after_oversized]:
         sock.close(linger=1000)
     zctx.term()
     return {"sent": dict(sent), "sent_total": sum(sent.values()), "expected": dict(expected),
-            "counts": dict(counts), "synced_sockets": synced, "sockets": len(sockets) + 1,
+            "counts": dict(counts), "synced_sockets": synced, "sockets": len(sockets) + 1, "unsynced": unsynced,
+            "late_replies_at_sync": dict(replies_at_sync),
             "sessions_synced": sessions_synced, "replies": replies, "seconds": time.monotonic() - started,
             "fds_before": fds_before, "fds_after": fd_count()}
 

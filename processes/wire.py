@@ -6,10 +6,11 @@ message type. Every message starts with the same 24-byte header:
 
     off  size  field    type  unit / meaning
       0     4  magic    S4    b"PPNG", the same in every version
-      4     2  version  <u2   PROTOCOL_VERSION (1); with magic, frozen for all versions
+      4     2  version  <u2   PROTOCOL_VERSION (2); with magic, frozen for all versions
       6     1  kind     u1    Kind: 1 hello ... 8 goodbye
-      7     1  flags    u1    no bits defined in version 1: a set bit is refused (bad_flags)
-      8     8  seq      <u8   sender's sequence number, +1 per message it sends
+      7     1  flags    u1    no bits defined in version 2: a set bit is refused (bad_flags)
+      8     8  seq      <u8   sender's sequence number, +1 per message it sends on that stream
+                              (a session; the gateway's spectator feed numbers its own stream)
      16     8  tick     <i8   physics tick the message refers to, >= 0 (see each message)
 
 Text fields (names, scene, detail) are UTF-8, NUL-padded to their fixed size: the text ends at
@@ -19,6 +20,12 @@ Tokens are raw bytes. Enums are one byte each; a value that names no member is r
 
 The first 6 bytes (magic, version) never change, so a peer of another version is recognised as
 such (BadVersion carries the version it saw) instead of being misread.
+
+Versions: 1, the first, sent every message on the session. 2 adds welcome.feed_port (the welcome
+grows from 156 to 158 bytes): a spectator takes snapshots and events from the gateway's PUB
+socket (the feed) instead of its session, so the gateway encodes and sends each one once
+whatever the number of spectators. The layout changed, so the version did: a version-1 client
+is told "version" by the gateway instead of failing on a welcome of a size it does not know.
 
 `decode(buf)` validates everything before any field is used (size exactly right for the type,
 magic, version, type, flags, finite numbers, ranges, unit quaternions, enums, text) and returns
@@ -47,7 +54,7 @@ import numpy as np
 from engine.rules import REASONS, Phase, Reason
 
 MAGIC = b"PPNG"
-PROTOCOL_VERSION = 1
+PROTOCOL_VERSION = 2  # 2: welcome.feed_port (the spectator feed); see the module docstring
 
 # Ranges: generous for real play, tight enough that a corrupted or hostile value is refused.
 MAX_FORCE_N = 500.0  # |force| of an input; the AI arm's own limit is 50..120 N (engine/ai.py SKILLS)
@@ -237,7 +244,7 @@ class Welcome(_Spec):
 
     Header tick: the server's current tick.
 
-    Layout, 156 bytes:
+    Layout, 158 bytes:
         off  size  field         type    unit / meaning
           0    24  header                HEADER_DTYPE
          24     1  slot          u1      Slot given: 0 spectator, 1 A, 2 B
@@ -250,12 +257,18 @@ class Welcome(_Spec):
          60    32  scene         u1[32]  scene name, UTF-8, NUL-padded, non-empty
          92    32  name_a        u1[32]  player A's name, UTF-8, empty while the seat is free
         124    32  name_b        u1[32]  player B's name, UTF-8, empty while the seat is free
+        156     2  feed_port     <u2     a spectator's feed: the TCP port, on the host of the session's
+                                         endpoint, of the gateway's PUB socket that carries every
+                                         snapshot and event (subscribe to all; its own seq stream,
+                                         so a gap is a message dropped at the high-water mark), and
+                                         none come on the session; 0: none, they come on the
+                                         session (always for a player)
     """
 
     kind = Kind.WELCOME
     body = [("slot", "u1"), ("best_of", "u1"), ("snapshot_hz", "<u2"), ("heartbeat_ms", "<u4"),
             ("timeout_ms", "<u4"), ("dt", "<f8"), ("token", "u1", (TOKEN_SIZE,)), ("scene", "u1", (NAME_SIZE,)),
-            ("name_a", "u1", (NAME_SIZE,)), ("name_b", "u1", (NAME_SIZE,))]
+            ("name_a", "u1", (NAME_SIZE,)), ("name_b", "u1", (NAME_SIZE,)), ("feed_port", "<u2")]
     text = {"scene": False, "name_a": True, "name_b": True}
     tokens = ("token",)
     enums = {"slot": Slot}
@@ -273,6 +286,8 @@ class Welcome(_Spec):
             raise OutOfRange(f"welcome.dt: must be in (0, {MAX_DT_S}] s, got {dt!r}")
         if bool(rec["token"].any()) != (rec["slot"] != Slot.NONE):
             raise OutOfRange("welcome.token: a player gets a non-zero token, a spectator none")
+        if rec["feed_port"] and rec["slot"] != Slot.NONE:
+            raise OutOfRange("welcome.feed_port: a player's snapshots come on its session, its feed_port is 0")
 
 
 class Reject(_Spec):
@@ -337,6 +352,9 @@ class Input(_Spec):
 class Snapshot(_Spec):
     """snapshot, server -> every client: the authoritative state at one tick (header tick).
 
+    A player gets it on its session; a spectator on the feed (welcome.feed_port), where header
+    seq is the feed's own: the same bytes go to every spectator.
+
     Ball and bats as the physics worker has them (float64, lossless), the referee's score.
 
     Layout, 334 bytes:
@@ -386,6 +404,8 @@ class Snapshot(_Spec):
 
 class Event(_Spec):
     """event, server -> every client: a rally, a game or the match was decided at header tick.
+
+    On a player's session; on the feed for spectators (as snapshots are).
 
     Layout, 40 bytes:
         off  size  field      type    unit / meaning

@@ -76,6 +76,8 @@ class Rig:
 
     def step(self, serve=False):
         self.gateway.poll(2)
+        if serve:  # a snapshot per step: a feed subscriber that is still connecting misses the first ones
+            self.clock.now += 1.0 / self.gateway.config.snapshot_hz
         self.gateway.service(self.record if serve else None)
 
     def until(self, client, predicate, serve=False):
@@ -327,19 +329,95 @@ def test_malformed_messages_are_dropped_counted_and_never_fatal(rig):
     r.settle(lambda: r.gateway.counts["inputs_accepted"] == 1)
     version = r.client()
     version.send_raw(bytes(bytearray(wire.encode(Kind.HELLO, role=Role.PLAYER, slot=Slot.NONE, name="old",
-                                                 token=bytes(16)))[:4]) + (2).to_bytes(2, "little")
+                                                 token=bytes(16)))[:4]) + (1).to_bytes(2, "little")
                      + wire.encode(Kind.HELLO, role=Role.PLAYER, slot=Slot.NONE, name="old", token=bytes(16))[6:])
     reject = r.until(version, lambda m: m.kind == Kind.REJECT)
     assert reject["reason"] == RejectReason.VERSION
 
 
+def _first_snapshot(r, client, tick):
+    """Serve ticks from `tick` on until `client` gets a snapshot (its feed subscription is live);
+    returns the next tick to serve."""
+    for _ in range(ROUNDS):
+        r.record["world"]["tick"] = tick
+        r.clock.now += 0.002
+        r.gateway.service(r.record)
+        tick += 1
+        message = client.recv(10)
+        if message is not None and message.kind == Kind.SNAPSHOT:
+            return tick
+    raise AssertionError("no snapshot on the feed within the bound")
+
+
+@pytest.mark.timeout(60)
+def test_a_slow_spectator_loses_feed_snapshots_countably_not_the_match(rig):
+    # The feed's policy: a subscriber whose queue holds SNDHWM messages (beyond the kernel's
+    # buffers) loses the newest ones, nobody else does; the gaps in the feed's seqs count them.
+    r = rig(sndhwm=64, sndbuf=4096, timeout_s=60.0)  # the clock runs 4 s with nobody heartbeating
+    fast = r.client(role="spectator")
+    slow = r.client(role="spectator", socket_options={zmq.RCVHWM: 1, zmq.RCVBUF: 4096})
+    for client in (fast, slow):
+        assert r.join(client)["feed_port"] == r.gateway.feed_port > 0
+        assert client.feed is not None
+    tick = _first_snapshot(r, slow, 1)
+    tick = _first_snapshot(r, fast, tick)
+    while fast.recv(50) is not None:  # what the fast one had queued so far
+        pass
+    first, received, seqs = tick, 0, []
+    for tick in range(first, first + 2000):  # the slow one does not read; the fast one keeps up
+        r.record["world"]["tick"] = tick
+        r.clock.now += 0.002
+        r.gateway.service(r.record)
+        for _ in range(50):
+            message = fast.recv(100)
+            if message is not None and message.kind == Kind.SNAPSHOT:
+                received += 1
+                if message.tick == tick:
+                    break
+    assert received == 2000 and fast.feed_missed == 0  # the fast one got every snapshot
+    for _ in range(2000):  # the slow one reads again: what was queued for it (bounded)
+        message = slow.recv(200)
+        if message is None:
+            break
+        if message.kind == Kind.SNAPSHOT:  # (its session's heartbeats are another stream)
+            seqs.append(message.seq)
+    r.record["world"]["tick"] = tick + 1  # one more snapshot: its seq shows the slow one the gap
+    r.clock.now += 0.002
+    r.gateway.service(r.record)
+    last = r.until(slow, lambda m: m.kind == Kind.SNAPSHOT and m.tick == tick + 1)
+    assert slow.feed_missed > 1000  # most of the 2000 were dropped for the slow one
+    assert len(seqs) + 1 + slow.feed_missed == last.seq - seqs[0] + 1  # each one received or counted missing
+    assert len(r.gateway.sessions) == 2 and r.gateway.counts["timeouts"] == 0  # nobody lost the match
+    assert r.gateway.counts["snapshots_sent"] == 0  # one publish a tick, no send per spectator
+
+
 @pytest.mark.timeout(30)
-def test_a_slow_spectator_loses_snapshots_not_the_match(rig):
+def test_a_vanished_feed_spectator_is_timed_out_on_its_session_and_counted(rig):
+    r = rig(heartbeat_s=1.0, timeout_s=5.0)
+    gone, stays = r.client(role="spectator", name="gone"), r.client(role="spectator", name="stays")
+    for client in (gone, stays):
+        r.join(client)
+        r.until(client, lambda m: m.kind == Kind.SNAPSHOT, serve=True)  # watching on the feed
+    gone.close()  # vanishes: no goodbye, its feed and session connections just go
+    for _ in range(6):  # 6 s of the gateway's clock: only the one that heartbeats stays
+        r.clock.now += 1.0
+        stays.send(Kind.HEARTBEAT, ack=stays.max_seq_in)
+        r.until(stays, lambda m: m.kind == Kind.HEARTBEAT)
+    stats = r.gateway.stats()
+    assert stats["timeouts"] == 1 and stats["spectators"] == 1 and stats["spectators_joined"] == 2
+    assert [s.name for s in r.gateway.sessions.values()] == ["stays"]
+    r.clients.remove(gone)
+
+
+@pytest.mark.timeout(30)
+def test_a_slow_spectator_loses_snapshots_not_the_match_without_a_feed(rig):
+    # The fan-out of protocol 1 (GatewayConfig.feed=False): one send per session, drops counted
+    # per session by the gateway.
     # A pipe's writer learns of reads only in credit batches of about hwm/2 messages, sent by the
     # reader's I/O thread; with hwm 4 a loaded machine let a fast reader look full for one tick
     # (CI, 2026-11-23). At 64 the credit lag of a reader that keeps up is far below the mark,
     # while the slow reader, which never reads again, still fills it within a few hundred ticks.
-    r = rig(sndhwm=64, sndbuf=4096)
+    r = rig(sndhwm=64, sndbuf=4096, feed=False)
     fast = r.client(role="spectator")
     slow = r.client(role="spectator", socket_options={zmq.RCVHWM: 1, zmq.RCVBUF: 4096})
     r.join(fast)
@@ -682,7 +760,7 @@ def _unanswered(r, client, rounds=40):
 
 
 @pytest.mark.timeout(30)
-def test_a_curve_session_works_and_a_client_without_the_server_key_cannot_join(rig, tmp_path):
+def test_a_curve_session_works_and_a_client_without_the_server_key_cannot_join(rig, zctx, tmp_path):
     import zmq.auth
 
     from processes.cli import main
@@ -704,6 +782,18 @@ def test_a_curve_session_works_and_a_client_without_the_server_key_cannot_join(r
     assert _unanswered(r, plain)
     assert len(r.gateway.sessions) == 1
     assert r.gateway.stats()["players_joined"] == 1
+    # the feed is a CURVE server too: a spectator with the key watches there, a SUB without it gets nothing
+    watcher = r.client(role="spectator", name="sam", socket_options=curve_client_options(str(public_file)))
+    assert r.join(watcher)["feed_port"] == r.gateway.feed_port > 0
+    snapshot = r.until(watcher, lambda m: m.kind == Kind.SNAPSHOT, serve=True)
+    assert watcher.feed_seq == snapshot.seq > 0  # it came on the feed
+    eavesdropper = zctx.socket(zmq.SUB)
+    eavesdropper.setsockopt(zmq.SUBSCRIBE, b"")
+    eavesdropper.connect(r.gateway.feed_endpoint)
+    for _ in range(40):
+        r.step(serve=True)
+        assert not eavesdropper.poll(10, zmq.POLLIN)
+    assert r.until(watcher, lambda m: m.kind == Kind.SNAPSHOT, serve=True).seq > snapshot.seq  # still served
     with pytest.raises(ValueError, match="no secret key"):
         load_curve_key(str(public_file), secret=True)
     with pytest.raises(ValueError, match="not a ZeroMQ certificate"):

@@ -34,6 +34,8 @@ def test_load_every_spectator_watches_the_whole_match_and_is_told_it_ended():
     _clean(result)
     c = result["counts"]
     assert c["welcomed"] == 50 and c["goodbye_match_over"] == 50
+    assert c["fanout"] == "pub" and c["on_feed"] == 50  # every spectator watched on the feed
+    assert c["gateway_snapshots_published"] > 0 and c["gateway_snapshots_sent"] < c["gateway_snapshots_published"] * 3
     assert c["snapshots_received"] > 50 and c["invalid_snapshots"] == 0
     assert c["score_regressions"] == 0 and c["tick_regressions"] == 0
     # a bot reading behind may miss the goodbye (the gateway closes with linger 0; reported as a finding)

@@ -22,14 +22,17 @@ TIMEOUT = 60  # s, for each subprocess
 TOKEN = bytes(range(0xA0, 0xB0))
 R = math.sqrt(0.5)  # a 90-degree turn about y: (R, 0, +-R, 0), norm 1 to the last bit or two
 
-# Ten predefined messages: fixed field values and their exact bytes. The hex is frozen on purpose
+# Eleven predefined messages: fixed field values and their exact bytes. The hex is frozen on purpose
 # (computed once, pasted here): a change of layout, order, size or byte order fails this test.
 GOLDEN_FIELDS = {
     "hello_player": (Kind.HELLO, dict(seq=1, tick=0, role=Role.PLAYER, slot=Slot.NONE, name="Ada", token=bytes(16))),
     "hello_rejoin_b": (Kind.HELLO, dict(seq=7, tick=0, role=Role.PLAYER, slot=Slot.B, name="Zoë 卓球", token=TOKEN)),
     "welcome_a": (Kind.WELCOME, dict(seq=1, tick=1234, slot=Slot.A, best_of=5, snapshot_hz=60, heartbeat_ms=500,
                                      timeout_ms=3000, dt=0.001, token=TOKEN, scene="match", name_a="Ada",
-                                     name_b="AI (pro)")),
+                                     name_b="AI (pro)", feed_port=0)),
+    "welcome_spectator": (Kind.WELCOME, dict(seq=1, tick=1234, slot=Slot.NONE, best_of=5, snapshot_hz=120,
+                                             heartbeat_ms=500, timeout_ms=5000, dt=0.001, token=bytes(16),
+                                             scene="match", name_a="Ada", name_b="", feed_port=5556)),
     "reject_full": (Kind.REJECT, dict(seq=2, tick=99, reason=RejectReason.FULL, detail="both seats are taken")),
     "input_force": (Kind.INPUT, dict(seq=42, tick=2000, slot=Slot.A, mode=InputMode.FORCE, force=(12.5, -3.0, 9.81),
                                      torque=(0.0, 0.25, -1.5), target_pos=(0, 0, 0), target_quat=(0, 0, 0, 0))),
@@ -51,35 +54,41 @@ GOLDEN_FIELDS = {
 
 GOLDEN_HEX = {
     "hello_player": (
-        "50504e470100010001000000000000000000000000000000010041646100000000000000000000000000000000000000"
+        "50504e470200010001000000000000000000000000000000010041646100000000000000000000000000000000000000"
         "0000000000000000000000000000000000000000000000000000"
     ),
     "hello_rejoin_b": (
-        "50504e47010001000700000000000000000000000000000001025a6fc3ab20e58d93e790830000000000000000000000"
+        "50504e47020001000700000000000000000000000000000001025a6fc3ab20e58d93e790830000000000000000000000"
         "00000000000000000000a0a1a2a3a4a5a6a7a8a9aaabacadaeaf"
     ),
     "welcome_a": (
-        "50504e47010002000100000000000000d20400000000000001053c00f4010000b80b0000fca9f1d24d62503fa0a1a2a3"
+        "50504e47020002000100000000000000d20400000000000001053c00f4010000b80b0000fca9f1d24d62503fa0a1a2a3"
         "a4a5a6a7a8a9aaabacadaeaf6d6174636800000000000000000000000000000000000000000000000000000041646100"
         "000000000000000000000000000000000000000000000000000000004149202870726f29000000000000000000000000"
-        "000000000000000000000000"
+        "0000000000000000000000000000"
+    ),
+    "welcome_spectator": (
+        "50504e47020002000100000000000000d20400000000000000057800f401000088130000fca9f1d24d62503f00000000"
+        "0000000000000000000000006d6174636800000000000000000000000000000000000000000000000000000041646100"
+        "000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000"
+        "000000000000000000000000b415"
     ),
     "reject_full": (
-        "50504e47010003000200000000000000630000000000000001626f7468207365617473206172652074616b656e000000"
+        "50504e47020003000200000000000000630000000000000001626f7468207365617473206172652074616b656e000000"
         "0000000000000000000000000000000000000000000000000000000000000000000000000000000000"
     ),
     "input_force": (
-        "50504e47010004002a00000000000000d0070000000000000101000000000000294000000000000008c01f85eb51b89e"
+        "50504e47020004002a00000000000000d0070000000000000101000000000000294000000000000008c01f85eb51b89e"
         "23400000000000000000000000000000d03f000000000000f8bf00000000000000000000000000000000000000000000"
         "00000000000000000000000000000000000000000000000000000000000000000000"
     ),
     "input_target": (
-        "50504e47010004002b00000000000000da07000000000000020200000000000000000000000000000000000000000000"
+        "50504e47020004002b00000000000000da07000000000000020200000000000000000000000000000000000000000000"
         "00000000000000000000000000000000000000000000000000009a9999999999f93f9a9999999999c9bf333333333333"
         "c33fcd3b7f669ea0e63f0000000000000000cd3b7f669ea0e6bf0000000000000000"
     ),
     "snapshot": (
-        "50504e4701000500e8030000000000001b41000000000000000000000000e0bf000000000000c03f333333333333d33f"
+        "50504e4702000500e8030000000000001b41000000000000000000000000e0bf000000000000c03f333333333333d33f"
         "0000000000001840000000000000e0bf000000000000f43f00000000000000000000000000c062c00000000000003440"
         "9a9999999999f9bf9a9999999999b93f9a9999999999c93fcdccccccccccf83f333333333333d3bf000000000000d03f"
         "cd3b7f669ea0e63f0000000000000000cd3b7f669ea0e63f0000000000000000cd3b7f669ea0e63f0000000000000000"
@@ -88,17 +97,17 @@ GOLDEN_HEX = {
         "000000000000000000000000000000c02a00000000000000000000000000000011000000070009000102030100ff"
     ),
     "event_point": (
-        "50504e4701000600e90300000000000004420000000000000101040307000a000102060011000000"
+        "50504e4702000600e90300000000000004420000000000000101040307000a000102060011000000"
     ),
     "heartbeat": (
-        "50504e47010007004d000000000000006842000000000000e903000000000000"
+        "50504e47020007004d000000000000006842000000000000e903000000000000"
     ),
     "goodbye_shutdown": (
-        "50504e4701000800b004000000000000204e00000000000002"
+        "50504e4702000800b004000000000000204e00000000000002"
     ),
 }
 GOLDEN = {name: bytes.fromhex(text) for name, text in GOLDEN_HEX.items()}
-EXPECTED_SIZES = {Kind.HELLO: 74, Kind.WELCOME: 156, Kind.REJECT: 89, Kind.INPUT: 130, Kind.SNAPSHOT: 334,
+EXPECTED_SIZES = {Kind.HELLO: 74, Kind.WELCOME: 158, Kind.REJECT: 89, Kind.INPUT: 130, Kind.SNAPSHOT: 334,
                   Kind.EVENT: 40, Kind.HEARTBEAT: 32, Kind.GOODBYE: 25}
 
 
@@ -116,8 +125,8 @@ def _patched(golden, /, **changes):
 
 
 # --- layouts -----------------------------------------------------------------------------------------------
-def test_ten_golden_messages_cover_every_type():
-    assert len(GOLDEN) == 10
+def test_eleven_golden_messages_cover_every_type():
+    assert len(GOLDEN) == 11
     assert {kind for kind, _ in GOLDEN_FIELDS.values()} == set(Kind)
 
 
@@ -186,6 +195,10 @@ def test_spectator_welcome_and_match_event_round_trip():
     assert message["slot"] is Slot.NONE and message["token"] == bytes(16) and message["name_b"] == ""
     with pytest.raises(OutOfRange):
         encode(Kind.WELCOME, **{**spectator, "token": TOKEN})  # a spectator has nothing to rejoin
+    _, feed = GOLDEN_FIELDS["welcome_spectator"]
+    assert decode(GOLDEN["welcome_spectator"])["feed_port"] == 5556
+    with pytest.raises(OutOfRange, match="feed_port"):
+        encode(Kind.WELCOME, **{**welcome, "feed_port": 5556})  # a player's snapshots come on its session
     _, point = GOLDEN_FIELDS["event_point"]
     end = {**point, "event": EventKind.MATCH, "score": (9, 11), "games_won": (1, 3)}
     assert decode(encode(Kind.EVENT, **end))["event"] is EventKind.MATCH
@@ -227,7 +240,8 @@ BAD = {
     "two_messages_glued": (GOLDEN["heartbeat"] * 2, TooLong),
     "magic": (b"PPNH" + GOLDEN["heartbeat"][4:], BadMagic),
     "version_0": (_with_header("heartbeat", version=0), BadVersion),
-    "version_2": (_with_header("heartbeat", version=2), BadVersion),
+    "version_1": (_with_header("heartbeat", version=1), BadVersion),  # the first layout, before the feed
+    "version_3": (_with_header("heartbeat", version=3), BadVersion),
     "type_0": (_with_header("heartbeat", kind=0), UnknownType),
     "type_9": (_with_header("heartbeat", kind=9), UnknownType),
     "type_255": (_with_header("heartbeat", kind=255), UnknownType),
@@ -449,7 +463,7 @@ def test_printable_names_round_trip(name):
 def test_drop_counter_counts_by_reason():
     drops = DropCounter()
     assert drops.decode(GOLDEN["heartbeat"]).kind is Kind.HEARTBEAT
-    for case in ("empty", "body_cut_by_one", "one_byte_extra", "version_2", "type_9", "nan_force", "force_501_N",
+    for case in ("empty", "body_cut_by_one", "one_byte_extra", "version_1", "type_9", "nan_force", "force_501_N",
                  "torque_51_N_m"):
         assert drops.decode(BAD[case][0]) is None
     assert drops.by_reason == {"too_short": 2, "too_long": 1, "bad_version": 1, "unknown_type": 1,
