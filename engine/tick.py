@@ -19,6 +19,20 @@ STOP_SUPPORT = 3
 STOP_DEADLINE = 4
 STOP_WATCH = 5
 STOP_NET = 6  # engine.world: the cloth net was stepped this tick (a point where net and ball agree)
+# advance_ticks' own errors (engine.collision's ERR_* are -1..-3): a bat record not finite
+# before the run (nothing stepped), or become non-finite during it (engine.bat.bat_step keeps
+# finite records finite and inside the arm's limits; this catches a finite input so large that
+# the arithmetic overflows).
+ERR_BATS_BEFORE = -10
+ERR_BATS_AFTER = -11
+
+
+@njit(cache=True)
+def _all_finite(a):
+    for x in a.flat:
+        if x - x != 0.0:  # inf - inf and nan - nan are nan
+            return False
+    return True
 
 
 @njit(cache=True)
@@ -40,9 +54,26 @@ def advance_ticks(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, 
             neighbourhood, stepped tick by tick by the caller), or None.
 
     Returns:
-        (ticks done, events in the last tick, STOP_* reason, error code of ball_tick or 0).
-        On an error the failing tick is not counted and the ball keeps its state from before it.
+        (ticks done, events in the last tick, STOP_* reason, error code of ball_tick, ERR_BATS_*
+        or 0). On a ball_tick error the failing tick is not counted and the ball keeps its state
+        from before it; on ERR_BATS_BEFORE nothing was stepped.
     """
+    if bat_motion is not None and not _all_finite(bat_flat):
+        return 0, 0, STOP_LIMIT, ERR_BATS_BEFORE
+    ticks, n, reason, error = _advance(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_tmp, ball_y,
+                                       method, gravity, drag_k, magnus_k, rtol, atol, table, floor_z, net, posts,
+                                       params, materials, work, scratch, adapt, event_rows, gone_r2, gone_z,
+                                       deadline, watch)
+    if error == 0 and bat_motion is not None and not _all_finite(bat_flat):
+        return ticks, n, reason, ERR_BATS_AFTER
+    return ticks, n, reason, error
+
+
+@njit(cache=True)
+def _advance(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_tmp, ball_y, method, gravity, drag_k,
+             magnus_k, rtol, atol, table, floor_z, net, posts, params, materials, work, scratch, adapt, event_rows,
+             gone_r2, gone_z, deadline, watch):
+    """advance_ticks' loop, with its arguments and returns."""
     w = world[0]
     for k in range(n_max):
         if bat_motion is not None:

@@ -32,7 +32,7 @@ from engine.forces import drag_factor, magnus_factor
 from engine.geometry import FLOOR_Z, NET_BOX, POST_BOXES, TABLE_BOX, Body
 from engine.integrators import METHODS, WORK_SHAPE
 from engine.scene import Scene
-from engine.tick import STOP_EVENT, STOP_LIMIT, STOP_NET, STOP_WATCH, advance_ticks
+from engine.tick import ERR_BATS_AFTER, ERR_BATS_BEFORE, STOP_EVENT, STOP_LIMIT, STOP_NET, STOP_WATCH, advance_ticks
 from net_kernel import NO_CONTACT, NetSim, build_topology
 from net_kernel.sim import WAKE_MARGIN
 
@@ -225,11 +225,8 @@ _BAT_FIELDS = tuple((name, BAT_DTYPE.fields[name][1] // 8, BAT_DTYPE.fields[name
 
 def _check_bats(model: Model, state: State, when: str, verb: str, detail: str) -> None:
     """Raise SimulationError naming the first non-finite number of the bats' records (state,
-    force, torque), if any: called when their sum is not finite (as in _check_inputs, a sum is
-    finite exactly when every term is, unless finite terms overflow it)."""
+    force, torque): called when engine.tick.advance_ticks found one."""
     flat = state.bat_flat
-    if np.isfinite(flat).all():
-        return
     bat, column = np.argwhere(~np.isfinite(flat))[0]
     for name, start, size in _BAT_FIELDS:
         if start <= column < start + size:
@@ -280,25 +277,21 @@ def advance(model: Model, state: State, n_max: int, inputs: np.ndarray | None, e
         state.bat_flat[:, FORCE_AT:FORCE_AT + 3] = inputs[:, 0:3]
         state.bat_flat[:, TORQUE_AT:TORQUE_AT + 3] = inputs[:, 3:6]
     tick = int(state.world[0]["tick"])
-    if has_bats:
-        # The bats' records may be written around _check_inputs (a restored record, a worker's
-        # mailbox): refuse to step from a non-finite one, naming it, with the state untouched.
-        if not math.isfinite(float(state.bat_flat.sum())):  # one reduction; the precise check names it
-            _check_bats(model, state, f"tick {tick}", "is", "before the tick; nothing was stepped")
+    # The bats' records may be written around _check_inputs (a restored record, a worker's
+    # mailbox): the kernel refuses to step from a non-finite one (ERR_BATS_BEFORE, the state
+    # untouched) and checks them again after its run (ERR_BATS_AFTER); _check_bats names it.
     ticks, n, reason, error = advance_ticks(
         n_max, h, state.world, state.bat_flat if has_bats else None, model.bat_mass, model.bat_inertia,
         state.bat_motion if has_bats else None, state.bat_tmp, state.ball_y[0:9], model.method, model.gravity,
         model.drag_k, model.magnus_k, model.scene.rtol, model.scene.atol, model.table, model.floor_z, model.net,
         model.posts, model.ball_params, model.materials, state.work, state.scratch, state.adapt, state.event_rows,
         gone_radius * gone_radius, gone_z, deadline, watch)
-    if error:
+    if error == ERR_BATS_BEFORE:
+        _check_bats(model, state, f"tick {tick}", "is", "before the tick; nothing was stepped")
+    elif error == ERR_BATS_AFTER:
+        _check_bats(model, state, f"ticks {tick}..{tick + ticks}", "became", "during the kernel's run")
+    elif error:
         _raise(error, tick + ticks, model, state)
-    if has_bats:
-        # From finite records engine.bat.bat_step keeps the bats finite (and inside the arm's
-        # limits); this catches what its bounds cannot (a finite input so large that the
-        # arithmetic overflows).
-        if not math.isfinite(float(state.bat_flat.sum())):
-            _check_bats(model, state, f"ticks {tick}..{tick + ticks}", "became", "during the kernel's run")
     if n:
         _copy_events(state, events, n, int(state.world[0]["tick"]) - 1)
     return ticks, n, reason
