@@ -3,6 +3,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 from net_kernel.profile import parse_knots
 
 
@@ -29,3 +31,16 @@ def test_profile_net_text_and_bad_knots():
                          capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2 and "COLSxROWS" in bad.stderr
     assert parse_knots("184x16") == (184, 16)
+
+
+def test_tick_costs_small_net():
+    from net_kernel.profile import tick_costs
+
+    report = tick_costs(sizes=((20, 8),), ticks=2, repeats=1)
+    (row,) = report["rows"]
+    assert row["knots"] == 160 and row["substeps"] >= 1
+    for case in ("awake", "near", "impact"):
+        for sweep in ("full", "culled"):
+            assert row[f"{case}_{sweep}_us"] > 0
+    with pytest.raises(ValueError, match="clock"):
+        tick_costs(sizes=((20, 8),), ticks=1, repeats=1, clock="cpu")
