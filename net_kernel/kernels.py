@@ -937,3 +937,49 @@ def collide_ball_near(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, bal
     n_near = _gather_near(knot_pos, knot_vel, ball_pos[0], ball_pos[1], ball_pos[2], near_radius, dt, near)
     return _collide(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_radius, ball_inv_mass, knot_radius,
                     restitution, dt, max_hits, out_impulse, out_ball_pos, near, n_near, near_radius - NEAR_SLACK * touch)
+
+
+@njit(cache=True, fastmath=False, error_model="numpy")
+def step_grid_ball(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, grid_work, ball, ball_radius,
+                   ball_inv_mass, knot_radius, restitution, max_hits, near, out_impulse):
+    """A tick of a grid net with the ball near: n_steps times collide_ball_near over h, then one step_grid step.
+
+    NetSim's per-substep loop in one call (no Python between substeps), with its arithmetic: the
+    same bits as calling collide_ball_near and step_grid_serial(..., 1, ...) in turn and summing
+    in float64 as NetSim does. One thread (the grid kernels give the same bits on any number).
+
+    Args:
+        knot_state, knot_inv_mass, grid_params, gravity, drag, h, grid_work: as step_grid;
+            knot_inv_mass (rows, cols).
+        n_steps: substeps (>= 0).
+        ball: (4, 3) [position m, velocity m/s, scratch, scratch], the ball at the tick's start;
+            rows 0 and 1 are advanced in place to the tick's end along its path with the contacts.
+        ball_radius, ball_inv_mass, knot_radius, restitution, max_hits: as collide_ball.
+        near: (n_knots,) int64 scratch (collide_ball_near).
+        out_impulse: (3,) N s, written: the sum of the substeps' impulses on the ball.
+
+    Returns:
+        Fraction of the tick (n_steps h) at the first contact, or NO_CONTACT.
+    """
+    rows, cols = knot_state.shape[2], knot_state.shape[3]
+    n = rows * cols
+    knot_pos = knot_state[0].reshape(3, n).T  # (n_knots, 3) views, as NetSim's knot_pos / knot_vel
+    knot_vel = knot_state[1].reshape(3, n).T
+    flat_inv_mass = knot_inv_mass.reshape(n)
+    bp = ball[0]
+    bv = ball[1]
+    hit_impulse = ball[3]
+    out_impulse[:] = 0.0
+    toi = NO_CONTACT
+    for k in range(n_steps):
+        hit = collide_ball_near(knot_pos, knot_vel, flat_inv_mass, bp, bv, ball_radius, ball_inv_mass, knot_radius,
+                                restitution, h, max_hits, hit_impulse, ball[2], near)
+        if hit != NO_CONTACT:
+            if toi == NO_CONTACT:
+                toi = (k + hit) / n_steps
+            for c in range(3):
+                out_impulse[c] += hit_impulse[c]
+                bv[c] += hit_impulse[c] * ball_inv_mass
+        bp[:] = ball[2]
+        step_grid_serial(knot_state, knot_inv_mass, grid_params, gravity, drag, h, 1, grid_work)
+    return toi

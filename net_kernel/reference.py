@@ -269,3 +269,26 @@ def collide_ball_near(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, bal
         raise ValueError("collide_ball_near: near must hold one int64 per knot (shape (n_knots,))")
     return collide_ball(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_radius, ball_inv_mass, knot_radius,
                         restitution, dt, max_hits, out_impulse, out_ball_pos)
+
+
+def step_grid_ball(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, grid_work, ball, ball_radius,
+                   ball_inv_mass, knot_radius, restitution, max_hits, near, out_impulse):
+    """Numpy twin of kernels.step_grid_ball (args and in-place updates identical): collide_ball, then step_grid, n_steps times."""
+    rows, cols = knot_state.shape[2], knot_state.shape[3]
+    n = rows * cols
+    knot_pos = knot_state[0].reshape(3, n).T
+    knot_vel = knot_state[1].reshape(3, n).T
+    flat_inv_mass = knot_inv_mass.reshape(n)
+    out_impulse[:] = 0.0
+    toi = NO_CONTACT
+    for k in range(n_steps):
+        hit = collide_ball_near(knot_pos, knot_vel, flat_inv_mass, ball[0], ball[1], ball_radius, ball_inv_mass,
+                                knot_radius, restitution, h, max_hits, ball[3], ball[2], near)
+        if hit != NO_CONTACT:
+            if toi == NO_CONTACT:
+                toi = (k + hit) / n_steps
+            out_impulse += ball[3]
+            ball[1] += ball[3] * ball_inv_mass
+        ball[0] = ball[2]
+        step_grid(knot_state, knot_inv_mass, grid_params, gravity, drag, h, 1, grid_work)
+    return toi

@@ -115,3 +115,66 @@ def test_netsim_impact_with_the_cull_gives_the_full_sweeps_bits(speed):
     assert np.array_equal(balls[0][0], balls[1][0]) and np.array_equal(balls[0][1], balls[1][1])  # exact
     assert np.array_equal(sims[0].knot_pos, sims[1].knot_pos)  # exact
     assert np.array_equal(sims[0].knot_vel, sims[1].knot_vel)  # exact
+
+
+def _fused_run(topo, ticks, speed, mod=kernels):
+    """test_ball's straight ball from 5 cm, ticks stepped by step_grid_ball (far ticks: one step_grid call)."""
+    spec = topo.spec
+    rows, cols = spec.rows, spec.cols
+    sim = NetSim(topo, dt=DT)  # for its substeps, h and far test only
+    state = np.zeros((2, 3, rows, cols))
+    state[0] = topo.knot_pos.T.reshape(3, rows, cols)
+    work = np.zeros((1, kernels.GRID_WORK_ROWS, cols))
+    ball = np.zeros((4, 3))
+    near = np.zeros(topo.n_knots, dtype=np.int64)
+    impulse = np.zeros(3)
+    inv_mass = topo.knot_inv_mass.reshape(rows, cols)
+    pos, vel = np.array([-0.05, 0.0, 0.08]), np.array([speed, 0.0, 0.0])
+    tois = []
+    for _ in range(ticks):
+        if sim.ball_far(pos, vel, BALL_RADIUS):
+            mod.step_grid_serial(state, inv_mass, topo.grid_params, spec.gravity, spec.air_damping, sim.h,
+                                 sim.substeps, work)
+            tois.append(-1.0)
+            pos = pos + vel * DT
+            continue
+        ball[0], ball[1] = pos, vel
+        toi = mod.step_grid_ball(state, inv_mass, topo.grid_params, spec.gravity, spec.air_damping, sim.h,
+                                 sim.substeps, work, ball, BALL_RADIUS, 1.0 / BALL_MASS, sim.knot_radius,
+                                 sim.restitution, 8, near, impulse)
+        tois.append(toi)
+        # NetSim's offset: where the ball ended minus its free path's end.
+        offset = (ball[0] - pos) - vel * DT if toi >= 0.0 else np.zeros(3)
+        pos = pos + vel * DT + offset
+        vel = vel + impulse / BALL_MASS
+    return state, pos, vel, tois
+
+
+def test_fused_tick_gives_netsims_bits():
+    """step_grid_ball over a tick equals NetSim's substep loop (collide_ball_near, then one step_grid step)."""
+    topo = build_topology(NetSpec(width=0.5, cols=51, knot_mass=NetSpec().knot_mass))
+    sim = NetSim(topo, dt=DT)
+    near = np.zeros(topo.n_knots, dtype=np.int64)
+    sim._collide = functools.partial(kernels.collide_ball_near, near=near)  # the proposed NetSim call
+    pos, vel = np.array([-0.05, 0.0, 0.08]), np.array([20.0, 0.0, 0.0])
+    tois = []
+    for _ in range(15):
+        contact = sim.step(pos, vel, BALL_RADIUS, 1.0 / BALL_MASS)
+        pos = pos + vel * DT + contact.offset
+        vel = vel + contact.impulse / BALL_MASS
+        tois.append(contact.toi)
+    state, fpos, fvel, ftois = _fused_run(topo, 15, 20.0)
+    assert sum(t >= 0.0 for t in tois) >= 3  # the ball met the net
+    assert tois == ftois  # exact
+    assert np.array_equal(fpos, pos) and np.array_equal(fvel, vel)  # exact
+    assert np.array_equal(state[0].reshape(3, -1).T, sim.knot_pos)  # exact
+    assert np.array_equal(state[1].reshape(3, -1).T, sim.knot_vel)  # exact
+
+
+def test_fused_tick_equals_reference():
+    topo = build_topology(NetSpec(width=0.3, cols=31, rows=8, knot_mass=NetSpec().knot_mass * 16 / 8))
+    runs = [_fused_run(topo, 6, 20.0, mod) for mod in (kernels, reference)]
+    assert sum(t >= 0.0 for t in runs[0][3]) >= 1
+    np.testing.assert_allclose(runs[0][3], runs[1][3], rtol=0, atol=1e-12)  # same sums in the same order, to rounding
+    for a, b in zip(runs[0][:3], runs[1][:3]):
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12)  # collide's twin: numpy's sums round alike
