@@ -72,3 +72,21 @@ def test_net_step_grid(benchmark, net, backend):
     benchmark.extra_info["steps_per_call"] = steps
     benchmark.extra_info["msprings_per_s"] = steps * topo.n_springs / benchmark.stats.stats.median / 1e6
     assert np.all(np.isfinite(state))
+
+
+COLLIDERS = {"full": kernels.collide_ball, "near": kernels.collide_ball_near}
+
+
+@pytest.mark.parametrize("sweep", sorted(COLLIDERS))
+def test_net_contact_sweep(benchmark, sweep):
+    """One substep's contact sweep on the default net, the ball 3 cm in front of it (near, no contact)."""
+    topo = build_topology(grid_spec(184, 16))
+    pos, vel = topo.knot_pos.copy(), np.zeros_like(topo.knot_pos)
+    args = (pos, vel, topo.knot_inv_mass, np.array([-0.03, 0.0, 0.08]), np.array([0.0, 2.0, 0.0]), 0.02, 1 / 2.7e-3,
+            0.5e-3, 0.0, 0.5 * topo.h_max, 8, np.zeros(3), np.zeros(3))
+    if sweep == "near":
+        args = args + (np.zeros(topo.n_knots, dtype=np.int64),)
+    collide = COLLIDERS[sweep]
+    assert collide(*args) == kernels.NO_CONTACT  # compile / load the cache, outside the timing
+    benchmark.pedantic(collide, args=args, rounds=200, iterations=1, warmup_rounds=5)
+    benchmark.extra_info["knots"] = topo.n_knots
