@@ -148,12 +148,18 @@ def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True
         calls = max(1, min(100_000, int(budget / max(one * per_call, 1e-7))))
     call(per_call)  # warm: the first call of a new step count
     runs = []
+    cpu_runs = []
     for _ in range(repeats):
+        c0 = time.thread_time()
         t0 = time.perf_counter()
         for _ in range(calls):
             call(per_call)
         runs.append((time.perf_counter() - t0) / (calls * per_call))
+        cpu_runs.append((time.thread_time() - c0) / (calls * per_call))
     per_step = statistics.median(runs)
+    # One thread's CPU time: a serial kernel's cost on its core, steadier than wall time on a shared
+    # machine (time spent waiting for a core is left out); not defined for the parallel kernel.
+    cpu_per_step = statistics.median(cpu_runs) if not (parallel and backend == "numba") else None
     per_knot, per_spring = (GRID_BYTES_PER_KNOT, GRID_BYTES_PER_SPRING) if path == "grid" else (BYTES_PER_KNOT,
                                                                                                   BYTES_PER_SPRING)
     n_bytes = per_knot * topo.n_knots + per_spring * topo.n_springs
@@ -168,6 +174,7 @@ def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True
         "us_per_step": per_step * 1e6,
         "us_per_step_min": min(runs) * 1e6,
         "us_per_step_max": max(runs) * 1e6,
+        "cpu_us_per_step": None if cpu_per_step is None else cpu_per_step * 1e6,
         "msprings_per_s": topo.n_springs / per_step / 1e6,
         "bytes_per_step": n_bytes,
         "gb_per_s": n_bytes / per_step / 1e9,

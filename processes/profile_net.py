@@ -35,15 +35,17 @@ def profile_net_command(args: argparse.Namespace) -> int:
           f"{copy['gb_per_s']:.1f} GB/s (before {copy['before']:.1f}, after {copy['after']:.1f})")
     print(f"byte model: {report['byte_model']}")
     header = (f"  {'path':<5} {'backend':<18} {'compile s':>9} {'steps':>7} {'per call':>8} {'µs/step':>10} "
-              f"{'[min .. max]':>22} {'Msprings/s':>11} {'GB/s':>7} {'of copy':>8}")
+              f"{'[min .. max]':>22} {'cpu µs/step':>11} {'Msprings/s':>11} {'GB/s':>7} {'of copy':>8}")
     print(header)
     for r in report["results"]:
         name = r["backend"] + (" parallel" if r["parallel"] else " serial" if r["backend"] == "numba" else "")
         spread = f"[{r['us_per_step_min']:.1f} .. {r['us_per_step_max']:.1f}]"
+        cpu = "-" if r["cpu_us_per_step"] is None else f"{r['cpu_us_per_step']:.1f}"
         print(f"  {r['path']:<5} {name:<18} {r['compile_s']:>9.2f} {r['steps']:>7} {r['steps_per_call']:>8} "
-              f"{r['us_per_step']:>10.1f} {spread:>22} {r['msprings_per_s']:>11.1f} {r['gb_per_s']:>7.2f} "
+              f"{r['us_per_step']:>10.1f} {spread:>22} {cpu:>11} {r['msprings_per_s']:>11.1f} {r['gb_per_s']:>7.2f} "
               f"{100 * r['copy_share']:>7.1f}%")
-    print(f"  median of {report['results'][0]['repeats']} timed runs each; compile time is the first call's "
+    print(f"  median of {report['results'][0]['repeats']} timed runs each; cpu µs/step: the stepping thread's CPU "
+          "time (serial kernels; time waiting for a core left out); compile time is the first call's "
           "excess over the second (0 when numba's cache is warm); grid: a tick's substeps per call, as NetSim "
           "steps a net the ball is away from; csr: one step per call")
     return 0
