@@ -101,11 +101,15 @@ class Client:
         address: the server's ZeroMQ endpoint. role: "player" or "spectator". name: shown to others.
         slot: the seat wanted (Slot.NONE: any). token: a rejoin token from an earlier welcome.
         zctx: a zmq.Context (a new one by default, terminated on close).
-        socket_options: extra {zmq option: value} set before connecting.
+        socket_options: extra {zmq option: value} set before connecting (the session's socket
+            and the feed's: CURVE keys, buffers). feed_options: more for the feed's socket only
+            (e.g. zmq.AFFINITY: a process of many clients reads its feeds on an I/O thread of
+            their own, so its heartbeats do not queue behind them).
     """
 
     def __init__(self, address: str, role: str = "spectator", name: str = "client", slot: Slot = Slot.NONE,
-                 token: bytes = NO_TOKEN, zctx=None, socket_options: dict | None = None):
+                 token: bytes = NO_TOKEN, zctx=None, socket_options: dict | None = None,
+                 feed_options: dict | None = None):
         self.address = address
         self.role = Role.PLAYER if role == "player" else Role.SPECTATOR
         self.name = name
@@ -114,6 +118,7 @@ class Client:
         self._own_ctx = zctx is None
         self.zctx = zctx or zmq.Context()
         self.socket_options = dict(socket_options or {})
+        self.feed_options = dict(feed_options or {})
         self.sock = self.zctx.socket(zmq.DEALER)
         self.sock.setsockopt(zmq.LINGER, 0)
         self.sock.setsockopt(zmq.RCVHWM, 256)
@@ -186,7 +191,7 @@ class Client:
         feed = self.zctx.socket(zmq.SUB)
         feed.setsockopt(zmq.LINGER, 0)
         feed.setsockopt(zmq.RCVHWM, 256)
-        for option, value in self.socket_options.items():
+        for option, value in {**self.socket_options, **self.feed_options}.items():
             feed.setsockopt(option, value)
         feed.setsockopt(zmq.SUBSCRIBE, b"")
         feed.connect(address)

@@ -54,6 +54,7 @@ from __future__ import annotations
 import os
 import secrets
 import signal
+import struct
 import time
 from collections import Counter
 from dataclasses import dataclass
@@ -105,8 +106,15 @@ def brake_force(mass: float, vel, out: np.ndarray) -> np.ndarray:
 MAX_BAD = 64  # bad messages one session may send before it is kicked
 MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messages
 MAX_FRAME_BYTES = 4096  # libzmq disconnects a peer sending a bigger frame (MAXMSGSIZE)
+SWEEPS_PER_HEARTBEAT = 10  # passes over every session (timeouts, heartbeats) per heartbeat period
 STATS_EVERY_S = 1.0  # the worker writes its counters to GatewayConfig.stats_path this often
 NO_TOKEN = bytes(wire.TOKEN_SIZE)
+# A session's heartbeat, the message a thousand spectators send twice a second: magic, version,
+# kind, flags 0 and the size say it all (its only body field, ack, is any u64), so it is taken by
+# this fixed prefix and the tick's sign, exactly what wire.decode would accept, without decoding.
+_HEARTBEAT_PREFIX = wire.MAGIC + struct.pack("<HBB", wire.PROTOCOL_VERSION, Kind.HEARTBEAT, 0)
+_HEARTBEAT_SIZE = wire.SIZES[Kind.HEARTBEAT]
+_SEQ_TICK = struct.Struct("<Qq")
 
 
 @dataclass(frozen=True)
@@ -268,11 +276,15 @@ class Gateway:
         self.tick = 0
         self.shutting_down = False
         self._next_snapshot = 0.0
+        self._next_sweep = 0.0
         self._points_seen: int | None = None
         self._games_seen = (0, 0)
         self._match_sent = False
         self.router = zctx.socket(zmq.ROUTER)
         self.router.setsockopt(zmq.LINGER, 0)
+        self._two_io_threads = zctx.get(zmq.IO_THREADS) >= 2
+        if self._two_io_threads:  # sessions on libzmq's I/O thread 0, the feed's fan-out on thread 1
+            self.router.setsockopt(zmq.AFFINITY, 1 << 0)
         self.router.setsockopt(zmq.ROUTER_MANDATORY, 1)
         self.router.setsockopt(zmq.SNDHWM, config.sndhwm)
         self.router.setsockopt(zmq.MAXMSGSIZE, MAX_FRAME_BYTES)
@@ -303,6 +315,11 @@ class Gateway:
         config = self.config
         feed = zctx.socket(zmq.PUB)
         feed.setsockopt(zmq.LINGER, 0)
+        if self._two_io_threads:
+            # its own I/O thread: 120,000 copies a second to 1000 subscribers kept one thread
+            # busy, and the sessions' heartbeats on the same thread waited behind them for
+            # seconds (`pingpong stress`: every spectator timed out, its heartbeats unread)
+            feed.setsockopt(zmq.AFFINITY, 1 << 1)
         feed.setsockopt(zmq.SNDHWM, config.sndhwm)
         feed.setsockopt(zmq.MAXMSGSIZE, MAX_FRAME_BYTES)  # what a subscriber may send: subscriptions
         if config.sndbuf:
@@ -431,6 +448,14 @@ class Gateway:
             self.counts["dropped.bad_framing"] += 1
             self._bad(session)
             return
+        data = frames[1]
+        if session is not None and len(data) == _HEARTBEAT_SIZE and data.startswith(_HEARTBEAT_PREFIX):
+            seq, tick = _SEQ_TICK.unpack_from(data, 8)
+            if tick >= 0:  # else: decode below names the fault
+                session.last_seen = now
+                session.seq_in = max(session.seq_in, seq)
+                self.counts["heartbeats_received"] += 1
+                return
         try:
             message = wire.decode(frames[1])
         except wire.BadVersion as err:
@@ -578,16 +603,22 @@ class Gateway:
         bat. points: the run's POINT_DTYPE log (events for the points `record` counts).
         """
         now = self.clock()
-        for session in list(self.sessions.values()):
-            if now - session.last_seen > self.config.timeout_s:
-                self.counts["timeouts"] += 1
-                self._goodbye(session, GoodbyeReason.TIMEOUT)
-                self._end(session, keep_seat=True)
-                continue
-            if now >= session.next_beat:
-                session.next_beat = now + self.config.heartbeat_s
-                self._send(session, self._heartbeat(session.seq_in), "heartbeats")
-            if session.holding and now - session.input_at > self.config.input_hold_s:
+        if now >= self._next_sweep:
+            # every session's timeout and heartbeat, a few times per heartbeat period, not every
+            # call: with 1000 spectators a pass is ~0.5 ms of Python and the worker calls this
+            # every few ms
+            self._next_sweep = now + self.config.heartbeat_s / SWEEPS_PER_HEARTBEAT
+            for session in list(self.sessions.values()):
+                if now - session.last_seen > self.config.timeout_s:
+                    self.counts["timeouts"] += 1
+                    self._goodbye(session, GoodbyeReason.TIMEOUT)
+                    self._end(session, keep_seat=True)
+                elif now >= session.next_beat:
+                    session.next_beat = now + self.config.heartbeat_s
+                    self._send(session, self._heartbeat(session.seq_in), "heartbeats")
+        for seat in self.seats.values():  # a player's input expires on time: two seats, every call
+            session = self.sessions.get(seat.identity) if seat.identity is not None else None
+            if session is not None and session.holding and now - session.input_at > self.config.input_hold_s:
                 session.holding = False  # the arm lets go: its last input expired
                 self.counts["inputs_expired"] += 1
                 if not self.post_input(int(session.slot) - 1, session.input_seq, self.tick, _zero_inputs()):
@@ -753,7 +784,7 @@ def gateway_worker(control, arena, scene, options: dict) -> None:
         return box.post(post)
 
     remote = [Slot(i + 1) for i, bat in enumerate(scene.bats) if bat.remote]
-    zctx = zmq.Context()
+    zctx = zmq.Context(io_threads=2)  # sessions and the feed's fan-out each on their own (Gateway)
     seat_store = SeatStore(arena["seats"]) if "seats" in arena.blocks else None
     gateway = Gateway(zctx, config, scene_name=scene.name, best_of=scene.match.best_of, dt=scene.dt,
                       remote_slots=remote, post_input=post_input, seat_store=seat_store,

@@ -82,17 +82,40 @@ def shm_names() -> set[str]:
     return set(os.listdir("/dev/shm")) if os.path.isdir("/dev/shm") else set()
 
 
-class CpuMeter:
-    """CPU time of named processes between start() and stop(), as % of one core."""
+def thread_cpu_seconds(pid: int) -> dict[str, float]:
+    """CPU seconds of each thread of a process, summed by thread name (/proc/PID/task/TID/stat:
+    the Python thread is named like its program, libzmq's are ZMQbg/IO/0, ZMQbg/Reaper)."""
+    out: dict[str, float] = {}
+    try:
+        tids = os.listdir(f"/proc/{pid}/task")
+    except OSError:
+        return out
+    for tid in tids:
+        try:
+            text = Path(f"/proc/{pid}/task/{tid}/stat").read_text()
+        except OSError:
+            continue
+        name = text[text.index("(") + 1:text.rindex(")")]
+        fields = text.rsplit(")", 1)[1].split()
+        out[name] = out.get(name, 0.0) + (int(fields[11]) + int(fields[12])) / CLK_TCK
+    return out
 
-    def __init__(self):
+
+class CpuMeter:
+    """CPU time of named processes between start() and stop(), as % of one core; for the
+    processes named in `threads`, also per thread name (e.g. the gateway's libzmq I/O thread)."""
+
+    def __init__(self, threads=()):
         self.t0 = 0.0
+        self.threads = set(threads)
         self.start_cpu: dict[str, tuple[int, float]] = {}
+        self.start_threads: dict[str, tuple[int, dict]] = {}
         self.result: dict[str, float] = {}
 
     def start(self, pids: dict[str, int]) -> None:
         self.t0 = time.monotonic()
         self.start_cpu = {name: (pid, cpu_seconds(pid)) for name, pid in pids.items() if cpu_seconds(pid) is not None}
+        self.start_threads = {name: (pid, thread_cpu_seconds(pid)) for name, pid in pids.items() if name in self.threads}
 
     def stop(self) -> dict[str, float]:
         wall = max(time.monotonic() - self.t0, 1e-9)
@@ -100,6 +123,9 @@ class CpuMeter:
             c1 = cpu_seconds(pid)
             if c1 is not None:
                 self.result[name] = round(100.0 * (c1 - c0) / wall, 1)
+        for name, (pid, before) in self.start_threads.items():
+            for thread, c1 in thread_cpu_seconds(pid).items():
+                self.result[f"{name}[{thread}]"] = round(100.0 * (c1 - before.get(thread, 0.0)) / wall, 1)
         self.result["_wall_s"] = round(wall, 2)
         return self.result
 
@@ -452,6 +478,15 @@ def latency(clock: dict | None, dt: float, records: list[str]) -> dict:
     return percentiles_ms(np.concatenate(values) if values else np.zeros(0))
 
 
+def _gateway_stats(server: "Server") -> dict:
+    """The gateway's counters as it last wrote them (every second), {} before the first."""
+    try:
+        with open(server.spec["gateway_stats"]) as f:
+            return json.load(f)
+    except (OSError, ValueError):
+        return {}
+
+
 def _points_problems(end: dict) -> int:
     """Points the server's own log lost: each point adds one to one side's score in its game."""
     lost = 0
@@ -545,9 +580,10 @@ def scenario_load(args, run: Run) -> dict:
         bots = [run.add(bot(server.endpoint, seconds + 120, seed)) for seed in range(args.players)]
     until(lambda: (server.tick() or 0) > 0, 120, 0.2)
     gateway = server.pids["gateway"]
-    meter = CpuMeter()
+    meter = CpuMeter(threads=("gateway",))
     meter.start({**server.all_pids(), **{s.name: s.pid for s in swarms}, **{b.name: b.pid for b in bots},
                  "harness": os.getpid()})
+    published0 = _gateway_stats(server).get("snapshots_published", 0)
     t0 = time.monotonic()
     rss0 = rss_kb(gateway)
     ticks = server.spec["ticks"]
@@ -555,6 +591,14 @@ def scenario_load(args, run: Run) -> dict:
     rss1 = rss_kb(gateway)
     gateway_cpu = cpu_seconds(gateway)  # its whole life so far: set against every message it sent
     result["cpu_pct"] = meter.stop()
+    published = _gateway_stats(server).get("snapshots_published", 0) - published0
+    if published > 0 and "gateway" in result["cpu_pct"]:
+        # the gateway's CPU (both threads) per snapshot published while the meter ran, and per copy
+        # to one subscriber: what the fan-out costs the server, startup and the join phase left out
+        us = 1e4 * result["cpu_pct"]["gateway"] * result["cpu_pct"]["_wall_s"] / published
+        result["gateway_cpu_us"] = {"per_snapshot": round(us, 1), "per_snapshot_per_spectator": round(us / max(n, 1), 2),
+                                    "published_while_metered": published}
+    # the gateway counts as its whole process here; its threads are listed apart in cpu_pct
     sides = {"server": set(server.all_pids()), "swarm": {s.name for s in swarms}, "players": {b.name for b in bots}}
     result["cpu_pct_by_side"] = {side: round(sum(v for k, v in result["cpu_pct"].items() if k in names), 1)
                                  for side, names in sides.items()}

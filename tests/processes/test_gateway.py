@@ -392,6 +392,33 @@ def test_a_slow_spectator_loses_feed_snapshots_countably_not_the_match(rig):
 
 
 @pytest.mark.timeout(30)
+def test_the_heartbeat_fast_path_takes_exactly_what_decode_accepts(rig):
+    r = rig()
+    watcher = r.client(role="spectator")
+    r.join(watcher)
+    (identity, session), = r.gateway.sessions.items()
+    rng = np.random.default_rng(8)
+    good = wire.encode(Kind.HEARTBEAT, seq=5, tick=7, ack=3)
+    cases = [good, good + b"\0", good[:-1], wire.encode(Kind.HEARTBEAT, seq=9, tick=0, ack=2**64 - 1)]
+    for _ in range(3000):  # one to three bytes of a heartbeat's header or body changed
+        data = bytearray(good)
+        for at in rng.integers(0, len(data), rng.integers(1, 4)):
+            data[at] = rng.integers(0, 256)
+        cases.append(bytes(data))
+    for data in cases:
+        try:
+            wire.decode(data)
+            valid = True
+        except wire.WireError:
+            valid = False
+        before = r.gateway.counts["heartbeats_received"]
+        session.bad = 0  # (a run of bad ones would get it kicked)
+        r.gateway.handle([identity, data])
+        assert (r.gateway.counts["heartbeats_received"] == before + 1) == valid, data.hex()
+    assert r.gateway.sessions == {identity: session}
+
+
+@pytest.mark.timeout(30)
 def test_a_vanished_feed_spectator_is_timed_out_on_its_session_and_counted(rig):
     r = rig(heartbeat_s=1.0, timeout_s=5.0)
     gone, stays = r.client(role="spectator", name="gone"), r.client(role="spectator", name="stays")
