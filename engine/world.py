@@ -271,6 +271,11 @@ def advance(model: Model, state: State, n_max: int, inputs: np.ndarray | None, e
     h = model.dt if dt is None else dt
     if state.net_sim is not None and h > 0.0:
         return _advance_with_cloth(model, state, n_max, inputs, events, h, gone_radius, gone_z, deadline)
+    if h == 0.0 and watch is None and model.cloth_watch is not None:
+        # A zero-length tick compiles (or loads) the kernels: with a cloth net, the watched
+        # variant too, which a worker would otherwise compile mid-run, silent for as long as
+        # that takes (tens of seconds on a loaded machine: the supervisor took it for a stall).
+        advance(model, state, n_max, None, events, h, gone_radius, gone_z, deadline, model.cloth_watch)
     has_bats = len(state.bats) > 0
     if inputs is not None and has_bats:
         _check_inputs(inputs, len(state.bats))

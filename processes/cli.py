@@ -140,6 +140,8 @@ def build_parser() -> argparse.ArgumentParser:
     bench = sub.add_parser("bench", help="measured answers to 'what does it cost'", formatter_class=formatter)
     bench.add_argument("what", choices=["accuracy", "effects", "handoff", "match"], help="which study to run")
     bench.add_argument("--best-of", type=int, default=5, help="match: games in the benchmarked match")
+    bench.add_argument("--scene", default="match",
+                       help="match: scene TOML file or bundled scene name (match_cloth: the cloth net)")
     bench.add_argument("--seed", type=int, default=0, help="match: the match's seed")
     bench.add_argument("--json", action="store_true", help="print one JSON object")
     bench.add_argument("--png", default=None, help="accuracy: write the work-precision plot to this PNG file")

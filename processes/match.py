@@ -218,13 +218,23 @@ def bench_match_command(args: argparse.Namespace) -> int:
     against the in-process reference in the same run (same seed, so the same match)."""
     from processes.supervisor import Supervisor
 
-    scene = load_scene("match")
+    try:
+        scene = load_scene(args.scene)
+    except SceneError as exc:
+        print(f"pingpong bench match: {exc}", file=sys.stderr)
+        return 2
+    if scene.match is None:
+        print(f"pingpong bench match: scene {scene.name!r} has no [match] section (and no referee); "
+              "use a match scene such as 'match' or 'match_cloth'", file=sys.stderr)
+        return 2
     scene = replace(scene, match=replace(scene.match, best_of=args.best_of if not args.quick else 1))
     ticks = scene.ticks if not args.quick else 20_000
     result = Supervisor(scene, ticks, "lockstep", seed=args.seed).run()
     multi = _summary_from_processes(scene, args.seed, result)
     reference = Match(scene, seed=args.seed).play(max_ticks=ticks).summary()
     report = {
+        "scene": scene.name,
+        "net": scene.net_kind,
         "best_of": scene.match.best_of,
         "seed": args.seed,
         "same_match": multi["games"] == reference["games"] and multi["points"] == reference["points"],
@@ -241,7 +251,8 @@ def bench_match_command(args: argparse.Namespace) -> int:
         print(json.dumps(report))
         return 0
     p, r = report["processes"], report["in_process"]
-    print(f"match best of {report['best_of']}, seed {report['seed']}: {report['sim_seconds']:.1f} s simulated, "
+    print(f"match {report['scene']} ({report['net']} net), best of {report['best_of']}, seed {report['seed']}: "
+          f"{report['sim_seconds']:.1f} s simulated, "
           f"same match in both runs: {report['same_match']}")
     print(f"  worker processes (lockstep): {p['wall_seconds']:.2f} s wall, {p['realtime_factor']:.1f}x realtime, "
           f"{p['us_per_tick']:.1f} us/tick, startup {p['startup_seconds']:.2f} s")

@@ -84,6 +84,12 @@ def test_bench_match_quick_json():
     assert set(report["processes"]["workers"]) == {"physics", "ai"}
 
 
+def test_bench_match_refuses_a_scene_without_a_match():
+    done = subprocess.run([sys.executable, "-m", "processes", "bench", "match", "--scene", "drop", "--quick"],
+                          capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
+    assert done.returncode == 2 and "has no [match] section" in done.stderr
+
+
 def test_stability_json_one_case():
     done = pingpong("stability", "--case", "two impacts", "--json")
     assert done.returncode == 0, done.stderr
