@@ -672,7 +672,7 @@ def _sweep(x, v, j, p0, p1, p2, b0, b1, b2, reach, t0, t1):
 # Ball near the net: the contact sweep visits only the knots the ball can reach this call (its
 # cull), gathered by one cheap pass into a scratch list in index order, so every sum and
 # minimum runs over the same knots in the same order as the full sweep: the same bits.
-# Conservative: a knot is left out only if, on every axis, its offset from the ball's start
+# Conservative: a knot is left out only if on some axis its offset from the ball's start
 # exceeds near_radius + dt |v_j|_1 (|.|_inf <= |.|_2 and |.|_2 <= |.|_1, so its distance to
 # the ball's start stays above near_radius over the call); the ball's path is piecewise linear,
 # so its largest distance from the start is at a segment's end, and while that stays within
