@@ -17,11 +17,20 @@ A plan predicts no more than its answer needs: the incoming ball until the strik
 decided, a candidate stroke until its first contact (a service's until its bounce), and a
 candidate's flight after that (free until its next contact) from free steps when they are
 clearly on one side of every limit. The choices are the same, bit for bit, as predicting the
-whole path at the engine's tick (tests/engine/test_ai.py).
+whole path at the engine's tick (tests/engine/test_ai.py). Far from every body a predicted
+tick is the integrator's step alone, which is what ball_tick computes there (same bits).
+
+Thinking a stroke out starts when the ball changes hands, from the ball's state then: its path
+is fixed from there on, so the stroke that is played after the reaction time is the one chosen
+as if from the ball's state at that time (the strike looked for from then on, the contacts
+before it unseen). The thinking is a generator of small steps (_think); in-process it runs at
+once, the AI worker spreads it over the time between its turns (think_step), and what is left
+when the stroke is due is done then: the same strokes either way, bit for bit.
 """
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,9 +39,11 @@ from numba import njit
 from engine import equipment
 from engine.bat import face_normal
 from engine.dtypes import BAT_DTYPE
-from engine.collision import ERR_SUBSTEPS, EVENT_ROW, E_BODY, E_POS, E_TIME, MAX_IMPACTS_PER_TICK, SCRATCH_SHAPE, ball_tick
+from engine.collision import (ERR_SUBSTEPS, EVENT_ROW, E_BODY, E_POS, E_TIME, MAX_IMPACTS_PER_TICK, P_RADIUS, SCRATCH_SHAPE,
+                              ball_tick)
 from engine.contact import impact
-from engine.geometry import Body
+from engine.forces import ball_accel
+from engine.geometry import Body, box_sdf
 from engine.integrators import ADAPT_SIZE, WORK_SHAPE, advance
 
 HALF_LENGTH = equipment.TABLE_LENGTH / 2
@@ -93,6 +104,107 @@ def _strike_end(traj, n, stop_rule, watch):
     return watch[_W_LATER] if watch[_W_LATER] >= 0 else watch[_W_CANDIDATE]
 
 
+_FAST_MARGIN = 2e-3  # m: predict_span steps a tick as free flight only this far from every body (CONTACT_TOL is 1 um)
+
+
+@njit(cache=True)
+def _static_gap(p, radius, table, floor_z, net, posts, normal):
+    """Smallest gap (m) between the ball at p and the table, floor, net and posts (as
+    engine.collision's, without bats). normal: (3,) scratch."""
+    best = math.inf
+    if table is not None:
+        best = min(best, box_sdf(p, table, normal) - radius)
+    if floor_z is not None:
+        best = min(best, p[2] - floor_z - radius)
+    if net is not None:
+        best = min(best, box_sdf(p, net, normal) - radius)
+    if posts is not None:
+        for k in range(posts.shape[0]):
+            best = min(best, box_sdf(p, posts[k], normal) - radius)
+    return best
+
+
+# predict_span's memo: what a paused prediction keeps between calls.
+_M_WATCH, _M_EVENTS, _M_SUPPORT = 0, 4, 5
+MEMO_SIZE = 6
+PAUSED = -3  # predict_span stopped at its chunk's end; call again to go on
+
+
+@njit(cache=True)
+def predict_span(h, k0, k_stop, n_max, max_events, stop_rule, end_sign, first_row, method, gravity, drag_k,
+                 magnus_k, rtol, atol, table, floor_z, net, posts, params, materials, work, scratch, adapt,
+                 tick_events, traj, events, event_ticks, memo):
+    """predict_flight in pieces: steps the path from row k0 (traj[k0] holds the state) to row
+    k_stop at most, and goes on exactly as if never stopped when called again from there.
+
+    first_row: strikes are looked for from this row on, and contacts before its tick are neither
+        recorded nor counted (the path as a prediction started at that row sees it).
+    memo: (MEMO_SIZE,) int64, kept between calls: the strike rule's bookkeeping (-1 to start),
+        the events recorded (0 to start), the support (0 to start).
+
+    Returns:
+        (rows done, error code of ball_tick or 0, strike tick or NO_STRIKE once decided, or PAUSED
+        at k_stop before n_max).
+    """
+    watch = memo[_M_WATCH:_M_WATCH + 4]
+    strike_rule = stop_rule == STOP_SERVE_STRIKE or stop_rule == STOP_RETURN_STRIKE
+    acc = np.empty(3)
+    room = _static_gap(traj[k0], params[P_RADIUS], table, floor_z, net, posts, acc)
+    for k in range(k0, min(k_stop, n_max)):
+        if strike_rule and k >= first_row:
+            strike = _strike_row(traj, k, stop_rule, watch)
+            if strike != _UNDECIDED:
+                return k, 0, strike
+        # Far from every body, ball_tick finds nothing to hit and its tick is advance(y, h) (its
+        # conservative advancement stops at once: gap / speed bound >= h); here the gap is a lower
+        # bound, the one measured after the last full tick less the reach of each tick since.
+        y, v = traj[k], traj[k, 3:6]
+        n = 0
+        support = memo[_M_SUPPORT]
+        fast = False
+        if support == 0:
+            ball_accel(v, traj[k, 6:9], gravity, drag_k, magnus_k, acc)
+            reach = (1.01 * (math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+                             + 2.0 * h * math.sqrt(acc[0] * acc[0] + acc[1] * acc[1] + acc[2] * acc[2])) + 1e-9) * h
+            if reach + _FAST_MARGIN < room:
+                advance(y, h, method, gravity, drag_k, magnus_k, rtol, atol, work, adapt, traj[k + 1])
+                fast = True
+                for i in range(9):
+                    fast = fast and math.isfinite(traj[k + 1, i])
+                room -= reach
+        if not fast:  # near a body (or not finite: ball_tick reports it)
+            for i in range(9):
+                traj[k + 1, i] = y[i]
+            n, support = ball_tick(traj[k + 1], h, support, method, gravity, drag_k, magnus_k, rtol, atol,
+                                   table, floor_z, net, posts, None, params, materials, work, scratch, adapt,
+                                   tick_events)
+            memo[_M_SUPPORT] = support
+            if n < 0:
+                return k + 1, n, _strike_end(traj, k + 1, stop_rule, watch)
+            room = _static_gap(traj[k + 1], params[P_RADIUS], table, floor_z, net, posts, acc)
+        n_events = memo[_M_EVENTS]
+        for e in range(n if k >= first_row else 0):
+            if n_events < max_events:
+                for i in range(EVENT_ROW):
+                    events[n_events, i] = tick_events[e, i]
+                event_ticks[n_events] = k
+                n_events += 1
+                if stop_rule == STOP_RETURN_STRIKE and watch[_W_BOUNCE] < 0:
+                    body, x = int(tick_events[e, E_BODY]), tick_events[e, E_POS]
+                    if body == _TABLE and ((x > 0.0 and end_sign > 0) or (x < 0.0 and end_sign < 0)):
+                        watch[_W_BOUNCE] = k
+                    elif body == _FLOOR and watch[_W_FLOOR] < 0:
+                        watch[_W_FLOOR] = k
+        memo[_M_EVENTS] = n_events
+        if stop_rule == STOP_RETURN_STRIKE and watch[_W_FLOOR] >= 0 and watch[_W_BOUNCE] < 0:
+            return k + 1, 0, NO_STRIKE  # on the floor before any bounce on this court
+        if n_events >= max_events or support != 0 or (stop_rule == STOP_CONTACT and n > 0 and k >= first_row):
+            return k + 1, 0, _strike_end(traj, k + 1, stop_rule, watch)
+    if k_stop < n_max:
+        return k_stop, 0, PAUSED
+    return n_max, 0, _strike_end(traj, n_max, stop_rule, watch)
+
+
 @njit(cache=True)
 def predict_flight(y0, h, n_max, max_events, stop_rule, end_sign, method, gravity, drag_k, magnus_k, rtol, atol,
                    table, floor_z, net, posts, params, materials, work, scratch, adapt, tick_events,
@@ -121,38 +233,12 @@ def predict_flight(y0, h, n_max, max_events, stop_rule, end_sign, method, gravit
     """
     for i in range(9):
         traj[0, i] = y0[i]
-    watch = np.full(4, -1, np.int64)
-    support = 0
-    n_events = 0
-    for k in range(n_max):
-        if stop_rule == STOP_SERVE_STRIKE or stop_rule == STOP_RETURN_STRIKE:
-            strike = _strike_row(traj, k, stop_rule, watch)
-            if strike != _UNDECIDED:
-                return k, n_events, 0, strike, support
-        for i in range(9):
-            traj[k + 1, i] = traj[k, i]
-        n, support = ball_tick(traj[k + 1], h, support, method, gravity, drag_k, magnus_k, rtol, atol,
-                               table, floor_z, net, posts, None, params, materials, work, scratch, adapt,
-                               tick_events)
-        if n < 0:
-            return k + 1, n_events, n, _strike_end(traj, k + 1, stop_rule, watch), support
-        for e in range(n):
-            if n_events < max_events:
-                for i in range(EVENT_ROW):
-                    events[n_events, i] = tick_events[e, i]
-                event_ticks[n_events] = k
-                n_events += 1
-                if stop_rule == STOP_RETURN_STRIKE and watch[_W_BOUNCE] < 0:
-                    body, x = int(tick_events[e, E_BODY]), tick_events[e, E_POS]
-                    if body == _TABLE and ((x > 0.0 and end_sign > 0) or (x < 0.0 and end_sign < 0)):
-                        watch[_W_BOUNCE] = k
-                    elif body == _FLOOR and watch[_W_FLOOR] < 0:
-                        watch[_W_FLOOR] = k
-        if stop_rule == STOP_RETURN_STRIKE and watch[_W_FLOOR] >= 0 and watch[_W_BOUNCE] < 0:
-            return k + 1, n_events, 0, NO_STRIKE, support  # on the floor before any bounce on this court
-        if n_events >= max_events or support != 0 or (stop_rule == STOP_CONTACT and n > 0):
-            return k + 1, n_events, 0, _strike_end(traj, k + 1, stop_rule, watch), support
-    return n_max, n_events, 0, _strike_end(traj, n_max, stop_rule, watch), support
+    memo = np.zeros(MEMO_SIZE, np.int64)
+    memo[_M_WATCH:_M_WATCH + 4] = -1
+    n, err, strike = predict_span(h, 0, n_max, n_max, max_events, stop_rule, end_sign, 0, method, gravity, drag_k,
+                                  magnus_k, rtol, atol, table, floor_z, net, posts, params, materials, work,
+                                  scratch, adapt, tick_events, traj, events, event_ticks, memo)
+    return n, memo[_M_EVENTS], err, strike, memo[_M_SUPPORT]
 
 
 @njit(cache=True)
@@ -455,6 +541,10 @@ class BatAI:
         model: engine.world.Model of the match scene (geometry, integrator, effects).
         player: 0 (A) or 1 (B); its bat is model bat `player`.
         skill: a Skill. seed: for its random numbers.
+        control_every: ticks between the calls of control (the match's AI control period).
+        eager: think a stroke out at once when it starts; False leaves it to think_step (the AI
+            worker thinks between its turns), finish_thinking doing what is left when it is due.
+            Either way the same strokes, bit for bit.
     """
 
     SWING_S = 0.14  # duration of the forward swing
@@ -469,12 +559,13 @@ class BatAI:
     # free flight at 4 ms (seed 0, 272 returns); at the engine's own tick they agree closer still.
     FREE_FLIGHT_TOLERANCE_M = 0.005
     RECOVER_S = 0.35
+    PREDICT_CHUNK = 32  # ticks of prediction in one think_step (~30 us)
     KP = 30.0**2  # (rad/s)^2: position loop natural frequency 30 rad/s, critically damped
     KD = 2 * 30.0
     K_ANGLE = 40.0**2
     D_ANGLE = 2 * 40.0
 
-    def __init__(self, model, player: int, skill: Skill, seed: int):
+    def __init__(self, model, player: int, skill: Skill, seed: int, control_every: int = 1, eager: bool = True):
         self.model = model
         self.player = player
         self.skill = skill
@@ -505,6 +596,18 @@ class BatAI:
         self.turn_key = None
         self.turn_seen_at = 0.0
         self.planned_key = None
+        self.control_every = control_every
+        self.eager = eager
+        self._thinking = None  # the generator of _think for _thinking_key, played from _thinking_due
+        self._thinking_key = None
+        self._thinking_due = math.inf
+        self._thinking_left = False
+        self._thought = None
+        self._memo = np.zeros(MEMO_SIZE, np.int64)
+        # Not eager: the strokes still being thought out when due, and the time their turns spent
+        # finishing them (wall clock, so apart from the deterministic stats).
+        self.late_thoughts = 0
+        self.late_thinking_s = 0.0
         self.stats = {"plans": 0, "no_solution": 0, "let_go": 0}
 
     def warm_up(self) -> None:
@@ -513,6 +616,12 @@ class BatAI:
         v_out = self.solve_shot(np.array([1.6, 0.0, 0.2]), np.zeros(3), (-0.8, 0.0), 8.0, 1)
         self.solve_stroke(np.array([5.0, 0.0, 1.0]), np.zeros(3), v_out)
         self._free_flight_verdict(np.array([1.6, 0.0, 0.2, *v_out, 0.0, 0.0, 0.0]), -1, self.NET_MARGIN_M, 10)
+        m, memo = self.model, np.zeros(MEMO_SIZE, np.int64)  # _think's pieces of prediction (from the ball above)
+        memo[_M_WATCH:_M_WATCH + 4] = -1
+        predict_span(m.dt, 0, 1, 2, 3, STOP_RETURN_STRIKE, 1, 0, m.method, m.gravity, m.drag_k, m.magnus_k,
+                     m.scene.rtol, m.scene.atol, m.table, m.floor_z, m.net, m.posts, m.ball_params, m.materials,
+                     self._work, self._scratch, self._adapt, self._tick_events, self._traj, self._events,
+                     self._event_ticks, memo)
         bat = np.zeros(1, BAT_DTYPE)
         bat["quat"][0] = (1.0, 0.0, 0.0, 0.0)
         ctl = self._ctl.copy()
@@ -611,15 +720,50 @@ class BatAI:
     def plan_stroke(self, now: float, ball_y: np.ndarray, bat_pos: np.ndarray, current_vel: np.ndarray,
                     end_sign: int, serve: bool) -> Plan | None:
         """Plan the next stroke from the ball's state now; None means let the ball go."""
+        thinking = self._think(now, ball_y, end_sign, serve, now, 0)
+        for _ in thinking:
+            pass
+        return self._make_plan(self._thought, now, bat_pos, current_vel)
+
+    def _think(self, now: float, ball_y: np.ndarray, end_sign: int, serve: bool, start_time: float, first_row: int):
+        """The stroke to play, thought out in steps (a generator: each next() does one piece, none
+        much longer than PREDICT_CHUNK ticks of prediction or one shot solution); the answer is
+        left in self._thought: (p, normal, bat_vel, t_hit, target), or None to let the ball go.
+
+        The ball's path is predicted from its state `now`; the stroke is chosen as if from row
+        first_row of that path on (at start_time, the time of that row): the strike is looked
+        for from there, and contacts before it are not seen (see predict_span). The answer does
+        not depend on how the steps are spread over time.
+        """
+        self._thought = None
         self.stats["plans"] += 1
-        h = self.model.dt
-        _, _, hit, _ = self._predict(ball_y, h, int(round(2.0 / h)), 3, STOP_SERVE_STRIKE if serve else STOP_RETURN_STRIKE,
-                                  end_sign)
+        m = self.model
+        h = m.dt
+        n_max = first_row + int(round(2.0 / h))
+        if n_max + 1 > self._traj.shape[0]:
+            raise ValueError(f"BatAI: thinking {first_row} ticks ahead needs a longer prediction buffer")
+        traj, memo = self._traj, self._memo
+        traj[0] = ball_y
+        memo[:] = 0
+        memo[_M_WATCH:_M_WATCH + 4] = -1
+        self._adapt[:] = 0.0
+        rule = STOP_SERVE_STRIKE if serve else STOP_RETURN_STRIKE
+        k = 0
+        while True:
+            k, err, hit = predict_span(h, k, k + self.PREDICT_CHUNK, n_max, 3, rule, end_sign, first_row, m.method,
+                                       m.gravity, m.drag_k, m.magnus_k, m.scene.rtol, m.scene.atol, m.table,
+                                       m.floor_z, m.net, m.posts, m.ball_params, m.materials, self._work,
+                                       self._scratch, self._adapt, self._tick_events, traj, self._events,
+                                       self._event_ticks, memo)
+            if err == ERR_SUBSTEPS:
+                raise RuntimeError("prediction failed: the integrator's substep limit was hit")
+            if hit != PAUSED:
+                break
+            yield
         if hit == NO_STRIKE:
             self.stats["let_go"] += 1
-            return None
-        t_hit = now + hit * h
-        traj = self._traj
+            return
+        t_hit = start_time + (hit - first_row) * h
         p, v_in, spin_in = traj[hit, 0:3].copy(), traj[hit, 3:6].copy(), traj[hit, 6:9].copy()
         if serve:
             target = (end_sign * self.rng.uniform(0.6, 1.0), self.rng.uniform(-0.4, 0.4))
@@ -641,12 +785,14 @@ class BatAI:
                 spin_out = np.zeros(3)
                 shot = None
                 for _ in range(2):  # the stroke's spin changes the flight: solve again with it
+                    yield
                     shot = self.solve_shot(p, spin_out, noisy, pace, end_sign, first_on_own_court=serve)
                     if shot is None:
                         break
                     normal, bat_vel, spin_out = self.solve_stroke(v_in, spin_in, shot)
                 if shot is None:
                     continue
+                yield
                 if self._lands_well(p, shot, spin_out, end_sign, serve):
                     solution = (normal, bat_vel)
                     target = aim
@@ -655,12 +801,19 @@ class BatAI:
                 break
         if solution is None:
             self.stats["no_solution"] += 1
-            return None
+            return
         normal, bat_vel = solution
         normal = self._jitter(normal, self.skill.face_noise_rad)
         speed = np.linalg.norm(bat_vel)
         if speed > self.skill.max_speed:
             bat_vel = bat_vel * (self.skill.max_speed / speed)
+        self._thought = (p, normal, bat_vel, t_hit, target)
+
+    def _make_plan(self, thought, now: float, bat_pos: np.ndarray, current_vel: np.ndarray) -> Plan | None:
+        """The bat's path from its state now to the stroke `thought` (see _think) and through it."""
+        if thought is None:
+            return None
+        p, normal, bat_vel, t_hit, target = thought
         centre = p - (self.radius + self.bat_half_thickness) * normal
         swing = min(self.SWING_S, max(t_hit - now - 0.02, 0.04))
         back = centre - bat_vel * swing / 2  # constant-acceleration swing from rest
@@ -807,11 +960,19 @@ class BatAI:
             self.turn_key = rally_key
             self.turn_seen_at = now
         floats = self._bat_floats(bat)
-        if my_turn and self.planned_key != rally_key and now >= self.turn_seen_at + (0.0 if serve else self.skill.reaction_s):
-            self.planned_key = rally_key
-            self.plan = self.plan_stroke(now, ball_y, floats[BAT_POS:BAT_POS + 3].copy(),
-                                         floats[BAT_VEL:BAT_VEL + 3].copy(), end_sign, serve)
-            self._plan_end = self.plan.segments[-1].t1 if self.plan is not None else -math.inf
+        if my_turn and self.planned_key != rally_key:
+            self._start_thinking(now, ball_y, rally_key, end_sign, serve)
+        if self._thinking is not None and now >= self._thinking_due:
+            if self._thinking_left:  # not thought out in time: the turn waits for the rest
+                started = time.perf_counter()
+                self.finish_thinking()
+                self.late_thinking_s += time.perf_counter() - started
+                self.late_thoughts += 1
+            if self._thinking_key == rally_key and my_turn:
+                self.plan = self._make_plan(self._thought, now, floats[BAT_POS:BAT_POS + 3].copy(),
+                                            floats[BAT_VEL:BAT_VEL + 3].copy())
+                self._plan_end = self.plan.segments[-1].t1 if self.plan is not None else -math.inf
+            self._thinking = None
         if self.plan is not None and now > self._plan_end:
             self.plan = None
         if self.plan is not self._tracking[0] or end_sign != self._tracking[1]:
@@ -820,6 +981,47 @@ class BatAI:
             out = np.zeros(6)
         bat_control(now, floats, self._ctl, out)
         return out
+
+    def _start_thinking(self, now: float, ball_y: np.ndarray, rally_key, end_sign: int, serve: bool) -> None:
+        """Start thinking out the stroke for rally_key from the ball's state now; it is played from
+        the first control tick after the reaction time (none for a service), as if thought out
+        there (see _think): the ball's path from now on is known, so the thinking can start now
+        and be spread over the control ticks in between (think_step)."""
+        self.finish_thinking()  # one still unfinished: its random draws come first
+        self.planned_key = rally_key
+        due = self.turn_seen_at + (0.0 if serve else self.skill.reaction_s)
+        h, every = self.model.dt, self.control_every
+        start_time, first_row = now, 0
+        while not start_time >= due:  # the control ticks ahead, in the world clock's own arithmetic
+            for _ in range(every):
+                start_time = start_time + h
+            first_row += every
+        self._thinking = self._think(now, np.array(ball_y, dtype=np.float64), end_sign, serve, start_time, first_row)
+        self._thinking_key = rally_key
+        self._thinking_due = due
+        self._thinking_left = True
+        if self.eager:
+            self.finish_thinking()
+
+    @property
+    def thinking(self) -> bool:
+        """Whether a stroke is still being thought out (think_step has work to do)."""
+        return self._thinking is not None and self._thinking_left
+
+    def think_step(self) -> bool:
+        """One step of the stroke being thought out; whether more remain."""
+        if self._thinking is None or not self._thinking_left:
+            return False
+        try:
+            next(self._thinking)
+        except StopIteration:
+            self._thinking_left = False
+        return self._thinking_left
+
+    def finish_thinking(self) -> None:
+        """Think the stroke being thought out to its end."""
+        while self.think_step():
+            pass
 
     def _track(self, plan: Plan | None, end_sign: int) -> None:
         """Write into self._ctl the plan's path and face normal, or the ready pose of end_sign without one."""

@@ -72,9 +72,19 @@ class MatchResult:
         }
 
 
-def make_ais(scene: Scene, model, seed: int) -> dict[int, BatAI]:
-    """The AI of every bat that has a skill, each seeded from the match seed and its player."""
-    return {i: BatAI(model, i, SKILLS[bat.skill], seed=seed * 1000 + i)
+def control_period(scene: Scene) -> int:
+    """Ticks between the AI's control ticks."""
+    return max(1, int(round(1.0 / (scene.match.ai_hz * scene.dt))))
+
+
+def make_ais(scene: Scene, model, seed: int, eager: bool = True) -> dict[int, BatAI]:
+    """The AI of every bat that has a skill, each seeded from the match seed and its player.
+
+    eager=False: each thinks a stroke out only in the steps its think_step is given (and what
+    is left when it is due), as the AI worker does between its turns; the same strokes.
+    """
+    every = control_period(scene)
+    return {i: BatAI(model, i, SKILLS[bat.skill], seed=seed * 1000 + i, control_every=every, eager=eager)
             for i, bat in enumerate(scene.bats) if bat.skill is not None}
 
 
@@ -142,7 +152,7 @@ class Match:
         self.ai_bats = [i for i, bat in enumerate(scene.bats) if bat.skill is not None]
         self.inputs = np.zeros((len(scene.bats), 6))  # held by the bats until the next control tick
         self.ai_next = np.zeros((len(scene.bats), 6))  # the AIs' decision, applied at the next control tick
-        self.ai_every = max(1, int(round(1.0 / (spec.ai_hz * scene.dt))))
+        self.ai_every = control_period(scene)
         self.rally = 0
         self.rally_started = 0.0
         self.n_events = 0

@@ -7,9 +7,16 @@ bat-input mailbox, which the physics worker drains under its lock at the next co
 Asked again for the tick it last did (the physics restarted, or timed out waiting), it posts
 its last answer again rather than deciding twice: the AIs' plans and random draws move on once
 per control tick, as in the reference.
+
+A stroke is thought out between the turns (BatAI.think_step), in the time the physics takes to
+step to the next control tick, so the physics does not wait for it: a stroke starts when the
+ball changes hands and is played only after the reaction time, and what is not thought out by
+then is finished at that turn (BatAI.finish_thinking). The strokes are the same, bit for bit,
+however the thinking was spread.
 """
 from __future__ import annotations
 
+import math
 import os
 import signal
 import time
@@ -26,6 +33,11 @@ from processes.shm import Arena
 from processes.worker import GO_TIMEOUT_S, Control, WorkerState
 
 MAX_BATS = 2
+# Thinking after a turn stops this share of the time between turns after the turn came: the
+# physics asks for the next answer about two such times after it, and one think step (at
+# most ~40 us) and the next answer must fit in between.
+THINK_SHARE = 0.9
+PERIOD_WINDOW = 32  # turns over which the least time between two turns is the estimate
 # One record per AI tick carries every AI bat's inputs (one locked post, not one per bat).
 INPUT_DTYPE = np.dtype([("tick", "<i8"), ("mask", "<i8"), ("inputs", "<f8", (MAX_BATS, 6))])
 LOCK_NAMES = ("bat_inputs",)
@@ -34,7 +46,8 @@ LOCK_NAMES = ("bat_inputs",)
 def ai_worker(control: Control, arena: Arena, scene, options: dict) -> None:
     """options: seed, baton (processes.handoff.Baton), lock_path."""
     model = build_model(scene)
-    ais = make_ais(scene, model, options["seed"])
+    ais = make_ais(scene, model, options["seed"], eager=False)
+    thinkers = list(ais.values())
     n_bats = len(scene.bats)
     baton = options["baton"].attach(arena["baton"].array)
     locks = LockTable(options["lock_path"], LOCK_NAMES, arena["lock_holders"])
@@ -54,18 +67,28 @@ def ai_worker(control: Control, arena: Arena, scene, options: dict) -> None:
     control.send("ready", 0)
     control.wait_for("go", GO_TIMEOUT_S)
     control.set_state(WorkerState.RUNNING)
-    busy = 0.0
+    busy = think = longest = 0.0
+    turns = 0
     last_tick = None
+    period = 0.0  # s between turns (no thinking between turns until it is measured)
+    least, n_periods, last_turn_at, prompt = math.inf, 0, 0.0, False
     try:
         while True:
             try:
                 tick = baton.wait_turn(Control.HEARTBEAT_S)
             except HandoffTimeout:
                 control.beat(int(control.row["tick"]))  # idle: still alive, still listening
+                prompt = False
                 continue
             if tick is None:
                 break
             t0 = time.perf_counter()
+            if prompt:  # we were waiting for this turn: the time since the last is the physics'
+                least = min(least, t0 - last_turn_at)
+                n_periods += 1
+                if n_periods == PERIOD_WINDOW:
+                    period, least, n_periods = least, math.inf, 0
+            last_turn_at = t0
             if tick != last_tick:
                 copy_record(view, snap)  # our own copy, byte for byte: the AIs keep views into it
                 ai_inputs(ais, float(world["time"]), ball_y, bats, (int(rally["rally"]), int(rally["shots"])),
@@ -73,13 +96,29 @@ def ai_worker(control: Control, arena: Arena, scene, options: dict) -> None:
                 record["tick"] = tick
                 last_tick = tick
             box.post(record)
-            busy += time.perf_counter() - t0
+            answer = time.perf_counter() - t0
+            busy += answer
+            longest = max(longest, answer)
+            turns += 1
             baton.done()
+            prompt = True
+            until = t0 + THINK_SHARE * period
+            for ai in thinkers:
+                while ai.thinking and time.perf_counter() < until:
+                    if prompt:
+                        t1, prompt = time.perf_counter(), False
+                    ai.think_step()
+            if not prompt:
+                think += time.perf_counter() - t1
             if tick == options.get("crash_at_tick"):
                 os.kill(os.getpid(), signal.SIGKILL)
             control.beat(tick)
+        busy += think
         control.row["busy_s"] = float(control.row["busy_s"]) + busy
-        control.send("done", {"tick": int(control.row["tick"]), "busy_s": busy})
+        control.send("done", {"tick": int(control.row["tick"]), "busy_s": busy, "think_s": think,
+                              "late_thoughts": sum(ai.late_thoughts for ai in thinkers),
+                              "late_thinking_s": sum(ai.late_thinking_s for ai in thinkers),
+                              "turns": turns, "longest_turn_s": longest})
     finally:
         del view, snap, box, baton, ball_y, bats, rally, world
         locks.close()

@@ -2,11 +2,13 @@
 import numpy as np
 import pytest
 
-from engine.ai import NO_STRIKE, SKILLS, STOP_RETURN_STRIKE, STOP_SERVE_STRIKE, BatAI
+from engine.ai import NO_STRIKE, SKILLS, STOP_EVENTS, STOP_RETURN_STRIKE, STOP_SERVE_STRIKE, BatAI
+from engine.collision import EVENT_ROW, MAX_IMPACTS_PER_TICK, SCRATCH_SHAPE, ball_tick
 from engine.contact import impact
 from engine.dtypes import BAT_DTYPE
 from engine.geometry import Body
-from engine.match import Match
+from engine.integrators import ADAPT_SIZE, WORK_SHAPE
+from engine.match import LocalAI, Match, make_ais
 from engine.scene import load_scene
 from engine.world import build_model
 
@@ -129,3 +131,51 @@ def test_lands_well_agrees_with_judging_the_predicted_path(ai):
         assert ai._lands_well(p, v, spin, 1, True) == want
         answers[("service", want)] += 1
     assert min(answers.values()) >= 5, answers  # both answers of both kinds were exercised
+
+
+def test_prediction_is_ball_tick_bit_for_bit_where_it_steps_free_flight(ai):
+    """Far from every body the prediction steps the integrator alone: the same bits as ball_tick."""
+    m = ai.model
+    work, scratch, adapt = np.zeros(WORK_SHAPE), np.zeros(SCRATCH_SHAPE), np.zeros(ADAPT_SIZE)
+    events = np.zeros((MAX_IMPACTS_PER_TICK, EVENT_ROW))
+    contacts = 0
+    for y0 in _incoming_balls(10, seed=9):
+        n, n_events, _, _ = ai._predict(y0, m.dt, 1500, 8, STOP_EVENTS, 0)
+        got = ai._traj[: n + 1].copy()
+        want = np.empty_like(got)
+        want[0] = y0
+        support = 0
+        adapt[:] = 0.0
+        for k in range(n):
+            want[k + 1] = want[k]
+            _, support = ball_tick(want[k + 1], m.dt, support, m.method, m.gravity, m.drag_k, m.magnus_k,
+                                   m.scene.rtol, m.scene.atol, m.table, m.floor_z, m.net, m.posts, None,
+                                   m.ball_params, m.materials, work, scratch, adapt, events)
+        np.testing.assert_array_equal(got, want)  # exact: the same arithmetic
+        contacts += n_events
+    assert contacts >= 10  # the paths went through bounces, not only free flight
+
+
+class _SpreadThinking(LocalAI):
+    """The AI worker's way: strokes thought out a few steps at a time between control ticks."""
+
+    def __init__(self, ais, seed):
+        super().__init__(ais)
+        self.rng = np.random.default_rng(seed)
+
+    def request(self, match, now):
+        super().request(match, now)
+        for ai in self.ais.values():
+            for _ in range(int(self.rng.integers(0, 4))):
+                ai.think_step()
+
+
+def test_strokes_thought_out_in_steps_are_the_strokes_thought_out_at_once():
+    eager = Match(SCENE, seed=6)
+    spread = Match(SCENE, seed=6, ai_driver=_SpreadThinking(make_ais(SCENE, eager.model, 6, eager=False), 1))
+    for _ in range(15_000):
+        eager.tick()
+        spread.tick()
+        assert eager.state.record.tobytes() == spread.state.record.tobytes()
+    late = sum(ai.late_thoughts for ai in spread.ai_driver.ais.values())
+    assert late > 0 and len(eager.referee.points) >= 2  # some strokes were finished when due
