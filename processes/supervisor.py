@@ -26,7 +26,7 @@ from processes.handoff import TICK_SLOT_DTYPE, Baton
 from processes.locks import HOLDER_DTYPE, LockTable
 from processes.mailbox import MAILBOX_HEADER
 from processes.shm import Arena
-from processes.worker import READY_TIMEOUT_S, STATUS_DTYPE, WorkerState, worker_entry
+from processes.worker import READY_TIMEOUT_S, STARTUP_LIMIT_S, STATUS_DTYPE, WorkerState, worker_entry
 
 EVENT_LOG_CAPACITY = 1 << 16
 POINT_LOG_CAPACITY = 1 << 12  # a best-of-9 match has at most a few hundred rallies
@@ -204,8 +204,18 @@ class Supervisor:
         worker.finished = False
 
     def _await_ready(self, worker: _Worker) -> None:
-        deadline = time.monotonic() + READY_TIMEOUT_S
-        while time.monotonic() < deadline:
+        """Until the worker says ready: bounded by its silence (READY_TIMEOUT_S without a heartbeat,
+        which a starting worker's thread keeps fresh while it compiles) and by STARTUP_LIMIT_S."""
+        row = self.arena["status"].array[worker.index]
+        start = time.monotonic()
+        while True:
+            now = time.monotonic()
+            # The heartbeat is 0 until the worker has attached its row: count from our start then.
+            silent = now - max(float(row["heartbeat"]), start)
+            if silent > READY_TIMEOUT_S:
+                raise TimeoutError(f"{worker.kind} worker silent for {silent:.0f} s while starting (hung?)")
+            if now - start > STARTUP_LIMIT_S:
+                raise TimeoutError(f"{worker.kind} worker not ready within {STARTUP_LIMIT_S:.0f} s")
             ready = multiprocessing.connection.wait([worker.conn, worker.process.sentinel], timeout=0.5)
             if worker.conn in ready:
                 kind, payload = worker.conn.recv()
@@ -216,7 +226,6 @@ class Supervisor:
                     raise WorkerFailed(f"{worker.kind} worker failed while starting:\n{payload['traceback']}")
             elif worker.process.sentinel in ready:
                 raise WorkerFailed(f"{worker.kind} worker exited with code {worker.process.exitcode} while starting")
-        raise TimeoutError(f"{worker.kind} worker not ready within {READY_TIMEOUT_S} s")
 
     def _restart(self, worker: _Worker, why: str, start_wall: float) -> None:
         if worker.restarts >= MAX_RESTARTS:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import enum
 import os
 import signal
+import threading
 import time
 import traceback
 
@@ -38,10 +39,16 @@ class WorkerState(enum.IntEnum):
     STOPPED = 6
 
 
-READY_TIMEOUT_S = 120.0  # a cold numba cache compiles the kernels before the first tick
-# A ready worker waits for "go" until every sibling is ready too, each within READY_TIMEOUT_S
-# (one of each kind at most); an orphan still stops at once (Control.check_parent).
-GO_TIMEOUT_S = READY_TIMEOUT_S * 4
+# Starting, a worker imports, then compiles or loads its numba kernels: with a cold cache on a
+# loaded 2-core machine that has taken over 120 s. A thread keeps its heartbeat fresh meanwhile
+# (_beat_while_starting), so the supervisor tells a slow start from a hung one: silent for
+# READY_TIMEOUT_S is hung; a start longer than STARTUP_LIMIT_S in all is given up too.
+READY_TIMEOUT_S = 120.0
+STARTUP_LIMIT_S = 1800.0
+STARTUP_BEAT_S = 1.0
+# A ready worker waits for "go" until every sibling is ready too; an orphan still stops at once
+# (Control.check_parent).
+GO_TIMEOUT_S = STARTUP_LIMIT_S
 
 
 class StopRequested(Exception):
@@ -99,6 +106,12 @@ class Control:
             self.check_parent()
 
 
+def _beat_while_starting(row, started: threading.Event) -> None:
+    """Keep a STARTING worker's heartbeat fresh (a daemon thread; numba compiles in the main one)."""
+    while not started.wait(STARTUP_BEAT_S) and row["state"] == WorkerState.STARTING:
+        row["heartbeat"] = time.monotonic()
+
+
 def worker_entry(kind: str, conn, layout: dict, status_index: int, scene, options: dict) -> None:
     """Process entry point: run the worker of `kind`, ship any error back with its traceback."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -109,6 +122,8 @@ def worker_entry(kind: str, conn, layout: dict, status_index: int, scene, option
     row["pid"] = os.getpid()
     control = Control(conn, row)
     control.set_state(WorkerState.STARTING)
+    started = threading.Event()
+    threading.Thread(target=_beat_while_starting, args=(row, started), name="startup-heartbeat", daemon=True).start()
     try:
         if kind == "physics":
             from processes.worker_physics import physics_worker
@@ -138,6 +153,7 @@ def worker_entry(kind: str, conn, layout: dict, status_index: int, scene, option
         except (OSError, BrokenPipeError):
             pass
     finally:
+        started.set()
         del row, control
         arena.close()
         conn.close()

@@ -120,3 +120,26 @@ def test_cli_processes_check_reference_json():
     assert summary["reference"]["ticks_compared"] == load_scene("serve").ticks + 1
     assert summary["workers"]["physics"]["restarts"] == 0
     assert np.isfinite(summary["wall_seconds"])
+
+
+def test_a_starting_worker_keeps_its_heartbeat_fresh_until_it_is_ready():
+    """While a worker compiles its kernels (seconds to minutes, one blocking call) a thread keeps
+    its heartbeat fresh, so the supervisor waits on silence, not on a fixed start-up time."""
+    import threading
+
+    from processes import worker
+
+    row = np.zeros(1, STATUS_DTYPE)[0]
+    row["state"] = WorkerState.STARTING
+    started = threading.Event()
+    beater = threading.Thread(target=worker._beat_while_starting, args=(row, started), daemon=True)
+    beater.start()
+    deadline = time.monotonic() + 10 * worker.STARTUP_BEAT_S
+    beats = set()
+    while len(beats) < 3 and time.monotonic() < deadline:
+        beats.add(float(row["heartbeat"]))
+        time.sleep(0.05)  # polling a shared value the thread writes, bounded by the deadline
+    assert len(beats - {0.0}) >= 2  # it beat at least twice
+    row["state"] = WorkerState.READY  # ready: the thread stops beating and ends
+    beater.join(timeout=3 * worker.STARTUP_BEAT_S)
+    assert not beater.is_alive()
