@@ -1,11 +1,11 @@
-"""µs per net tick (NetSim.step, 1 ms) for several net sizes: awake, ball near, impact; full vs culled contact sweep.
+"""µs per net tick (NetSim.step, 1 ms) for several net sizes: awake, ball near, impact; full / culled sweep loop / NetSim.
 
 Run: `.venv/bin/python bench/net_tick.py [--ticks 200] [--json]` (net_kernel.profile.tick_costs).
 """
 import argparse
 import json
 
-from net_kernel.profile import tick_costs
+from net_kernel.profile import SWEEPS, tick_costs
 
 
 def main() -> None:
@@ -22,12 +22,13 @@ def main() -> None:
         print(json.dumps(report))
         return
     print(f"µs per 1 ms net tick, {report['clock']} clock (median of {report['repeats']} runs of {report['ticks']} "
-          f"ticks; load average {report['load_avg']:.2f}); full / culled contact sweep")
-    print(f"  {'net':>7} {'knots':>6} {'substeps':>8} {'awake':>15} {'ball near':>19} {'impact':>19}")
+          f"ticks; load average {report['load_avg']:.2f}); NetSim's substep loop with the full / the culled contact "
+          "sweep / NetSim as it is")
+    print(f"  {'net':>7} {'knots':>6} {'substeps':>8} {'awake':>20} {'ball near':>20} {'impact':>20}")
     for r in report["rows"]:
-        cells = [f"{r[f'{c}_full_us']:.0f} / {r[f'{c}_culled_us']:.0f}" for c in ("awake", "near", "impact")]
-        print(f"  {r['cols']}x{r['rows']:<3} {r['knots']:>6} {r['substeps']:>8} {cells[0]:>15} {cells[1]:>19} "
-              f"{cells[2]:>19}")
+        cells = [" / ".join(f"{r[f'{c}_{sweep}_us']:.0f}" for sweep in SWEEPS) for c in ("awake", "near", "impact")]
+        print(f"  {r['cols']}x{r['rows']:<3} {r['knots']:>6} {r['substeps']:>8} {cells[0]:>20} {cells[1]:>20} "
+              f"{cells[2]:>20}")
 
 
 if __name__ == "__main__":

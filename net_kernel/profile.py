@@ -256,17 +256,27 @@ BALL_MASS = 2.7e-3  # kg, ITTF 2.3
 
 
 def _net_sim(cols: int, rows: int, sweep: str):
-    """A perturbed, moving NetSim of a cols x rows default-cloth net (knot_mass = 0.05 kg / knots) with one sweep."""
+    """A perturbed, moving NetSim of a cols x rows default-cloth net (knot_mass = 0.05 kg / knots).
+
+    sweep: "netsim", NetSim as it is; "full" / "culled", NetSim's per-substep loop with
+    kernels.collide_ball / collide_ball_near (private hooks set here: a benchmark's baselines,
+    whichever contact call NetSim itself makes).
+    """
     topo = build_topology(NetSpec(cols=cols, rows=rows, knot_mass=0.05 / (cols * rows)))
     sim = NetSim(topo, dt=TICK_S)
     pos, vel, _, _ = _state(topo)
     sim.knot_pos[:] = pos
     sim.knot_vel[:] = vel
+    if sweep == "netsim":
+        return sim
+    passes_near = hasattr(sim, "_near")  # NetSim already hands collide_ball_near its scratch
+    sim._step_grid_ball = None  # noqa: SLF001 (the per-substep loop, not a one-call tick)
     if sweep == "culled":
         near = np.zeros(topo.n_knots, dtype=np.int64)
-        sim._collide = lambda *args: kernels.collide_ball_near(*args, near)  # noqa: SLF001 (proposed NetSim call)
+        sim._collide = (kernels.collide_ball_near if passes_near  # noqa: SLF001
+                        else lambda *args: kernels.collide_ball_near(*args, near))
     else:
-        sim._collide = kernels.collide_ball  # noqa: SLF001
+        sim._collide = (lambda *args: kernels.collide_ball(*args[:13])) if passes_near else kernels.collide_ball  # noqa: SLF001
     return sim
 
 
@@ -296,9 +306,15 @@ def _time_ticks(sim, case: str, ticks: int, clock=time.perf_counter) -> float:
     return (clock() - t0) / ticks
 
 
+SWEEPS = ("full", "culled", "netsim")
+
+
 def tick_costs(sizes=((184, 16), (92, 8), (70, 7)), ticks: int = 200, repeats: int = REPEATS,
                clock: str = "thread") -> dict:
-    """µs per NetSim tick (1 ms) for each net size: awake with the ball away, ball near, an impact; full vs culled sweep.
+    """µs per NetSim tick (1 ms) for each net size: awake with the ball away, ball near, an impact.
+
+    Three ways to sweep the ball's contact (_net_sim): NetSim's per-substep loop with the full
+    sweep ("full") or the culled one ("culled"), and NetSim as it is ("netsim").
 
     clock: "thread" (CPU time of this thread, time.thread_time: what the tick costs its core,
     steadier on a shared machine, where waiting for a core is not the net's cost; NetSim below
@@ -308,18 +324,17 @@ def tick_costs(sizes=((184, 16), (92, 8), (70, 7)), ticks: int = 200, repeats: i
     perturbed state after an untimed warm-up run (kernels compiled or loaded first); the median is
     reported. "near": the ball 3 cm in front of the net, running along it (a contact sweep
     every substep, no contact); "impact": bench/net.py's 15 m/s ball into the net's centre,
-    IMPACT_TICKS ticks from 5 cm away. The culled sweep is kernels.collide_ball_near, called as
-    the proposed NetSim change would.
+    IMPACT_TICKS ticks from 5 cm away.
     """
     if clock not in ("thread", "wall"):
         raise ValueError(f"clock {clock!r} is not 'thread' or 'wall'")
     timer = time.thread_time if clock == "thread" else time.perf_counter
     rows_out = []
     for cols, rows in sizes:
-        sims = {sweep: _net_sim(cols, rows, sweep) for sweep in ("full", "culled")}
+        sims = {sweep: _net_sim(cols, rows, sweep) for sweep in SWEEPS}
         entry = {"cols": cols, "rows": rows, "knots": cols * rows, "substeps": sims["full"].substeps}
         for case in ("awake", "near", "impact"):
-            runs = {"full": [], "culled": []}
+            runs = {sweep: [] for sweep in SWEEPS}
             for sweep, sim in sims.items():
                 state = (sim.knot_pos.copy(), sim.knot_vel.copy())
                 _time_ticks(sim, case, min(ticks, IMPACT_TICKS))  # warm-up

@@ -92,31 +92,6 @@ def test_near_list_too_short_is_refused(strip):
                                   np.zeros(3, dtype=np.int64))
 
 
-@pytest.mark.parametrize("speed", [20.0, 40.0])
-def test_netsim_impact_with_the_cull_gives_the_full_sweeps_bits(speed):
-    """test_ball's impact (a straight ball into a rested strip), tick by tick, with either sweep."""
-    topo = build_topology(NetSpec(width=0.5, cols=51, knot_mass=NetSpec().knot_mass))
-    sims = [NetSim(topo, dt=DT) for _ in range(2)]
-    near = np.zeros(topo.n_knots, dtype=np.int64)
-    # NetSim's contact call, with and without the cull (the change proposed for net_kernel/sim.py).
-    sims[0]._collide = kernels.collide_ball
-    sims[1]._collide = functools.partial(kernels.collide_ball_near, near=near)
-    balls = []
-    for sim in sims:
-        pos, vel = np.array([-0.2, 0.0, 0.08]), np.array([speed, 0.0, 0.0])
-        hits = 0
-        for _ in range(60):
-            contact = sim.step(pos, vel, BALL_RADIUS, 1.0 / BALL_MASS)
-            pos = pos + vel * DT + contact.offset
-            vel = vel + contact.impulse / BALL_MASS
-            hits += contact.toi >= 0
-        balls.append((pos, vel, hits))
-    assert balls[0][2] > 0  # the ball met the net
-    assert np.array_equal(balls[0][0], balls[1][0]) and np.array_equal(balls[0][1], balls[1][1])  # exact
-    assert np.array_equal(sims[0].knot_pos, sims[1].knot_pos)  # exact
-    assert np.array_equal(sims[0].knot_vel, sims[1].knot_vel)  # exact
-
-
 def _fused_run(topo, ticks, speed, mod=kernels):
     """test_ball's straight ball from 5 cm, ticks stepped by step_grid_ball (far ticks: one step_grid call)."""
     spec = topo.spec
@@ -150,12 +125,63 @@ def _fused_run(topo, ticks, speed, mod=kernels):
     return state, pos, vel, tois
 
 
-def test_fused_tick_gives_netsims_bits():
-    """step_grid_ball over a tick equals NetSim's substep loop (collide_ball_near, then one step_grid step)."""
+def _loop_run(topo, ticks, speed, collide):
+    """_fused_run's ticks by NetSim's per-substep loop (its arithmetic), with a given contact sweep."""
+    spec = topo.spec
+    rows, cols = spec.rows, spec.cols
+    sim = NetSim(topo, dt=DT)  # for its substeps, h and far test only
+    state = np.zeros((2, 3, rows, cols))
+    state[0] = topo.knot_pos.T.reshape(3, rows, cols)
+    knot_pos, knot_vel = state[0].reshape(3, -1).T, state[1].reshape(3, -1).T
+    work = np.zeros((1, kernels.GRID_WORK_ROWS, cols))
+    inv_mass = topo.knot_inv_mass.reshape(rows, cols)
+    hit_impulse, end = np.zeros(3), np.zeros(3)
+    pos, vel = np.array([-0.05, 0.0, 0.08]), np.array([speed, 0.0, 0.0])
+    tois = []
+    for _ in range(ticks):
+        if sim.ball_far(pos, vel, BALL_RADIUS):
+            kernels.step_grid_serial(state, inv_mass, topo.grid_params, spec.gravity, spec.air_damping, sim.h,
+                                     sim.substeps, work)
+            tois.append(-1.0)
+            pos = pos + vel * DT
+            continue
+        bp, bv, impulse, toi = pos.copy(), vel.copy(), np.zeros(3), -1.0
+        for k in range(sim.substeps):
+            hit = collide(knot_pos, knot_vel, topo.knot_inv_mass, bp, bv, BALL_RADIUS, 1.0 / BALL_MASS,
+                          sim.knot_radius, sim.restitution, sim.h, 8, hit_impulse, end)
+            if hit >= 0.0:
+                toi = (k + hit) / sim.substeps if toi < 0.0 else toi
+                impulse += hit_impulse
+                bv += hit_impulse * (1.0 / BALL_MASS)
+            bp[:] = end
+            kernels.step_grid_serial(state, inv_mass, topo.grid_params, spec.gravity, spec.air_damping, sim.h, 1,
+                                     work)
+        tois.append(toi)
+        offset = (bp - pos) - vel * DT if toi >= 0.0 else np.zeros(3)
+        pos = pos + vel * DT + offset
+        vel = vel + impulse / BALL_MASS
+    return state, pos, vel, tois
+
+
+@pytest.mark.parametrize("speed", [20.0, 40.0])
+def test_culled_and_fused_ticks_give_the_full_sweeps_bits(speed):
+    """test_ball's impact tick by tick: the full sweep, the culled one, and step_grid_ball, all the same bits."""
+    topo = build_topology(NetSpec(width=0.5, cols=51, knot_mass=NetSpec().knot_mass))
+    near = np.zeros(topo.n_knots, dtype=np.int64)
+    full = _loop_run(topo, 15, speed, kernels.collide_ball)
+    culled = _loop_run(topo, 15, speed, functools.partial(kernels.collide_ball_near, near=near))
+    fused = _fused_run(topo, 15, speed)
+    assert sum(t >= 0.0 for t in full[3]) >= 3  # the ball met the net
+    for other in (culled, fused):
+        assert other[3] == full[3]  # exact: the same times of impact
+        for a, b in zip(full[:3], other[:3]):
+            assert np.array_equal(a, b)  # exact: knots, ball position and velocity
+
+
+def test_netsim_gives_the_full_sweeps_bits():
+    """NetSim, whichever contact call it makes, steps the impact as the full sweep's loop does."""
     topo = build_topology(NetSpec(width=0.5, cols=51, knot_mass=NetSpec().knot_mass))
     sim = NetSim(topo, dt=DT)
-    near = np.zeros(topo.n_knots, dtype=np.int64)
-    sim._collide = functools.partial(kernels.collide_ball_near, near=near)  # the proposed NetSim call
     pos, vel = np.array([-0.05, 0.0, 0.08]), np.array([20.0, 0.0, 0.0])
     tois = []
     for _ in range(15):
@@ -163,8 +189,7 @@ def test_fused_tick_gives_netsims_bits():
         pos = pos + vel * DT + contact.offset
         vel = vel + contact.impulse / BALL_MASS
         tois.append(contact.toi)
-    state, fpos, fvel, ftois = _fused_run(topo, 15, 20.0)
-    assert sum(t >= 0.0 for t in tois) >= 3  # the ball met the net
+    state, fpos, fvel, ftois = _loop_run(topo, 15, 20.0, kernels.collide_ball)
     assert tois == ftois  # exact
     assert np.array_equal(fpos, pos) and np.array_equal(fvel, vel)  # exact
     assert np.array_equal(state[0].reshape(3, -1).T, sim.knot_pos)  # exact

@@ -42,7 +42,7 @@ def test_tick_costs_small_net():
     (row,) = report["rows"]
     assert row["knots"] == 160 and row["substeps"] >= 1
     for case in ("awake", "near", "impact"):
-        for sweep in ("full", "culled"):
+        for sweep in ("full", "culled", "netsim"):
             assert row[f"{case}_{sweep}_us"] > 0
     with pytest.raises(ValueError, match="clock"):
         tick_costs(sizes=((20, 8),), ticks=1, repeats=1, clock="cpu")
