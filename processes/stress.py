@@ -537,6 +537,8 @@ def _finish(result: dict, run: Run, server: Server, shm_before: set, fds: dict, 
     result["fds"] = fds
     if server.end is not None:
         result["lost_points"] += _points_problems(server.end)
+        # the gateway's counters, also when the server was stopped (from its stats file)
+        result.setdefault("gateway", server.end.get("gateway", {}))
     for key in ("crashes", "lost_points", "leaked_fds", "leaked_shm"):
         if result[key]:
             result["problems"].append(f"{key} = {result[key]}")

@@ -55,6 +55,8 @@ def test_churn_leaves_every_seat_and_spectator_place_free():
     assert c.get("player_welcomed.A", 0) + c.get("player_welcomed.B", 0) > 0 and c["spectator_welcomed"] > 0
     assert c["fill_welcomed"] == 16 + 2 and c["fill_rejected"] == {"full": 2}  # exactly the limits, no leak
     assert c["gateway_fds_after"] <= c["gateway_fds_before"]
+    # the server was stopped, not at a match's end: the gateway's counters came anyway
+    assert result["gateway"]["spectators_joined"] >= c["spectator_welcomed"] and result["gateway"]["end"] == "shutdown"
 
 
 @pytest.mark.timeout(60)
@@ -82,12 +84,16 @@ def test_kills_are_recovered_and_a_full_server_says_goodbye_to_everyone():
     assert c["goodbye_shutdown"] == c["clients_at_shutdown"] == 22
 
 
-# Behind `make test-long` for now: on a loaded machine one of the nine sessionless sockets'
-# closing round trips (a hello after the flood) comes back unsynced ("8/9 sockets"), in 2 of 2
-# cold-cache CI runs and 1 of 4 local runs beside 3 CPU hogs; the cause is not found yet (issue
-# 8's note). `pingpong stress --scenario malformed` runs it at full size.
-@pytest.mark.long
-@pytest.mark.timeout(90)
+# Was behind `make test-long`: on a loaded machine one of the nine sessionless sockets' closing
+# round trips came back unsynced ("8/9 sockets"). Two causes found in the code (not caught in the
+# act): a reject ("full") to one of the valid
+# player hellos in the flood, answered by a loaded gateway after the flood's last drain, ended the
+# wait for the sync hello's welcome; and the oversized frames' socket loses whatever follows an
+# oversized frame (libzmq drops that connection). The round trips now wait for the welcome only,
+# on a new connection after the oversized frames. Since: 13 runs passed (up to 3 at once, load
+# 5-6); 3 more, at once, hit the old 90 s alarm while engine/ had just changed (a cold numba
+# cache compiles for minutes), hence 240 s, as the load test.
+@pytest.mark.timeout(240)
 def test_malformed_messages_are_all_counted_by_the_gateway_and_the_match_goes_on():
     result = stress.run_scenario("malformed", _args())
     _clean(result)
