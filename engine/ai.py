@@ -39,8 +39,8 @@ from numba import njit
 from engine import equipment
 from engine.bat import face_normal
 from engine.dtypes import BAT_DTYPE
-from engine.collision import (ERR_SUBSTEPS, EVENT_ROW, E_BODY, E_POS, E_TIME, MAX_IMPACTS_PER_TICK, P_RADIUS, SCRATCH_SHAPE,
-                              ball_tick)
+from engine.collision import (ERR_SUBSTEPS, EVENT_ROW, E_BODY, E_POS, E_TIME, MAX_IMPACTS_PER_TICK, P_INERTIA, P_MASS,
+                              P_RADIUS, SCRATCH_SHAPE, ball_tick)
 from engine.contact import impact
 from engine.forces import ball_accel
 from engine.geometry import Body, box_sdf
@@ -263,16 +263,18 @@ def _crossing(p, v, spin, x_plane, h, max_steps, method, gravity, drag_k, magnus
 
 @njit(cache=True)
 def free_flight_marks(p, v, spin, radius, h, max_steps, method, gravity, drag_k, magnus_k, rtol, atol, work, adapt,
-                      cur, nxt, out):
+                      cur, nxt, out, low_z=-math.inf):
     """Where a free flight (no table, net or floor) passes the net's plane and comes down to table height.
 
     Flies from (p, v, spin) in steps h until the ball's centre comes down through z = radius
-    (its bottom at the playing surface) or max_steps, interpolating linearly between steps.
+    (its bottom at the playing surface) or max_steps, interpolating linearly between steps;
+    stops at the net's plane if the centre passes it below low_z (m).
 
     Args:
         p, v, spin: (3,) m, m/s, rad/s. radius: m, the ball's. cur, nxt: (9,) scratch.
         out: (3,) written: z of the centre where x first crosses 0 before that (-inf if it does
-            not), then x, y where it comes down (nan if it does not within max_steps).
+            not), then x, y where it comes down (nan if it does not within max_steps, or it
+            stopped at the net's plane).
     """
     for i in range(3):
         cur[i], cur[3 + i], cur[6 + i] = p[i], v[i], spin[i]
@@ -284,6 +286,8 @@ def free_flight_marks(p, v, spin, radius, h, max_steps, method, gravity, drag_k,
             crossed = True
             f = cur[0] / (cur[0] - nxt[0])
             out[0] = cur[2] + f * (nxt[2] - cur[2])
+            if out[0] < low_z:
+                return
         if cur[2] > radius >= nxt[2]:
             f = (cur[2] - radius) / (cur[2] - nxt[2])
             out[1] = cur[0] + f * (nxt[0] - cur[0])
@@ -374,6 +378,34 @@ def stroke(v_in, spin_in, v_out, radius, mass, inertia, restitution, friction, n
         if math.sqrt(e0 * e0 + e1 * e1 + e2 * e2) < 1e-4:
             return
         w0, w1, w2 = w0 + e0, w1 + e1, w2 + e2
+
+
+@njit(cache=True)
+def shot_and_stroke(p, v_in, spin_in, target_x, target_y, pace, params, restitution, friction, h, max_steps,
+                    method, gravity, drag_k, magnus_k, rtol, atol, work, adapt, scratch, spin_out, shot, normal,
+                    bat_vel, got_v):
+    """One round of a stroke's solution: `shoot` with the stroke's spin spin_out (zero in the
+    first round), then `stroke` for that shot, which writes the new spin_out.
+
+    Args:
+        p, v_in, spin_in: (3,) the ball where it is struck, m, m/s, rad/s. target_x, target_y, pace:
+            as shoot's. params: the ball's (radius, mass, inertia first). restitution, friction:
+            the bat's rubber. h, max_steps ... scratch: as shoot's (adapt is reset first).
+        spin_out: (3,) rad/s, read, then written with the spin the stroke gives.
+        shot, normal, bat_vel, got_v: (3,) written: launch velocity, face normal, bat velocity,
+            the ball's velocity after that impact.
+
+    Returns:
+        False if the shot did not converge (nothing after shot is written then).
+    """
+    for i in range(adapt.shape[0]):
+        adapt[i] = 0.0
+    if not shoot(p, spin_out, target_x, target_y, pace, params[P_RADIUS], h, max_steps, method, gravity, drag_k,
+                 magnus_k, rtol, atol, work, adapt, scratch, shot):
+        return False
+    stroke(v_in, spin_in, shot, params[P_RADIUS], params[P_MASS], params[P_INERTIA], restitution, friction, normal,
+           bat_vel, got_v, spin_out)
+    return True
 
 
 SEG_T0, SEG_T1, SEG_P0, SEG_V0, SEG_P1, SEG_V1 = 0, 1, 2, 5, 8, 11
@@ -471,6 +503,19 @@ def bat_control(now, bat, ctl, out):
             out[3 + i] *= max_torque / norm
 
 
+@njit(cache=True)
+def control_bats(now, bats, ctl, players, out):
+    """bat_control for several bats in one call.
+
+    Args:
+        now: s. bats: (n_bats, BAT_FLOATS) every bat's record as float64. ctl: (n, CTL_SIZE) what
+            each controlled bat tracks. players: (n,) int64, the bat each ctl row drives.
+        out: (n_bats, 6) written at the rows of players: force N, torque N m.
+    """
+    for k in range(players.shape[0]):
+        bat_control(now, bats[players[k]], ctl[k], out[players[k]])
+
+
 @dataclass(frozen=True)
 class Skill:
     """How well a bat plays. Noise is one standard deviation."""
@@ -558,6 +603,10 @@ class BatAI:
     # predicted path's: measured, the two pass the net within 0.03 mm of each other with the
     # free flight at 4 ms (seed 0, 272 returns); at the engine's own tick they agree closer still.
     FREE_FLIGHT_TOLERANCE_M = 0.005
+    # A shot lands within a few mm of its aim (shoot converges to 1 mm on a flight that differs
+    # from the engine's by well under 1 mm), so an aim this far outside the court's margin is not
+    # tried: none of its strokes would pass _lands_well (seed 0: 108 such tries, none passed).
+    AIM_SLACK_M = 0.01
     RECOVER_S = 0.35
     PREDICT_CHUNK = 32  # ticks of prediction in one think_step (~30 us)
     KP = 30.0**2  # (rad/s)^2: position loop natural frequency 30 rad/s, critically damped
@@ -615,8 +664,14 @@ class BatAI:
         self.predict(np.array([0.0, 0.0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), 0.01)
         v_out = self.solve_shot(np.array([1.6, 0.0, 0.2]), np.zeros(3), (-0.8, 0.0), 8.0, 1)
         self.solve_stroke(np.array([5.0, 0.0, 1.0]), np.zeros(3), v_out)
+        m = self.model
+        restitution, friction = (float(x) for x in m.materials[Body.BAT_A + self.player])
+        shot_and_stroke(np.array([1.6, 0.0, 0.2]), np.array([-5.0, 0.0, 1.0]), np.zeros(3), -0.8, 0.0, 8.0,
+                        m.ball_params, restitution, friction, self.SHOOTING_DT, int(2.0 / self.SHOOTING_DT), m.method,
+                        m.gravity, m.drag_k, m.magnus_k, m.scene.rtol, m.scene.atol, self._work, self._adapt,
+                        self._shoot_scratch, np.zeros(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3))
         self._free_flight_verdict(np.array([1.6, 0.0, 0.2, *v_out, 0.0, 0.0, 0.0]), -1, self.NET_MARGIN_M, 10)
-        m, memo = self.model, np.zeros(MEMO_SIZE, np.int64)  # _think's pieces of prediction (from the ball above)
+        memo = np.zeros(MEMO_SIZE, np.int64)  # _think's pieces of prediction (from the ball above)
         memo[_M_WATCH:_M_WATCH + 4] = -1
         predict_span(m.dt, 0, 1, 2, 3, STOP_RETURN_STRIKE, 1, 0, m.method, m.gravity, m.drag_k, m.magnus_k,
                      m.scene.rtol, m.scene.atol, m.table, m.floor_z, m.net, m.posts, m.ball_params, m.materials,
@@ -779,18 +834,26 @@ class BatAI:
         # angle noise below applies to whichever stroke is played.
         solution = None
         tries = [(aim, noise) for aim in [target] + fallbacks] + [(aim, (0.0, 0.0)) for aim in fallbacks]
+        court = end_sign if serve else -end_sign  # where the aim is (a service's: its first bounce)
+        restitution, friction = (float(x) for x in m.materials[Body.BAT_A + self.player])
+        shoot_steps, got_v = int(2.0 / self.SHOOTING_DT), np.empty(3)
         for aim, off in tries:
             noisy = (aim[0] + off[0], aim[1] + off[1])
+            if not _on_court(noisy, court, self.COURT_MARGIN_M - self.AIM_SLACK_M):
+                continue  # aimed off the court: at no pace does it land in (see AIM_SLACK_M)
             for pace in paces:
-                spin_out = np.zeros(3)
-                shot = None
+                spin_out, shot, normal, bat_vel = np.zeros(3), np.empty(3), np.empty(3), np.empty(3)
+                solved = True
                 for _ in range(2):  # the stroke's spin changes the flight: solve again with it
                     yield
-                    shot = self.solve_shot(p, spin_out, noisy, pace, end_sign, first_on_own_court=serve)
-                    if shot is None:
+                    solved = shot_and_stroke(p, v_in, spin_in, float(noisy[0]), float(noisy[1]), float(pace),
+                                             m.ball_params, restitution, friction, self.SHOOTING_DT, shoot_steps,
+                                             m.method, m.gravity, m.drag_k, m.magnus_k, m.scene.rtol, m.scene.atol,
+                                             self._work, self._adapt, self._shoot_scratch, spin_out, shot, normal,
+                                             bat_vel, got_v)
+                    if not solved:
                         break
-                    normal, bat_vel, spin_out = self.solve_stroke(v_in, spin_in, shot)
-                if shot is None:
+                if not solved:
                     continue
                 yield
                 if self._lands_well(p, shot, spin_out, end_sign, serve):
@@ -881,11 +944,14 @@ class BatAI:
         m = self.model
         self._free_adapt[:] = 0.0
         out = self._free_scratch[2, 0:3]
+        margin, tolerance = self.COURT_MARGIN_M, self.FREE_FLIGHT_TOLERANCE_M
+        # A pass of the net's plane this far below the clearance is a _MISS wherever the ball comes
+        # down: the flight stops there (1 nm more, so round-off cannot make it a pass below).
+        low_z = self.radius + equipment.NET_HEIGHT + clearance - tolerance - 1e-9
         free_flight_marks(y[0:3], y[3:6], y[6:9], self.radius, m.dt, max_ticks, m.method,
                           m.gravity, m.drag_k, m.magnus_k, m.scene.rtol, m.scene.atol, self._free_work,
-                          self._free_adapt, self._free_scratch[0], self._free_scratch[1], out)
+                          self._free_adapt, self._free_scratch[0], self._free_scratch[1], out, low_z)
         above_net = out[0] - self.radius - equipment.NET_HEIGHT - clearance
-        margin, tolerance = self.COURT_MARGIN_M, self.FREE_FLIGHT_TOLERANCE_M
         if above_net < -tolerance:
             return _MISS
         if math.isnan(out[1]) or y[2] <= self.radius:
@@ -956,10 +1022,20 @@ class BatAI:
             end_sign: -1 if this bat's court is at x < 0.
             out: (6,) written and returned if given.
         """
+        floats = self._bat_floats(bat)
+        self.decide(now, ball_y, floats, rally_key, my_turn, serve, end_sign)
+        if out is None:
+            out = np.zeros(6)
+        bat_control(now, floats, self._ctl, out)
+        return out
+
+    def decide(self, now: float, ball_y: np.ndarray, floats: np.ndarray, rally_key, my_turn: bool, serve: bool,
+               end_sign: int) -> None:
+        """control without the force: bring the plan and what bat_control tracks (self._ctl) up to
+        date. floats: the bat as a (BAT_FLOATS,) float64 array (see _bat_floats)."""
         if rally_key != self.turn_key:
             self.turn_key = rally_key
             self.turn_seen_at = now
-        floats = self._bat_floats(bat)
         if my_turn and self.planned_key != rally_key:
             self._start_thinking(now, ball_y, rally_key, end_sign, serve)
         if self._thinking is not None and now >= self._thinking_due:
@@ -977,10 +1053,6 @@ class BatAI:
             self.plan = None
         if self.plan is not self._tracking[0] or end_sign != self._tracking[1]:
             self._track(self.plan, end_sign)
-        if out is None:
-            out = np.zeros(6)
-        bat_control(now, floats, self._ctl, out)
-        return out
 
     def _start_thinking(self, now: float, ball_y: np.ndarray, rally_key, end_sign: int, serve: bool) -> None:
         """Start thinking out the stroke for rally_key from the ball's state now; it is played from
@@ -1053,3 +1125,47 @@ class BatAI:
         floats = np.frombuffer(bat, np.float64)
         floats.flags.writeable = False  # as a record's: one numba specialisation
         return floats
+
+
+class AIPlayers(dict):
+    """{player: BatAI} whose control runs for all of them in one numba call (control_bats):
+    their bat_control arrays (BatAI._ctl) are the rows of one array."""
+
+    def __init__(self, ais: dict[int, "BatAI"]):
+        super().__init__(ais)
+        self.players = np.array(list(ais), dtype=np.int64)
+        self.ctl = np.array([ai._ctl for ai in ais.values()]).reshape(len(ais), CTL_SIZE)
+        for k, ai in enumerate(ais.values()):
+            ai._ctl = self.ctl[k]
+        self._bats = None  # the bats array last seen, and its float64 view
+        self._floats = None
+
+    def bat_floats(self, bats: np.ndarray) -> np.ndarray:
+        """(n_bats, BAT_FLOATS) float64 view of a BAT_DTYPE array (made once for the same array)."""
+        if bats is not self._bats:
+            if bats.dtype != BAT_DTYPE or bats.ndim != 1 or not bats.flags.c_contiguous:
+                raise TypeError(f"AIPlayers: bats must be a contiguous 1-D engine.dtypes.BAT_DTYPE array, got "
+                                f"dtype {bats.dtype}, shape {bats.shape}")
+            self._floats = bats.view(np.float64).reshape(len(bats), BAT_FLOATS)
+            self._bats = bats
+        return self._floats
+
+    def control(self, now: float, ball_y: np.ndarray, bats: np.ndarray, rally_key, to_strike: int, serve: bool,
+                out: np.ndarray) -> None:
+        """Every AI's force and torque into out[player] (see BatAI.control); to_strike: the player
+        whose ball it is to strike next."""
+        floats = self.bat_floats(bats)
+        for player, ai in self.items():
+            ai.decide(now, ball_y, floats[player], rally_key, to_strike == player, serve, -1 if player == 0 else 1)
+        control_bats(now, floats, self.ctl, self.players, out)
+
+    def warm_up(self) -> None:
+        """BatAI.warm_up of each, and control_bats."""
+        for ai in self.values():
+            ai.warm_up()
+        bats = np.zeros(max(self, default=0) + 1, BAT_DTYPE)
+        bats["quat"] = (1.0, 0.0, 0.0, 0.0)
+        ctl = self.ctl.copy()
+        ctl[:, CTL_NORMAL] = 1.0
+        control_bats(0.0, bats.view(np.float64).reshape(len(bats), BAT_FLOATS), ctl, self.players,
+                     np.zeros((len(bats), 6)))

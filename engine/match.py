@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from engine import equipment
-from engine.ai import SKILLS, BatAI
+from engine.ai import SKILLS, AIPlayers, BatAI
 from engine.dtypes import POINT_DTYPE
 from engine.rules import REASONS, Phase, PointRecord, Referee, next_striker
 from engine.scene import Scene
@@ -77,25 +77,26 @@ def control_period(scene: Scene) -> int:
     return max(1, int(round(1.0 / (scene.match.ai_hz * scene.dt))))
 
 
-def make_ais(scene: Scene, model, seed: int, eager: bool = True) -> dict[int, BatAI]:
+def make_ais(scene: Scene, model, seed: int, eager: bool = True) -> AIPlayers:
     """The AI of every bat that has a skill, each seeded from the match seed and its player.
 
     eager=False: each thinks a stroke out only in the steps its think_step is given (and what
     is left when it is due), as the AI worker does between its turns; the same strokes.
     """
     every = control_period(scene)
-    return {i: BatAI(model, i, SKILLS[bat.skill], seed=seed * 1000 + i, control_every=every, eager=eager)
-            for i, bat in enumerate(scene.bats) if bat.skill is not None}
+    return AIPlayers({i: BatAI(model, i, SKILLS[bat.skill], seed=seed * 1000 + i, control_every=every, eager=eager)
+                      for i, bat in enumerate(scene.bats) if bat.skill is not None})
 
 
-def ai_inputs(ais: dict[int, BatAI], now: float, ball_y: np.ndarray, bats: np.ndarray, rally_key,
+def ai_inputs(ais: AIPlayers, now: float, ball_y: np.ndarray, bats: np.ndarray, rally_key,
               phase: int, server: int, striker: int, inputs: np.ndarray) -> None:
     """Every AI's force and torque from one state: the one function both the in-process match
-    and the AI worker call, so lockstep runs compute bit for bit the same inputs."""
-    to_strike = next_striker(phase, server, striker)
-    for player, ai in ais.items():
-        ai.control(now, ball_y, bats[player], rally_key, to_strike == player, phase == Phase.WAITING_SERVE,
-                   -1 if player == 0 else 1, inputs[player])
+    and the AI worker call, so lockstep runs compute bit for bit the same inputs.
+
+    bats: the (n_bats,) BAT_DTYPE array; inputs: (n_bats, 6), written at the AIs' rows.
+    """
+    ais.control(now, ball_y, bats, rally_key, next_striker(phase, server, striker), phase == Phase.WAITING_SERVE,
+                inputs)
 
 
 def point_row(point: PointRecord, tick: int) -> np.ndarray:
@@ -262,8 +263,8 @@ class Match:
         limit = self.scene.ticks if max_ticks is None else max_ticks
         compile_start = time.perf_counter()
         step(self.model, self.state, None, self.events, dt=0.0)  # compile or load the kernels
-        for ai in self.ais.values():
-            ai.warm_up()
+        if self.ais:
+            self.ais.warm_up()
         compile_seconds = time.perf_counter() - compile_start
         start = time.perf_counter()
         ticks = 0

@@ -61,8 +61,7 @@ def ai_worker(control: Control, arena: Arena, scene, options: dict) -> None:
     record = np.zeros((), INPUT_DTYPE)
     inputs = record["inputs"][:n_bats]
     record["mask"] = sum(1 << player for player in ais)
-    for ai in ais.values():
-        ai.warm_up()
+    ais.warm_up()
     control.set_state(WorkerState.READY)
     control.send("ready", 0)
     control.wait_for("go", GO_TIMEOUT_S)
