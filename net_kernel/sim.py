@@ -114,7 +114,8 @@ class NetSim:
         self._step_grid = mod.step_grid if parallel else mod.step_grid_serial
         self._implicit = mod.step_knots_implicit
         self._speed = mod.knot_speed_max
-        self._collide = mod.collide_ball
+        self._collide = mod.collide_ball_near
+        self._step_grid_ball = mod.step_grid_ball
         n = topo.n_knots
         if self.grid:
             rows, cols = topo.spec.rows, topo.spec.cols
@@ -138,7 +139,8 @@ class NetSim:
         self._impulse = np.zeros(3)
         self._offset = np.zeros(3)
         self._hit_impulse = np.zeros(3)
-        self._ball = np.zeros((3, 3))  # ball position, velocity, position after a sweep
+        self._ball = np.zeros((4, 3))  # ball position, velocity, position after a sweep, scratch
+        self._near = np.zeros(n, dtype=np.int64)  # the contact sweep's list of knots within reach
         # (2, 3) m, lo and hi corners of the knots' box: of the shape it froze in while the net
         # sleeps, of the tick's start shape while it is awake (net_box).
         self.box = net_box(topo.knot_pos)
@@ -176,7 +178,7 @@ class NetSim:
         vel[:] = 0.0
         hit = self._collide(pos, vel, self.topo.knot_inv_mass, np.asarray(ball_pos, dtype=float),
                             np.asarray(ball_vel, dtype=float), float(ball_radius), float(ball_inv_mass),
-                            self.knot_radius, self.restitution, self.dt, 1, impulse, end)
+                            self.knot_radius, self.restitution, self.dt, 1, impulse, end, self._near)
         self.kernel_calls += 1
         return hit != NO_CONTACT
 
@@ -230,12 +232,20 @@ class NetSim:
             self._step_grid(self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag, self.h,
                             self.substeps, self._grid_work)
             self.kernel_calls += 1
+        elif self.grid and self._step_grid_ball is not None:
+            # The ball near: each substep's contact sweep then grid step, all in one call (the same
+            # bits as the loop below, which net_kernel.profile.tick_costs times against it).
+            toi = self._step_grid_ball(self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag,
+                                       self.h, self.substeps, self._grid_work, self._ball, float(ball_radius),
+                                       float(ball_inv_mass), self.knot_radius, self.restitution, MAX_HITS, self._near,
+                                       self._impulse)
+            self.kernel_calls += 2 * self.substeps
         else:
             for k in range(self.substeps):
                 if not far:
                     hit = self._collide(self._pos[self._cur], self._vel[self._cur], topo.knot_inv_mass, bp, bv,
                                         float(ball_radius), float(ball_inv_mass), self.knot_radius, self.restitution,
-                                        self.h, MAX_HITS, self._hit_impulse, self._ball[2])
+                                        self.h, MAX_HITS, self._hit_impulse, self._ball[2], self._near)
                     self.kernel_calls += 1
                     if hit != NO_CONTACT:
                         if toi == NO_CONTACT:
