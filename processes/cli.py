@@ -204,6 +204,9 @@ def build_parser() -> argparse.ArgumentParser:
     stress.add_argument("--duration", type=float, default=10.0, help="load: seconds of play")
     stress.add_argument("--still-players", action="store_true", help="load: players that hold their bats still "
                         "instead of two bots (measures the fan-out alone)")
+    stress.add_argument("--fanout", choices=("pub", "router"), default="pub",
+                        help="load: spectators' snapshots from the gateway's PUB feed, or one send per session "
+                             "(protocol 1's fan-out, to compare)")
     stress.add_argument("--churn", type=int, default=10_000, help="churn: join/leave cycles")
     stress.add_argument("--churn-places", type=int, default=64, help="churn: spectator places, filled after it")
     stress.add_argument("--churn-seconds", type=float, default=600.0, help="churn: give up after this long")

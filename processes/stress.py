@@ -117,12 +117,13 @@ class CpuMeter:
         self.start_cpu = {name: (pid, cpu_seconds(pid)) for name, pid in pids.items() if cpu_seconds(pid) is not None}
         self.start_threads = {name: (pid, thread_cpu_seconds(pid)) for name, pid in pids.items() if name in self.threads}
 
-    def stop(self) -> dict[str, float]:
+    def stop(self) -> dict[str, float | None]:
+        """% of one core per process; None for one that exited meanwhile (a match that ended
+        early takes its server's processes with it: their CPU time is gone with them)."""
         wall = max(time.monotonic() - self.t0, 1e-9)
         for name, (pid, c0) in self.start_cpu.items():
             c1 = cpu_seconds(pid)
-            if c1 is not None:
-                self.result[name] = round(100.0 * (c1 - c0) / wall, 1)
+            self.result[name] = None if c1 is None else round(100.0 * (c1 - c0) / wall, 1)
         for name, (pid, before) in self.start_threads.items():
             for thread, c1 in thread_cpu_seconds(pid).items():
                 self.result[f"{name}[{thread}]"] = round(100.0 * (c1 - before.get(thread, 0.0)) / wall, 1)
@@ -594,7 +595,7 @@ def scenario_load(args, run: Run) -> dict:
     gateway_cpu = cpu_seconds(gateway)  # its whole life so far: set against every message it sent
     result["cpu_pct"] = meter.stop()
     published = _gateway_stats(server).get("snapshots_published", 0) - published0
-    if published > 0 and "gateway" in result["cpu_pct"]:
+    if published > 0 and result["cpu_pct"].get("gateway") is not None:
         # the gateway's CPU (both threads) per snapshot published while the meter ran, and per copy
         # to one subscriber: what the fan-out costs the server, startup and the join phase left out
         us = 1e4 * result["cpu_pct"]["gateway"] * result["cpu_pct"]["_wall_s"] / published
@@ -602,7 +603,7 @@ def scenario_load(args, run: Run) -> dict:
                                     "published_while_metered": published}
     # the gateway counts as its whole process here; its threads are listed apart in cpu_pct
     sides = {"server": set(server.all_pids()), "swarm": {s.name for s in swarms}, "players": {b.name for b in bots}}
-    result["cpu_pct_by_side"] = {side: round(sum(v for k, v in result["cpu_pct"].items() if k in names), 1)
+    result["cpu_pct_by_side"] = {side: round(sum(v or 0.0 for k, v in result["cpu_pct"].items() if k in names), 1)
                                  for side, names in sides.items()}
     t1 = time.monotonic()
     end = server.finish(60)

@@ -193,8 +193,9 @@ class Supervisor:
             if worker.kind == "gateway" and worker.ready.get("endpoint"):
                 from dataclasses import replace
 
-                # a restarted gateway listens where its clients already are
-                options["gateway"] = replace(self.gateway, bind=worker.ready["endpoint"])
+                # a restarted gateway listens where its clients already are, its feed included
+                options["gateway"] = replace(self.gateway, bind=worker.ready["endpoint"],
+                                             feed_bind=worker.ready.get("feed") or "")
         worker.process = self._ctx.Process(
             target=worker_entry, name=f"pingpong-{worker.kind}",
             args=(worker.kind, child, self.arena.layout(), worker.index, self.scene, options))
