@@ -34,8 +34,9 @@ from processes.worker import GO_TIMEOUT_S, Control, WorkerState
 
 MAX_BATS = 2
 # Thinking after a turn stops this share of the time between turns after the turn came: the
-# physics asks for the next answer about two such times after it, and one think step (at
-# most ~40 us) and the next answer must fit in between.
+# physics asks for the next answer about two such times after it, and the think step under way
+# (mostly 10-50 us; a service's check of its path up to ~200 us) and the next answer must fit
+# in between.
 THINK_SHARE = 0.9
 PERIOD_WINDOW = 32  # turns over which the least time between two turns is the estimate
 # One record per AI tick carries every AI bat's inputs (one locked post, not one per bat).
