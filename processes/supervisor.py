@@ -341,6 +341,9 @@ class Supervisor:
                 **({"gateway": w.report.get("gateway", {})} if w.kind == "gateway" else {}),
                 **({"remote_inputs_refused": w.report["remote_inputs_refused"]}
                    if "remote_inputs_refused" in w.report else {}),
+                # the AI worker's thinking between its turns, and the strokes it had to finish late
+                **({k: w.report[k] for k in ("think_s", "late_thoughts", "late_thinking_s", "turns", "longest_turn_s")
+                    if k in w.report} if w.kind == "ai" else {}),
             }
             for w in self._workers
         }
