@@ -1,9 +1,20 @@
 """Process tests: every wait bounded, every process and segment cleaned up even on failure."""
 import multiprocessing
+import sys
 
 import pytest
 
 from processes import shm
+
+
+def ctrl_c_able(*args: str) -> list[str]:
+    """The command line of `pingpong ARGS` as a terminal's foreground job runs it: with SIGINT's
+    default handling. A process started with SIGINT ignored keeps ignoring it and Python then
+    installs no KeyboardInterrupt handler (POSIX: a non-interactive shell starts its background
+    jobs that way, so under `nohup make test &` every child ignored Ctrl-C and the Ctrl-C tests
+    failed); a test of what Ctrl-C does must not inherit that."""
+    return [sys.executable, "-c", "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
+            "from processes.cli import main; sys.exit(main(sys.argv[1:]))", *args]
 
 
 @pytest.fixture

@@ -26,6 +26,7 @@ from processes.client import Client, Rejected
 from processes.gateway import Gateway, GatewayConfig
 from processes.supervisor import workers_for
 from processes.wire import GoodbyeReason, Kind, RejectReason, Role, Slot
+from tests.processes.conftest import ctrl_c_able
 
 ROOT = Path(__file__).resolve().parents[2]
 ROUNDS = 400  # pump rounds at most (each polls for at most 10 ms)
@@ -496,7 +497,8 @@ def test_serving_a_scene_makes_its_bats_remote_and_starts_a_gateway():
 
 # --- served matches: pingpong serve and join as processes -------------------------------------
 def _pingpong(*args) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "processes.cli", *args], cwd=ROOT, stdin=subprocess.DEVNULL,
+    """`pingpong ARGS` in a session of its own, with SIGINT's default handling (conftest.ctrl_c_able)."""
+    return subprocess.Popen(ctrl_c_able(*args), cwd=ROOT, stdin=subprocess.DEVNULL,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
 
 

@@ -15,6 +15,7 @@ from engine.scene import load_scene, with_overrides
 from processes.shm import Arena, leftover_segments
 from processes.supervisor import Supervisor, first_difference, workers_for
 from processes.worker import STATUS_DTYPE, WorkerState
+from tests.processes.conftest import ctrl_c_able
 
 
 @pytest.mark.parametrize("name, integrator", [("rally", "verlet"), ("serve", "dopri5"), ("drop", "rk4")])
@@ -94,8 +95,7 @@ def _wait_running(run_ids_before, supervisor_pid, timeout):
 
 def test_sigint_to_the_supervisor_leaves_no_process_and_no_segment():
     before = {name[2:].split("-")[0] for name in leftover_segments()}
-    cmd = [sys.executable, "-m", "processes", "run", "rally", "--processes", "--mode", "realtime",
-           "--ticks", "60000", "--json"]
+    cmd = ctrl_c_able("run", "rally", "--processes", "--mode", "realtime", "--ticks", "60000", "--json")
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True)
     try:
         run_id, worker_pid = _wait_running(before, proc.pid, timeout=60)
