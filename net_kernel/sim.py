@@ -169,7 +169,7 @@ class NetSim:
     def touches(self, ball_pos, ball_vel, ball_radius: float, ball_inv_mass: float) -> bool:
         """Would the ball, moving straight over this tick, touch the net frozen as it is now?
 
-        The sweep (kernels.collide_ball over the whole tick, knots at rest) runs on a copy, so
+        The sweep (kernels.collide_ball_near over the whole tick, knots at rest) runs on a copy, so
         the net is left exactly as it was: a sleeping net stays asleep, bit for bit, unless the
         ball really reaches it.
         """
