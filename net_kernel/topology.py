@@ -8,7 +8,7 @@ horizontal springs are the tensioned top cord. Springs between two fixed knots a
 (they could never move anything).
 """
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -335,3 +335,125 @@ def grid_spec(cols: int, rows: int, **fields) -> NetSpec:
     fields.setdefault("mesh_tension", min(base.mesh_tension, 0.5 * fields.get("spring_k", base.spring_k) * spacing))
     fields.setdefault("cord_tension", min(base.cord_tension, 0.5 * fields.get("cord_k", base.cord_k) * spacing))
     return NetSpec(cols=cols, rows=rows, **fields)
+
+
+def _spacings(spec: NetSpec) -> tuple[float, float]:
+    """(a, b) m: column spacing along y and row spacing along z of `spec`'s grid."""
+    return spec.width / (spec.cols - 1), spec.height / (spec.rows - 1)
+
+
+def net_continuum(spec: NetSpec) -> dict:
+    """The continuum that `spec`'s lattice stands for (small strain about the built shape).
+
+    See resolution_spec for the derivation. Returns a dict of floats:
+        areal_density: kg/m^2, knot mass over the cell area a b.
+        mesh_prestress: N/m, horizontal stress resultant N_yy = mesh_tension / b.
+        c11, c22, c12: N/m, membrane stiffness (stress resultant per unit strain) along y,
+            along z and the cross term (= the shear term c66 for a central-force lattice).
+        equibiaxial: N/m, c11 + c22 + 2 c12 = 3 spring_k (a/b + b/a).
+        mesh_viscosity: N s/m, the dashpots' equibiaxial counterpart, 3 spring_c (a/b + b/a).
+        cord_tension: N; cord_stiffness: N, EA = cord_k a; cord_line_density: kg/m, top-row
+            knot mass per unit length.
+        wave_speed: m/s, sqrt(N_yy / areal_density), the speed of transverse waves along y.
+        h_max_scale: s, sqrt(knot_mass / spring_k), the mesh's part of the stability bound.
+    """
+    a, b = _spacings(spec)
+    d2 = a * a + b * b
+    k = spec.spring_k
+    rho = spec.knot_mass / (a * b)
+    prestress = spec.mesh_tension / b
+    return {
+        "areal_density": rho,
+        "mesh_prestress": prestress,
+        "c11": k * a / b + 2.0 * k * a**3 / (b * d2),
+        "c22": k * b / a + 2.0 * k * b**3 / (a * d2),
+        "c12": 2.0 * k * a * b / d2,
+        "equibiaxial": 3.0 * k * (a / b + b / a),
+        "mesh_viscosity": 3.0 * spec.spring_c * (a / b + b / a),
+        "cord_tension": spec.cord_tension,
+        "cord_stiffness": spec.cord_k * a,
+        "cord_line_density": spec.knot_mass / a,
+        "wave_speed": math.sqrt(prestress / rho),
+        "h_max_scale": math.sqrt(spec.knot_mass / k),
+    }
+
+
+def resolution_spec(cols: int, rows: int, base: NetSpec | None = None) -> NetSpec:
+    """The same physical net as `base` (default NetSpec()) on a cols x rows grid of knots.
+
+    grid_spec only spreads the net's mass over the new knots; every spring keeps its stiffness,
+    pretension and dashpot, so a coarser grid built that way is another cloth (on 46 x 4 knots
+    the mesh's prestress drops 5x and its transverse waves run at half speed). Here each field
+    scales with the column spacing a = width / (cols - 1) and the row spacing b =
+    height / (rows - 1) (base: a0, b0) so that the continuum the lattice stands for stays put.
+
+    Derivation (a lattice of cells a x b: one horizontal spring k_h of length a, one vertical
+    k_v of length b and two diagonals k_d of length d = sqrt(a^2 + b^2) per cell; net_continuum
+    evaluates the result):
+
+    - Areal density rho = knot_mass / (a b): knot_mass ~ a b.
+    - Membrane prestress: a cut of unit length along z crosses 1/b horizontal springs, so the
+      horizontal stress resultant is N_yy = T_h / b: mesh_tension ~ b. Vertical and shear
+      springs carry none (as in build_topology). With rho fixed, the transverse wave speed
+      sqrt(N_yy / rho) and so the net's sway frequencies stay put.
+    - Sheet stiffness: a homogeneous strain e stretches a spring of length L along n by
+      L n.e.n, storing k L^2 (n.e.n)^2 / 2 in a cell of area a b. Summed over a cell's springs:
+      c11 = k_h a/b + 2 k_d a^3/(b d^2), c22 = k_v b/a + 2 k_d b^3/(a d^2),
+      c12 = c66 = 2 k_d a b / d^2 (N/m). NetSpec has one spring_k for all three classes
+      (k_h = k_v = k_d = k); then the tensor depends on a and b only through the aspect ratio
+      a/b, and for square cells it is k (2, 2, 1) at any size. For other aspect ratios no
+      single k keeps every entry; the one kept is the equibiaxial modulus
+      c11 + c22 + 2 c12 = 3 k (a/b + b/a), the stiffness a round bulge (a ball pushing
+      the net) works against: spring_k ~ 1 / (a/b + b/a). c11 and c22 then move with a/b
+      (net_continuum): the default's a/b = 0.98; 70 x 7 (1.04), 92 x 8 (0.92), 128 x 11 (0.94)
+      and 368 x 32 (1.01) keep them within 10 % of the default's, 46 x 4 (a/b = 0.80) is
+      29 % softer along y and 32 % stiffer along z; (12 (rows - 1) + 1) x rows grids have
+      square cells, for which every entry is kept.
+    - Dashpots: a dashpot along a spring gives viscous stress resultants of the same form, with
+      spring_c for k: spring_c ~ 1 / (a/b + b/a), as spring_k. NetSpec's one spring_c also
+      damps the top cord, whose line dashpot (c a) then grows as a; it acts along the cord
+      only, on its axial waves, which the ball hardly excites.
+    - Top cord, a 1-D line of segments of length a: the segment's stiffness is EA / a:
+      cord_k ~ 1 / a (cord_k a = EA fixed); its tension is a force: cord_tension fixed.
+      The top row's knots carry the mesh's mass per unit length rho b (NetSpec has one knot
+      mass), a lumped edge mass that shrinks with b: a discretisation error of order b / height.
+    - Air damping is per unit mass (the kernels apply -air_damping v to every free knot): fixed.
+      Gravity and the solver: fixed.
+    - Stability bound: w^2 <= 2 K_i / m_i with K_i ~ k (mesh) and m_i ~ a b, so h_max ~
+      sqrt(a b / k) ~ a for square cells (the top row's cord: K ~ 1/a, h_max ~ a sqrt(b)).
+      NetSim derives its substeps from the built net's bound: a grid 2x coarser takes about
+      half the substeps on a quarter of the knots, ~1/8 of the work per tick.
+
+    Args:
+        cols, rows: knots along y and z (validated by build_topology's rules).
+        base: the net to reproduce (its width, height, cols and rows set a0, b0).
+
+    Returns:
+        A NetSpec with cols, rows and the scaled knot_mass, spring_k, spring_c, mesh_tension,
+        cord_k; every other field as in base.
+
+    Raises:
+        ValueError: cols or rows outside build_topology's range (the message names it), or
+            cells so far from square that a scaled pretension exceeds its spring's k a.
+    """
+    base = NetSpec() if base is None else base
+    validate_spec(base)
+    for name, value in (("cols", cols), ("rows", rows)):
+        if isinstance(value, bool) or not isinstance(value, int) or not _MIN_KNOTS <= value <= _MAX_KNOTS:
+            raise _fail(name, value, f"an integer in [{_MIN_KNOTS}, {_MAX_KNOTS}]")
+    a0, b0 = _spacings(base)
+    a, b = base.width / (cols - 1), base.height / (rows - 1)
+    sheet = (a0 / b0 + b0 / a0) / (a / b + b / a)
+    spec = replace(base, cols=cols, rows=rows,
+                   knot_mass=base.knot_mass * (a * b) / (a0 * b0),
+                   mesh_tension=base.mesh_tension * b / b0,
+                   spring_k=base.spring_k * sheet,
+                   spring_c=base.spring_c * sheet,
+                   cord_k=base.cord_k * a0 / a)
+    try:
+        validate_spec(spec)
+    except ValueError as err:
+        raise ValueError(f"resolution_spec({cols}, {rows}): the scaled net cannot be built ({err}); its cells are "
+                         f"{a * 1e3:.3g} x {b * 1e3:.3g} mm (a/b = {a / b:.3g}): choose cols and rows closer to square "
+                         f"cells, cols - 1 ~ {base.width / base.height:.3g} (rows - 1)") from None
+    return spec
