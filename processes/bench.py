@@ -1,6 +1,6 @@
-"""`pingpong bench accuracy|effects`: thin front end to the studies in bench/ (parse, call, format).
+"""`pingpong bench accuracy|effects|net-resolution`: thin front end to the studies in bench/ (parse, call, format).
 
-The studies live in bench/accuracy.py and bench/effects.py, next to the pytest-benchmark suite,
+The studies live in bench/accuracy.py, bench/effects.py and bench/net_resolution.py, next to the pytest-benchmark suite,
 and need a source checkout (bench/ is not an installed package) and the dev extras (scipy).
 """
 from __future__ import annotations
@@ -98,8 +98,36 @@ def _print_effects(result: dict) -> None:
         console.print(f"absent costs nothing: {result['absent_check']['text']}")
 
 
+def _parse_sizes(text: str | None):
+    """[(cols, rows), ...] from "COLSxROWS,..." or None; a bad entry exits with a message naming it."""
+    if text is None:
+        return None
+    sizes = []
+    for item in text.split(","):
+        parts = item.strip().lower().split("x")
+        if len(parts) != 2 or not all(p.isdigit() for p in parts) or min(int(p) for p in parts) < 2:
+            raise SystemExit(f"pingpong bench net-resolution: --sizes entry {item!r} is not COLSxROWS with "
+                             "integers >= 2 (e.g. --sizes 70x7,92x8,184x16)")
+        sizes.append((int(parts[0]), int(parts[1])))
+    if len(sizes) < 2:
+        raise SystemExit("pingpong bench net-resolution: --sizes needs at least two nets (the finest is the reference)")
+    return sizes
+
+
+def _print_net_resolution(study, result: dict) -> None:
+    from rich.console import Console
+    from rich.markdown import Markdown
+
+    console = Console()
+    console.print(f"[bold]Net resolution: accuracy against cost[/bold] (the same physical net on each grid, "
+                  f"net_kernel.topology.resolution_spec; errors against {result['reference']})")
+    console.print(Markdown(study.markdown_table(result)))
+    for line in study.summary_lines(result):
+        console.print(f"- {line}")
+
+
 def bench_command(args) -> int:
-    """Run `pingpong bench accuracy` or `pingpong bench effects`; returns the exit status."""
+    """Run `pingpong bench accuracy`, `effects` or `net-resolution`; returns the exit status."""
     quick = bool(getattr(args, "quick", False))
     as_json = bool(getattr(args, "json", False))
     if args.what == "accuracy":
@@ -122,5 +150,20 @@ def bench_command(args) -> int:
             print(json.dumps(finite_json(result)))
         else:
             _print_effects(result)
+        return 0
+    if args.what == "net-resolution":
+        sizes = _parse_sizes(getattr(args, "sizes", None))
+        impacts = getattr(args, "impacts", None)
+        if impacts is not None and impacts < 1:
+            raise SystemExit(f"pingpong bench net-resolution: --impacts {impacts} must be >= 1")
+        study = load_study("net_resolution")
+        try:
+            result = study.study(quick=quick, sizes=sizes, n_impacts=impacts, progress=_progress(as_json))
+        except ValueError as err:  # a net resolution_spec cannot build, named by the message
+            raise SystemExit(f"pingpong bench net-resolution: {err}") from None
+        if as_json:
+            print(json.dumps(finite_json(result)))
+        else:
+            _print_net_resolution(study, result)
         return 0
     raise SystemExit(f"pingpong bench: unknown study {args.what!r}")

@@ -138,7 +138,8 @@ def build_parser() -> argparse.ArgumentParser:
     profile.add_argument("--json", action="store_true", help="print one JSON object")
     profile.set_defaults(func=_cmd_profile_net)
     bench = sub.add_parser("bench", help="measured answers to 'what does it cost'", formatter_class=formatter)
-    bench.add_argument("what", choices=["accuracy", "effects", "handoff", "match"], help="which study to run")
+    bench.add_argument("what", choices=["accuracy", "effects", "handoff", "match", "net-resolution"],
+                       help="which study to run")
     bench.add_argument("--best-of", type=int, default=5, help="match: games in the benchmarked match")
     bench.add_argument("--scene", default="match",
                        help="match: scene TOML file or bundled scene name (match_cloth: the cloth net)")
@@ -146,6 +147,9 @@ def build_parser() -> argparse.ArgumentParser:
     bench.add_argument("--json", action="store_true", help="print one JSON object")
     bench.add_argument("--png", default=None, help="accuracy: write the work-precision plot to this PNG file")
     bench.add_argument("--quick", action="store_true", help="fewer step sizes and repeats (smoke runs)")
+    bench.add_argument("--sizes", default=None,
+                       help="net-resolution: nets as COLSxROWS, comma-separated (the finest is the reference)")
+    bench.add_argument("--impacts", type=int, default=None, help="net-resolution: number of impacts")
     bench.set_defaults(func=_cmd_bench)
 
     decode = sub.add_parser("decode", help="pretty-print one captured wire message (exit 2 if it is bad)",

@@ -1,0 +1,390 @@
+"""`pingpong bench net-resolution`: what the cloth net's resolution costs in accuracy, and what it saves in time.
+
+Every net here is the same physical net (net_kernel.topology.resolution_spec: areal density,
+prestress, sheet stiffness, cord tension and stiffness, air damping kept) on a grid of cols x rows
+knots. A fixed, seeded set of match-like impacts (5-30 m/s; centre into the cord's top 2 cm, mid-net
+or low; up to 45 deg off the net's normal; anywhere across the table's width) is fired into each
+net, stepped as the engine couples ball and net (engine.world._advance_with_cloth,
+processes.worker_net): per 1 ms tick the ball flies straight under gravity, NetSim.step sees it
+at the tick's start and the ball then takes the net's offset and impulse. No table, drag or spin:
+the same for every net, so the comparison sees only the net.
+
+Per net against the finest one: the outcome (over the cord, through the mesh, back, caught), the
+ball's velocity and position 150 ms after the shot (exit velocity, direction, where it is), the
+contact's duration and the net's largest bulge; the CPU time (the stepping thread's) per impact,
+per awake tick of the ringing net and per ring-down until the net sleeps; whether the ball can
+pass between knots (cell diagonal against 2 (ball radius + knot radius)).
+
+Run: `pingpong bench net-resolution [--json] [--quick]` or `.venv/bin/python bench/net_resolution.py`.
+"""
+from __future__ import annotations
+
+import math
+import os
+import statistics
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from net_kernel import NO_CONTACT, NetSim, NetSpec, build_topology
+from net_kernel.sim import BALL_MASS, BALL_RADIUS, KNOT_RADIUS
+from net_kernel.topology import net_continuum, resolution_spec
+
+DT = 1e-3  # s, the engine's tick (scenes/match_cloth.toml)
+SIZES = [(46, 4), (70, 7), (92, 8), (128, 11), (184, 16), (368, 32)]  # the last is the reference
+QUICK_SIZES = [(46, 4), (70, 7), (92, 8)]
+IMPACTS = 24  # 8 per height band
+QUICK_IMPACTS = 3
+SEED = 0
+FLIGHT_S = 0.150  # s after the shot at which the ball's state is compared
+LEAD_S = 0.003  # s of flight before the ball's centre reaches the net's plane
+RING_CAP_S = 8.0  # s: a ring-down is cut here (reported as such) if the net has not slept
+QUICK_RING_CAP_S = 0.3
+RING_DOWNS = 3  # impacts per net whose ring-down to sleep is timed (one per band), full run
+BANDS = ("cord", "mid", "low")
+# Ball centre heights (m) where its straight path meets the net's plane: into the cord's top 2 cm
+# (the centre from 2 cm below the top to 1.5 cm above, where the ball's underside still clips it),
+# mid-net, and low (a ball just above the table's surface).
+BAND_Z = {"cord": (NetSpec().height - 0.02, NetSpec().height + 0.015), "mid": (0.05, 0.10), "low": (0.025, 0.045)}
+MAX_ANGLE_DEG = 45.0
+SPEED = (5.0, 30.0)  # m/s
+ACROSS = 0.6  # m, |y| of the aim point (within the table's 0.76 m half width)
+# Tolerances of the recommendation (see recommend()).
+TOL_EXIT_MEDIAN = 0.25  # m/s
+TOL_EXIT_P90 = 0.5  # m/s
+TOL_OUTCOME_CHANGES = 0
+
+
+@dataclass(frozen=True)
+class Impact:
+    """One shot: the ball's start (m) and velocity (m/s) and the band it aims at."""
+
+    index: int
+    band: str
+    speed: float
+    angle_deg: float
+    pos: tuple
+    vel: tuple
+
+
+def impacts(n: int, seed: int = SEED, height: float = NetSpec().height) -> list[Impact]:
+    """n seeded match-like impacts from x < 0 toward +x, the bands in turn."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(n):
+        band = BANDS[k % len(BANDS)]
+        speed = float(rng.uniform(*SPEED))
+        # Directions uniform over the cone's solid angle up to MAX_ANGLE_DEG off +x.
+        cos_max = math.cos(math.radians(MAX_ANGLE_DEG))
+        cos_t = float(rng.uniform(cos_max, 1.0))
+        phi = float(rng.uniform(0.0, 2 * math.pi))
+        sin_t = math.sqrt(1.0 - cos_t * cos_t)
+        d = np.array([cos_t, sin_t * math.cos(phi), sin_t * math.sin(phi)])
+        lo, hi = BAND_Z[band]
+        aim = np.array([0.0, float(rng.uniform(-ACROSS, ACROSS)), float(rng.uniform(lo, hi))])
+        # Start so the centre crosses x = -radius (the ball's front reaches the net's plane) LEAD_S later.
+        start = aim - d * (speed * LEAD_S + BALL_RADIUS / cos_t)
+        out.append(Impact(k, band, speed, math.degrees(math.acos(cos_t)), tuple(start), tuple(speed * d)))
+    return out
+
+
+def _cord_z(sim: NetSim, cols: int, rows: int, y: float) -> float:
+    """m: the cord's height at y now (linear between its knots)."""
+    top = sim.knot_pos[(rows - 1) * cols:]
+    return float(np.interp(y, top[:, 1], top[:, 2]))
+
+
+def run_impact(topo, imp: Impact, flight_s: float = FLIGHT_S) -> tuple[dict, NetSim]:
+    """Fire one impact into a fresh net; returns its record and the net (awake or asleep) after it."""
+    spec = topo.spec
+    sim = NetSim(topo, DT)
+    mass, radius = BALL_MASS, BALL_RADIUS
+    g = np.array([0.0, 0.0, -spec.gravity])
+    p = np.array(imp.pos, dtype=float)
+    v = np.array(imp.vel, dtype=float)
+    first = last = None
+    crossings = []  # (z of the centre, z of the cord) each time the centre passes x = 0 going +x
+    bulge = 0.0
+    ticks = int(round(flight_s / DT))
+    t0 = time.thread_time()
+    for t in range(ticks):
+        contact = sim.step(p, v, radius, 1.0 / mass)
+        p1 = p + v * DT + 0.5 * g * DT * DT
+        v1 = v + g * DT
+        if contact.toi != NO_CONTACT:
+            p1 += contact.offset
+            v1 += contact.impulse / mass
+            first = t if first is None else first
+            last = t
+        if p[0] < 0.0 <= p1[0]:
+            crossings.append((float(p1[2]), _cord_z(sim, spec.cols, spec.rows, float(p1[1]))))
+        p, v = p1, v1
+        bulge = max(bulge, float(np.max(np.abs(sim.knot_pos[:, 0]))))
+    cpu = time.thread_time() - t0
+    # Where the ball is at the end: clear of the net on its far side (over the cord or through the
+    # mesh, by where it last crossed the net's plane), back on its own side, or still in the net.
+    gap = float(np.min(np.linalg.norm(sim.knot_pos - p, axis=1))) - radius - KNOT_RADIUS
+    if p[0] < 0.0 and (gap > 0.005 or v[0] < 0.0):
+        outcome = "back"
+    elif p[0] > 0.0 and gap > 0.005 and crossings:
+        z_ball, z_cord = crossings[-1]
+        outcome = "over" if z_ball >= z_cord else "through"
+    else:
+        outcome = "caught"
+    return {
+        "impact": imp.index,
+        "band": imp.band,
+        "outcome": outcome,
+        "touched": first is not None,
+        "contact_ms": 0.0 if first is None else (last - first + 1) * DT * 1e3,
+        "bulge_mm": bulge * 1e3,
+        "pos": p.tolist(),
+        "vel": v.tolist(),
+        "cpu_s": cpu,
+        "ticks": ticks,
+    }, sim
+
+
+def ring_down(sim: NetSim, cap_s: float) -> dict:
+    """Step a net after its impact, ball gone, until it sleeps (or cap_s): sim seconds and CPU time."""
+    t0 = time.thread_time()
+    ticks = 0
+    cap = int(round(cap_s / DT))
+    while not sim.sleeping and ticks < cap:
+        sim.step()
+        ticks += 1
+    cpu = time.thread_time() - t0
+    return {"ticks": ticks, "sim_s": ticks * DT, "cpu_s": cpu, "slept": bool(sim.sleeping),
+            "cpu_us_per_tick": cpu / ticks * 1e6 if ticks else None}
+
+
+def _compile(topo) -> float:
+    """s: compile (or load from numba's cache) every kernel NetSim calls: awake, ball near, asleep."""
+    t0 = time.perf_counter()
+    sim = NetSim(topo, DT)
+    sim.step(np.array([-0.5, 0.0, 0.1]), np.array([1.0, 0.0, 0.0]))  # far: the whole-tick grid step
+    sim.step(np.array([-0.021, 0.0, 0.1]), np.array([10.0, 0.0, 0.0]))  # near and touching
+    sim.sleeping = True
+    sim.touches(np.array([-0.021, 0.0, 0.1]), np.array([10.0, 0.0, 0.0]), BALL_RADIUS, 1.0 / BALL_MASS)
+    return time.perf_counter() - t0
+
+
+def geometry(spec: NetSpec) -> dict:
+    """Cell size and whether the ball fits between knots (its centre through a cell's middle)."""
+    a = spec.width / (spec.cols - 1)
+    b = spec.height / (spec.rows - 1)
+    diagonal = math.hypot(a, b)
+    need = 2.0 * (BALL_RADIUS + KNOT_RADIUS)
+    return {"a_mm": a * 1e3, "b_mm": b * 1e3, "diagonal_mm": diagonal * 1e3, "ball_needs_mm": need * 1e3,
+            "ball_fits_through": diagonal > need}
+
+
+def _angle_deg(u, w) -> float:
+    nu, nw = np.linalg.norm(u), np.linalg.norm(w)
+    if nu == 0.0 or nw == 0.0:
+        return 0.0
+    return math.degrees(math.acos(max(-1.0, min(1.0, float(np.dot(u, w) / (nu * nw))))))
+
+
+def _pct(values, q):
+    return float(np.percentile(values, q)) if len(values) else None
+
+
+def compare(runs: list[dict], ref: list[dict]) -> dict:
+    """Errors of one net's impacts against the reference net's, impact by impact."""
+    dv, ddir, dpos, dcontact, dbulge = [], [], [], [], []
+    changes = []
+    for run, r in zip(runs, ref):
+        dv.append(float(np.linalg.norm(np.subtract(run["vel"], r["vel"]))))
+        ddir.append(_angle_deg(run["vel"], r["vel"]))
+        dpos.append(float(np.linalg.norm(np.subtract(run["pos"], r["pos"]))) * 1e3)
+        dcontact.append(run["contact_ms"] - r["contact_ms"])
+        dbulge.append(run["bulge_mm"] - r["bulge_mm"])
+        if run["outcome"] != r["outcome"]:
+            changes.append(f"#{run['impact']} ({run['band']}): {r['outcome']} -> {run['outcome']}")
+    return {
+        "exit_velocity_error_median": _pct(dv, 50), "exit_velocity_error_p90": _pct(dv, 90),
+        "exit_velocity_error_max": max(dv),
+        "direction_error_deg_median": _pct(ddir, 50), "direction_error_deg_max": max(ddir),
+        "position_error_mm_median": _pct(dpos, 50), "position_error_mm_max": max(dpos),
+        "contact_ms_diff_median": _pct(dcontact, 50), "contact_ms_diff_max_abs": max(abs(x) for x in dcontact),
+        "bulge_mm_diff_median": _pct(dbulge, 50), "bulge_mm_diff_max_abs": max(abs(x) for x in dbulge),
+        "outcome_changes": len(changes), "outcome_change_list": changes,
+        "per_band_exit_velocity_error_median": {
+            band: _pct([d for d, run in zip(dv, runs) if run["band"] == band], 50) for band in BANDS},
+    }
+
+
+def study(quick: bool = False, sizes=None, n_impacts: int | None = None, progress=None) -> dict:
+    """Run the study; returns a JSON-ready dict (rows finest last; errors against the finest net)."""
+    sizes = list(sizes or (QUICK_SIZES if quick else SIZES))
+    sizes.sort(key=lambda s: s[0] * s[1])
+    n = n_impacts or (QUICK_IMPACTS if quick else IMPACTS)
+    shots = impacts(n)
+    ring_cap = QUICK_RING_CAP_S if quick else RING_CAP_S
+    ring_shots = 1 if quick else RING_DOWNS
+    say = progress or (lambda msg: None)
+    rows = []
+    compile_s = 0.0
+    for cols, rows_ in sizes:
+        spec = resolution_spec(cols, rows_)
+        topo = build_topology(spec)
+        compile_s += _compile(topo)
+        runs, rings = [], []
+        for imp in shots:
+            record, sim = run_impact(topo, imp)
+            runs.append(record)
+            if imp.index < ring_shots:
+                rings.append({"impact": imp.index, **ring_down(sim, ring_cap)})
+        awake_ticks = sum(r["ticks"] for r in rings)
+        row = {
+            "cols": cols, "rows": rows_, "knots": topo.n_knots,
+            "substeps": NetSim(topo, DT).substeps,
+            "spec": {k: getattr(spec, k) for k in ("knot_mass", "spring_k", "spring_c", "mesh_tension", "cord_k",
+                                                   "cord_tension", "air_damping")},
+            "continuum": net_continuum(spec),
+            "geometry": geometry(spec),
+            "impacts": runs,
+            "ring_downs": rings,
+            "cpu_ms_per_impact": 1e3 * statistics.median(r["cpu_s"] for r in runs),
+            "cpu_us_per_impact_tick": 1e6 * sum(r["cpu_s"] for r in runs) / sum(r["ticks"] for r in runs),
+            "cpu_us_per_awake_tick": (1e6 * sum(r["cpu_s"] for r in rings) / awake_ticks) if awake_ticks else None,
+            "ring_down_s": statistics.median(r["sim_s"] for r in rings) if rings else None,
+            "ring_down_cpu_s": statistics.median(r["cpu_s"] for r in rings) if rings else None,
+            "ring_downs_slept": all(r["slept"] for r in rings),
+            "outcomes": {o: sum(r["outcome"] == o for r in runs) for o in ("over", "through", "back", "caught")},
+        }
+        rows.append(row)
+        say(f"{cols}x{rows_}: {row['cpu_ms_per_impact']:.0f} ms CPU per impact, ring-down {row['ring_down_s']} s, "
+            f"outcomes {row['outcomes']}")
+    ref = rows[-1]
+    for row in rows:
+        row["errors"] = compare(row["impacts"], ref["impacts"])
+        row["cost_vs_default"] = None
+    default = next((r for r in rows if (r["cols"], r["rows"]) == (NetSpec().cols, NetSpec().rows)), None)
+    if default is not None:
+        for row in rows:
+            row["cost_vs_default"] = {
+                "impact": row["cpu_ms_per_impact"] / default["cpu_ms_per_impact"],
+                "awake_tick": (row["cpu_us_per_awake_tick"] / default["cpu_us_per_awake_tick"]
+                               if row["cpu_us_per_awake_tick"] and default["cpu_us_per_awake_tick"] else None),
+            }
+    result = {
+        "reference": f"{ref['cols']}x{ref['rows']}",
+        "impacts": [vars(s) for s in shots],
+        "n_impacts": n,
+        "seed": SEED,
+        "flight_s": FLIGHT_S,
+        "ring_cap_s": ring_cap,
+        "quick": quick,
+        "compile_s": compile_s,
+        "load_avg": os.getloadavg()[0],
+        "rows": rows,
+        "tolerance": {"outcome_changes": TOL_OUTCOME_CHANGES, "exit_velocity_median_m_s": TOL_EXIT_MEDIAN,
+                      "exit_velocity_p90_m_s": TOL_EXIT_P90, "ball_must_not_fit_between_knots": True},
+    }
+    result["recommendation"] = recommend(result)
+    return result
+
+
+def recommend(result: dict) -> dict | None:
+    """The coarsest net (fewest knots) within tolerance against the reference, the reference excluded.
+
+    Tolerance (match-relevant): no impact changes its outcome (over / through / back / caught
+    decide the point), the exit velocity's error has median <= TOL_EXIT_MEDIAN and 90th
+    percentile <= TOL_EXIT_P90 m/s (after 0.3 s of flight, 0.25 m/s moves a landing by 7.5 cm,
+    two ball diameters: where a net-cord ball drops), and the ball cannot pass between knots.
+    """
+    rows = result["rows"][:-1]
+    for row in rows:  # fewest knots first
+        e = row["errors"]
+        if (e["outcome_changes"] <= TOL_OUTCOME_CHANGES and e["exit_velocity_error_median"] <= TOL_EXIT_MEDIAN
+                and e["exit_velocity_error_p90"] <= TOL_EXIT_P90 and not row["geometry"]["ball_fits_through"]):
+            return {"net": f"{row['cols']}x{row['rows']}", "cols": row["cols"], "rows": row["rows"],
+                    "spec": row["spec"], "errors": {k: v for k, v in e.items() if k != "outcome_change_list"},
+                    "cost_vs_default": row["cost_vs_default"]}
+    return None
+
+
+def markdown_table(result: dict) -> str:
+    """The per-net table (errors against the reference, costs) as Markdown."""
+    head = ("| net | knots | substeps | cell mm (diag) | ball fits through | outcomes over/through/back/caught | "
+            "outcome changes | exit v error m/s median / p90 / max | direction error deg median / max | "
+            "position error at 150 ms mm median | contact ms diff median | bulge mm diff median | "
+            "CPU ms per impact | CPU µs per awake tick | ring-down s (CPU s) |")
+    lines = [head, "|" + " --- |" * (head.count("|") - 1)]
+    for row in result["rows"]:
+        e = row["errors"]
+        g = row["geometry"]
+        o = row["outcomes"]
+        awake = row["cpu_us_per_awake_tick"]
+        ring = "-" if row["ring_down_s"] is None else (
+            f"{row['ring_down_s']:.2f}{'' if row['ring_downs_slept'] else '+'} ({row['ring_down_cpu_s']:.2f})")
+        lines.append(
+            f"| {row['cols']}x{row['rows']} | {row['knots']} | {row['substeps']} | "
+            f"{g['a_mm']:.1f} x {g['b_mm']:.1f} ({g['diagonal_mm']:.0f}) | {'yes' if g['ball_fits_through'] else 'no'} | "
+            f"{o['over']}/{o['through']}/{o['back']}/{o['caught']} | {e['outcome_changes']} | "
+            f"{e['exit_velocity_error_median']:.3f} / {e['exit_velocity_error_p90']:.3f} / "
+            f"{e['exit_velocity_error_max']:.3f} | {e['direction_error_deg_median']:.1f} / "
+            f"{e['direction_error_deg_max']:.1f} | {e['position_error_mm_median']:.1f} | "
+            f"{e['contact_ms_diff_median']:+.0f} | {e['bulge_mm_diff_median']:+.1f} | "
+            f"{row['cpu_ms_per_impact']:.1f} | {'-' if awake is None else f'{awake:.0f}'} | {ring} |")
+    return "\n".join(lines)
+
+
+def summary_lines(result: dict) -> list[str]:
+    """Plain-language findings under the table."""
+    out = [f"Reference: {result['reference']}; {result['n_impacts']} impacts (seed {result['seed']}), ball state "
+           f"compared {result['flight_s'] * 1e3:.0f} ms after the shot; CPU time of the stepping thread, load average "
+           f"{result['load_avg']:.1f}; kernels compiled or loaded in {result['compile_s']:.1f} s, apart. "
+           f"A ring-down marked + did not sleep within {result['ring_cap_s']:g} s."]
+    for row in result["rows"]:
+        changes = row["errors"]["outcome_change_list"]
+        if changes:
+            out.append(f"{row['cols']}x{row['rows']} outcome changes: {'; '.join(changes)}")
+    rec = result["recommendation"]
+    tol = result["tolerance"]
+    criteria = (f"no outcome changes, exit velocity error median <= {tol['exit_velocity_median_m_s']} m/s and 90th "
+                f"percentile <= {tol['exit_velocity_p90_m_s']} m/s, ball cannot pass between knots")
+    if rec is None:
+        out.append(f"No net coarser than the reference is within tolerance ({criteria}).")
+    else:
+        e = rec["errors"]
+        cost = rec["cost_vs_default"]
+        cost_text = "" if cost is None or cost["awake_tick"] is None else (
+            f"; its awake tick costs {cost['awake_tick']:.2f}x the default net's, an impact {cost['impact']:.2f}x")
+        out.append(f"Coarsest within tolerance ({criteria}): {rec['net']}: exit velocity error median "
+                   f"{e['exit_velocity_error_median']:.3f} m/s, p90 {e['exit_velocity_error_p90']:.3f}, "
+                   f"direction {e['direction_error_deg_median']:.1f} deg median{cost_text}.")
+    return out
+
+
+def main() -> None:
+    import argparse
+    import json
+    import sys
+
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help="three coarse nets, three impacts, short ring-downs")
+    parser.add_argument("--sizes", default=None, help="nets, COLSxROWS comma-separated (the finest is the reference)")
+    parser.add_argument("--impacts", type=int, default=None, help="number of impacts")
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args()
+    sizes = [tuple(int(v) for v in s.lower().split("x")) for s in args.sizes.split(",")] if args.sizes else None
+    result = study(quick=args.quick, sizes=sizes, n_impacts=args.impacts,
+                   progress=lambda m: print(f"  {m}", file=sys.stderr, flush=True))
+    if args.json:
+        print(json.dumps(result))
+        return
+    print(markdown_table(result))
+    for line in summary_lines(result):
+        print(f"- {line}")
+
+
+if __name__ == "__main__":
+    import pathlib
+    import sys
+
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent.parent))
+    main()
