@@ -50,10 +50,18 @@ BAND_Z = {"cord": (NetSpec().height - 0.02, NetSpec().height + 0.015), "mid": (0
 MAX_ANGLE_DEG = 45.0
 SPEED = (5.0, 30.0)  # m/s
 ACROSS = 0.6  # m, |y| of the aim point (within the table's 0.76 m half width)
+# The model's own sensitivity: the finest net's answer to the same shots moved by this much (m)
+# in y and z, far less than any aim (the AI's aim noise is centimetres).
+FLOOR_SHIFT = 1e-3
+# Tunnelling stress: head-on shots at the middle of a cell at mid-height (m/s), and one at the fastest
+# STRESS_OBLIQUE_DEG off the normal.
+STRESS_SPEEDS = (20.0, 40.0, 60.0)  # 60: the fastest ball a scene allows (engine.world._cloth_watch)
+STRESS_OBLIQUE_DEG = 30.0
 # Tolerances of the recommendation (see recommend()).
-TOL_EXIT_MEDIAN = 0.25  # m/s
-TOL_EXIT_P90 = 0.5  # m/s
 TOL_OUTCOME_CHANGES = 0
+TOL_SPEED_BIAS = 0.75  # m/s, |mean(|v| - |v_ref|)| over the impacts
+TOL_CONTACT_MS = 5.0  # ms, |mean contact duration - the reference's|
+TOL_BULGE_MM = 5.0  # mm, |mean largest bulge - the reference's|
 
 
 @dataclass(frozen=True)
@@ -86,6 +94,31 @@ def impacts(n: int, seed: int = SEED, height: float = NetSpec().height) -> list[
         # Start so the centre crosses x = -radius (the ball's front reaches the net's plane) LEAD_S later.
         start = aim - d * (speed * LEAD_S + BALL_RADIUS / cos_t)
         out.append(Impact(k, band, speed, math.degrees(math.acos(cos_t)), tuple(start), tuple(speed * d)))
+    return out
+
+
+def shifted(shots: list[Impact], d: float) -> list[Impact]:
+    """The same shots moved by d (m) along y and z."""
+    return [Impact(s.index, s.band, s.speed, s.angle_deg, (s.pos[0], s.pos[1] + d, s.pos[2] + d), s.vel)
+            for s in shots]
+
+
+def stress_shots(spec: NetSpec) -> list[Impact]:
+    """Shots at the middle of a cell at mid-height (where a ball best fits between knots) of `spec`'s grid:
+    head-on at STRESS_SPEEDS and one at the fastest, STRESS_OBLIQUE_DEG off the normal along y."""
+    a = spec.width / (spec.cols - 1)
+    b = spec.height / (spec.rows - 1)
+    col = (spec.cols - 1) // 2
+    row = max(0, (spec.rows - 1) // 2 - 1) if spec.rows > 3 else 0
+    aim = np.array([0.0, -spec.width / 2 + (col + 0.5) * a, (row + 0.5) * b])
+    aim[2] = max(aim[2], BALL_RADIUS + 1e-3)  # the ball stays above the table
+    out = []
+    dirs = [(speed, 0.0) for speed in STRESS_SPEEDS] + [(STRESS_SPEEDS[-1], STRESS_OBLIQUE_DEG)]
+    for k, (speed, angle) in enumerate(dirs):
+        t = math.radians(angle)
+        d = np.array([math.cos(t), math.sin(t), 0.0])
+        start = aim - d * (speed * LEAD_S + BALL_RADIUS / math.cos(t))
+        out.append(Impact(k, "stress", speed, angle, tuple(start), tuple(speed * d)))
     return out
 
 
@@ -193,9 +226,10 @@ def _pct(values, q):
 
 def compare(runs: list[dict], ref: list[dict]) -> dict:
     """Errors of one net's impacts against the reference net's, impact by impact."""
-    dv, ddir, dpos, dcontact, dbulge = [], [], [], [], []
+    dv, ddir, dpos, dcontact, dbulge, dspeed = [], [], [], [], [], []
     changes = []
     for run, r in zip(runs, ref):
+        dspeed.append(float(np.linalg.norm(run["vel"]) - np.linalg.norm(r["vel"])))
         dv.append(float(np.linalg.norm(np.subtract(run["vel"], r["vel"]))))
         ddir.append(_angle_deg(run["vel"], r["vel"]))
         dpos.append(float(np.linalg.norm(np.subtract(run["pos"], r["pos"]))) * 1e3)
@@ -210,6 +244,9 @@ def compare(runs: list[dict], ref: list[dict]) -> dict:
         "position_error_mm_median": _pct(dpos, 50), "position_error_mm_max": max(dpos),
         "contact_ms_diff_median": _pct(dcontact, 50), "contact_ms_diff_max_abs": max(abs(x) for x in dcontact),
         "bulge_mm_diff_median": _pct(dbulge, 50), "bulge_mm_diff_max_abs": max(abs(x) for x in dbulge),
+        "speed_bias_mean": statistics.fmean(dspeed),
+        "speed_bias_se": statistics.stdev(dspeed) / math.sqrt(len(dspeed)) if len(dspeed) > 1 else None,
+        "contact_ms_mean_diff": statistics.fmean(dcontact), "bulge_mm_mean_diff": statistics.fmean(dbulge),
         "outcome_changes": len(changes), "outcome_change_list": changes,
         "per_band_exit_velocity_error_median": {
             band: _pct([d for d, run in zip(dv, runs) if run["band"] == band], 50) for band in BANDS},
@@ -237,6 +274,7 @@ def study(quick: bool = False, sizes=None, n_impacts: int | None = None, progres
             runs.append(record)
             if imp.index < ring_shots:
                 rings.append({"impact": imp.index, **ring_down(sim, ring_cap)})
+        stress = [run_impact(topo, imp)[0] for imp in stress_shots(spec)]
         awake_ticks = sum(r["ticks"] for r in rings)
         row = {
             "cols": cols, "rows": rows_, "knots": topo.n_knots,
@@ -246,6 +284,9 @@ def study(quick: bool = False, sizes=None, n_impacts: int | None = None, progres
             "continuum": net_continuum(spec),
             "geometry": geometry(spec),
             "impacts": runs,
+            "stress": [{"speed": imp.speed, "angle_deg": imp.angle_deg, "outcome": r["outcome"]}
+                       for imp, r in zip(stress_shots(spec), stress)],
+            "stress_through": sum(r["outcome"] == "through" for r in stress),
             "ring_downs": rings,
             "cpu_ms_per_impact": 1e3 * statistics.median(r["cpu_s"] for r in runs),
             "cpu_us_per_impact_tick": 1e6 * sum(r["cpu_s"] for r in runs) / sum(r["ticks"] for r in runs),
@@ -259,6 +300,10 @@ def study(quick: bool = False, sizes=None, n_impacts: int | None = None, progres
         say(f"{cols}x{rows_}: {row['cpu_ms_per_impact']:.0f} ms CPU per impact, ring-down {row['ring_down_s']} s, "
             f"outcomes {row['outcomes']}")
     ref = rows[-1]
+    ref_topo = build_topology(resolution_spec(ref["cols"], ref["rows"]))
+    floor = compare([run_impact(ref_topo, imp)[0] for imp in shifted(shots, FLOOR_SHIFT)], ref["impacts"])
+    say(f"floor ({ref['cols']}x{ref['rows']}, shots moved {FLOOR_SHIFT * 1e3:g} mm): exit velocity change median "
+        f"{floor['exit_velocity_error_median']:.2f} m/s")
     for row in rows:
         row["errors"] = compare(row["impacts"], ref["impacts"])
         row["cost_vs_default"] = None
@@ -281,8 +326,10 @@ def study(quick: bool = False, sizes=None, n_impacts: int | None = None, progres
         "compile_s": compile_s,
         "load_avg": os.getloadavg()[0],
         "rows": rows,
-        "tolerance": {"outcome_changes": TOL_OUTCOME_CHANGES, "exit_velocity_median_m_s": TOL_EXIT_MEDIAN,
-                      "exit_velocity_p90_m_s": TOL_EXIT_P90, "ball_must_not_fit_between_knots": True},
+        "floor": {"shift_m": FLOOR_SHIFT, **floor},
+        "tolerance": {"outcome_changes": TOL_OUTCOME_CHANGES, "speed_bias_m_s": TOL_SPEED_BIAS,
+                      "contact_ms": TOL_CONTACT_MS, "bulge_mm": TOL_BULGE_MM, "through_in_stress": 0,
+                      "ball_must_not_fit_between_knots": True},
     }
     result["recommendation"] = recommend(result)
     return result
@@ -291,27 +338,39 @@ def study(quick: bool = False, sizes=None, n_impacts: int | None = None, progres
 def recommend(result: dict) -> dict | None:
     """The coarsest net (fewest knots) within tolerance against the reference, the reference excluded.
 
-    Tolerance (match-relevant): no impact changes its outcome (over / through / back / caught
-    decide the point), the exit velocity's error has median <= TOL_EXIT_MEDIAN and 90th
-    percentile <= TOL_EXIT_P90 m/s (after 0.3 s of flight, 0.25 m/s moves a landing by 7.5 cm,
-    two ball diameters: where a net-cord ball drops), and the ball cannot pass between knots.
+    Match-relevant tolerance. Per ball, the exit velocity is not a fair target: moving the shots by
+    FLOOR_SHIFT (1 mm, far below any aim) changes the finest net's own answer by about as much
+    as a coarser grid does (result["floor"]), so the ball's fate and the net's statistics are:
+    - the ball cannot pass between knots: the cell's diagonal is below 2 (ball + knot radius),
+      and no stress shot (20-40 m/s at a cell's middle) goes through;
+    - no impact changes its outcome (over the cord / through / back / caught: the point);
+    - the mean exit speed within TOL_SPEED_BIAS (0.75 m/s, 16 % of the mean 4.6 m/s rebound)
+      of the reference's: where balls dropped off the net go;
+    - the mean contact duration within TOL_CONTACT_MS and the mean largest bulge within
+      TOL_BULGE_MM of the reference's: what the net does to the ball in time and space (the
+      default 184 x 16 net is 4 ms and 1 mm off the 368 x 32 net).
     """
-    rows = result["rows"][:-1]
-    for row in rows:  # fewest knots first
+    for row in result["rows"][:-1]:  # fewest knots first
         e = row["errors"]
-        if (e["outcome_changes"] <= TOL_OUTCOME_CHANGES and e["exit_velocity_error_median"] <= TOL_EXIT_MEDIAN
-                and e["exit_velocity_error_p90"] <= TOL_EXIT_P90 and not row["geometry"]["ball_fits_through"]):
+        if (not row["geometry"]["ball_fits_through"] and row["stress_through"] == 0
+                and e["outcome_changes"] <= TOL_OUTCOME_CHANGES and abs(e["speed_bias_mean"]) <= TOL_SPEED_BIAS
+                and abs(e["contact_ms_mean_diff"]) <= TOL_CONTACT_MS and abs(e["bulge_mm_mean_diff"]) <= TOL_BULGE_MM):
             return {"net": f"{row['cols']}x{row['rows']}", "cols": row["cols"], "rows": row["rows"],
                     "spec": row["spec"], "errors": {k: v for k, v in e.items() if k != "outcome_change_list"},
                     "cost_vs_default": row["cost_vs_default"]}
     return None
 
 
+def _se(e: dict) -> str:
+    return "-" if e["speed_bias_se"] is None else f"{e['speed_bias_se']:.2f}"
+
+
 def markdown_table(result: dict) -> str:
     """The per-net table (errors against the reference, costs) as Markdown."""
     head = ("| net | knots | substeps | cell mm (diag) | ball fits through | outcomes over/through/back/caught | "
-            "outcome changes | exit v error m/s median / p90 / max | direction error deg median / max | "
-            "position error at 150 ms mm median | contact ms diff median | bulge mm diff median | "
+            "outcome changes | stress shots through | exit speed bias m/s (SE) | exit v error m/s median / p90 / max | "
+            "direction error deg median / max | "
+            "position error at 150 ms mm median | contact ms mean diff | bulge mm mean diff | "
             "CPU ms per impact | CPU µs per awake tick | ring-down s (CPU s) |")
     lines = [head, "|" + " --- |" * (head.count("|") - 1)]
     for row in result["rows"]:
@@ -325,10 +384,11 @@ def markdown_table(result: dict) -> str:
             f"| {row['cols']}x{row['rows']} | {row['knots']} | {row['substeps']} | "
             f"{g['a_mm']:.1f} x {g['b_mm']:.1f} ({g['diagonal_mm']:.0f}) | {'yes' if g['ball_fits_through'] else 'no'} | "
             f"{o['over']}/{o['through']}/{o['back']}/{o['caught']} | {e['outcome_changes']} | "
+            f"{row['stress_through']}/{len(row['stress'])} | {e['speed_bias_mean']:+.2f} ({_se(e)}) | "
             f"{e['exit_velocity_error_median']:.3f} / {e['exit_velocity_error_p90']:.3f} / "
             f"{e['exit_velocity_error_max']:.3f} | {e['direction_error_deg_median']:.1f} / "
             f"{e['direction_error_deg_max']:.1f} | {e['position_error_mm_median']:.1f} | "
-            f"{e['contact_ms_diff_median']:+.0f} | {e['bulge_mm_diff_median']:+.1f} | "
+            f"{e['contact_ms_mean_diff']:+.1f} | {e['bulge_mm_mean_diff']:+.1f} | "
             f"{row['cpu_ms_per_impact']:.1f} | {'-' if awake is None else f'{awake:.0f}'} | {ring} |")
     return "\n".join(lines)
 
@@ -343,10 +403,17 @@ def summary_lines(result: dict) -> list[str]:
         changes = row["errors"]["outcome_change_list"]
         if changes:
             out.append(f"{row['cols']}x{row['rows']} outcome changes: {'; '.join(changes)}")
+    f = result["floor"]
+    out.append(f"The model's own sensitivity: the same shots moved {f['shift_m'] * 1e3:g} mm on the {result['reference']} "
+               f"net change its exit velocity by {f['exit_velocity_error_median']:.2f} m/s median "
+               f"({f['exit_velocity_error_p90']:.2f} p90, {f['exit_velocity_error_max']:.2f} max), its outcome "
+               f"{f['outcome_changes']} times, its mean exit speed by {f['speed_bias_mean']:+.2f} m/s: per ball, "
+               "errors of that size say nothing about the resolution.")
     rec = result["recommendation"]
     tol = result["tolerance"]
-    criteria = (f"no outcome changes, exit velocity error median <= {tol['exit_velocity_median_m_s']} m/s and 90th "
-                f"percentile <= {tol['exit_velocity_p90_m_s']} m/s, ball cannot pass between knots")
+    criteria = (f"ball cannot pass between knots and no stress shot goes through, no outcome changes, mean exit "
+                f"speed within {tol['speed_bias_m_s']} m/s, mean contact within {tol['contact_ms']:g} ms and mean "
+                f"bulge within {tol['bulge_mm']:g} mm of the reference's")
     if rec is None:
         out.append(f"No net coarser than the reference is within tolerance ({criteria}).")
     else:
@@ -354,9 +421,10 @@ def summary_lines(result: dict) -> list[str]:
         cost = rec["cost_vs_default"]
         cost_text = "" if cost is None or cost["awake_tick"] is None else (
             f"; its awake tick costs {cost['awake_tick']:.2f}x the default net's, an impact {cost['impact']:.2f}x")
-        out.append(f"Coarsest within tolerance ({criteria}): {rec['net']}: exit velocity error median "
-                   f"{e['exit_velocity_error_median']:.3f} m/s, p90 {e['exit_velocity_error_p90']:.3f}, "
-                   f"direction {e['direction_error_deg_median']:.1f} deg median{cost_text}.")
+        out.append(f"Coarsest within tolerance ({criteria}): {rec['net']}: mean exit speed "
+                   f"{e['speed_bias_mean']:+.2f} m/s, contact {e['contact_ms_mean_diff']:+.1f} ms, bulge "
+                   f"{e['bulge_mm_mean_diff']:+.1f} mm; per ball exit velocity error median "
+                   f"{e['exit_velocity_error_median']:.2f} m/s{cost_text}.")
     return out
 
 

@@ -29,6 +29,8 @@ def test_bench_net_resolution_quick_json():
         assert max(values) - min(values) <= 1e-12 * max(values), key
     # 46 x 4's cells (41 x 51 mm, diagonal 65 mm) let the 40 mm ball through; 92 x 8's (30 mm) do not.
     assert rows["46x4"]["geometry"]["ball_fits_through"] and not ref["geometry"]["ball_fits_through"]
+    assert rows["46x4"]["stress_through"] > 0 and ref["stress_through"] == 0  # 20-60 m/s at a cell's middle
+    assert result["floor"]["shift_m"] > 0.0 and result["floor"]["exit_velocity_error_median"] >= 0.0
     for row in rows.values():
         assert len(row["impacts"]) == 3 and all(imp["touched"] for imp in row["impacts"])
         assert row["cpu_ms_per_impact"] > 0.0 and row["substeps"] >= 1
