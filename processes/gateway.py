@@ -75,7 +75,7 @@ REMOTE_CAPACITY = 64  # inputs queued between two physics ticks; more are droppe
 REMOTE_ACK_DTYPE = np.dtype([("tick", "<i8"), ("input_seq", "<u8", (2,))])
 REMOTE_ACK_RING = 1024  # ticks (1 s at 1 kHz): a reader this late gets None, never a wrong pair
 # Every arbitrated lock of a run, in the one global order of acquisition.
-RUN_LOCK_NAMES = ("bat_inputs", "remote_inputs")
+RUN_LOCK_NAMES = ("remote_inputs",)
 # The seat table as it survives a gateway's restart (a SnapshotBlock the supervisor owns; the
 # gateway of the moment is its one writer): who holds each seat's token and its grace.
 SEAT_DTYPE = np.dtype([("slot", "u1"), ("taken", "u1"), ("token", "u1", (16,)), ("name", "u1", (32,)),

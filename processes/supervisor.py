@@ -147,7 +147,7 @@ class Supervisor:
                 arena.snapshot_block(name, knots, 1)
             arena.shared_array("net_io", NET_IO_DTYPE, 1)
             self._net_baton = Baton("net", self._ctx, arena.shared_array("net_baton", TICK_SLOT_DTYPE, 1).array)
-        if "ai" in self.kinds or "gateway" in self.kinds:
+        if "gateway" in self.kinds:
             from processes.gateway import RUN_LOCK_NAMES
 
             self._tmp = tempfile.mkdtemp(prefix=f"pingpong-{arena.run_id}-")
@@ -157,11 +157,12 @@ class Supervisor:
         if "ai" in self.kinds:
             from processes.worker_ai import INPUT_DTYPE
 
-            arena.shared_array("inputs_header", MAILBOX_HEADER, 1)
-            arena.shared_array("inputs", INPUT_DTYPE, 4)
-            # The state the AI decides from: written by the physics at a control tick, read by
-            # the AI during its turn; the turn (the baton) orders the two, so it needs no seqlock.
+            # The state the AI decides from, written by the physics at a control tick and read by
+            # the AI during its turn, and the AI's answer, written during the turn and read by the
+            # physics once the turn is done: the baton orders each pair (its semaphores are full
+            # barriers), so neither needs a seqlock or a lock.
             arena.shared_array("ai_view", snapshot, 1)
+            arena.shared_array("ai_answer", INPUT_DTYPE, 1)
             self._baton = Baton("ai", self._ctx, arena.shared_array("baton", TICK_SLOT_DTYPE, 1).array)
         if "gateway" in self.kinds:
             from processes.gateway import REMOTE_ACK_DTYPE, REMOTE_ACK_RING, REMOTE_CAPACITY, REMOTE_INPUT_DTYPE

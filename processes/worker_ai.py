@@ -2,11 +2,13 @@
 
 At every AI control tick the physics worker copies the state into the AI's view and gives it
 its turn, then steps on; the AI computes every AI's force and torque from the view with
-engine.match.ai_inputs (the very function the in-process match calls) and posts them to the
-bat-input mailbox, which the physics worker drains under its lock at the next control tick.
-Asked again for the tick it last did (the physics restarted, or timed out waiting), it posts
-its last answer again rather than deciding twice: the AIs' plans and random draws move on once
-per control tick, as in the reference.
+engine.match.ai_inputs (the very function the in-process match calls) and writes them into the
+`ai_answer` record before it says the turn is done; the physics reads it after that, at the next
+control tick. The baton orders the two sides (as for `ai_view` and the net's `net_io`), so the
+answer needs no lock: a lock and mailbox cost the turn two fcntl calls a side (the locked post
+alone took ~18 us a turn at load 3). Asked again for the tick it last did (the physics
+restarted, or timed out waiting), it answers with its last answer again rather than deciding
+twice: the AIs' plans and random draws move on once per control tick, as in the reference.
 
 A stroke is thought out between the turns (BatAI.think_step), in the time the physics takes to
 step to the next control tick, so the physics does not wait for it: a stroke starts when the
@@ -27,8 +29,6 @@ from engine.dtypes import physics_snapshot_dtype
 from engine.match import ai_inputs, make_ais
 from engine.world import build_model, copy_record
 from processes.handoff import HandoffTimeout
-from processes.locks import LockTable
-from processes.mailbox import Mailbox
 from processes.shm import Arena
 from processes.worker import GO_TIMEOUT_S, Control, WorkerState
 
@@ -39,20 +39,18 @@ MAX_BATS = 2
 # in between.
 THINK_SHARE = 0.9
 PERIOD_WINDOW = 32  # turns over which the least time between two turns is the estimate
-# One record per AI tick carries every AI bat's inputs (one locked post, not one per bat).
+# One record per AI tick carries every AI bat's inputs: the tick it answers, a bit per AI bat.
 INPUT_DTYPE = np.dtype([("tick", "<i8"), ("mask", "<i8"), ("inputs", "<f8", (MAX_BATS, 6))])
-LOCK_NAMES = ("bat_inputs",)
 
 
 def ai_worker(control: Control, arena: Arena, scene, options: dict) -> None:
-    """options: seed, baton (processes.handoff.Baton), lock_path."""
+    """options: seed, baton (processes.handoff.Baton)."""
     model = build_model(scene)
     ais = make_ais(scene, model, options["seed"], eager=False)
     thinkers = list(ais.values())
     n_bats = len(scene.bats)
     baton = options["baton"].attach(arena["baton"].array)
-    locks = LockTable(options["lock_path"], LOCK_NAMES, arena["lock_holders"])
-    box = Mailbox("bat_inputs", arena["inputs_header"], arena["inputs"], locks)
+    answer = arena["ai_answer"].array
     view = arena["ai_view"].array
     snap = np.zeros(1, physics_snapshot_dtype(n_bats))
     ball_y = snap["ball"].view("<f8")  # views into the snapshot copy: nothing else is copied
@@ -95,10 +93,10 @@ def ai_worker(control: Control, arena: Arena, scene, options: dict) -> None:
                           int(rally["phase"]), int(rally["server"]), int(rally["striker"]), inputs)
                 record["tick"] = tick
                 last_tick = tick
-            box.post(record)
-            answer = time.perf_counter() - t0
-            busy += answer
-            longest = max(longest, answer)
+            answer[0] = record
+            took = time.perf_counter() - t0
+            busy += took
+            longest = max(longest, took)
             turns += 1
             baton.done()
             prompt = True
@@ -120,5 +118,4 @@ def ai_worker(control: Control, arena: Arena, scene, options: dict) -> None:
                               "late_thinking_s": sum(ai.late_thinking_s for ai in thinkers),
                               "turns": turns, "longest_turn_s": longest})
     finally:
-        del view, snap, box, baton, ball_y, bats, rally, world
-        locks.close()
+        del view, snap, answer, baton, ball_y, bats, rally, world

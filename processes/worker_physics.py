@@ -44,7 +44,7 @@ def physics_worker(control: Control, arena: Arena, scene, options: dict) -> None
 
     options: ticks (total to reach), mode ("lockstep" | "realtime"), trace (bool),
         crash_at_tick (int or None: SIGKILL this process right after publishing that tick),
-        and for a match: seed, baton, lock_path (when the scene has AI bats).
+        and for a match: seed, baton (when the scene has AI bats), lock_path (when it has remote players).
     """
     if scene.match is not None:
         return _match_worker(control, arena, scene, options)
@@ -120,21 +120,16 @@ class _RemoteAI:
 
     request(): copy the state into the AI's view and give the AI worker its turn, at once.
     collect() at the next control tick: wait (bounded) until the AI is done with that turn and
-    drain its decision from the locked mailbox. The view is not written again before the turn
-    is collected, so the AI always decides from exactly the state the reference decides from.
+    read its decision from the `ai_answer` record (the baton orders the AI's write before our
+    read). The view is not written again before the turn is collected, so the AI always decides
+    from exactly the state the reference decides from.
     """
 
     def __init__(self, control: Control, arena: Arena, options: dict, n_bats: int):
-        from processes.locks import LockTable
-        from processes.mailbox import Mailbox
-        from processes.worker_ai import INPUT_DTYPE, LOCK_NAMES
-
         self.control = control
         self.n_bats = n_bats
         self.baton = options["baton"].attach(arena["baton"].array)
-        self.locks = LockTable(options["lock_path"], LOCK_NAMES, arena["lock_holders"])  # a prefix of the run's order
-        self.box = Mailbox("bat_inputs", arena["inputs_header"], arena["inputs"], self.locks)
-        self.inbox = np.zeros(self.box.capacity, INPUT_DTYPE)
+        self.answer = arena["ai_answer"].array
         self.view = arena["ai_view"].array
         self.turn: int | None = None  # the tick whose decision is in flight
         self.waits = 0.0  # wall time spent waiting for the AI (its work beyond our own)
@@ -151,14 +146,12 @@ class _RemoteAI:
         started = time.perf_counter()
         # The AI worker may be restarting: stay alive and ask again (the view still holds the state).
         self.baton.wait_done_or_retry(self.turn, AI_HANDOFF_S, AI_GIVE_UP_S, self.control.beat)
-        n = self.box.drain(self.inbox)
-        for k in range(n):
-            if int(self.inbox[k]["tick"]) != self.turn:
-                continue  # a stale answer to a turn that had timed out
-            mask = int(self.inbox[k]["mask"])
+        answer = self.answer[0]
+        if int(answer["tick"]) == self.turn:  # done with our turn: its answer, written before done
+            mask = int(answer["mask"])
             for bat in range(self.n_bats):
                 if mask >> bat & 1:
-                    match.ai_next[bat] = self.inbox[k]["inputs"][bat]
+                    match.ai_next[bat] = answer["inputs"][bat]
         self.turn = None
         self.waits += time.perf_counter() - started
 
@@ -167,8 +160,7 @@ class _RemoteAI:
         self.turn = (tick - 1) // period * period if tick > 0 else None
 
     def close(self) -> None:
-        del self.view, self.box
-        self.locks.close()
+        del self.view, self.answer
 
 
 def remote_input_refusal(bat: int, values, remote_bats: frozenset[int]) -> str | None:
