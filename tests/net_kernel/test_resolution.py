@@ -70,7 +70,9 @@ def _sag(spec):
 
 def test_static_sag_agrees_across_resolutions():
     cord_ref, mesh_ref = _sag(resolution_spec(*REFERENCE))
-    assert 1e-6 < cord_ref < 1e-4  # m: a few um (the mesh stands on the table's row; not a free cable)
+    # m: above 1 um (it does sag), below a free cable's W L / (8 T) = 5.6 mm carrying the whole net (the
+    # mesh stands partly on the table's row: a few um with linear springs).
+    assert 1e-6 < cord_ref < 5.6e-3
     b_ref = 1.0 / (REFERENCE[1] - 1)
     c22_ref = net_continuum(resolution_spec(*REFERENCE))["c22"]
     for cols, rows in SIZES:
