@@ -18,6 +18,9 @@ NET_THICKNESS = 0.004
 BALL_RADIUS = 0.020
 BALL_MASS = 0.0027
 BALL_INERTIA_FACTOR = 2.0 / 3.0
+# m/s: the fastest ball a scene may start with (engine/scene.py), about twice the fastest smashes
+# played; the cloth net's watch boxes (engine/world.py) and the stability suite assume no faster.
+BALL_SPEED_MAX = 60.0
 
 # The rules (2.4) fix no blade size; 150 x 158 mm is the common blade, so a disc of 7.5 cm radius.
 # Rule 2.4.4: each covering is at most 4.0 mm thick; with a ~6 mm blade the bat is ~14 mm thick.

@@ -283,7 +283,7 @@ def parse_scene(data: dict, source: str) -> Scene:
     ball_data = r.table(data.get("ball", {}), "ball", ("pos", "vel", "spin"))
     ball = BallSpec(
         pos=r.vector(ball_data, "pos", "ball.pos", bound=10.0),
-        vel=r.vector(ball_data, "vel", "ball.vel", (0.0, 0.0, 0.0), bound=60.0),
+        vel=r.vector(ball_data, "vel", "ball.vel", (0.0, 0.0, 0.0), bound=equipment.BALL_SPEED_MAX),
         # 200 rev/s is beyond the fastest measured loops (~150 rev/s).
         spin=r.vector(ball_data, "spin", "ball.spin", (0.0, 0.0, 0.0), bound=2 * math.pi * 200),
     )

@@ -40,10 +40,10 @@ from net_kernel.sim import KNOT_RADIUS
 R = equipment.BALL_RADIUS
 PENETRATION_TOL = 1e-6  # m: contacts are resolved to CONTACT_TOL = 1 um
 ENERGY_TOL = 1e-9  # relative: round-off over thousands of ticks
-# m/s: the fastest ball a scene allows (engine/scene.py). The cloth's contact projects knots onto
-# the ball's surface once per substep h; in between, the springs carry a struck knot at most
-# about this fast into the ball, so a knot inside it by more than FASTEST_BALL * h is a failure.
-FASTEST_BALL = 60.0
+# m/s: the fastest ball a scene allows. The cloth's contact projects knots onto the ball's surface
+# once per substep h; in between, the springs carry a struck knot at most about this fast into
+# the ball, so a knot inside it by more than FASTEST_BALL * h is a failure.
+FASTEST_BALL = equipment.BALL_SPEED_MAX
 # Symplectic Euler keeps a modified energy; the true one oscillates about it (at most 19x for a
 # mode at 0.9 of the bound in linear theory, observed 1.05 E0: tests/net_kernel/test_stability.py
 # holds 10 %, and so does the suite).

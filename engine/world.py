@@ -10,6 +10,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from engine import equipment
+from engine.equipment import BALL_SPEED_MAX
 from engine.bat import BAT_WIDTH, FORCE_AT, TORQUE_AT, disc_inertia
 from engine.collision import (
     BAT_HALF_THICKNESS,
@@ -34,7 +35,7 @@ from engine.integrators import METHODS, WORK_SHAPE
 from engine.scene import Scene
 from engine.tick import ERR_BATS_AFTER, ERR_BATS_BEFORE, STOP_EVENT, STOP_LIMIT, STOP_NET, STOP_WATCH, advance_ticks
 from net_kernel import NO_CONTACT, NetSim, build_topology
-from net_kernel.sim import WAKE_MARGIN
+from net_kernel.sim import KNOT_RADIUS, NET_REACH, WAKE_MARGIN
 
 
 class SimulationError(RuntimeError):
@@ -63,6 +64,7 @@ class Model:
     bat_mass: np.ndarray  # (n_bats,) kg
     bat_inertia: np.ndarray  # (n_bats, 3) kg m^2
     cloth_watch: np.ndarray | None = None  # (6,) box around a cloth net: inside it, tick by tick
+    cloth_reach: np.ndarray | None = None  # (6,) box beyond which the ball cannot touch even an awake cloth net
 
 
 def build_model(scene: Scene) -> Model:
@@ -96,18 +98,31 @@ def build_model(scene: Scene) -> Model:
         bat_mass=np.array([b.mass for b in scene.bats]),
         bat_inertia=np.array([disc_inertia(b.mass, b.radius) for b in scene.bats]).reshape(len(scene.bats), 3),
         cloth_watch=_cloth_watch(scene, radius) if "net" in fx and scene.net_kind == "cloth" else None,
+        cloth_reach=_cloth_reach(scene, radius) if "net" in fx and scene.net_kind == "cloth" else None,
     )
     _check_start(model)
     return model
 
 
+def _cloth_box(scene: Scene, reach: float) -> np.ndarray:
+    """(6,) lo and hi corners of the box the cloth net is built in, grown by `reach` m."""
+    half_width = scene.cloth.width / 2
+    return np.array([-reach, -half_width - reach, -reach, reach, half_width + reach, scene.cloth.height + reach])
+
+
 def _cloth_watch(scene: Scene, radius: float) -> np.ndarray:
     """The box in which the ball is stepped tick by tick with the cloth net: the net's own box
     grown by the ball's radius, the net's wake margin and two ticks at the fastest speed a
-    scene allows (60 m/s), so no tick can carry the ball from outside it through the net."""
-    reach = radius + WAKE_MARGIN + 2 * 60.0 * scene.dt
-    half_width = scene.cloth.width / 2
-    return np.array([-reach, -half_width - reach, -reach, reach, half_width + reach, scene.cloth.height + reach])
+    scene allows, so no tick can carry the ball from outside it through the net."""
+    return _cloth_box(scene, radius + WAKE_MARGIN + 2 * BALL_SPEED_MAX * scene.dt)
+
+
+def _cloth_reach(scene: Scene, radius: float) -> np.ndarray:
+    """The box out of which the ball cannot touch the cloth net within a tick, asleep or awake:
+    no knot leaves the built box by more than NET_REACH (NetSim checks it every tick), the awake
+    net's contact test reaches WAKE_MARGIN beyond its knots' box, and a tick carries the ball at
+    most BALL_SPEED_MAX dt."""
+    return _cloth_box(scene, radius + KNOT_RADIUS + WAKE_MARGIN + NET_REACH + BALL_SPEED_MAX * scene.dt)
 
 
 def _check_start(model: Model) -> None:
@@ -308,10 +323,13 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
     net is awake) tick by tick, each followed by the net's step with the ball's contact
     (net_kernel.NetSim.step: the net moves the ball by `offset` and gives it `impulse`).
 
-    It returns after every tick the net was stepped (STOP_NET, unless another reason): a caller
-    that publishes its state after each call then always has a state the net's agrees with,
-    which a restarted net or physics worker resumes from exactly. `state.net_sim` is a NetSim,
-    or anything with its `sleeping` and `step` (processes.worker_net.RemoteNet).
+    Out of the net's reach (model.cloth_reach) the ball's ticks run in one kernel call and the net
+    is then stepped as many ticks without it (NetSim.step_free): neither depends on the other
+    there, so a worker's net may do them while the physics goes on. It returns after every tick
+    the net was stepped with the ball (STOP_NET, unless another reason): a caller that publishes
+    its state after each call then always has a state the net's agrees with, which a restarted
+    net or physics worker resumes from exactly. `state.net_sim` is a NetSim, or anything with
+    its `sleeping`, `step` and `step_free` (processes.worker_net.RemoteNet).
     """
     net = state.net_sim
     y = state.ball_y
@@ -319,6 +337,16 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
     radius = float(model.ball_params[P_RADIUS])
     done = 0
     while done < n_max:
+        r = model.cloth_reach
+        if not all(r[i] <= y[i] <= r[3 + i] for i in range(3)):
+            ticks, n, reason = advance(model, _without_cloth(state), n_max - done, inputs, events, h, gone_radius,
+                                       gone_z, deadline, watch=r)
+            inputs = None
+            done += ticks
+            net.step_free(ticks)
+            if reason != STOP_WATCH:
+                return done, n, reason
+            continue
         w = model.cloth_watch
         inside = all(w[i] <= y[i] <= w[3 + i] for i in range(3))
         if net.sleeping and not inside:

@@ -112,6 +112,10 @@ class Baton:
                     raise
                 self.give(tick)
 
+    def nudge(self) -> None:
+        """Wake the worker without a turn: it rereads the shared state it works from."""
+        self._go.release()
+
     def stop(self) -> None:
         self._words[1] = STOP
         self._go.release()

@@ -1,17 +1,27 @@
 """The net worker: the cloth net (net_kernel.NetSim) in a process of its own.
 
-The physics worker gives it the baton for every tick the net must step or test (the net is
-awake, or the ball is near its frozen shape; a sleeping net with the ball far away wakes nobody). The ball's state at
-the tick's start crosses in the shared `net_io` record and the net's answer (time of impact,
-impulse, offset, whether it now sleeps) comes back in it; the baton orders the two sides, so
-the record needs no lock. The physics then applies the answer exactly as the in-process engine
-applies NetSim.step's, which keeps lockstep runs bit for bit equal to the reference.
+Two kinds of ticks reach it from the physics worker:
+- Ticks with the ball in the net's reach (engine.world: inside model.cloth_reach, the net awake
+  or the ball near its frozen shape): the physics gives it the baton and waits. The ball's state
+  at the tick's start crosses in the shared `net_io` record and the net's answer (time of impact,
+  impulse, offset, whether it now sleeps, its box) comes back in it; the baton orders the two
+  sides, so the record needs no lock. The physics applies the answer exactly as the in-process
+  engine applies NetSim.step's.
+- Ticks with the ball out of reach (NetSim.step_free): the physics only raises `granted`, the
+  tick the net may step to without the ball, nudges the worker and goes on at once. The net
+  steps them while the physics works: on two cores the ringing of a struck net then costs the
+  physics nothing until the ball comes back within reach, where its first hand-off waits until
+  the net has caught up. A sleeping net with the ball far away wakes nobody.
+Either way the net steps the same ticks with the same inputs as the in-process NetSim, which
+keeps lockstep runs bit for bit equal to the reference.
 
-After every step the worker publishes its whole state (engine.dtypes.net_snapshot_dtype) into
-one of two SnapshotBlocks, by the parity of the tick it holds, so the state before the last step
-is always kept too. That makes restarts exact: a restarted net worker resumes from its newest
-state; a restarted physics worker may ask again for the tick the net has just stepped, and the
-net then goes back to the state before it (in the other block).
+The worker publishes its whole state (engine.dtypes.net_snapshot_dtype) before and after every
+tick stepped with the ball and after every run of free ticks, into one of two SnapshotBlocks by
+the parity of the tick it holds, so the state before the last ball tick is always kept too. That makes restarts
+exact: a restarted net worker resumes from its newest state (and steps the free ticks still
+granted); a restarted physics worker may ask again for the ball tick the net has just stepped,
+and the net then goes back to the state before it (in the other block). Free ticks never need
+going back: the physics grants a tick only after deciding it, and decides it the same way again.
 """
 from __future__ import annotations
 
@@ -35,10 +45,14 @@ NET_IO_DTYPE = np.dtype([
     ("toi", "<f8"), ("impulse", "<f8", 3), ("offset", "<f8", 3),  # NetSim.step's answer
     ("sleeping", "<i8"),  # the net sleeps after this step
     ("box", "<f8", (2, 3)),  # m, lo and hi corners of the knots' box after this step (NetSim.box)
+    ("granted", "<i8"),  # the physics: the net may step every tick below this without the ball
+    ("turn", "<i8"),  # the physics: counts its ball ticks (a repeated turn counts again)
+    ("served", "<i8"),  # the worker: the last turn it answered
 ])
 NET_BLOCKS = ("net_even", "net_odd")  # by the parity of the tick a state holds
 NET_HANDOFF_S = 1.0  # one wait's bound; retried while a killed net worker is restarted
 NET_GIVE_UP_S = 60.0
+FREE_BEAT_TICKS = 256  # free ticks between two heartbeats (a 184 x 16 net: about 0.3 s of work)
 
 
 def net_blocks(arena: Arena) -> list:
@@ -71,22 +85,27 @@ def _load(sim: NetSim, state) -> None:
     net_box(sim.knot_pos, out=sim.box)
 
 
-def _save(sim: NetSim, tick: int, state) -> None:
-    state["tick"] = tick
-    state["sleeping"] = sim.sleeping
-    state["quiet_ticks"] = sim.quiet_ticks
-    state["pos"] = sim.knot_pos
-    state["vel"] = sim.knot_vel
+def _publish(sim: NetSim, tick: int, state: np.ndarray, blocks) -> None:
+    """Publish the net's state at `tick` into the block of its parity (a ball tick's state before
+    and after it then sit in different blocks, and answering the same tick again, which goes
+    back to the state before it, overwrites only the state after it)."""
+    row = state[0]
+    row["tick"] = tick
+    row["sleeping"] = sim.sleeping
+    row["quiet_ticks"] = sim.quiet_ticks
+    row["pos"] = sim.knot_pos
+    row["vel"] = sim.knot_vel
+    blocks[tick % 2].publish(state, tick)
 
 
 def net_worker(control: Control, arena: Arena, scene, options: dict) -> None:
     """options: net_baton (processes.handoff.Baton); crash_at_tick (tests: SIGKILL this process
-    after publishing that tick's state and before saying it is done, the hardest moment)."""
+    after publishing that ball tick's state and before saying it is done, the hardest moment)."""
     topo = build_topology(scene.cloth)
     sim = NetSim(topo, scene.dt)
     NetSim(topo, scene.dt).step(topo.knot_pos[0], np.zeros(3))  # compile or load the kernels
     baton = options["net_baton"].attach(arena["net_baton"].array)
-    io = arena["net_io"].array
+    row = arena["net_io"].array[0]
     blocks = net_blocks(arena)
     state = np.zeros(1, net_snapshot_dtype(topo.n_knots))
     if newest_state(blocks, state):
@@ -94,8 +113,9 @@ def net_worker(control: Control, arena: Arena, scene, options: dict) -> None:
         net_tick = int(state[0]["tick"])
     else:
         net_tick = 0
-        _save(sim, net_tick, state[0])
-        blocks[0].publish(state, net_tick)
+        _publish(sim, net_tick, state, blocks)
+    published = net_tick  # the tick of the newest published state
+    served = int(row["served"])
     control.set_state(WorkerState.READY)
     control.send("ready", net_tick)
     control.wait_for("go", GO_TIMEOUT_S)
@@ -105,18 +125,41 @@ def net_worker(control: Control, arena: Arena, scene, options: dict) -> None:
     try:
         while True:
             try:
-                tick = baton.wait_turn(Control.HEARTBEAT_S)
+                stop = baton.wait_turn(Control.HEARTBEAT_S) is None
             except HandoffTimeout:
-                control.beat(int(control.row["tick"]))  # a sleeping net: still alive, still listening
+                control.beat(net_tick)  # a sleeping net: still alive, still listening
                 continue
-            if tick is None:
-                break
             t0 = time.perf_counter()
+            # First the free ticks granted so far (a nudge, or the ones before a ball tick).
+            while net_tick < int(row["granted"]):
+                run = min(int(row["granted"]) - net_tick, FREE_BEAT_TICKS)
+                sim.step_free(run)
+                net_tick += run
+                steps += run
+                control.beat(net_tick)
+            if published != net_tick:
+                _publish(sim, net_tick, state, blocks)
+                published = net_tick
+            if stop:
+                busy += time.perf_counter() - t0
+                break
+            if int(row["turn"]) == served:  # a nudge, or a turn already answered
+                busy += time.perf_counter() - t0
+                continue
+            # A wake-up may be an earlier post than the turn's (a nudge): the turn's fields are read
+            # from net_io after its `turn`, which the physics writes after them. x86-64 keeps both
+            # orders (stores are seen in program order, loads are not passed by later loads).
+            served = int(row["turn"])
+            tick = int(row["tick"])
             if net_tick > tick:
                 # The physics does this tick again (it was restarted): back to the state before it.
                 newest_state(blocks, state, at_most=tick)
                 _load(sim, state[0])
-            row = io[0]
+            elif net_tick < tick:
+                # Ticks the physics skipped because it knew the net asleep: it stays as it is.
+                if not sim.sleeping:
+                    raise RuntimeError(f"net worker: asked for tick {tick} at tick {net_tick} while awake; the "
+                                       "ticks between were neither granted free nor given")
             contact = sim.step(row["ball"][0], row["ball"][1], float(row["radius"]), float(row["inv_mass"]))
             row["toi"] = contact.toi
             row["impulse"] = contact.impulse
@@ -124,8 +167,9 @@ def net_worker(control: Control, arena: Arena, scene, options: dict) -> None:
             row["sleeping"] = sim.sleeping
             row["box"] = sim.box
             net_tick = tick + 1
-            _save(sim, net_tick, state[0])
-            blocks[net_tick % 2].publish(state, net_tick)
+            _publish(sim, net_tick, state, blocks)
+            published = net_tick
+            row["served"] = served
             steps += 1
             busy += time.perf_counter() - t0
             if tick == options.get("crash_at_tick"):
@@ -135,21 +179,24 @@ def net_worker(control: Control, arena: Arena, scene, options: dict) -> None:
         control.row["busy_s"] = float(control.row["busy_s"]) + busy
         control.send("done", {"tick": net_tick, "busy_s": busy, "steps": steps})
     finally:
-        del io, blocks
+        del row, blocks
 
 
 class RemoteNet:
-    """The physics worker's stand-in for the NetSim in engine.world: same `sleeping`, same step().
+    """The physics worker's stand-in for the NetSim in engine.world: same `sleeping`, step() and
+    step_free().
 
     Args:
         control: the physics worker's Control (heartbeats while it waits).
-        arena, options: the run's (net_io, the two net blocks, net_baton).
+        arena, options: the run's (net_io, net_baton).
         world: the physics state's world record (its tick says which tick is being stepped).
         local: a NetSim of the same net as built (its knot radius, tick and built shape).
 
     A sleeping net and a ball that cannot touch its frozen shape cost no hand-off, exactly as
-    NetSim.step returns early: the stand-in keeps the box the net froze in (from net_io after
-    each step; on a resume, from the state it resumes from, as the net worker does).
+    NetSim.step returns early: the stand-in keeps the box the net froze in (from net_io after each
+    ball tick). What it knows of `sleeping` comes from the net's last answer, so after free ticks,
+    in which the net may have fallen asleep, it may still think the net awake: that costs one
+    hand-off more, never a different bit (the net worker then steps exactly as NetSim.step would).
     """
 
     def __init__(self, control: Control, arena: Arena, options: dict, world, local: NetSim):
@@ -160,15 +207,16 @@ class RemoteNet:
         self.io = arena["net_io"].array
         self._none = np.zeros(3)
         self.waits = 0.0
-        # The net's sleep state at the tick we resume from (a fresh run: the net as built).
-        state = np.zeros(1, net_snapshot_dtype(local.topo.n_knots))
-        tick = int(world["tick"])
-        if newest_state(net_blocks(arena), state, tick):
-            self.sleeping = bool(state[0]["sleeping"])
-            self.box = net_box(state[0]["pos"])
-        else:
-            self.sleeping = local.sleeping
-            self.box = local.box.copy()
+        # Nothing known yet (a fresh run's net is as built and awake; a resumed one, whatever the
+        # net says at its first answer): awake is the guess that can cost a hand-off but no bit.
+        self.sleeping = False
+        self.box = local.box.copy()
+
+    def step_free(self, ticks: int) -> None:
+        """NetSim.step_free: grant the net the ticks just done (the world's tick is past them) and go on."""
+        if ticks > 0:
+            self.io[0]["granted"] = int(self.world["tick"])
+            self.baton.nudge()
 
     def step(self, ball_pos, ball_vel, ball_radius: float, ball_inv_mass: float) -> NetContact:
         """NetSim.step, done by the net worker (called after the ball's tick, as engine.world does)."""
@@ -185,10 +233,16 @@ class RemoteNet:
         row["ball"][1] = ball_vel
         row["radius"] = ball_radius
         row["inv_mass"] = ball_inv_mass
+        row["turn"] += 1  # last: the worker reads it before the fields above (see net_worker)
         self.baton.give(tick)
-        # The net worker may be restarting: stay alive and ask again (net_io still holds the ball).
-        self.baton.wait_done_or_retry(tick, NET_HANDOFF_S, NET_GIVE_UP_S, self.control.beat)
+        # The net may still be stepping free ticks, or restarting: stay alive and ask again (a
+        # new turn; net_io still holds the ball).
+        self.baton.wait_done_or_retry(tick, NET_HANDOFF_S, NET_GIVE_UP_S, self._ask_again)
         self.sleeping = bool(row["sleeping"])
         self.box[:] = row["box"]
         self.waits += time.perf_counter() - started
         return NetContact(float(row["toi"]), row["impulse"].copy(), row["offset"].copy())
+
+    def _ask_again(self, tick: int) -> None:
+        self.control.beat(tick)
+        self.io[0]["turn"] += 1
