@@ -1055,6 +1055,21 @@ class BatAI:
         if self.plan is not self._tracking[0] or end_sign != self._tracking[1]:
             self._track(self.plan, end_sign)
 
+    def wakes(self) -> tuple[float, float]:
+        """When decide() next changes anything (its plan, what bat_control tracks, its thinking,
+        its random draws) if it is called again with the same rally_key, my_turn and serve as
+        at its last call: at the first `now >= due` (the stroke being thought out is played) or
+        the first `now > end` (the plan runs out). Until then every such decide() is a no-op and
+        the force is bat_control(now, bat, ctl) alone: the AI worker publishes these two with its
+        ctl rows so that the physics worker computes the force itself in between.
+
+        Returns:
+            (due, end) s, world clock; inf for none.
+        """
+        due = self._thinking_due if self._thinking is not None else math.inf
+        end = self._plan_end if self.plan is not None else math.inf
+        return due, end
+
     def _start_thinking(self, now: float, ball_y: np.ndarray, rally_key, end_sign: int, serve: bool) -> None:
         """Start thinking out the stroke for rally_key from the ball's state now; it is played from
         the first control tick after the reaction time (none for a service), as if thought out
@@ -1159,6 +1174,14 @@ class AIPlayers(dict):
         for player, ai in self.items():
             ai.decide(now, ball_y, floats[player], rally_key, to_strike == player, serve, -1 if player == 0 else 1)
         control_bats(now, floats, self.ctl, self.players, out)
+
+    def wakes(self) -> tuple[float, float]:
+        """(due, end) s: the earliest of every AI's BatAI.wakes (inf: none)."""
+        due = end = math.inf
+        for ai in self.values():
+            ai_due, ai_end = ai.wakes()
+            due, end = min(due, ai_due), min(end, ai_end)
+        return due, end
 
     def warm_up(self) -> None:
         """BatAI.warm_up of each, and control_bats."""

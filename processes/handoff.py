@@ -2,10 +2,11 @@
 waits, bounded, until that worker is done.
 
 A Baton is a pair of POSIX semaphores (futex-backed, so a waiting worker sleeps in the kernel
-and costs no CPU) plus a shared tick slot; the data itself crosses through SnapshotBlocks and
-mailboxes, never through the baton, so nothing is pickled per tick. The hub calls only the
-workers a tick needs (a sleeping net, an AI between its control ticks, the ball in free flight
-wake nobody), always in the same order, which keeps lockstep deterministic.
+and costs no CPU) plus a shared tick slot; the data itself crosses through shared records that
+the turn orders (the AI's view and answer, the net's net_io) and SnapshotBlocks, never through
+the baton, so nothing is pickled per tick. The hub calls only the workers a tick needs (a
+sleeping net, an AI control tick that needs no decision, the ball in free flight wake nobody),
+always in the same order, which keeps lockstep deterministic.
 
 Both sides spin briefly (SPIN_S, polling the semaphore without blocking) before they sleep.
 glibc's sem_post makes the futex wake-up call only when a waiter is asleep, so when the other
@@ -27,6 +28,7 @@ class HandoffTimeout(TimeoutError):
 
 TICK_SLOT_DTYPE = np.dtype([("tick", "<i8"), ("command", "<i8"), ("done_tick", "<i8")])
 RUN, STOP = 1, 2
+NO_TURN = -1  # try_turn: no turn given (ticks are >= 0)
 # How long a side polls before it sleeps: about one AI turn or ten physics ticks, so a turn
 # answered in that time costs no system call; a longer wait sleeps and costs no CPU.
 SPIN_S = 100e-6
@@ -125,6 +127,15 @@ class Baton:
         """The tick to do, None when told to stop; raises HandoffTimeout after `timeout` s."""
         if not _acquire(self._go, timeout):
             raise HandoffTimeout(f"{self.name}: no turn given within {timeout} s")
+        if self._words[1] == STOP:
+            return None
+        return self._words[0]
+
+    def try_turn(self) -> int | None:
+        """wait_turn without waiting: the tick to do, None when told to stop, NO_TURN when no
+        turn was given (a worker with work of its own polls between its pieces of work)."""
+        if not self._go.acquire(False):
+            return NO_TURN
         if self._words[1] == STOP:
             return None
         return self._words[0]

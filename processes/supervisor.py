@@ -155,14 +155,17 @@ class Supervisor:
             LockTable.create(self._lock_path, RUN_LOCK_NAMES, arena.shared_array("lock_holders", HOLDER_DTYPE,
                                                                                   len(RUN_LOCK_NAMES))).close()
         if "ai" in self.kinds:
-            from processes.worker_ai import INPUT_DTYPE
+            from processes.worker_ai import ANSWER_DTYPE, LOCAL_DTYPE
 
             # The state the AI decides from, written by the physics at a control tick and read by
             # the AI during its turn, and the AI's answer, written during the turn and read by the
             # physics once the turn is done: the baton orders each pair (its semaphores are full
-            # barriers), so neither needs a seqlock or a lock.
+            # barriers), so neither needs a seqlock or a lock. ai_local: the physics' own inputs
+            # of a control tick that needed no turn, for a restarted physics (one writer, no reader
+            # while it runs). Tick -1: none yet.
             arena.shared_array("ai_view", snapshot, 1)
-            arena.shared_array("ai_answer", INPUT_DTYPE, 1)
+            arena.shared_array("ai_answer", ANSWER_DTYPE, 1).array["tick"] = -1
+            arena.shared_array("ai_local", LOCAL_DTYPE, 1).array["tick"] = -1
             self._baton = Baton("ai", self._ctx, arena.shared_array("baton", TICK_SLOT_DTYPE, 1).array)
         if "gateway" in self.kinds:
             from processes.gateway import REMOTE_ACK_DTYPE, REMOTE_ACK_RING, REMOTE_CAPACITY, REMOTE_INPUT_DTYPE
@@ -342,6 +345,10 @@ class Supervisor:
                 **({"gateway": w.report.get("gateway", {})} if w.kind == "gateway" else {}),
                 **({"remote_inputs_refused": w.report["remote_inputs_refused"]}
                    if "remote_inputs_refused" in w.report else {}),
+                # the physics' AI control ticks (since its last start): turns given to the AI worker,
+                # and forces it computed itself on the AIs' plans
+                **({k: w.report[k] for k in ("ai_turns", "ai_local_ticks") if k in w.report}
+                   if w.kind == "physics" else {}),
                 # the AI worker's thinking between its turns, and the strokes it had to finish late
                 **({k: w.report[k] for k in ("think_s", "late_thoughts", "late_thinking_s", "turns", "longest_turn_s")
                     if k in w.report} if w.kind == "ai" else {}),

@@ -17,6 +17,7 @@ from engine.match import Match, point_from_row, point_row
 from engine.world import build_model, copy_record, initial_state, new_events, step
 from processes.shm import Arena
 from processes.wire import MAX_FORCE_N, MAX_TORQUE_NM
+from processes.worker_ai import decision_key
 from processes.worker import GO_TIMEOUT_S, Control, WorkerState
 
 AI_HANDOFF_S = 1.0  # one call's bound; retried while a killed AI worker is restarted
@@ -118,30 +119,57 @@ def _stop_net(net, options: dict) -> float:
 class _RemoteAI:
     """An ai_driver for engine.match.Match that asks the AI worker, which thinks while we step.
 
-    request(): copy the state into the AI's view and give the AI worker its turn, at once.
-    collect() at the next control tick: wait (bounded) until the AI is done with that turn and
-    read its decision from the `ai_answer` record (the baton orders the AI's write before our
-    read). The view is not written again before the turn is collected, so the AI always decides
-    from exactly the state the reference decides from.
+    request() at a control tick: if the AIs must decide (processes.worker_ai: the decision key
+    changed since their last decision, or the clock reached its wakes), copy the state into the
+    AI's view and give the AI worker its turn, at once; otherwise compute the forces here, as
+    the AI would, with control_bats on the ctl rows of its last answer. collect() at the next
+    control tick: wait (bounded) until the AI is done with the turn given and read its decision
+    from the `ai_answer` record (the baton orders the AI's write before our read). The view is
+    not written again before the turn is collected, so the AI always decides from exactly the
+    state the reference decides from.
     """
 
-    def __init__(self, control: Control, arena: Arena, options: dict, n_bats: int):
+    def __init__(self, control: Control, arena: Arena, options: dict, scene):
+        from processes.worker_ai import PlanFollower
+
         self.control = control
-        self.n_bats = n_bats
+        self.n_bats = len(scene.bats)
+        self.plans = PlanFollower(scene)
         self.baton = options["baton"].attach(arena["baton"].array)
         self.answer = arena["ai_answer"].array
         self.view = arena["ai_view"].array
+        local = arena["ai_local"].array
+        self.local_tick = local["tick"]  # (1,): written after the inputs
+        self.local_inputs = local["inputs"][0][:self.n_bats]
+        self.floats = None  # the match's bats as (n_bats, BAT_FLOATS) float64, made at the first request
         self.turn: int | None = None  # the tick whose decision is in flight
+        self.restored = None  # inputs computed here before a restart, to collect after it
         self.waits = 0.0  # wall time spent waiting for the AI (its work beyond our own)
+        self.turns = self.local = 0  # control ticks that asked the AI, that did not
 
     def request(self, match: Match, now: float) -> None:
         tick = int(match.state.world[0]["tick"])
+        ref = match.referee
+        if not self.plans.needs_decision(decision_key(match.rally, ref.shots, int(ref.phase), ref.server, ref.striker),
+                                         now):
+            if self.floats is None:
+                bats = match.state.bats
+                self.floats = bats.view(np.float64).reshape(len(bats), -1)
+            self.plans.control(now, self.floats, match.ai_next)
+            self.local_inputs[:] = match.ai_next
+            self.local_tick[0] = tick
+            self.local += 1
+            return
         copy_record(match.state.record, self.view, 0)
         self.baton.give(tick)
         self.turn = tick
+        self.turns += 1
 
     def collect(self, match: Match) -> None:
         if self.turn is None:
+            if self.restored is not None:
+                match.ai_next[:] = self.restored
+                self.restored = None
             return
         started = time.perf_counter()
         # The AI worker may be restarting: stay alive and ask again (the view still holds the state).
@@ -152,15 +180,22 @@ class _RemoteAI:
             for bat in range(self.n_bats):
                 if mask >> bat & 1:
                     match.ai_next[bat] = answer["inputs"][bat]
+            self.plans.take(answer)
         self.turn = None
         self.waits += time.perf_counter() - started
 
     def resume(self, tick: int, period: int) -> None:
-        """After a restart at `tick`: the turn given at the last control tick before it is in flight."""
+        """After a restart at `tick`: the decision of the last control tick before it is in
+        flight (the AI's turn), or was computed here (kept in `ai_local`)."""
         self.turn = (tick - 1) // period * period if tick > 0 else None
+        if self.turn is not None and self.local_tick[0] == self.turn:
+            self.restored = self.local_inputs.copy()
+            self.turn = None
+        if int(self.answer[0]["tick"]) >= 0:  # the AIs' last answer (a turn in flight brings a newer one)
+            self.plans.take(self.answer[0])
 
     def close(self) -> None:
-        del self.view, self.answer
+        del self.view, self.answer, self.local_tick, self.local_inputs, self.floats
 
 
 def remote_input_refusal(bat: int, values, remote_bats: frozenset[int]) -> str | None:
@@ -253,7 +288,7 @@ def _await_players(control: Control, options: dict, tick: int) -> None:
 def _match_worker(control: Control, arena: Arena, scene, options: dict) -> None:
     n_bats = len(scene.bats)
     has_ai = any(bat.skill is not None for bat in scene.bats)
-    driver = _RemoteAI(control, arena, options, n_bats) if has_ai else None
+    driver = _RemoteAI(control, arena, options, scene) if has_ai else None
     match = Match(scene, options["seed"], ai_driver=driver)
     snapshots = arena["physics"]
     log = arena["events"].array
@@ -323,8 +358,10 @@ def _match_worker(control: Control, arena: Arena, scene, options: dict) -> None:
         busy += time.perf_counter() - t0
         control.beat(tick)
     handoff = (driver.waits if driver is not None else 0.0) + _stop_net(net, options)
+    ai_ticks = {}
     if driver is not None:
         options["baton"].stop()
+        ai_ticks = {"ai_turns": driver.turns, "ai_local_ticks": driver.local}
         driver.close()
     refused = {}
     if remote is not None:
@@ -335,4 +372,4 @@ def _match_worker(control: Control, arena: Arena, scene, options: dict) -> None:
     control.row["busy_s"] = float(control.row["busy_s"]) + busy - handoff
     control.row["handoff_s"] = float(control.row["handoff_s"]) + handoff
     control.send("done", {"tick": tick, "busy_s": busy - handoff, "handoff_s": handoff,
-                          "remote_inputs_refused": refused})
+                          "remote_inputs_refused": refused, **ai_ticks})
