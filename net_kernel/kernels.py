@@ -418,6 +418,63 @@ def step_grid_serial(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n
                         (b + 1) * rows // blocks)
 
 
+# step_grid_free's statuses: the net is still awake, fell asleep, went non-finite, left its reach.
+FREE_AWAKE, FREE_ASLEEP, FREE_NOT_FINITE, FREE_OUT_OF_REACH = 0, 1, 2, 3
+
+
+@njit(cache=True, fastmath=False, error_model="numpy")
+def step_grid_free(knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks, sleep_speed,
+                   sleep_ticks, quiet_ticks, reach, box):
+    """Up to `ticks` ticks of a grid net with no ball, each as NetSim.step takes one, on one thread.
+
+    A tick: step_grid_serial's `substeps` steps; the largest knot speed (knot_speed_max's
+    arithmetic; a max does not depend on the order); `quiet_ticks` counts ticks in a row below
+    `sleep_speed`, and at `sleep_ticks` the net falls asleep (velocities zeroed); the knots' box.
+    It stops after the tick the net falls asleep, goes non-finite or leaves `reach`. The same
+    bits as NetSim.step called that many times without a ball, minus its per-tick Python.
+
+    Args:
+        knot_state, knot_inv_mass, grid_params, gravity, drag, h, grid_work: as step_grid.
+        substeps: steps per tick. ticks: ticks to take (>= 0).
+        sleep_speed: m/s. sleep_ticks: quiet ticks to fall asleep. quiet_ticks: the count so far.
+        reach: (2, 3) m, lo and hi corners no knot may pass.
+        box: (2, 3) m, written: the knots' box after the last tick taken.
+
+    Returns:
+        (ticks taken, quiet_ticks after them, FREE_* status).
+    """
+    rows = knot_state.shape[2]
+    cols = knot_state.shape[3]
+    x = knot_state[0]
+    v = knot_state[1]
+    for t in range(ticks):
+        step_grid_serial(knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work)
+        top = 0.0
+        for a in range(3):
+            box[0, a] = math.inf
+            box[1, a] = -math.inf
+        for r in range(rows):
+            for c in range(cols):
+                s = v[0, r, c] * v[0, r, c] + v[1, r, c] * v[1, r, c] + v[2, r, c] * v[2, r, c]
+                p = x[0, r, c] + x[1, r, c] + x[2, r, c]
+                if not (s < math.inf and p - p == 0.0):
+                    return t + 1, quiet_ticks, FREE_NOT_FINITE
+                if s > top:
+                    top = s
+                for a in range(3):
+                    box[0, a] = min(box[0, a], x[a, r, c])
+                    box[1, a] = max(box[1, a], x[a, r, c])
+        quiet_ticks = quiet_ticks + 1 if math.sqrt(top) < sleep_speed else 0
+        if quiet_ticks >= sleep_ticks:
+            v[:] = 0.0
+        for a in range(3):
+            if box[0, a] < reach[0, a] or box[1, a] > reach[1, a]:
+                return t + 1, quiet_ticks, FREE_OUT_OF_REACH
+        if quiet_ticks >= sleep_ticks:
+            return t + 1, quiet_ticks, FREE_ASLEEP
+    return ticks, quiet_ticks, FREE_AWAKE
+
+
 @njit(cache=True, fastmath=False)
 def knot_speed_max(knot_pos, knot_vel):
     """m/s, the largest knot speed; inf if any knot position or velocity is not finite.

@@ -9,6 +9,10 @@ import math
 import numpy as np
 
 from net_kernel.kernels import (  # noqa: F401  (shared)
+    FREE_ASLEEP,
+    FREE_AWAKE,
+    FREE_NOT_FINITE,
+    FREE_OUT_OF_REACH,
     GRID_CORD,
     GRID_MESH,
     GRID_SHEAR,
@@ -122,6 +126,28 @@ def step_grid(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps,
 
 
 step_grid_serial = step_grid
+
+
+def step_grid_free(knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks, sleep_speed,
+                   sleep_ticks, quiet_ticks, reach, box):
+    """Numpy twin of kernels.step_grid_free (args, returns and bits identical)."""
+    pos = knot_state[0].reshape(3, -1).T
+    vel = knot_state[1].reshape(3, -1).T
+    for t in range(ticks):
+        step_grid(knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work)
+        speed = knot_speed_max(pos, vel)
+        if not math.isfinite(speed):
+            return t + 1, quiet_ticks, FREE_NOT_FINITE
+        pos.min(axis=0, out=box[0])
+        pos.max(axis=0, out=box[1])
+        quiet_ticks = quiet_ticks + 1 if speed < sleep_speed else 0
+        if quiet_ticks >= sleep_ticks:
+            knot_state[1] = 0.0
+        if (box[0] < reach[0]).any() or (box[1] > reach[1]).any():
+            return t + 1, quiet_ticks, FREE_OUT_OF_REACH
+        if quiet_ticks >= sleep_ticks:
+            return t + 1, quiet_ticks, FREE_ASLEEP
+    return ticks, quiet_ticks, FREE_AWAKE
 
 
 def knot_speed_max(knot_pos, knot_vel):

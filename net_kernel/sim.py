@@ -6,7 +6,16 @@ import numba
 import numpy as np
 
 from net_kernel import kernels, reference
-from net_kernel.kernels import GRID_WORK_ROWS, KNOT_WORK_ROWS, NO_CONTACT, SPRING_WORK_COLS, STEP_WORK_ROWS
+from net_kernel.kernels import (
+    FREE_ASLEEP,
+    FREE_NOT_FINITE,
+    FREE_OUT_OF_REACH,
+    GRID_WORK_ROWS,
+    KNOT_WORK_ROWS,
+    NO_CONTACT,
+    SPRING_WORK_COLS,
+    STEP_WORK_ROWS,
+)
 from net_kernel.topology import IMPLICIT, NetTopology
 
 # One switch picks the backend; both modules expose the same kernel names and signatures.
@@ -32,6 +41,7 @@ WAKE_MARGIN = 0.05  # m
 # far means the net blew up. It bounds where an awake net can be without looking at it, which
 # lets the engine step the net without the ball while the ball is out of that reach (step_free).
 NET_REACH = 0.15  # m
+NOT_FINITE = "a knot position or velocity is not finite after the net's tick"
 # Ball-knot contact defaults: a net thread is about 1 mm thick; the cloth's give comes from
 # its springs, so each knot-ball impact is taken as perfectly inelastic.
 KNOT_RADIUS = 0.5e-3  # m
@@ -121,6 +131,8 @@ class NetSim:
         self._speed = mod.knot_speed_max
         self._collide = mod.collide_ball_near
         self._step_grid_ball = mod.step_grid_ball
+        # Free ticks in one call, on one thread (a parallel net steps them one step() at a time).
+        self._step_grid_free = mod.step_grid_free if self.grid and not parallel else None
         n = topo.n_knots
         if self.grid:
             rows, cols = topo.spec.rows, topo.spec.cols
@@ -284,16 +296,19 @@ class NetSim:
         speed = self._speed(self.knot_pos, self.knot_vel)
         self.kernel_calls += 1
         if not math.isfinite(speed):
-            raise FloatingPointError("a knot position or velocity is not finite after the net's tick")
+            raise FloatingPointError(NOT_FINITE)
         self.quiet_ticks = self.quiet_ticks + 1 if speed < SLEEP_SPEED else 0
         if self.quiet_ticks >= SLEEP_TICKS and far:
             self.sleeping = True
             self.knot_vel[:] = 0.0
         box = net_box(self.knot_pos, out=self.box)
         if (box[0] < self._reach[0]).any() or (box[1] > self._reach[1]).any():
-            raise FloatingPointError(f"a knot of the net is more than NET_REACH = {NET_REACH} m outside the box it was "
-                                     f"built in (knots now span {box.tolist()} m): the net blew up")
+            raise FloatingPointError(self._out_of_reach())
         return NetContact(toi, self._impulse, self._offset)
+
+    def _out_of_reach(self) -> str:
+        return (f"a knot of the net is more than NET_REACH = {NET_REACH} m outside the box it was built in (knots now "
+                f"span {self.box.tolist()} m): the net blew up")
 
     def step_free(self, ticks: int) -> None:
         """Advance `ticks` ticks with the ball out of the net's reach: the same bits as as many step()
@@ -302,10 +317,25 @@ class NetSim:
         The caller vouches that the ball stays out of reach: farther from the box the net was built
         in than NET_REACH plus the awake net's margin (WAKE_MARGIN and the radii) over every tick.
         """
-        for _ in range(ticks):
-            if self.sleeping:
-                return
-            self.step()
+        if ticks <= 0 or self.sleeping:
+            return
+        if self._step_grid_free is None:
+            for _ in range(ticks):
+                if self.sleeping:
+                    return
+                self.step()
+            return
+        topo = self.topo
+        _, self.quiet_ticks, status = self._step_grid_free(
+            self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag, self.h, self.substeps,
+            self._grid_work, int(ticks), SLEEP_SPEED, SLEEP_TICKS, self.quiet_ticks, self._reach, self.box)
+        self.kernel_calls += 1
+        if status == FREE_NOT_FINITE:
+            raise FloatingPointError(NOT_FINITE)
+        if status == FREE_OUT_OF_REACH:
+            raise FloatingPointError(self._out_of_reach())
+        if status == FREE_ASLEEP:
+            self.sleeping = True
 
 
 def net_box(knot_pos: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
