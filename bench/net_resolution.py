@@ -404,6 +404,29 @@ def markdown_table(result: dict) -> str:
     return "\n".join(lines)
 
 
+COMPACT_COLUMNS = ("net", "knots", "sub", "diag mm", "stress thru", "outc chg", "speed bias m/s", "exit err m/s",
+                   "contact ms", "bulge mm", "µs/awake tick", "ring CPU s")
+
+
+def compact_rows(result: dict) -> list[tuple[str, ...]]:
+    """The table's main columns (COMPACT_COLUMNS) as strings, for a terminal: "sub" the substeps a tick,
+    "!" a cell the ball fits through, errors against the reference (median exit velocity error; mean
+    differences of speed, first contact and bulge)."""
+    out = []
+    for row in result["rows"]:
+        e = row["errors"]
+        g = row["geometry"]
+        awake = row["cpu_us_per_awake_tick"]
+        out.append((f"{row['cols']}x{row['rows']}", str(row["knots"]), str(row["substeps"]),
+                    f"{g['diagonal_mm']:.0f}{'!' if g['ball_fits_through'] else ''}",
+                    f"{row['stress_through']}/{len(row['stress'])}", str(e["outcome_changes"]),
+                    f"{e['speed_bias_mean']:+.2f}±{_se(e)}", f"{e['exit_velocity_error_median']:.2f}",
+                    f"{e['contact_ms_mean_diff']:+.1f}", f"{e['bulge_mm_mean_diff']:+.1f}",
+                    "-" if awake is None else f"{awake:.0f}",
+                    "-" if row["ring_down_cpu_s"] is None else f"{row['ring_down_cpu_s']:.2f}"))
+    return out
+
+
 def summary_lines(result: dict) -> list[str]:
     """Plain-language findings under the table."""
     out = [f"Reference: {result['reference']}; {result['n_impacts']} impacts (seed {result['seed']}), ball state "
@@ -413,7 +436,13 @@ def summary_lines(result: dict) -> list[str]:
     for row in result["rows"]:
         changes = row["errors"]["outcome_change_list"]
         if changes:
-            out.append(f"{row['cols']}x{row['rows']} outcome changes: {'; '.join(changes)}")
+            kinds = {}
+            for change in changes:
+                kind = change.split(": ", 1)[1]
+                kinds[kind] = kinds.get(kind, 0) + 1
+            out.append(f"{row['cols']}x{row['rows']}: {len(changes)} of {result['n_impacts']} impacts change their "
+                       f"outcome ({', '.join(f'{k} {n}' for k, n in kinds.items())}; impacts "
+                       f"{', '.join(c.split(' ', 1)[0] for c in changes)})")
     f = result["floor"]
     out.append(f"The model's own sensitivity: the same shots moved {f['shift_m'] * 1e3:g} mm on the {result['reference']} "
                f"net change its exit velocity by {f['exit_velocity_error_median']:.2f} m/s median "

@@ -116,12 +116,17 @@ def _parse_sizes(text: str | None):
 
 def _print_net_resolution(study, result: dict) -> None:
     from rich.console import Console
-    from rich.markdown import Markdown
+    from rich.table import Table
 
     console = Console()
     console.print(f"[bold]Net resolution: accuracy against cost[/bold] (the same physical net on each grid, "
-                  f"net_kernel.topology.resolution_spec; errors against {result['reference']})")
-    console.print(Markdown(study.markdown_table(result)))
+                  f"net_kernel.topology.resolution_spec; errors against {result['reference']}; every column in "
+                  "--json and in bench/net_resolution.py's Markdown table; sub: substeps a tick, !: the ball fits through a "
+                  "cell; errors: median exit velocity error, mean differences of speed, first contact and bulge)")
+    table = Table(*study.COMPACT_COLUMNS)
+    for cells in study.compact_rows(result):
+        table.add_row(*cells)
+    console.print(table)
     for line in study.summary_lines(result):
         console.print(f"- {line}")
 
