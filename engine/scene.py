@@ -10,7 +10,7 @@ from typing import Any
 from engine import equipment
 from engine.integrators import METHODS
 from net_kernel.sim import SAFETY
-from net_kernel.topology import SEMI_IMPLICIT, SOLVERS, NetSpec, build_topology, validate_spec
+from net_kernel.topology import SEMI_IMPLICIT, SOLVERS, NetSpec, build_topology, resolution_spec, validate_spec
 
 SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
 
@@ -22,6 +22,9 @@ NET_KINDS = ("rigid", "cloth")
 # [net] keys for a cloth net: the fields of net_kernel.NetSpec (validated there).
 CLOTH_FLOATS = ("knot_mass", "spring_k", "spring_c", "mesh_tension", "cord_k", "cord_tension", "air_damping")
 CLOTH_INTS = ("cols", "rows")
+# [net] resolution = [cols, rows]: the net the other [net] keys describe, on that grid of knots
+# (net_kernel.topology.resolution_spec keeps its continuum: mass per area, prestress, stiffness).
+CLOTH_RESOLUTION = "resolution"
 BAT_NAMES = ("a", "b")
 MATERIAL_BODIES = ("table", "floor", "net", "bat")
 # Explicit net substeps per tick beyond which a scene is refused: each is a full pass over the
@@ -206,7 +209,24 @@ def _read_cloth(r: _Reader, data: dict) -> NetSpec:
     except ValueError as exc:
         field, _, rest = str(exc).partition(" = ")
         raise r.fail(f"net.{field.removeprefix('NetSpec.')}", rest) from None
+    if CLOTH_RESOLUTION in data:
+        spec = _regrid(r, data, spec)
     return spec
+
+
+def _regrid(r: _Reader, data: dict, spec: NetSpec) -> NetSpec:
+    """[net] resolution = [cols, rows]: the net `spec` describes, on that grid (resolution_spec)."""
+    value = data[CLOTH_RESOLUTION]
+    if not (isinstance(value, list) and len(value) == 2
+            and all(isinstance(v, int) and not isinstance(v, bool) for v in value)):
+        raise r.fail("net.resolution", f"must be [cols, rows], two whole numbers, got {value!r}")
+    given = [key for key in CLOTH_INTS if key in data]
+    if given:
+        raise r.fail(f"net.{given[0]}", "is set by net.resolution = [cols, rows]; give one or the other")
+    try:
+        return resolution_spec(value[0], value[1], spec)
+    except ValueError as exc:
+        raise r.fail("net.resolution", str(exc)) from None
 
 
 def _check_net_substeps(r: _Reader, cloth: NetSpec, dt: float) -> None:
@@ -302,7 +322,7 @@ def parse_scene(data: dict, source: str) -> Scene:
     if "net" in data:
         if "net" not in effects:
             raise r.fail("net", "a net is described but the effect 'net' is not listed in effects; add it or remove [net]")
-        net_data = r.table(data["net"], "net", ("kind", "solver") + CLOTH_FLOATS + CLOTH_INTS)
+        net_data = r.table(data["net"], "net", ("kind", "solver", CLOTH_RESOLUTION) + CLOTH_FLOATS + CLOTH_INTS)
         net_kind = r.string(net_data, "kind", "net.kind", "rigid", NET_KINDS)
         cloth = _read_cloth(r, net_data) if net_kind == "cloth" else None
         if net_kind == "rigid" and len(net_data) > ("kind" in net_data):

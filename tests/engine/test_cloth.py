@@ -5,6 +5,8 @@ import pytest
 from engine.geometry import Body
 from engine.scene import SceneError, parse_scene
 from engine.world import build_model, initial_state, new_events, step
+from net_kernel import NetSpec
+from net_kernel.topology import resolution_spec
 from tests.conftest import make_scene, run_ticks
 
 CLOTH = {"kind": "cloth"}
@@ -48,3 +50,17 @@ def test_the_rigid_net_scene_has_no_cloth():
     scene = make_scene(["net"], {"pos": [-0.5, 0.0, 0.3]})
     assert initial_state(scene).net_sim is None and build_model(scene).net is not None
     np.testing.assert_array_equal(build_model(scene).cloth_watch is None, True)
+
+
+def test_net_resolution_regrids_the_net_the_other_keys_describe():
+    scene = parse_scene({"effects": ["net"], "ball": {"pos": [-0.5, 0, 0.3]},
+                         "net": {"kind": "cloth", "resolution": [85, 8], "cord_tension": 15.0}}, "x")
+    assert scene.cloth == resolution_spec(85, 8, NetSpec(cord_tension=15.0))
+
+
+@pytest.mark.parametrize("net, named", [({"resolution": [85]}, "net.resolution"),
+                                        ({"resolution": [85, 8], "cols": 85}, "net.cols"),
+                                        ({"resolution": [1000, 3]}, "net.resolution")])
+def test_a_bad_net_resolution_is_refused_naming_the_key(net, named):
+    with pytest.raises(SceneError, match=named):
+        parse_scene({"effects": ["net"], "ball": {"pos": [-0.5, 0, 0.3]}, "net": {"kind": "cloth", **net}}, "x")
