@@ -45,10 +45,12 @@ def test_lockstep_with_the_net_worker_equals_the_in_process_engine(net_scene, re
     assert result.events.tobytes() == reference.events.tobytes()
 
 
-@pytest.mark.parametrize("worker", ["net", "physics"])
-def test_a_killed_worker_is_restarted_and_the_cloth_run_stays_exact(worker, net_scene, reference, no_leftovers):
-    # Tick 150: the ball is in the net and the net is awake.
-    result = Supervisor(net_scene, net_scene.ticks, "lockstep", trace=True, crash_at_tick=150,
+@pytest.mark.parametrize("worker, at", [("net", "contact"), ("net", 150), ("physics", 150)])
+def test_a_killed_worker_is_restarted_and_the_cloth_run_stays_exact(worker, at, net_scene, reference, no_leftovers):
+    # Tick 150: the net is awake and the ball, thrown back, near it but not touching it; "contact":
+    # the ball's first tick in the net.
+    tick = int(next(e["tick"] for e in reference.events if int(e["body"]) == Body.NET)) if at == "contact" else at
+    result = Supervisor(net_scene, net_scene.ticks, "lockstep", trace=True, crash_at_tick=tick,
                         crash_worker=worker).run()
     assert result.workers[worker]["restarts"] == 1
     assert result.ticks == net_scene.ticks
