@@ -95,6 +95,9 @@ class SnapshotBlock:
         # Copies go byte for byte: numpy copies a nested structured dtype field by field (~12 us
         # for a physics snapshot), a flat uint8 copy is a memcpy (~0.5 us).
         self._raw = [slot.view(np.uint8) for slot in self._slots]
+        # publish() copies through memoryviews: a slice assignment is one memcpy without
+        # np.copyto's argument handling (~0.2 us instead of ~1.3 us for a 2-bat snapshot).
+        self._raw_views = [memoryview(raw) for raw in self._raw]
         self._pid = os.getpid()
         self._last_records = self._last_bytes = None
         if create:
@@ -122,9 +125,11 @@ class SnapshotBlock:
         published = words[0] // 2
         words[0] = 2 * published + 1
         if records is not self._last_records:  # a writer publishes the same array every tick
-            self._last_bytes = _bytes(records, self.dtype)
+            if self._last_bytes is not None:
+                self._last_bytes.release()
+            self._last_bytes = memoryview(_bytes(records, self.dtype))
             self._last_records = records
-        np.copyto(self._raw[(published + 1) % 2], self._last_bytes)
+        self._raw_views[(published + 1) % 2][:] = self._last_bytes
         words[1] = self._pid
         words[2] = tick
         words[0] = 2 * published + 2
@@ -154,6 +159,9 @@ class SnapshotBlock:
         self.header = None
         self._slots = []
         self._raw = []
+        for view in self._raw_views + ([self._last_bytes] if self._last_bytes is not None else []):
+            view.release()
+        self._raw_views = []
         self._last_records = self._last_bytes = None
         self._words.release()
         self._shm.close()

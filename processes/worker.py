@@ -60,9 +60,12 @@ class Control:
 
     HEARTBEAT_S = 0.05
 
-    def __init__(self, conn, status_row: np.ndarray):
+    def __init__(self, conn, status_row: np.ndarray, tick_word: memoryview | None = None):
+        """tick_word: a one-element int64 memoryview of status_row's "tick" (status_tick_word):
+        beat() writes through it in ~0.1 us instead of ~1 us for a numpy field, once a physics chunk."""
         self.conn = conn
         self.row = status_row
+        self._tick_word = tick_word
         self._parent = os.getppid()
         self._next_check = 0.0
 
@@ -95,7 +98,10 @@ class Control:
     def beat(self, tick: int) -> None:
         """Per tick: record progress; every HEARTBEAT_S also look for a stop command."""
         now = time.monotonic()
-        self.row["tick"] = tick
+        if self._tick_word is not None:
+            self._tick_word[0] = tick
+        else:
+            self.row["tick"] = tick
         if now >= self._next_check:
             self._next_check = now + self.HEARTBEAT_S
             self.row["heartbeat"] = now
@@ -104,6 +110,12 @@ class Control:
                 if kind == "stop":
                     raise StopRequested()
             self.check_parent()
+
+
+def status_tick_word(status: np.ndarray, index: int) -> memoryview:
+    """The "tick" of row `index` of a STATUS_DTYPE array as a one-element int64 memoryview."""
+    start = index * STATUS_DTYPE.itemsize + STATUS_DTYPE.fields["tick"][1]
+    return memoryview(status.view(np.uint8)).cast("B")[start:start + 8].cast("q")
 
 
 def _beat_while_starting(row, started: threading.Event) -> None:
@@ -118,9 +130,10 @@ def worker_entry(kind: str, conn, layout: dict, status_index: int, scene, option
     from processes.shm import Arena
 
     arena = Arena.attach(layout)
-    row = arena["status"].array[status_index]
+    status = arena["status"].array
+    row = status[status_index]
     row["pid"] = os.getpid()
-    control = Control(conn, row)
+    control = Control(conn, row, status_tick_word(status, status_index))
     control.set_state(WorkerState.STARTING)
     started = threading.Event()
     threading.Thread(target=_beat_while_starting, args=(row, started), name="startup-heartbeat", daemon=True).start()
@@ -154,6 +167,7 @@ def worker_entry(kind: str, conn, layout: dict, status_index: int, scene, option
             pass
     finally:
         started.set()
-        del row, control
+        control._tick_word.release()
+        del row, control, status
         arena.close()
         conn.close()
