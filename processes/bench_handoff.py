@@ -5,28 +5,26 @@ Each method does N round trips between this process and one child:
 - shared-memory spin ping-pong: both sides spin on a shared counter (no kernel, burns a core
   each; on 2 shared cores it is at the mercy of the scheduler);
 - multiprocessing.Queue round trip (pickling and a feeder thread);
-- lockstep hand-off: what the hub does per tick for a worker: publish the ball and bats
-  snapshot, Baton.call, the worker takes an untorn snapshot, posts a bat-input record to a
-  locked mailbox, hands back, and the hub drains the mailbox.
+- lockstep hand-off: what the physics does for one AI turn (processes.worker_physics._RemoteAI
+  and processes.worker_ai): copy the state into the shared `ai_view` record, give the baton and
+  wait until the turn is done; the worker copies the view, writes its answer into the shared
+  `ai_answer` record (ANSWER_DTYPE) and hands back, and the hub reads the answer. The baton
+  orders the two sides, so no lock is taken.
 """
 from __future__ import annotations
 
 import json
 import multiprocessing
 import statistics
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 
 from engine.dtypes import physics_snapshot_dtype
+from engine.world import copy_record
 from processes.handoff import TICK_SLOT_DTYPE, Baton
-from processes.locks import HOLDER_DTYPE, LockTable
-from processes.mailbox import MAILBOX_HEADER, Mailbox
 from processes.shm import Arena
-
-INPUT_DTYPE = np.dtype([("tick", "<i8"), ("bat", "<i8"), ("force", "<f8", (3,)), ("torque", "<f8", (3,))])
+from processes.worker_ai import ANSWER_DTYPE
 TIMEOUT = 10.0
 
 
@@ -56,24 +54,24 @@ def _queue_child(qa, qb, n):
         qb.put(qa.get(timeout=TIMEOUT))
 
 
-def _handoff_child(layout, baton, lock_path, n_bats):
+def _handoff_child(layout, baton, n_bats):
+    """The AI worker's side of a turn, without the thinking (processes.worker_ai.ai_worker)."""
     arena = Arena.attach(layout)
     baton.attach(arena["slot"].array)
-    locks = LockTable(lock_path, ("bat_inputs",), arena["holders"])
-    box = Mailbox("bat_inputs", arena["inbox_header"], arena["inbox"], locks)
+    view = arena["ai_view"].array
+    answer = arena["ai_answer"].array
     snap = np.zeros(1, physics_snapshot_dtype(n_bats))
-    record = np.zeros((), INPUT_DTYPE)
+    record = np.zeros(1, ANSWER_DTYPE)
     while True:
         tick = baton.wait_turn(TIMEOUT)
         if tick is None:
             break
-        arena["physics"].snapshot(snap)
-        record["tick"] = tick
-        record["force"] = snap[0]["ball"]["vel"]
-        box.post(record)
+        copy_record(view, snap)
+        record[0]["inputs"][0, 0:3] = snap[0]["ball"]["vel"]
+        record[0]["tick"] = tick
+        copy_record(record, answer)
         baton.done()
-    del snap, box, baton
-    locks.close()
+    del view, answer, baton
     arena.close()
 
 
@@ -147,36 +145,30 @@ def measure(n: int = 5000, repeats: int = 3) -> dict:
 def _measure_handoff(ctx, n: int) -> float:
     n_bats = 2
     arena = Arena()
-    with tempfile.TemporaryDirectory() as tmp:
-        lock_path = str(Path(tmp) / "locks")
-        try:
-            block = arena.snapshot_block("physics", physics_snapshot_dtype(n_bats), 1)
-            slot = arena.shared_array("slot", TICK_SLOT_DTYPE, 1).array
-            holders = arena.shared_array("holders", HOLDER_DTYPE, 1)
-            header = arena.shared_array("inbox_header", MAILBOX_HEADER, 1)
-            body = arena.shared_array("inbox", INPUT_DTYPE, 4)
-            locks = LockTable.create(lock_path, ("bat_inputs",), holders)
-            box = Mailbox("bat_inputs", header, body, locks)
-            baton = Baton("bench", ctx, slot)
-            child = ctx.Process(target=_handoff_child, args=(arena.layout(), baton, lock_path, n_bats))
-            child.start()
-            record = np.zeros(1, physics_snapshot_dtype(n_bats))
-            inbox = np.zeros(4, INPUT_DTYPE)
+    try:
+        view = arena.shared_array("ai_view", physics_snapshot_dtype(n_bats), 1).array
+        answer = arena.shared_array("ai_answer", ANSWER_DTYPE, 1).array
+        answer["tick"] = -1
+        slot = arena.shared_array("slot", TICK_SLOT_DTYPE, 1).array
+        baton = Baton("bench", ctx, slot)
+        child = ctx.Process(target=_handoff_child, args=(arena.layout(), baton, n_bats))
+        child.start()
+        record = np.zeros(1, physics_snapshot_dtype(n_bats))
 
-            def handoff(k):
-                for tick in range(k):
-                    record[0]["ball"]["vel"] = (tick, 0.0, 0.0)
-                    block.publish(record, tick)
-                    baton.call(tick, TIMEOUT)
-                    if box.drain(inbox) != 1 or inbox[0]["tick"] != tick:
-                        raise RuntimeError("hand-off lost an input")
-            us = _time(handoff, n)
-            baton.stop()
-            child.join(TIMEOUT)
-            del slot, box, baton
-            locks.close()
-        finally:
-            arena.close()
+        def handoff(k):
+            for tick in range(k):
+                record[0]["ball"]["vel"] = (tick, 0.0, 0.0)
+                copy_record(record, view, 0)
+                baton.give(tick)
+                baton.wait_done(tick, TIMEOUT)
+                if answer[0]["tick"] != tick or answer[0]["inputs"][0, 0] != tick:
+                    raise RuntimeError(f"hand-off {tick}: the answer is not the turn's")
+        us = _time(handoff, n)
+        baton.stop()
+        child.join(TIMEOUT)
+        del view, answer, slot, baton
+    finally:
+        arena.close()
     return us
 
 
@@ -189,7 +181,7 @@ def handoff_command(args) -> int:
     us = report["us_per_round_trip"]
     print(f"hand-off cost, median of {report['repeats']} x {report['round_trips']} round trips (µs):")
     for key, label in (("semaphore", "semaphore ping-pong (raw wake-up)"), ("shm_spin", "shared-memory spin ping-pong"),
-                       ("queue", "multiprocessing.Queue round trip"), ("lockstep_handoff", "lockstep hand-off (snapshot + baton + mailbox)")):
+                       ("queue", "multiprocessing.Queue round trip"), ("lockstep_handoff", "lockstep hand-off (view + baton + answer)")):
         low, high = report["spread_us"][key]
         print(f"  {label:<48} {us[key]:8.2f}   [{low:.2f} .. {high:.2f}]")
     print(f"  hand-off / semaphore ping-pong: {report['handoff_over_semaphore']:.2f}x (target <= 2.5x)")
