@@ -346,9 +346,10 @@ class Supervisor:
                 **({"remote_inputs_refused": w.report["remote_inputs_refused"]}
                    if "remote_inputs_refused" in w.report else {}),
                 # the physics' AI control ticks (since its last start): turns given to the AI worker,
-                # and forces it computed itself on the AIs' plans
-                **({k: w.report[k] for k in ("ai_turns", "ai_local_ticks") if k in w.report}
-                   if w.kind == "physics" else {}),
+                # and forces it computed itself on the AIs' plans; its cloth net ticks: handed to
+                # the net worker with the ball (waited for), and without it (not waited for)
+                **({k: w.report[k] for k in ("ai_turns", "ai_local_ticks", "net_ball_ticks", "net_free_ticks")
+                    if k in w.report} if w.kind == "physics" else {}),
                 # the AI worker's thinking between its turns, and the strokes it had to finish late
                 **({k: w.report[k] for k in ("think_s", "late_thoughts", "late_thinking_s", "turns", "longest_turn_s")
                     if k in w.report} if w.kind == "ai" else {}),

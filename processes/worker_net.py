@@ -207,6 +207,8 @@ class RemoteNet:
         self.io = arena["net_io"].array
         self._none = np.zeros(3)
         self.waits = 0.0
+        self.ball_ticks = 0  # ticks handed to the net worker with the ball (and waited for)
+        self.free_ticks = 0  # ticks granted without the ball (not waited for)
         # Nothing known yet (a fresh run's net is as built and awake; a resumed one, whatever the
         # net says at its first answer): awake is the guess that can cost a hand-off but no bit.
         self.sleeping = False
@@ -217,6 +219,7 @@ class RemoteNet:
         if ticks > 0:
             self.io[0]["granted"] = int(self.world["tick"])
             self.baton.nudge()
+            self.free_ticks += ticks
 
     def step(self, ball_pos, ball_vel, ball_radius: float, ball_inv_mass: float) -> NetContact:
         """NetSim.step, done by the net worker (called after the ball's tick, as engine.world does)."""
@@ -241,6 +244,7 @@ class RemoteNet:
         self.sleeping = bool(row["sleeping"])
         self.box[:] = row["box"]
         self.waits += time.perf_counter() - started
+        self.ball_ticks += 1
         return NetContact(float(row["toi"]), row["impulse"].copy(), row["offset"].copy())
 
     def _ask_again(self, tick: int) -> None:

@@ -95,7 +95,7 @@ def physics_worker(control: Control, arena: Arena, scene, options: dict) -> None
     handoff = _stop_net(net, options)
     control.row["busy_s"] = float(control.row["busy_s"]) + busy - handoff
     control.row["handoff_s"] = float(control.row["handoff_s"]) + handoff
-    control.send("done", {"tick": tick, "busy_s": busy - handoff, "handoff_s": handoff})
+    control.send("done", {"tick": tick, "busy_s": busy - handoff, "handoff_s": handoff, **_net_ticks(net)})
 
 
 def _remote_net(control: Control, arena: Arena, options: dict, state):
@@ -114,6 +114,11 @@ def _stop_net(net, options: dict) -> float:
         return 0.0
     options["net_baton"].stop()
     return net.waits
+
+
+def _net_ticks(net) -> dict:
+    """The ticks the physics handed the net worker with the ball (waiting) and without it."""
+    return {} if net is None else {"net_ball_ticks": net.ball_ticks, "net_free_ticks": net.free_ticks}
 
 
 class _RemoteAI:
@@ -372,4 +377,4 @@ def _match_worker(control: Control, arena: Arena, scene, options: dict) -> None:
     control.row["busy_s"] = float(control.row["busy_s"]) + busy - handoff
     control.row["handoff_s"] = float(control.row["handoff_s"]) + handoff
     control.send("done", {"tick": tick, "busy_s": busy - handoff, "handoff_s": handoff,
-                          "remote_inputs_refused": refused, **ai_ticks})
+                          "remote_inputs_refused": refused, **ai_ticks, **_net_ticks(net)})

@@ -41,6 +41,10 @@ def test_lockstep_with_the_net_worker_equals_the_in_process_engine(net_scene, re
     assert result.ticks == net_scene.ticks
     assert any(int(e["body"]) == Body.NET for e in reference.events)  # the ball met the cloth
     assert result.workers["net"]["busy_s"] > 0.0  # the net worker stepped it
+    physics = result.workers["physics"]
+    # The ball met the net (ticks handed over with it) and left its reach (ticks granted without it).
+    assert physics["net_ball_ticks"] > 0 and physics["net_free_ticks"] > 0
+    assert physics["net_ball_ticks"] + physics["net_free_ticks"] <= net_scene.ticks
     assert first_difference(result.trace, reference.trace) is None
     assert result.events.tobytes() == reference.events.tobytes()
 
