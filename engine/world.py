@@ -10,7 +10,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from engine import equipment
-from engine.equipment import BALL_SPEED_MAX
 from engine.bat import BAT_WIDTH, FORCE_AT, TORQUE_AT, disc_inertia
 from engine.collision import (
     BAT_HALF_THICKNESS,
@@ -114,7 +113,7 @@ def _cloth_watch(scene: Scene, radius: float) -> np.ndarray:
     """The box in which the ball is stepped tick by tick with the cloth net: the net's own box
     grown by the ball's radius, the net's wake margin and two ticks at the fastest speed a
     scene allows, so no tick can carry the ball from outside it through the net."""
-    return _cloth_box(scene, radius + WAKE_MARGIN + 2 * BALL_SPEED_MAX * scene.dt)
+    return _cloth_box(scene, radius + WAKE_MARGIN + 2 * equipment.BALL_SPEED_MAX * scene.dt)
 
 
 def _cloth_reach(scene: Scene, radius: float) -> np.ndarray:
@@ -122,7 +121,7 @@ def _cloth_reach(scene: Scene, radius: float) -> np.ndarray:
     no knot leaves the built box by more than NET_REACH (NetSim checks it every tick), the awake
     net's contact test reaches WAKE_MARGIN beyond its knots' box, and a tick carries the ball at
     most BALL_SPEED_MAX dt."""
-    return _cloth_box(scene, radius + KNOT_RADIUS + WAKE_MARGIN + NET_REACH + BALL_SPEED_MAX * scene.dt)
+    return _cloth_box(scene, radius + KNOT_RADIUS + WAKE_MARGIN + NET_REACH + equipment.BALL_SPEED_MAX * scene.dt)
 
 
 def _check_start(model: Model) -> None:
@@ -337,10 +336,9 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
     radius = float(model.ball_params[P_RADIUS])
     done = 0
     while done < n_max:
-        r = model.cloth_reach
-        if not all(r[i] <= y[i] <= r[3 + i] for i in range(3)):
+        if not _in_box(model.cloth_reach, y):
             ticks, n, reason = advance(model, _without_cloth(state), n_max - done, inputs, events, h, gone_radius,
-                                       gone_z, deadline, watch=r)
+                                       gone_z, deadline, watch=model.cloth_reach)
             inputs = None
             done += ticks
             net.step_free(ticks)
@@ -348,8 +346,7 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
                 return done, n, reason
             continue
         w = model.cloth_watch
-        inside = all(w[i] <= y[i] <= w[3 + i] for i in range(3))
-        if net.sleeping and not inside:
+        if net.sleeping and not _in_box(w, y):
             # Far from a sleeping net: nothing to do for it; run until the ball comes near.
             ticks, n, reason = advance(model, _without_cloth(state), n_max - done, inputs, events, h, gone_radius,
                                        gone_z, deadline, watch=w)
@@ -371,6 +368,11 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
             reason = STOP_EVENT
         return done, n, STOP_NET if reason == STOP_LIMIT else reason
     return done, 0, STOP_LIMIT
+
+
+def _in_box(box: np.ndarray, y: np.ndarray) -> bool:
+    """Is the ball's centre (y[0:3]) inside the (6,) lo, hi box (the tick kernel's watch test)?"""
+    return all(box[i] <= y[i] <= box[3 + i] for i in range(3))
 
 
 def _without_cloth(state: State) -> State:

@@ -161,7 +161,7 @@ class NetSim:
         # (2, 3) m, lo and hi corners of the knots' box: of the shape it froze in while the net
         # sleeps, of the tick's start shape while it is awake (net_box).
         self.box = net_box(topo.knot_pos)
-        self._reach = net_box(topo.knot_pos) + np.array([[-NET_REACH], [NET_REACH]])  # (2, 3) m
+        self._reach = self.box + np.array([[-NET_REACH], [NET_REACH]])  # (2, 3) m, the built box grown
         self._probe = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(3), np.zeros(3))
         self.kernel_calls = 0
         self.cg_iterations = 0
