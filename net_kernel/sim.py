@@ -70,7 +70,8 @@ class NetSim:
     is away), any other net by the CSR kernels, whose state lives in two preallocated buffers
     that they ping-pong between; both give the same bits. `knot_pos`/`knot_vel` always name
     the current state. `kernel_calls` counts every kernel invocation (steps, rest checks, contact
-    sweeps), so a sleeping net can be shown to cost none.
+    sweeps), so a sleeping net can be shown to cost none; `awake_ticks` counts the ticks it was
+    stepped (awake), which is what a match pays for the net.
     """
 
     def __init__(self, topo: NetTopology, dt: float, substeps: int | None = None, backend: str = "numba",
@@ -109,7 +110,8 @@ class NetSim:
             need = math.ceil(self.dt / (SAFETY * topo.h_max))
             raise ValueError(
                 f"substep h = {h:.4g} s is above the semi-implicit Euler stability bound h_max = {topo.h_max:.4g} s "
-                "(h^2 w^2 + 2 h g < 4 with w^2 = max 2 K_i/m_i, g = max 2 C_i/m_i + air_damping); "
+                "(h^2 w^2 + 2 h g < 4, w^2 and g the net's largest stiffness and damping per unit mass: "
+                "net_kernel.topology.stability_bound); "
                 f"use substeps >= {need} (or substeps=None), or solver='implicit'")
         self.substeps = substeps
         self.h = h
@@ -165,6 +167,7 @@ class NetSim:
         self._probe = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(3), np.zeros(3))
         self.kernel_calls = 0
         self.cg_iterations = 0
+        self.awake_ticks = 0
         self.sleeping = False
         self.quiet_ticks = 0  # ticks in a row with every knot below SLEEP_SPEED (state: a restart restores it)
         self.knot_radius = KNOT_RADIUS
@@ -240,6 +243,7 @@ class NetSim:
             self.wake()
         topo = self.topo
         toi = NO_CONTACT
+        self.awake_ticks += 1
         if not far:
             bp = self._ball[0]
             bv = self._ball[1]
@@ -326,16 +330,31 @@ class NetSim:
                 self.step()
             return
         topo = self.topo
-        _, self.quiet_ticks, status = self._step_grid_free(
+        taken, self.quiet_ticks, status = self._step_grid_free(
             self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag, self.h, self.substeps,
             self._grid_work, int(ticks), SLEEP_SPEED, SLEEP_TICKS, self.quiet_ticks, self._reach, self.box)
         self.kernel_calls += 1
+        self.awake_ticks += taken
         if status == FREE_NOT_FINITE:
             raise FloatingPointError(NOT_FINITE)
         if status == FREE_OUT_OF_REACH:
             raise FloatingPointError(self._out_of_reach())
         if status == FREE_ASLEEP:
             self.sleeping = True
+
+
+def compile_kernels(topo: NetTopology, dt: float) -> None:
+    """Compile (or load from numba's cache) every kernel a NetSim of `topo` calls in a match, on a
+    throwaway NetSim: a tick with the ball within reach, one without it, a run of free ticks and
+    the probe of a sleeping net. A worker calls it before it says it is ready: a kernel compiled
+    mid-run would leave it silent for as long as that takes (tens of seconds on a loaded
+    machine), which the supervisor takes for a stall."""
+    sim = NetSim(topo, dt)
+    ball, still = topo.knot_pos[0], np.zeros(3)
+    sim.step(ball, still)
+    sim.step()
+    sim.step_free(1)
+    sim.touches(ball, still, BALL_RADIUS, 1.0 / BALL_MASS)
 
 
 def net_box(knot_pos: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:

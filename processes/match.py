@@ -231,7 +231,9 @@ def bench_match_command(args: argparse.Namespace) -> int:
     ticks = scene.ticks if not args.quick else 20_000
     result = Supervisor(scene, ticks, "lockstep", seed=args.seed).run()
     multi = _summary_from_processes(scene, args.seed, result)
-    reference = Match(scene, seed=args.seed).play(max_ticks=ticks).summary()
+    match = Match(scene, seed=args.seed)
+    reference = match.play(max_ticks=ticks).summary()
+    net = match.state.net_sim  # the cloth net's awake ticks: what it cost, to set beside the net worker's
     report = {
         "scene": scene.name,
         "net": scene.net_kind,
@@ -244,7 +246,8 @@ def bench_match_command(args: argparse.Namespace) -> int:
                       "us_per_tick": 1e6 * multi["wall_seconds"] / max(multi["ticks"], 1)},
         "in_process": {"wall_seconds": reference["wall_seconds"], "realtime_factor": reference["realtime_factor"],
                        "ai_seconds": reference["ai_seconds"],
-                       "us_per_tick": 1e6 * reference["wall_seconds"] / max(reference["ticks"], 1)},
+                       "us_per_tick": 1e6 * reference["wall_seconds"] / max(reference["ticks"], 1),
+                       **({"net_awake_ticks": net.awake_ticks} if net is not None else {})},
         "target": "a best-of-5 match at >= 100x realtime, headless lockstep (issue 6)",
     }
     if args.json:
@@ -257,7 +260,9 @@ def bench_match_command(args: argparse.Namespace) -> int:
     print(f"  worker processes (lockstep): {p['wall_seconds']:.2f} s wall, {p['realtime_factor']:.1f}x realtime, "
           f"{p['us_per_tick']:.1f} us/tick, startup {p['startup_seconds']:.2f} s")
     for kind, info in p["workers"].items():
-        print(f"    {kind:<8} own work {info['busy_s']:.2f} s, hand-offs {info['handoff_s']:.2f} s")
+        awake = info.get("awake_ticks")
+        net = f", {awake} ticks awake ({1e6 * info['busy_s'] / awake:.0f} us each)" if awake else ""
+        print(f"    {kind:<8} own work {info['busy_s']:.2f} s, hand-offs {info['handoff_s']:.2f} s{net}")
     print(f"  in-process reference:        {r['wall_seconds']:.2f} s wall, {r['realtime_factor']:.1f}x realtime, "
           f"{r['us_per_tick']:.1f} us/tick (AI {r['ai_seconds']:.2f} s)")
     return 0

@@ -353,6 +353,8 @@ class Supervisor:
                 # the AI worker's thinking between its turns, and the strokes it had to finish late
                 **({k: w.report[k] for k in ("think_s", "late_thoughts", "late_thinking_s", "turns", "longest_turn_s")
                     if k in w.report} if w.kind == "ai" else {}),
+                # the cloth net's ticks stepped awake (its cost: a sleeping net's ticks cost nothing)
+                **({"awake_ticks": w.report["awake_ticks"]} if w.kind == "net" and "awake_ticks" in w.report else {}),
             }
             for w in self._workers
         }

@@ -33,7 +33,7 @@ import numpy as np
 
 from engine.dtypes import net_snapshot_dtype
 from net_kernel import NO_CONTACT, NetContact, NetSim, build_topology
-from net_kernel.sim import ball_far_from_box, net_box
+from net_kernel.sim import ball_far_from_box, compile_kernels, net_box
 from processes.handoff import HandoffTimeout
 from processes.shm import Arena
 from processes.worker import GO_TIMEOUT_S, Control, WorkerState
@@ -103,7 +103,7 @@ def net_worker(control: Control, arena: Arena, scene, options: dict) -> None:
     after publishing that ball tick's state and before saying it is done, the hardest moment)."""
     topo = build_topology(scene.cloth)
     sim = NetSim(topo, scene.dt)
-    NetSim(topo, scene.dt).step(topo.knot_pos[0], np.zeros(3))  # compile or load the kernels
+    compile_kernels(topo, scene.dt)  # before "ready": nothing compiles mid-run
     baton = options["net_baton"].attach(arena["net_baton"].array)
     row = arena["net_io"].array[0]
     blocks = net_blocks(arena)
@@ -177,7 +177,7 @@ def net_worker(control: Control, arena: Arena, scene, options: dict) -> None:
             baton.done()
             control.beat(tick)
         control.row["busy_s"] = float(control.row["busy_s"]) + busy
-        control.send("done", {"tick": net_tick, "busy_s": busy, "steps": steps})
+        control.send("done", {"tick": net_tick, "busy_s": busy, "steps": steps, "awake_ticks": sim.awake_ticks})
     finally:
         del row, blocks
 

@@ -32,9 +32,10 @@ def test_free_ticks_in_one_call_equal_tick_by_tick_through_falling_asleep(backen
     free.step_free(1000)  # stops where it falls asleep
     for a, b in zip(_state(free), _state(by_tick)):
         assert np.array_equal(a, b)
+    assert free.awake_ticks == by_tick.awake_ticks  # the ticks taken, counted alike on both paths
     calls = free.kernel_calls
     free.step_free(1000)  # asleep: nothing to do
-    assert free.kernel_calls == calls
+    assert free.kernel_calls == calls and free.awake_ticks == by_tick.awake_ticks
 
 
 def test_free_ticks_stop_with_the_net_awake_at_the_same_bits():
