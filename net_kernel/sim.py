@@ -47,6 +47,15 @@ NOT_FINITE = "a knot position or velocity is not finite after the net's tick"
 KNOT_RADIUS = 0.5e-3  # m
 NET_RESTITUTION = 0.0
 MAX_HITS = 8
+# m: with the ball near, a tick takes enough substeps that the ball moves at most this far in one.
+# Within a substep the contact and the springs are split (struck knots ride with the ball, the
+# springs pull at the step), an error first order in the substep that decides fast impacts, and
+# the stability bound alone does not keep it small: head-on 60 m/s shots at 12 random points of
+# the 85 x 8 net went through 12 times at 5 mm a substep (12 substeps a tick), 4 at 3 mm, 1 at
+# 1.5 mm, none at 1 or 0.75 mm; 184 x 16 stops them all at 2.4 mm (session 5,
+# /work/notes/s5/thru_sub.py). The AI's strokes (11.4 m/s at most) need no more substeps than the
+# bound's 10 on 85 x 8: only fast shots pay.
+CONTACT_TRAVEL = 1e-3
 CG_TOL = 1e-8
 CG_MAX_ITER = 200
 # DESIGN.md equipment: a 40 mm, 2.7 g ball (the defaults of NetSim.step).
@@ -213,7 +222,8 @@ class NetSim:
         """Advance the net one tick (all substeps) with the ball's contact, unless it sleeps.
 
         The contact is resolved at every substep (kernels.collide_ball over h), so the knots
-        move little between two sweeps. The ball is taken to move in a straight line over the
+        move little between two sweeps; with the ball near, the tick takes more substeps than the
+        stability bound's when the ball would move more than CONTACT_TRAVEL in one. The ball is taken to move in a straight line over the
         tick, bent only by the net's impulses; forces on the ball are the engine's business.
 
         Contract for the engine: integrate the ball's tick without the net, then add
@@ -244,11 +254,16 @@ class NetSim:
         topo = self.topo
         toi = NO_CONTACT
         self.awake_ticks += 1
+        substeps, h = self.substeps, self.h
         if not far:
             bp = self._ball[0]
             bv = self._ball[1]
             bp[:] = ball_pos
             bv[:] = ball_vel
+            travel = math.sqrt(float(bv[0]) ** 2 + float(bv[1]) ** 2 + float(bv[2]) ** 2) * self.dt
+            if travel > substeps * CONTACT_TRAVEL:
+                substeps = math.ceil(travel / CONTACT_TRAVEL)
+                h = self.dt / substeps
         if far and self.grid:
             # No contact to sweep between substeps: the whole tick in one call.
             self._step_grid(self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag, self.h,
@@ -258,37 +273,37 @@ class NetSim:
             # The ball near: each substep's contact sweep then grid step, all in one call (the same
             # bits as the loop below, which net_kernel.profile.tick_costs times against it).
             toi = self._step_grid_ball(self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag,
-                                       self.h, self.substeps, self._grid_work, self._ball, float(ball_radius),
+                                       h, substeps, self._grid_work, self._ball, float(ball_radius),
                                        float(ball_inv_mass), self.knot_radius, self.restitution, MAX_HITS, self._near,
                                        self._impulse)
-            self.kernel_calls += 2 * self.substeps
+            self.kernel_calls += 2 * substeps
         else:
-            for k in range(self.substeps):
+            for k in range(substeps):
                 if not far:
                     hit = self._collide(self._pos[self._cur], self._vel[self._cur], topo.knot_inv_mass, bp, bv,
                                         float(ball_radius), float(ball_inv_mass), self.knot_radius, self.restitution,
-                                        self.h, MAX_HITS, self._hit_impulse, self._ball[2], self._near)
+                                        h, MAX_HITS, self._hit_impulse, self._ball[2], self._near)
                     self.kernel_calls += 1
                     if hit != NO_CONTACT:
                         if toi == NO_CONTACT:
-                            toi = (k + hit) / self.substeps
+                            toi = (k + hit) / substeps
                         self._impulse += self._hit_impulse
                         bv += self._hit_impulse * ball_inv_mass
                     bp[:] = self._ball[2]
                 src, dst = self._cur, 1 - self._cur
                 if self.grid:
                     self._step_grid(self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag,
-                                    self.h, 1, self._grid_work)
+                                    h, 1, self._grid_work)
                 elif self.implicit:
                     self.cg_iterations += self._implicit(
                         self._pos[src], self._vel[src], topo.knot_inv_mass, topo.adj_start, topo.adj_knot,
                         topo.adj_spring, topo.spring_ij, topo.spring_rest, topo.spring_k, topo.spring_c, self.gravity,
-                        self.drag, self.h, CG_TOL, CG_MAX_ITER, self._knot_work, self._spring_work, self._pos[dst],
+                        self.drag, h, CG_TOL, CG_MAX_ITER, self._knot_work, self._spring_work, self._pos[dst],
                         self._vel[dst])
                 else:
                     self._step(self._pos[src], self._vel[src], topo.knot_inv_mass, topo.adj_start, topo.adj_knot,
                                topo.adj_spring, topo.spring_ij, topo.spring_rest, topo.spring_k, topo.spring_c,
-                               self.gravity, self.drag, self.h, self._step_work, self._pos[dst], self._vel[dst])
+                               self.gravity, self.drag, h, self._step_work, self._pos[dst], self._vel[dst])
                 self._cur = dst
                 self.kernel_calls += 1
         if toi != NO_CONTACT:

@@ -76,3 +76,37 @@ def test_net_comes_back_to_rest(rested):
     # seen to creep back slowly).
     assert np.abs(sim.knot_pos[top] - rest[top]).max() < 0.5e-3
     assert np.abs(sim.knot_pos - rest).max() < 3e-3
+
+
+@pytest.fixture(scope="module")
+def match_net():
+    """The match scene's net (scenes/match_cloth.toml: the default net on 85 x 8 knots), as built."""
+    from net_kernel.topology import resolution_spec
+
+    return build_topology(resolution_spec(85, 8))
+
+
+@pytest.mark.parametrize("y, z", [(-0.31, 0.05), (0.12, 0.09), (0.47, 0.11)])
+def test_a_60_m_per_s_shot_is_stopped_by_the_match_net(match_net, y, z):
+    # 60 m/s, the scene's bound (engine.equipment.BALL_SPEED_MAX), head-on below the cord: at the
+    # stability bound's 10 substeps the ball moved 6 mm a substep and went through; with the
+    # substeps CONTACT_TRAVEL asks for near the ball (60) it is stopped, as on the 184 x 16 net.
+    sim = NetSim(match_net, dt=DT)
+    pos, vel = np.array([-0.1, y, z]), np.array([60.0, 0.0, 0.0])
+    for _ in range(300):
+        contact = sim.step(pos, vel, BALL_RADIUS, 1.0 / BALL_MASS)
+        pos = pos + vel * DT + contact.offset
+        vel = vel + contact.impulse / BALL_MASS
+    assert vel[0] < 0.0 and pos[0] < 0.0  # thrown back
+
+
+def test_a_slow_ball_near_the_net_costs_no_extra_substeps(match_net):
+    sim = NetSim(match_net, dt=DT)
+    calls = sim.kernel_calls
+    sim.step(np.array([-0.05, 0.0, 0.08]), np.array([10.0, 0.0, 0.0]), BALL_RADIUS, 1.0 / BALL_MASS)
+    # 10 mm in the tick at CONTACT_TRAVEL = 1 mm: the bound's 10 substeps already do (a sweep and a
+    # step each, plus the speed check).
+    assert sim.substeps == 10 and sim.kernel_calls - calls == 2 * sim.substeps + 1
+    fast = NetSim(match_net, dt=DT)
+    fast.step(np.array([-0.1, 0.0, 0.08]), np.array([30.0, 0.0, 0.0]), BALL_RADIUS, 1.0 / BALL_MASS)
+    assert fast.kernel_calls == 2 * 30 + 1  # 30 mm in the tick: 30 substeps
