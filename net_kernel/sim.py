@@ -56,6 +56,10 @@ MAX_HITS = 8
 # /work/notes/s5/thru_sub.py). The AI's strokes (11.4 m/s at most) need no more substeps than the
 # bound's 10 on 85 x 8: only fast shots pay.
 CONTACT_TRAVEL = 1e-3
+# m/s: the closing speed the contact substeps follow at most (twice the ball's bound, 60 m/s:
+# engine.equipment.BALL_SPEED_MAX, which net_kernel may not import), so a net that went wrong
+# cannot ask for unbounded work; NET_REACH and finiteness catch it.
+CONTACT_SPEED_MAX = 120.0
 CG_TOL = 1e-8
 CG_MAX_ITER = 200
 # DESIGN.md equipment: a 40 mm, 2.7 g ball (the defaults of NetSim.step).
@@ -260,10 +264,9 @@ class NetSim:
             bv = self._ball[1]
             bp[:] = ball_pos
             bv[:] = ball_vel
-            travel = math.sqrt(float(bv[0]) ** 2 + float(bv[1]) ** 2 + float(bv[2]) ** 2) * self.dt
-            if travel > substeps * CONTACT_TRAVEL:
-                substeps = math.ceil(travel / CONTACT_TRAVEL)
-                h = self.dt / substeps
+            substeps = contact_substeps(bv, self._speed(self.knot_pos, self.knot_vel), self.dt, self.substeps)
+            h = self.dt / substeps
+            self.kernel_calls += 1
         if far and self.grid:
             # No contact to sweep between substeps: the whole tick in one call.
             self._step_grid(self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag, self.h,
@@ -356,6 +359,16 @@ class NetSim:
             raise FloatingPointError(self._out_of_reach())
         if status == FREE_ASLEEP:
             self.sleeping = True
+
+
+def contact_substeps(ball_vel, knot_speed: float, dt: float, substeps: int) -> int:
+    """Substeps for a tick of dt s with the ball near: `substeps` (the stability bound's), or more so
+    that ball and knots close in by at most CONTACT_TRAVEL in one. They close in at most at the sum
+    of their speeds (a struck net's knots outrun the ball they have just slowed), taken up to
+    CONTACT_SPEED_MAX; knot_speed: m/s, the fastest knot's (kernels.knot_speed_max)."""
+    closing = math.sqrt(float(ball_vel[0]) ** 2 + float(ball_vel[1]) ** 2 + float(ball_vel[2]) ** 2) + float(knot_speed)
+    travel = min(closing, CONTACT_SPEED_MAX) * dt
+    return max(substeps, math.ceil(travel / CONTACT_TRAVEL))
 
 
 def compile_kernels(topo: NetTopology, dt: float) -> None:

@@ -104,9 +104,13 @@ def test_a_slow_ball_near_the_net_costs_no_extra_substeps(match_net):
     sim = NetSim(match_net, dt=DT)
     calls = sim.kernel_calls
     sim.step(np.array([-0.05, 0.0, 0.08]), np.array([10.0, 0.0, 0.0]), BALL_RADIUS, 1.0 / BALL_MASS)
-    # 10 mm in the tick at CONTACT_TRAVEL = 1 mm: the bound's 10 substeps already do (a sweep and a
-    # step each, plus the speed check).
-    assert sim.substeps == 10 and sim.kernel_calls - calls == 2 * sim.substeps + 1
+    # 10 mm in the tick at CONTACT_TRAVEL = 1 mm, the net at rest: the bound's 10 substeps already do (a
+    # sweep and a step each, plus the knots' speed before and after).
+    assert sim.substeps == 10 and sim.kernel_calls - calls == 2 * sim.substeps + 2
     fast = NetSim(match_net, dt=DT)
     fast.step(np.array([-0.1, 0.0, 0.08]), np.array([30.0, 0.0, 0.0]), BALL_RADIUS, 1.0 / BALL_MASS)
-    assert fast.kernel_calls == 2 * 30 + 1  # 30 mm in the tick: 30 substeps
+    assert fast.kernel_calls == 2 * 30 + 2  # 30 mm in the tick: 30 substeps
+    struck = NetSim(match_net, dt=DT)
+    struck.knot_vel[:, 0] = 20.0 * (match_net.knot_inv_mass > 0)  # knots coming at the ball at 20 m/s
+    struck.step(np.array([-0.06, 0.0, 0.08]), np.array([10.0, 0.0, 0.0]), BALL_RADIUS, 1.0 / BALL_MASS)
+    assert struck.kernel_calls == 2 * 30 + 2  # closing at 10 + 20 m/s: 30 substeps

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from net_kernel import NetSim, NetSpec, build_topology, kernels, reference
+from net_kernel.sim import contact_substeps
 
 BALL_MASS = 2.7e-3  # kg, ITTF 2.3.2
 BALL_RADIUS = 0.02  # m, ITTF 2.3.1
@@ -114,8 +115,10 @@ def _fused_run(topo, ticks, speed, mod=kernels):
             pos = pos + vel * DT
             continue
         ball[0], ball[1] = pos, vel
-        toi = mod.step_grid_ball(state, inv_mass, topo.grid_params, spec.gravity, spec.air_damping, sim.h,
-                                 sim.substeps, work, ball, BALL_RADIUS, 1.0 / BALL_MASS, sim.knot_radius,
+        n = contact_substeps(vel, kernels.knot_speed_max(state[0].reshape(3, -1).T, state[1].reshape(3, -1).T), DT,
+                             sim.substeps)  # NetSim's substeps with the ball near
+        toi = mod.step_grid_ball(state, inv_mass, topo.grid_params, spec.gravity, spec.air_damping, DT / n,
+                                 n, work, ball, BALL_RADIUS, 1.0 / BALL_MASS, sim.knot_radius,
                                  sim.restitution, 8, near, impulse)
         tois.append(toi)
         # NetSim's offset: where the ball ended minus its free path's end.
@@ -146,16 +149,17 @@ def _loop_run(topo, ticks, speed, collide):
             pos = pos + vel * DT
             continue
         bp, bv, impulse, toi = pos.copy(), vel.copy(), np.zeros(3), -1.0
-        for k in range(sim.substeps):
+        n = contact_substeps(bv, kernels.knot_speed_max(knot_pos, knot_vel), DT, sim.substeps)
+        h = DT / n
+        for k in range(n):
             hit = collide(knot_pos, knot_vel, topo.knot_inv_mass, bp, bv, BALL_RADIUS, 1.0 / BALL_MASS,
-                          sim.knot_radius, sim.restitution, sim.h, 8, hit_impulse, end)
+                          sim.knot_radius, sim.restitution, h, 8, hit_impulse, end)
             if hit >= 0.0:
-                toi = (k + hit) / sim.substeps if toi < 0.0 else toi
+                toi = (k + hit) / n if toi < 0.0 else toi
                 impulse += hit_impulse
                 bv += hit_impulse * (1.0 / BALL_MASS)
             bp[:] = end
-            kernels.step_grid_serial(state, inv_mass, topo.grid_params, spec.gravity, spec.air_damping, sim.h, 1,
-                                     work)
+            kernels.step_grid_serial(state, inv_mass, topo.grid_params, spec.gravity, spec.air_damping, h, 1, work)
         tois.append(toi)
         offset = (bp - pos) - vel * DT if toi >= 0.0 else np.zeros(3)
         pos = pos + vel * DT + offset
