@@ -47,7 +47,8 @@ NOT_FINITE = "a knot position or velocity is not finite after the net's tick"
 KNOT_RADIUS = 0.5e-3  # m
 NET_RESTITUTION = 0.0
 MAX_HITS = 8
-# m: with the ball near, a tick takes enough substeps that the ball moves at most this far in one.
+# m: with the ball near, a tick takes enough substeps that ball and knots close in by at most this
+# far in one (contact_substeps).
 # Within a substep the contact and the springs are split (struck knots ride with the ball, the
 # springs pull at the step), an error first order in the substep that decides fast impacts, and
 # the stability bound alone does not keep it small: head-on 60 m/s shots at 12 random points of
@@ -227,8 +228,9 @@ class NetSim:
 
         The contact is resolved at every substep (kernels.collide_ball over h), so the knots
         move little between two sweeps; with the ball near, the tick takes more substeps than the
-        stability bound's when the ball would move more than CONTACT_TRAVEL in one. The ball is taken to move in a straight line over the
-        tick, bent only by the net's impulses; forces on the ball are the engine's business.
+        stability bound's when ball and knots would close in by more than CONTACT_TRAVEL in one
+        (contact_substeps). The ball is taken to move in a straight line over the tick, bent only
+        by the net's impulses; forces on the ball are the engine's business.
 
         Contract for the engine: integrate the ball's tick without the net, then add
         `offset` to its position and `impulse * ball_inv_mass` to its velocity.

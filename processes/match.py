@@ -261,8 +261,8 @@ def bench_match_command(args: argparse.Namespace) -> int:
           f"{p['us_per_tick']:.1f} us/tick, startup {p['startup_seconds']:.2f} s")
     for kind, info in p["workers"].items():
         awake = info.get("awake_ticks")
-        net = f", {awake} ticks awake ({1e6 * info['busy_s'] / awake:.0f} us each)" if awake else ""
-        print(f"    {kind:<8} own work {info['busy_s']:.2f} s, hand-offs {info['handoff_s']:.2f} s{net}")
+        awake_text = f", {awake} ticks awake ({1e6 * info['busy_s'] / awake:.0f} us each)" if awake else ""
+        print(f"    {kind:<8} own work {info['busy_s']:.2f} s, hand-offs {info['handoff_s']:.2f} s{awake_text}")
     print(f"  in-process reference:        {r['wall_seconds']:.2f} s wall, {r['realtime_factor']:.1f}x realtime, "
           f"{r['us_per_tick']:.1f} us/tick (AI {r['ai_seconds']:.2f} s)")
     return 0
