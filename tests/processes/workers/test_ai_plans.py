@@ -7,7 +7,9 @@ import pytest
 from engine.dtypes import physics_snapshot_dtype
 from engine.match import Match, make_ais
 from engine.scene import load_scene
-from processes.workers.ai import Answerer, PlanFollower, decision_key
+from processes.workers.ai import Answerer
+from processes.workers.hub import PlanFollower
+from processes.workers.layout import decision_key
 
 SCENE = load_scene("match")
 

@@ -29,7 +29,7 @@ from processes.supervisor import workers_for
 from processes.network.wire import GoodbyeReason, Kind, RejectReason, Role, Slot
 from tests.processes.conftest import ctrl_c_able
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 ROUNDS = 400  # pump rounds at most (each polls for at most 10 ms)
 
 
@@ -722,11 +722,13 @@ def test_a_snapshot_acknowledges_the_inputs_applied_before_its_tick_not_the_next
     reading tick T's snapshot right then must still say the previous seq (the bug this replaced:
     it read the live 'applied' seqs, one tick ahead of the snapshot)."""
     from engine.match import Match
-    from processes.network.gateway import (REMOTE_ACK_DTYPE, REMOTE_ACK_RING, REMOTE_CAPACITY, REMOTE_INPUT_DTYPE,
-                                   RUN_LOCK_NAMES, _consistent_snapshot, read_ack, write_ack)
+    from processes.workers.gateway import _consistent_snapshot
+    from processes.workers.layout import (REMOTE_ACK_DTYPE, REMOTE_ACK_RING, REMOTE_CAPACITY, REMOTE_INPUT_DTYPE,
+                                          RUN_LOCK_NAMES, read_ack, write_ack)
     from processes.runtime.locks import HOLDER_DTYPE, LockTable
     from processes.runtime.mailbox import MAILBOX_HEADER, Mailbox
-    from processes.workers.physics import _RemoteInputs
+    from processes.workers.hub import RemoteInputs
+    from processes.workers.options import RunOptions
 
     scene = with_remote_players(load_scene("match"), 2)
     arena = shm.Arena()
@@ -740,7 +742,7 @@ def test_a_snapshot_acknowledges_the_inputs_applied_before_its_tick_not_the_next
         applied = arena.shared_array("remote_applied", np.dtype("<u8"), 2).array
         acks = arena.shared_array("remote_acks", REMOTE_ACK_DTYPE, REMOTE_ACK_RING).array
         match = Match(scene, 0)
-        physics = _RemoteInputs(arena, {"lock_path": lock_path}, match)
+        physics = RemoteInputs(arena, RunOptions(ticks=0, lock_path=lock_path), match)
         gateway_locks = LockTable(lock_path, RUN_LOCK_NAMES, arena["lock_holders"])
         box = Mailbox("remote_inputs", arena["remote_header"], arena["remote_inputs"], gateway_locks)
         post = np.zeros((), REMOTE_INPUT_DTYPE)

@@ -4,7 +4,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 # s: the net kernels come from numba's cache in a few seconds; a cold cache compiles them first.
 TIMEOUT = 600
 

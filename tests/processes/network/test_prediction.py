@@ -9,7 +9,8 @@ import pytest
 from engine.scene import load_scene
 from engine.world import build_model, initial_state, new_events, step
 from processes.network import wire
-from processes.network.prediction import MAX_AHEAD_TICKS, ErrorStats, Interpolator, Predictor, ServerClock, hermite, slerp
+from processes.network.interpolation import Interpolator, hermite, slerp
+from processes.network.prediction import MAX_AHEAD_TICKS, ErrorStats, Predictor, ServerClock
 from processes.network.wire import Slot
 
 SNAPSHOT_EVERY = 10  # ticks between snapshots: 100 Hz at the match scene's 1 ms tick

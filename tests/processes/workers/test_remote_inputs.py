@@ -1,7 +1,7 @@
 """Remote players' inputs at the physics: checked again where they are applied, and whatever a
 player does with valid inputs, every state the physics publishes is one the wire can encode.
 
-In-process (no served match): the gateway's mailbox and the physics worker's _RemoteInputs on
+In-process (no served match): the gateway's mailbox and the physics worker's RemoteInputs on
 a real Arena, the Match of a served scene stepped tick by tick as the physics worker does.
 """
 import math
@@ -14,7 +14,7 @@ from engine.match import Match
 from engine.scene import load_scene, with_remote_players
 from processes.network import wire
 from processes.runtime import shm
-from processes.workers.physics import remote_input_refusal
+from processes.workers.hub import remote_input_refusal
 
 REMOTE = frozenset({0, 1})
 
@@ -50,12 +50,13 @@ def test_only_an_ai_bat_is_not_remote():
 @pytest.fixture
 def served(tmp_path, no_leftovers):
     """A served match's Match, the gateway's side of the remote-input mailbox (post) and the
-    physics worker's _RemoteInputs, on a real Arena and lock table; all closed at the end."""
-    from processes.network.gateway import (REMOTE_ACK_DTYPE, REMOTE_ACK_RING, REMOTE_CAPACITY, REMOTE_INPUT_DTYPE,
-                                   RUN_LOCK_NAMES)
+    physics worker's RemoteInputs, on a real Arena and lock table; all closed at the end."""
+    from processes.workers.layout import (REMOTE_ACK_DTYPE, REMOTE_ACK_RING, REMOTE_CAPACITY, REMOTE_INPUT_DTYPE,
+                                          RUN_LOCK_NAMES)
     from processes.runtime.locks import HOLDER_DTYPE, LockTable
     from processes.runtime.mailbox import MAILBOX_HEADER, Mailbox
-    from processes.workers.physics import _RemoteInputs
+    from processes.workers.hub import RemoteInputs
+    from processes.workers.options import RunOptions
 
     scene = with_remote_players(load_scene("match"), 2)
     arena = shm.Arena()
@@ -69,7 +70,7 @@ def served(tmp_path, no_leftovers):
         arena.shared_array("remote_applied", np.dtype("<u8"), 2)
         arena.shared_array("remote_acks", REMOTE_ACK_DTYPE, REMOTE_ACK_RING)
         match = Match(scene, 0)
-        physics = _RemoteInputs(arena, {"lock_path": lock_path}, match)
+        physics = RemoteInputs(arena, RunOptions(ticks=0, lock_path=lock_path), match)
         gateway_locks = LockTable(lock_path, RUN_LOCK_NAMES, arena["lock_holders"])
         box = Mailbox("remote_inputs", arena["remote_header"], arena["remote_inputs"], gateway_locks)
         entry = np.zeros((), REMOTE_INPUT_DTYPE)

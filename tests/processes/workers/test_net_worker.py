@@ -10,7 +10,7 @@ from engine.run import run
 from engine.scene import load_scene, parse_scene
 from processes.supervisor import Supervisor, first_difference, workers_for
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 
 # scenes/net.toml with a coarse net (24 x 4 knots, heavier): the same couplings, a fraction of
 # the kernel work, so the test stays cheap. The ball hits the net within 0.1 s.

@@ -18,13 +18,14 @@ import zmq
 
 from engine.scene import load_scene
 from engine.world import build_model, initial_state
-from processes.network.client import Client, run_session
+from processes.network.client import Client
+from processes.network.session import run_session
 from processes.network.gateway import Gateway, GatewayConfig
 from processes.network.keyboard import STEP_M, STROKE_M, IterableKeys, KeyboardPilot, TerminalKeys, parse_keys, top_view
 from processes.network.prediction import Predictor
 from processes.network.wire import Slot
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 PRO_MAX_FORCE_N = 120.0  # engine.ai.SKILLS["pro"].max_force_n
 
 

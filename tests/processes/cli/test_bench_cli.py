@@ -5,7 +5,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 # s: a warm numba cache runs each in a few seconds; a cold one compiles the study's loops and
 # every toggled scene's tick first (about 15 s each on a loaded 2-core machine).
 TIMEOUT = 600
