@@ -1,6 +1,6 @@
 """Profile of the net step: compile time, time per step, springs per second, bandwidth share.
 
-Plain dicts out (stdlib + numpy + numba only); processes/profile_net.py formats them.
+Plain dicts out (stdlib + numpy + numba only); processes/cli/profile_net.py formats them.
 
 Two kernel paths (both give the same bits): "csr", the general per-knot gather over the CSR
 adjacency (kernels.step_knots, one step a call), and "grid", the structured-grid kernel

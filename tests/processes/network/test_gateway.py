@@ -41,15 +41,6 @@ class Clock:
         return self.now
 
 
-@pytest.fixture
-def zctx():
-    """A context whose sockets all close with linger 0 at the end of the test."""
-    context = zmq.Context()
-    context.setsockopt(zmq.LINGER, 0)
-    yield context
-    context.destroy(linger=0)
-
-
 class Rig:
     """A Gateway on a random port of 127.0.0.1, its clients, and a physics record to serve."""
 
