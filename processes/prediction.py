@@ -32,7 +32,7 @@ from collections import deque
 
 import numpy as np
 
-from processes.gateway import brake_force
+from engine.arm import brake_force
 from processes.wire import Slot
 
 MAX_AHEAD_TICKS = 500  # a prediction runs at most this far past the last snapshot (0.5 s at 1 kHz)
