@@ -116,7 +116,6 @@ class BatAI:
     # under 1 mm; a flat shot's 1 mm of height is ~1 cm along x, so an aim this far outside the
     # court's margin is not tried: none of its strokes would pass _lands_well.
     AIM_SLACK_M = 0.05
-    RECOVER_S = 0.35
     PREDICT_CHUNK = 32  # ticks of prediction in one think_step
     KP = 30.0**2  # (rad/s)^2: position loop natural frequency 30 rad/s, critically damped
     KD = 2 * 30.0
@@ -280,14 +279,6 @@ class BatAI:
         return normal, bat_vel, got_w
 
     # --- planning -----------------------------------------------------------------------
-    def plan_stroke(self, now: float, ball_y: np.ndarray, bat_pos: np.ndarray, current_vel: np.ndarray,
-                    end_sign: int, serve: bool) -> Plan | None:
-        """Plan the next stroke from the ball's state now; None means let the ball go."""
-        thinking = self._think(now, ball_y, end_sign, serve, now, 0)
-        for _ in thinking:
-            pass
-        return self._make_plan(self._thought, now, bat_pos, current_vel)
-
     def _think(self, now: float, ball_y: np.ndarray, end_sign: int, serve: bool, start_time: float, first_row: int):
         """The stroke to play, thought out in steps (a generator: each next() does one piece, none
         much longer than PREDICT_CHUNK ticks of prediction or one shot solution); the answer is
