@@ -61,6 +61,7 @@ from dataclasses import dataclass
 import numpy as np
 import zmq
 
+from engine.arm import BRAKE_EVERY_S, BRAKE_MIN_SPEED, brake_force
 from processes.network import wire
 from processes.network.wire import GoodbyeReason, InputMode, Kind, RejectReason, Role, Slot
 
@@ -72,25 +73,6 @@ SEAT_DTYPE = np.dtype([("slot", "u1"), ("taken", "u1"), ("token", "u1", (16,)), 
 # must not leave its bat pushed by a constant force (120 N on a 0.17 kg bat is 70 m/s in 0.1 s).
 # After it, the gateway posts a zero input (same seq) until the next input comes.
 INPUT_HOLD_S = 0.1
-# An idle arm (its input expired, or no player holds the seat) stops its bat instead of letting
-# it coast off (a coasting bat leaves the wire's +-8 m and no snapshot can be sent any more):
-# force = -mass * BRAKE_PER_S * bat velocity, at most BRAKE_MAX_N, posted every BRAKE_EVERY_S
-# while the bat moves faster than BRAKE_MIN_SPEED. The AI arm's own damping and weakest limit.
-BRAKE_PER_S = 60.0  # 1/s, engine.ai.BatAI.KD
-BRAKE_MAX_N = 50.0  # N, the novice arm's max_force_n
-BRAKE_EVERY_S = 0.01
-BRAKE_MIN_SPEED = 0.01  # m/s
-
-
-def brake_force(mass: float, vel, out: np.ndarray) -> np.ndarray:
-    """out[0:6] := an idle arm's force (N) on a bat of `mass` kg moving at `vel` (m/s), no torque."""
-    out[:] = 0.0
-    out[0:3] = vel
-    out[0:3] *= -mass * BRAKE_PER_S
-    norm = float(np.sqrt(out[0:3] @ out[0:3]))
-    if norm > BRAKE_MAX_N:
-        out[0:3] *= BRAKE_MAX_N / norm
-    return out
 MAX_BAD = 64  # bad messages one session may send before it is kicked
 MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messages
 MAX_FRAME_BYTES = 4096  # libzmq disconnects a peer sending a bigger frame (MAXMSGSIZE)

@@ -184,7 +184,7 @@ def test_an_input_expires_after_the_hold_time_and_the_arm_lets_go(rig):
 
 @pytest.mark.timeout(30)
 def test_an_idle_arm_brakes_its_bat_and_a_players_input_takes_over(rig):
-    from processes.network.gateway import BRAKE_MAX_N, BRAKE_PER_S
+    from engine.arm import BRAKE_MAX_N, BRAKE_PER_S
 
     mass = 0.17
     r = rig(input_hold_s=0.1, bat_mass=(mass, mass))
