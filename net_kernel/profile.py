@@ -240,11 +240,6 @@ def _layer() -> str:
         return "not started"
 
 
-def isfinite_result(result: dict) -> bool:
-    """True when every number of one backend's result is finite (a smoke check)."""
-    return all(math.isfinite(v) for v in result.values() if isinstance(v, float))
-
-
 # ---------------------------------------------------------------------------------------------
 # Tick costs: a whole NetSim tick (kernels plus NetSim's Python), as the net worker pays it.
 NEAR_BALL_POS = (-0.03, 0.0, 0.08)  # m: 3 cm in front of the net's plane at mid-height: near, not touching
