@@ -46,7 +46,7 @@ def loadavg() -> list[float]:
     return [float(x) for x in Path("/proc/loadavg").read_text().split()[:3]]
 
 
-def thread_cpu_seconds(pid: int) -> dict[str, float]:
+def thread_cpu_seconds(pid: int | str = "self") -> dict[str, float]:
     """CPU seconds of each thread of a process, summed by thread name (/proc/PID/task/TID/stat:
     the Python thread is named like its program, libzmq's are ZMQbg/IO/0, ZMQbg/Reaper)."""
     out: dict[str, float] = {}
