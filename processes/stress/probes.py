@@ -65,6 +65,27 @@ def thread_cpu_seconds(pid: int | str = "self") -> dict[str, float]:
     return out
 
 
+def thread_sched_seconds(pid: int | str = "self") -> dict[str, tuple[float, float]]:
+    """Per thread name (summed as in thread_cpu_seconds): (seconds on a CPU, seconds runnable but
+    waiting for one), from /proc/PID/task/TID/schedstat (nanoseconds; sched-stats.rst of the Linux
+    documentation); {} without schedstats. Their sum over a wall time says how much a thread wanted
+    to run: near all of it, it always had work left, whatever share of a CPU it was given."""
+    out: dict[str, tuple[float, float]] = {}
+    try:
+        tids = os.listdir(f"/proc/{pid}/task")
+    except OSError:
+        return out
+    for tid in tids:
+        try:
+            name = Path(f"/proc/{pid}/task/{tid}/comm").read_text().strip()
+            on_cpu, waiting = Path(f"/proc/{pid}/task/{tid}/schedstat").read_text().split()[:2]
+        except (OSError, ValueError):
+            continue
+        before = out.get(name, (0.0, 0.0))
+        out[name] = (before[0] + int(on_cpu) / 1e9, before[1] + int(waiting) / 1e9)
+    return out
+
+
 class CpuMeter:
     """CPU time of named processes between start() and stop(), as % of one core; for the
     processes named in `threads`, also per thread name (e.g. the gateway's libzmq I/O thread)."""

@@ -185,9 +185,11 @@ def print_table(results: list[dict]) -> None:
         swarm = r.get("swarm")
         if swarm:
             console.print(f"[bold]{r['scenario']}[/] swarm: {swarm['cpu_us_per_message']} us CPU per message "
-                          f"received, receive loops busy up to {swarm['busy_pct_max']} %, backlog p99 "
-                          f"{swarm['backlog_p99_max']} (max {swarm['backlog_max']}), longest turn "
-                          f"{swarm['turn_max_ms']} ms; CPU % of one core {swarm['cpu_pct']}")
+                          f"received (by thread {swarm['cpu_us_per_message_by_thread']}), receive loops busy up "
+                          f"to {swarm['busy_pct_max']} %, wanting a CPU up to {swarm['demand_pct_max']} % "
+                          f"({swarm['runqueue_wait_pct_max']} % waiting for one), backlog p99 {swarm['backlog_p99_max']} (max "
+                          f"{swarm['backlog_max']}), bulk reads late p50 up to {swarm['bulk_lag_p50_ms_max']} ms, "
+                          f"longest turn {swarm['turn_max_ms']} ms; CPU % of one core {swarm['cpu_pct']}")
             if r.get("limited_by_load_generator"):
                 console.print(f"[yellow]{r['scenario']}: limited by the load generator[/]")
         for path in (r.get("plots") or {}).values():

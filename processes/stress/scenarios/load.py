@@ -70,13 +70,24 @@ def generator(reports: list[dict], names: list[str]) -> dict:
     loads = [r.get("load", {}) for r in reports]
     received = sum(x.get("received", 0) for x in loads)
     cpu_s = sum(x.get("cpu_s", 0.0) for x in loads)
+    by_thread: dict[str, float] = {}
+    for x in loads:  # libzmq's I/O threads apart from the Python one
+        for thread, seconds in x.get("cpu_s_by_thread", {}).items():
+            kind = "python" if thread == "python" else thread.rstrip("0123456789").rstrip("/")
+            by_thread[kind] = by_thread.get(kind, 0.0) + seconds
     return {"processes": len(loads), "received": received,
             "cpu_us_per_message": round(1e6 * cpu_s / received, 2) if received else None,
+            "cpu_us_per_message_by_thread": {k: round(1e6 * v / received, 2) for k, v in by_thread.items()}
+            if received else {},
             "cpu_pct": {name: x.get("cpu_pct") for name, x in zip(names, loads)},
             "busy_pct_max": max((x.get("busy_pct") or 0.0 for x in loads), default=None),
+            "demand_pct_max": max((x.get("demand_pct") or 0.0 for x in loads), default=None),
+            "runqueue_wait_pct_max": max((x.get("runqueue_wait_pct") or 0.0 for x in loads), default=None),
             "backlog_p99_max": max((x.get("backlog_p99", 0) for x in loads), default=0),
             "backlog_max": max((x.get("backlog_max", 0) for x in loads), default=0),
             "turn_max_ms": max((x.get("turn_max_ms", 0.0) for x in loads), default=0.0),
+            "bulk_lag_p50_ms_max": max((x.get("bulk_lag_ms", {}).get("p50", 0.0) for x in loads), default=0.0),
+            "demand_thread": {name: x.get("demand_thread") for name, x in zip(names, loads)},
             "saturated": [name for name, x in zip(names, loads) if x.get("saturated")]}
 
 
@@ -110,8 +121,10 @@ def _judge_spectators(result: dict, generated: dict) -> None:
     result["limited_by_load_generator"] = bool(generated["saturated"])
     if generated["saturated"]:
         result["findings"].append(
-            f"limited by the load generator: swarm process(es) {', '.join(generated['saturated'])} were busy "
-            f"{generated['busy_pct_max']} % of the time (backlog p99 {generated['backlog_p99_max']}): the rates, "
+            f"limited by the load generator: swarm process(es) {', '.join(generated['saturated'])} fell behind "
+            f"(receive loops wanting a CPU up to {generated['demand_pct_max']} % of the time, "
+            f"{generated['runqueue_wait_pct_max']} % waiting for one, bulk reads late p50 up to "
+            f"{generated['bulk_lag_p50_ms_max']} ms, backlog p99 {generated['backlog_p99_max']}): the rates, "
             "misses and latency describe the swarm, not the server")
     check(result, c["welcomed"] == c["spectators"], f"{c['spectators'] - c['welcomed']} spectators not welcomed")
     check(result, c["goodbye_match_over"] == c["welcomed"],

@@ -20,9 +20,13 @@ decoded in full, and so is every other message.
 
 The swarm measures itself from ready to the end of its receive loop: its own CPU (every thread,
 libzmq's included) per message received; how busy the loop was (the share of wall time not spent
-waiting in epoll); the backlog, messages found queued on a socket at one visit (at 120 Hz a loop
-that keeps up finds one); the longest turn of the loop. A loop busy BUSY_SATURATED_PCT or more of
-the time was always behind: the rates it measured are its own limit, not the server's.
+waiting in epoll); its demand, the largest share of wall time one of its threads (the loop's, or
+a libzmq I/O thread's) was on a CPU or runnable and waiting for one (schedstat), which a machine
+shared with other work cannot hide; the backlog, messages found queued on a timed socket at one
+visit (at 120 Hz a loop that keeps up finds one); how late the bulk reads started; the longest
+turn of the loop. A swarm with a demand of DEMAND_SATURATED_PCT or more, or whose bulk reads
+started a whole period late half the time (under half their cadence), was behind: the rates it
+measured are its own limit, not the server's.
 """
 from __future__ import annotations
 
@@ -37,7 +41,7 @@ import zmq
 
 from processes.network.client import Client, Rejected
 from processes.network.wire import Kind, RejectReason
-from processes.stress.probes import cpu_seconds, fd_count, rss_kb, thread_cpu_seconds
+from processes.stress.probes import cpu_seconds, fd_count, rss_kb, thread_cpu_seconds, thread_sched_seconds
 from processes.stress.swarm import NO_TOKEN, context, emit
 from processes.stress.swarm.tally import Sequence, Tally, header
 
@@ -48,7 +52,7 @@ DRAIN_BATCH = 64  # messages read from one socket at one visit; the rest wait fo
 TIMED_EVERY = 20  # one spectator in this many is timed: read as soon as its socket signals
 BULK_PERIOD_S = 0.05  # the other feeds are read this often, a few snapshots a visit
 VALIDATE_EVERY = 500  # one snapshot in this many (of the process) is decoded in full
-BUSY_SATURATED_PCT = 90.0
+DEMAND_SATURATED_PCT = 90.0
 SNAPSHOT = Kind.SNAPSHOT
 SWEEP_PERIOD_S = 0.1  # heartbeats, inputs, rejoins and the end are seen to this often
 BACKLOG_BINS = 257  # backlog histogram: 0..255 messages, the last bin for more
@@ -84,25 +88,29 @@ def _percentile(hist: np.ndarray, q: float) -> int:
     return int(np.searchsorted(np.cumsum(hist), q / 100.0 * total))
 
 
-def _schedule(spec: dict) -> None:
-    """Pin this process to a CPU and lower its priority when the spec asks (every thread started
-    after this inherits both): a swarm starved on purpose, or kept off the server's cores. The
-    priority is lowered for the process and for its session's autogroup: with autogroup
-    scheduling (sched(7)) the nice value only weighs tasks of one session against each other,
-    and a swarm is a session of its own."""
+def _pin(spec: dict) -> None:
+    """Pin this process to the CPU the spec names (every thread started after this inherits it):
+    a swarm kept off the server's cores, or starved on purpose."""
     if spec.get("pin_cpu") is not None:
         os.sched_setaffinity(0, {spec["pin_cpu"]})
+
+
+def _lower_priority(spec: dict) -> None:
+    """Lower this process's priority by spec "nice", once its clients are in (they join at full
+    speed): for the calling thread and for the session's autogroup, which holds every thread of
+    the swarm (a session of its own); with autogroup scheduling (sched(7)) a nice value only
+    weighs tasks of one session against each other."""
     if spec.get("nice"):
         os.nice(spec["nice"])
         try:
             with open("/proc/self/autogroup", "w") as f:
                 f.write(str(spec["nice"]))
-        except OSError:  # no autogroup scheduling here: the process's nice value is enough
+        except OSError:  # no autogroup scheduling here: the thread's nice value is what there is
             pass
 
 
 def watch(spec: dict) -> dict:
-    _schedule(spec)
+    _pin(spec)
     n_spec, n_play = spec.get("spectators", 0), spec.get("players", 0)
     validate_every = spec.get("validate_every", VALIDATE_EVERY)
     timed_every = spec.get("timed_every", TIMED_EVERY)
@@ -160,13 +168,14 @@ def watch(spec: dict) -> dict:
     next_sweep = next_bulk = 0.0
     last_sweep = 0.0
     sweep_gap = 0.0
-    bulk_lag = 0.0
+    bulk_lags = array("d")
     done = set()
     all_finished = False
     waited = 0.0  # s spent waiting in epoll since ready
     turn_max = 0.0
     cpu_at_ready = 0.0
     threads_at_ready: dict[str, float] = {}
+    sched_at_ready: dict[str, tuple[float, float]] = {}
     backlog = np.zeros(BACKLOG_BINS, np.int64)
     monotonic, recv_flags, again = time.monotonic, zmq.NOBLOCK, zmq.Again
 
@@ -293,7 +302,7 @@ def watch(spec: dict) -> dict:
         now = monotonic()
         if now >= next_bulk:
             if ready_at and next_bulk:
-                bulk_lag = max(bulk_lag, now - next_bulk)  # how late the bulk read started: the loop's lag
+                bulk_lags.append(now - next_bulk)  # how late the bulk read started: the loop's lag
             next_bulk = now + bulk_period_s
             for fd, entry in list(bulk.items()):
                 if fd in bulk:
@@ -313,6 +322,8 @@ def watch(spec: dict) -> dict:
                 rss_start = rss_kb()
                 cpu_at_ready = cpu_seconds()
                 threads_at_ready = thread_cpu_seconds("self")
+                sched_at_ready = thread_sched_seconds()
+                _lower_priority(spec)
                 emit({"event": "ready", "welcomed": sum(w.welcomed for w in watchers), "rejected": dict(rejected),
                       "fds": fd_count(), "t": now})
             for w in watchers:
@@ -337,6 +348,7 @@ def watch(spec: dict) -> dict:
     stopped = time.monotonic()
     cpu_window = (cpu_seconds() or 0.0) - cpu_at_ready
     threads = {name: round(c - threads_at_ready.get(name, 0.0), 3) for name, c in thread_cpu_seconds("self").items()}
+    sched_at_stop = thread_sched_seconds()
     if not ready_at:
         ready_at = stopped
         emit({"event": "ready", "welcomed": sum(w.welcomed for w in watchers), "rejected": dict(rejected),
@@ -358,6 +370,19 @@ def watch(spec: dict) -> dict:
     rates = [r for r in (w.tally.rate_hz() for w in watchers) if r is not None]
     window = max(stopped - ready_at, 1e-9)
     busy_pct = round(100.0 * (1.0 - waited / window), 1) if stopped > ready_at else None
+    lags_ms = 1000.0 * np.frombuffer(bulk_lags, np.float64) if len(bulk_lags) else np.zeros(1)
+    lag_p50_ms = float(np.percentile(lags_ms, 50))
+    demand = {}  # per thread: % of the window on a CPU or runnable and waiting for one, and waiting
+    for name, (on_cpu, waiting) in sched_at_stop.items():
+        on0, wait0 = sched_at_ready.get(name, (0.0, 0.0))
+        demand[name] = (round(100.0 * (on_cpu - on0 + waiting - wait0) / window, 1),
+                        round(100.0 * (waiting - wait0) / window, 1))
+    busiest = max(demand, key=lambda name: demand[name][0], default=None) if stopped > ready_at else None
+    demand_pct, wait_pct = demand[busiest] if busiest else (None, None)
+    # behind: a thread (the loop's, or libzmq's reading the connections) wanted a CPU nearly all the
+    # time, or the bulk read typically started a whole period late (under half its cadence)
+    saturated = ((demand_pct is not None and demand_pct >= DEMAND_SATURATED_PCT)
+                 or (stopped > ready_at and lag_p50_ms > 1000.0 * bulk_period_s))
     received = counts["received"]
     return {"clients": len(watchers), "timed": sum(w.timed for w in watchers), "welcomed": sum(w.welcomed for w in watchers), "rejected": dict(rejected),
             "snapshots": sum(w.tally.snapshots for w in watchers), "missed": sum(w.session.missed for w in watchers),
@@ -381,7 +406,10 @@ def watch(spec: dict) -> dict:
             "load": {"seconds": round(window, 2), "received": received, "cpu_s": round(cpu_window, 3),
                      "cpu_pct": round(100.0 * cpu_window / window, 1),
                      "cpu_us_per_message": round(1e6 * cpu_window / received, 2) if received else None,
-                     "busy_pct": busy_pct, "saturated": busy_pct is not None and busy_pct >= BUSY_SATURATED_PCT,
+                     "busy_pct": busy_pct, "demand_pct": demand_pct, "runqueue_wait_pct": wait_pct,
+                     "demand_thread": busiest, "demand_pct_by_thread": {k: v[0] for k, v in demand.items()},
+                     "saturated": saturated,
                      "backlog_p50": _percentile(backlog, 50), "backlog_p99": _percentile(backlog, 99),
                      "backlog_max": int(np.flatnonzero(backlog).max()) if backlog.any() else 0,
-                     "turn_max_ms": round(1000.0 * turn_max, 2), "bulk_lag_max_ms": round(1000.0 * bulk_lag, 2), "cpu_s_by_thread": threads}}
+                     "turn_max_ms": round(1000.0 * turn_max, 2), "bulk_lag_ms": {"p50": round(lag_p50_ms, 2),
+                     "p99": round(float(np.percentile(lags_ms, 99)), 2), "max": round(float(lags_ms.max()), 2)}, "cpu_s_by_thread": threads}}
