@@ -52,7 +52,7 @@ DRAIN_BATCH = 64  # messages read from one socket at one visit; the rest wait fo
 TIMED_EVERY = 20  # one spectator in this many is timed: read as soon as its socket signals
 BULK_PERIOD_S = 0.05  # the other feeds are read this often, a few snapshots a visit
 VALIDATE_EVERY = 500  # one snapshot in this many (of the process) is decoded in full
-DEMAND_SATURATED_PCT = 90.0
+DEMAND_SATURATED_PCT = 50.0  # runnable more than half the time: behind more often than not
 SNAPSHOT = Kind.SNAPSHOT
 SWEEP_PERIOD_S = 0.1  # heartbeats, inputs, rejoins and the end are seen to this often
 BACKLOG_BINS = 257  # backlog histogram: 0..255 messages, the last bin for more
@@ -379,7 +379,7 @@ def watch(spec: dict) -> dict:
                         round(100.0 * (waiting - wait0) / window, 1))
     busiest = max(demand, key=lambda name: demand[name][0], default=None) if stopped > ready_at else None
     demand_pct, wait_pct = demand[busiest] if busiest else (None, None)
-    # behind: a thread (the loop's, or libzmq's reading the connections) wanted a CPU nearly all the
+    # behind: a thread (the loop's, or libzmq's reading the connections) wanted a CPU most of the
     # time, or the bulk read typically started a whole period late (under half its cadence)
     saturated = ((demand_pct is not None and demand_pct >= DEMAND_SATURATED_PCT)
                  or (stopped > ready_at and lag_p50_ms > 1000.0 * bulk_period_s))

@@ -139,7 +139,7 @@ def test_load_says_it_was_limited_by_a_starved_load_generator():
     finally:
         busy.close()
     assert result["limited_by_load_generator"] is True, result.get("swarm")
-    assert result["swarm"]["saturated"] == ["swarm0"] and result["swarm"]["demand_pct_max"] >= 90.0
+    assert result["swarm"]["saturated"] == ["swarm0"] and result["swarm"]["demand_pct_max"] >= 50.0
     assert any("limited by the load generator" in f for f in result["findings"])
 
 
