@@ -22,11 +22,11 @@ import numpy as np
 
 from engine.dtypes import CONTACT_DTYPE, POINT_DTYPE, physics_snapshot_dtype
 from engine.scene import Scene
-from processes.handoff import TICK_SLOT_DTYPE, Baton
-from processes.locks import HOLDER_DTYPE, LockTable
-from processes.mailbox import MAILBOX_HEADER
-from processes.shm import Arena
-from processes.worker import READY_TIMEOUT_S, STARTUP_LIMIT_S, STATUS_DTYPE, WorkerState, worker_entry
+from processes.runtime.handoff import TICK_SLOT_DTYPE, Baton
+from processes.runtime.locks import HOLDER_DTYPE, LockTable
+from processes.runtime.mailbox import MAILBOX_HEADER
+from processes.runtime.shm import Arena
+from processes.runtime.control import READY_TIMEOUT_S, STARTUP_LIMIT_S, STATUS_DTYPE, WorkerState, worker_entry
 
 EVENT_LOG_CAPACITY = 1 << 16
 POINT_LOG_CAPACITY = 1 << 12  # a best-of-9 match has at most a few hundred rallies
@@ -90,7 +90,7 @@ class Supervisor:
         crash_at_tick: fault injection for tests and `pingpong stress`: the first incarnation of
             `crash_worker` SIGKILLs itself at this tick.
         seed: the match's seed. frame_every: keep a snapshot every this many ticks (replays), 0: none.
-        gateway: processes.gateway.GatewayConfig for a scene with the effect "remote".
+        gateway: processes.network.gateway.GatewayConfig for a scene with the effect "remote".
         players_timeout: s, a served match waits this long for its remote players, then starts.
     """
 
@@ -114,14 +114,14 @@ class Supervisor:
         self._net_baton = None
         self.kinds = workers_for(scene)
         if "gateway" in self.kinds:
-            from processes.gateway import GatewayConfig
+            from processes.network.gateway import GatewayConfig
 
             self.gateway = gateway or GatewayConfig()
         # forkserver: workers fork from a clean server that never ran threads or kernels.
         self._ctx = multiprocessing.get_context("forkserver")
-        self._ctx.set_forkserver_preload(["engine.world", "engine.match", "processes.worker",
-                                          "processes.worker_physics", "processes.worker_ai", "processes.worker_net",
-                                          "processes.gateway"])
+        self._ctx.set_forkserver_preload(["engine.world", "engine.match", "processes.runtime.control",
+                                          "processes.workers.physics", "processes.workers.ai", "processes.workers.net",
+                                          "processes.network.gateway"])
         self.arena: Arena | None = None
         self._workers: list[_Worker] = []
 
@@ -140,7 +140,7 @@ class Supervisor:
         if "net" in self.kinds:
             from engine.dtypes import net_snapshot_dtype
             from net_kernel import build_topology
-            from processes.worker_net import NET_BLOCKS, NET_IO_DTYPE
+            from processes.workers.net import NET_BLOCKS, NET_IO_DTYPE
 
             knots = net_snapshot_dtype(build_topology(self.scene.cloth).n_knots)
             for name in NET_BLOCKS:
@@ -148,14 +148,14 @@ class Supervisor:
             arena.shared_array("net_io", NET_IO_DTYPE, 1)
             self._net_baton = Baton("net", self._ctx, arena.shared_array("net_baton", TICK_SLOT_DTYPE, 1).array)
         if "gateway" in self.kinds:
-            from processes.gateway import RUN_LOCK_NAMES
+            from processes.network.gateway import RUN_LOCK_NAMES
 
             self._tmp = tempfile.mkdtemp(prefix=f"pingpong-{arena.run_id}-")
             self._lock_path = str(Path(self._tmp) / "locks")
             LockTable.create(self._lock_path, RUN_LOCK_NAMES, arena.shared_array("lock_holders", HOLDER_DTYPE,
                                                                                   len(RUN_LOCK_NAMES))).close()
         if "ai" in self.kinds:
-            from processes.worker_ai import ANSWER_DTYPE, LOCAL_DTYPE
+            from processes.workers.ai import ANSWER_DTYPE, LOCAL_DTYPE
 
             # The state the AI decides from, written by the physics at a control tick and read by
             # the AI during its turn, and the AI's answer, written during the turn and read by the
@@ -168,13 +168,13 @@ class Supervisor:
             arena.shared_array("ai_local", LOCAL_DTYPE, 1).array["tick"] = -1
             self._baton = Baton("ai", self._ctx, arena.shared_array("baton", TICK_SLOT_DTYPE, 1).array)
         if "gateway" in self.kinds:
-            from processes.gateway import REMOTE_ACK_DTYPE, REMOTE_ACK_RING, REMOTE_CAPACITY, REMOTE_INPUT_DTYPE
+            from processes.network.gateway import REMOTE_ACK_DTYPE, REMOTE_ACK_RING, REMOTE_CAPACITY, REMOTE_INPUT_DTYPE
 
             arena.shared_array("remote_header", MAILBOX_HEADER, 1)
             arena.shared_array("remote_inputs", REMOTE_INPUT_DTYPE, REMOTE_CAPACITY)
             arena.shared_array("remote_applied", np.dtype("<u8"), 2)  # seq of the last input applied per bat
             arena.shared_array("remote_acks", REMOTE_ACK_DTYPE, REMOTE_ACK_RING)  # those seqs by published tick
-            from processes.gateway import SEAT_DTYPE
+            from processes.network.gateway import SEAT_DTYPE
 
             arena.snapshot_block("seats", SEAT_DTYPE, 2)  # the seat table, so a restarted gateway keeps its tokens
             self._start_event = self._ctx.Event()

@@ -4,7 +4,7 @@ import sys
 
 import pytest
 
-from processes import shm
+from processes.runtime import shm
 
 
 def ctrl_c_able(*args: str) -> list[str]:

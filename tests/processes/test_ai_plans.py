@@ -1,4 +1,4 @@
-"""The physics follows the AIs' plans between their decisions (processes.worker_ai.PlanFollower):
+"""The physics follows the AIs' plans between their decisions (processes.workers.ai.PlanFollower):
 the AIs asked only when a decision can change, in this process, give the same match bit for bit
 as the AIs deciding at every control tick (engine.match.LocalAI, the reference)."""
 import numpy as np
@@ -7,7 +7,7 @@ import pytest
 from engine.dtypes import physics_snapshot_dtype
 from engine.match import Match, make_ais
 from engine.scene import load_scene
-from processes.worker_ai import Answerer, PlanFollower, decision_key
+from processes.workers.ai import Answerer, PlanFollower, decision_key
 
 SCENE = load_scene("match")
 

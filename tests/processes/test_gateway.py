@@ -21,11 +21,12 @@ import zmq
 
 from engine.dtypes import physics_snapshot_dtype
 from engine.scene import SceneError, load_scene, parse_scene, with_remote_players
-from processes import shm, wire
-from processes.client import Client, Rejected
-from processes.gateway import Gateway, GatewayConfig
+from processes.network import wire
+from processes.runtime import shm
+from processes.network.client import Client, Rejected
+from processes.network.gateway import Gateway, GatewayConfig
 from processes.supervisor import workers_for
-from processes.wire import GoodbyeReason, Kind, RejectReason, Role, Slot
+from processes.network.wire import GoodbyeReason, Kind, RejectReason, Role, Slot
 from tests.processes.conftest import ctrl_c_able
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -192,7 +193,7 @@ def test_an_input_expires_after_the_hold_time_and_the_arm_lets_go(rig):
 
 @pytest.mark.timeout(30)
 def test_an_idle_arm_brakes_its_bat_and_a_players_input_takes_over(rig):
-    from processes.gateway import BRAKE_MAX_N, BRAKE_PER_S
+    from processes.network.gateway import BRAKE_MAX_N, BRAKE_PER_S
 
     mass = 0.17
     r = rig(input_hold_s=0.1, bat_mass=(mass, mass))
@@ -721,11 +722,11 @@ def test_a_snapshot_acknowledges_the_inputs_applied_before_its_tick_not_the_next
     reading tick T's snapshot right then must still say the previous seq (the bug this replaced:
     it read the live 'applied' seqs, one tick ahead of the snapshot)."""
     from engine.match import Match
-    from processes.gateway import (REMOTE_ACK_DTYPE, REMOTE_ACK_RING, REMOTE_CAPACITY, REMOTE_INPUT_DTYPE,
+    from processes.network.gateway import (REMOTE_ACK_DTYPE, REMOTE_ACK_RING, REMOTE_CAPACITY, REMOTE_INPUT_DTYPE,
                                    RUN_LOCK_NAMES, _consistent_snapshot, read_ack, write_ack)
-    from processes.locks import HOLDER_DTYPE, LockTable
-    from processes.mailbox import MAILBOX_HEADER, Mailbox
-    from processes.worker_physics import _RemoteInputs
+    from processes.runtime.locks import HOLDER_DTYPE, LockTable
+    from processes.runtime.mailbox import MAILBOX_HEADER, Mailbox
+    from processes.workers.physics import _RemoteInputs
 
     scene = with_remote_players(load_scene("match"), 2)
     arena = shm.Arena()
@@ -793,7 +794,7 @@ def test_a_curve_session_works_and_a_client_without_the_server_key_cannot_join(r
     import zmq.auth
 
     from processes.cli import main
-    from processes.client import curve_client_options, load_curve_key
+    from processes.network.client import curve_client_options, load_curve_key
 
     assert main(["keys", str(tmp_path / "keys"), "--json"]) == 0  # `pingpong keys DIR`
     public_file, secret_file = tmp_path / "keys" / "server.key", tmp_path / "keys" / "server.key_secret"
@@ -832,7 +833,7 @@ def test_a_curve_session_works_and_a_client_without_the_server_key_cannot_join(r
 # --- seats outlive a gateway --------------------------------------------------------------------
 @pytest.mark.timeout(30)
 def test_a_restarted_gateway_finds_its_seats_and_the_token_reclaims_one(zctx, no_leftovers):
-    from processes.gateway import SEAT_DTYPE, SeatStore
+    from processes.network.gateway import SEAT_DTYPE, SeatStore
 
     arena = shm.Arena()
     first = second = None

@@ -6,8 +6,8 @@ import sys
 import numpy as np
 import pytest
 
-from processes.handoff import TICK_SLOT_DTYPE, Baton, HandoffTimeout
-from processes.shm import Arena
+from processes.runtime.handoff import TICK_SLOT_DTYPE, Baton, HandoffTimeout
+from processes.runtime.shm import Arena
 
 
 def _take_turns(layout, baton, n):

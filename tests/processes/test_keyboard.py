@@ -18,11 +18,11 @@ import zmq
 
 from engine.scene import load_scene
 from engine.world import build_model, initial_state
-from processes.client import Client, run_session
-from processes.gateway import Gateway, GatewayConfig
-from processes.keyboard import STEP_M, STROKE_M, IterableKeys, KeyboardPilot, TerminalKeys, parse_keys, top_view
-from processes.prediction import Predictor
-from processes.wire import Slot
+from processes.network.client import Client, run_session
+from processes.network.gateway import Gateway, GatewayConfig
+from processes.network.keyboard import STEP_M, STROKE_M, IterableKeys, KeyboardPilot, TerminalKeys, parse_keys, top_view
+from processes.network.prediction import Predictor
+from processes.network.wire import Slot
 
 ROOT = Path(__file__).resolve().parents[2]
 PRO_MAX_FORCE_N = 120.0  # engine.ai.SKILLS["pro"].max_force_n

@@ -5,9 +5,9 @@ import signal
 import numpy as np
 import pytest
 
-from processes.locks import HOLDER_DTYPE, LockOrderError, LockTable, LockTimeout
-from processes.mailbox import MAILBOX_HEADER, Mailbox
-from processes.shm import Arena
+from processes.runtime.locks import HOLDER_DTYPE, LockOrderError, LockTable, LockTimeout
+from processes.runtime.mailbox import MAILBOX_HEADER, Mailbox
+from processes.runtime.shm import Arena
 
 NAMES = ("net_impulses", "bat_inputs")
 

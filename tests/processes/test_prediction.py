@@ -8,9 +8,9 @@ import pytest
 
 from engine.scene import load_scene
 from engine.world import build_model, initial_state, new_events, step
-from processes import wire
-from processes.prediction import MAX_AHEAD_TICKS, ErrorStats, Interpolator, Predictor, ServerClock, hermite, slerp
-from processes.wire import Slot
+from processes.network import wire
+from processes.network.prediction import MAX_AHEAD_TICKS, ErrorStats, Interpolator, Predictor, ServerClock, hermite, slerp
+from processes.network.wire import Slot
 
 SNAPSHOT_EVERY = 10  # ticks between snapshots: 100 Hz at the match scene's 1 ms tick
 
@@ -226,7 +226,7 @@ def test_the_baseline_without_prediction_is_measured_alongside():
 
 
 def test_the_round_trip_is_the_least_time_from_an_input_to_its_first_acknowledgement():
-    from processes.prediction import RoundTrip
+    from processes.network.prediction import RoundTrip
 
     trip = RoundTrip(window=4)
     assert trip.seconds == 0.0

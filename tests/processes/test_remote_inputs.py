@@ -12,8 +12,9 @@ import pytest
 from engine.bat import BAT_MAX_SPEED, BAT_MAX_SPIN, HALL_HI_X, HALL_HI_Y, HALL_HI_Z, HALL_LO_X, HALL_LO_Y, HALL_LO_Z
 from engine.match import Match
 from engine.scene import load_scene, with_remote_players
-from processes import shm, wire
-from processes.worker_physics import remote_input_refusal
+from processes.network import wire
+from processes.runtime import shm
+from processes.workers.physics import remote_input_refusal
 
 REMOTE = frozenset({0, 1})
 
@@ -50,11 +51,11 @@ def test_only_an_ai_bat_is_not_remote():
 def served(tmp_path, no_leftovers):
     """A served match's Match, the gateway's side of the remote-input mailbox (post) and the
     physics worker's _RemoteInputs, on a real Arena and lock table; all closed at the end."""
-    from processes.gateway import (REMOTE_ACK_DTYPE, REMOTE_ACK_RING, REMOTE_CAPACITY, REMOTE_INPUT_DTYPE,
+    from processes.network.gateway import (REMOTE_ACK_DTYPE, REMOTE_ACK_RING, REMOTE_CAPACITY, REMOTE_INPUT_DTYPE,
                                    RUN_LOCK_NAMES)
-    from processes.locks import HOLDER_DTYPE, LockTable
-    from processes.mailbox import MAILBOX_HEADER, Mailbox
-    from processes.worker_physics import _RemoteInputs
+    from processes.runtime.locks import HOLDER_DTYPE, LockTable
+    from processes.runtime.mailbox import MAILBOX_HEADER, Mailbox
+    from processes.workers.physics import _RemoteInputs
 
     scene = with_remote_players(load_scene("match"), 2)
     arena = shm.Arena()

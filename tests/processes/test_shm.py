@@ -3,7 +3,7 @@ import time
 
 import numpy as np
 
-from processes.shm import Arena, SnapshotBlock, leftover_segments
+from processes.runtime.shm import Arena, SnapshotBlock, leftover_segments
 
 RECORD = np.dtype([("counter", "<i8"), ("values", "<f8", (64,)), ("checksum", "<f8")])
 

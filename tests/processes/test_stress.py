@@ -9,7 +9,7 @@ import argparse
 
 import pytest
 
-from processes import stress
+from processes.stress import scenarios as stress
 from processes.cli import main
 
 
@@ -105,7 +105,7 @@ def test_malformed_messages_are_all_counted_by_the_gateway_and_the_match_goes_on
 
 
 def stress_classes():
-    from processes.stress_swarm import CLASSES
+    from processes.stress.swarm import CLASSES
 
     return CLASSES
 

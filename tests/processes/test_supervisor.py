@@ -12,9 +12,9 @@ import pytest
 
 from engine.run import run
 from engine.scene import load_scene, with_overrides
-from processes.shm import Arena, leftover_segments
+from processes.runtime.shm import Arena, leftover_segments
 from processes.supervisor import Supervisor, first_difference, workers_for
-from processes.worker import STATUS_DTYPE, WorkerState
+from processes.runtime.control import STATUS_DTYPE, WorkerState
 from tests.processes.conftest import ctrl_c_able
 
 
@@ -127,7 +127,7 @@ def test_a_starting_worker_keeps_its_heartbeat_fresh_until_it_is_ready():
     its heartbeat fresh, so the supervisor waits on silence, not on a fixed start-up time."""
     import threading
 
-    from processes import worker
+    from processes.runtime import control as worker
 
     row = np.zeros(1, STATUS_DTYPE)[0]
     row["state"] = WorkerState.STARTING

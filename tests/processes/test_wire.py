@@ -12,8 +12,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from engine.rules import REASONS, Phase, Reason
-from processes import wire
-from processes.wire import (
+from processes.network import wire
+from processes.network.wire import (
     BadEnum, BadFlags, BadMagic, BadText, BadVersion, DropCounter, EventKind, GoodbyeReason, InputMode, Kind,
     NonFinite, OutOfRange, RejectReason, Role, Slot, TooLong, TooShort, UnknownType, WireError, decode, encode,
 )

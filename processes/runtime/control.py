@@ -127,7 +127,7 @@ def _beat_while_starting(row, started: threading.Event) -> None:
 def worker_entry(kind: str, conn, layout: dict, status_index: int, scene, options: dict) -> None:
     """Process entry point: run the worker of `kind`, ship any error back with its traceback."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    from processes.shm import Arena
+    from processes.runtime.shm import Arena
 
     arena = Arena.attach(layout)
     status = arena["status"].array
@@ -139,19 +139,19 @@ def worker_entry(kind: str, conn, layout: dict, status_index: int, scene, option
     threading.Thread(target=_beat_while_starting, args=(row, started), name="startup-heartbeat", daemon=True).start()
     try:
         if kind == "physics":
-            from processes.worker_physics import physics_worker
+            from processes.workers.physics import physics_worker
 
             physics_worker(control, arena, scene, options)
         elif kind == "ai":
-            from processes.worker_ai import ai_worker
+            from processes.workers.ai import ai_worker
 
             ai_worker(control, arena, scene, options)
         elif kind == "net":
-            from processes.worker_net import net_worker
+            from processes.workers.net import net_worker
 
             net_worker(control, arena, scene, options)
         elif kind == "gateway":
-            from processes.gateway import gateway_worker
+            from processes.network.gateway import gateway_worker
 
             gateway_worker(control, arena, scene, options)
         else:

@@ -5,8 +5,8 @@ Each method does N round trips between this process and one child:
 - shared-memory spin ping-pong: both sides spin on a shared counter (no kernel, burns a core
   each; on 2 shared cores it is at the mercy of the scheduler);
 - multiprocessing.Queue round trip (pickling and a feeder thread);
-- lockstep hand-off: what the physics does for one AI turn (processes.worker_physics._RemoteAI
-  and processes.worker_ai): copy the state into the shared `ai_view` record, give the baton and
+- lockstep hand-off: what the physics does for one AI turn (processes.workers.physics._RemoteAI
+  and processes.workers.ai): copy the state into the shared `ai_view` record, give the baton and
   wait until the turn is done; the worker copies the view, writes its answer into the shared
   `ai_answer` record (ANSWER_DTYPE) and hands back, and the hub reads the answer. The baton
   orders the two sides, so no lock is taken.
@@ -22,9 +22,9 @@ import numpy as np
 
 from engine.dtypes import physics_snapshot_dtype
 from engine.world import copy_record
-from processes.handoff import TICK_SLOT_DTYPE, Baton
-from processes.shm import Arena
-from processes.worker_ai import ANSWER_DTYPE
+from processes.runtime.handoff import TICK_SLOT_DTYPE, Baton
+from processes.runtime.shm import Arena
+from processes.workers.ai import ANSWER_DTYPE
 TIMEOUT = 10.0
 
 
@@ -55,7 +55,7 @@ def _queue_child(qa, qb, n):
 
 
 def _handoff_child(layout, baton, n_bats):
-    """The AI worker's side of a turn, without the thinking (processes.worker_ai.ai_worker)."""
+    """The AI worker's side of a turn, without the thinking (processes.workers.ai.ai_worker)."""
     arena = Arena.attach(layout)
     baton.attach(arena["slot"].array)
     view = arena["ai_view"].array

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from processes.shm import SharedArray
+from processes.runtime.shm import SharedArray
 
 HOLDER_DTYPE = np.dtype([
     ("pid", "<i8"),  # holder, 0 = free

@@ -189,7 +189,7 @@ def replay_command(args: argparse.Namespace) -> int:
     }
     title = f"{h['scene']}, seed {h['seed']}: winner {summary['winner'] or '-'}, games {summary['games']}"
     if args.png or args.gif:
-        from processes import render
+        from processes.cli import render
 
         if args.png:
             render.png(data.frames, data.events, args.png, title)

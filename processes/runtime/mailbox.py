@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from processes.locks import LockTable
-from processes.shm import SharedArray
+from processes.runtime.locks import LockTable
+from processes.runtime.shm import SharedArray
 
 MAILBOX_HEADER = np.dtype([("count", "<i8"), ("dirty", "<i8"), ("dropped_full", "<i8"), ("discarded_torn", "<i8")])
 

@@ -39,9 +39,9 @@ from engine.dtypes import BAT_DTYPE, physics_snapshot_dtype
 from engine.match import ai_inputs, make_ais
 from engine.rules import Phase, next_striker
 from engine.world import build_model, copy_record
-from processes.handoff import NO_TURN, HandoffTimeout
-from processes.shm import Arena
-from processes.worker import GO_TIMEOUT_S, Control, WorkerState
+from processes.runtime.handoff import NO_TURN, HandoffTimeout
+from processes.runtime.shm import Arena
+from processes.runtime.control import GO_TIMEOUT_S, Control, WorkerState
 
 MAX_BATS = 2
 # The AIs' answer to one turn: the tick it answers, a bit per AI bat, every AI bat's inputs, and
@@ -139,7 +139,7 @@ class PlanFollower:
 
 
 def ai_worker(control: Control, arena: Arena, scene, options: dict) -> None:
-    """options: seed, baton (processes.handoff.Baton); crash_at_tick (tests: SIGKILL this process
+    """options: seed, baton (processes.runtime.handoff.Baton); crash_at_tick (tests: SIGKILL this process
     after its first turn at or after that tick)."""
     model = build_model(scene)
     ais = make_ais(scene, model, options["seed"], eager=False)

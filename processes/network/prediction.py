@@ -13,7 +13,7 @@ What the client cannot know, it predicts as follows, and the statistics measure 
 - an input holds from the tick it was stamped with (the server applies it on arrival, about a
   one-way trip later), and an input not yet acknowledged at T holds from T at the earliest;
   it holds for the gateway's INPUT_HOLD_S at most (then the server's idle arm brakes the bat,
-  processes.gateway.brake_force), counted in ticks from its stamp (the gateway counts from its
+  processes.network.gateway.brake_force), counted in ticks from its stamp (the gateway counts from its
   arrival, and brakes every 10 ms where the prediction brakes every tick);
 - the ball at a snapshot is in flight (the wire has no support flag: a resting ball settles
   again within a tick);
@@ -32,8 +32,8 @@ from collections import deque
 
 import numpy as np
 
-from processes.gateway import brake_force
-from processes.wire import Slot
+from processes.network.gateway import brake_force
+from processes.network.wire import Slot
 
 MAX_AHEAD_TICKS = 500  # a prediction runs at most this far past the last snapshot (0.5 s at 1 kHz)
 CLOCK_WINDOW = 16  # snapshots over which the least-delayed one sets the server's clock (short: a
@@ -129,7 +129,7 @@ class Predictor:
 
     def __init__(self, scene, slot: Slot, history: int = 2048, input_hold_s: float | None = None):
         from engine.world import build_model, initial_state, new_events
-        from processes.gateway import INPUT_HOLD_S
+        from processes.network.gateway import INPUT_HOLD_S
 
         if slot not in (Slot.A, Slot.B):
             raise ValueError(f"a predictor drives a player's bat: slot must be A or B, got {slot!r}")

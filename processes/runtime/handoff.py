@@ -51,7 +51,7 @@ class Baton:
 
     Args:
         name: for messages. ctx: the multiprocessing context the workers are started from.
-        slot: a (1,) TICK_SLOT_DTYPE shared array (processes.shm.SharedArray.array).
+        slot: a (1,) TICK_SLOT_DTYPE shared array (processes.runtime.shm.SharedArray.array).
     """
 
     def __init__(self, name: str, ctx, slot: np.ndarray):

@@ -15,10 +15,10 @@ import numpy as np
 from engine.dtypes import physics_snapshot_dtype
 from engine.match import Match, point_from_row, point_row
 from engine.world import build_model, copy_record, initial_state, new_events, step
-from processes.shm import Arena
-from processes.wire import MAX_FORCE_N, MAX_TORQUE_NM
-from processes.worker_ai import decision_key
-from processes.worker import GO_TIMEOUT_S, Control, WorkerState
+from processes.runtime.shm import Arena
+from processes.network.wire import MAX_FORCE_N, MAX_TORQUE_NM
+from processes.workers.ai import decision_key
+from processes.runtime.control import GO_TIMEOUT_S, Control, WorkerState
 
 AI_HANDOFF_S = 1.0  # one call's bound; retried while a killed AI worker is restarted
 AI_GIVE_UP_S = 60.0
@@ -102,7 +102,7 @@ def _remote_net(control: Control, arena: Arena, options: dict, state):
     """With a net worker: the state's cloth net becomes its stand-in (after any resume)."""
     if "net_baton" not in options:
         return None
-    from processes.worker_net import RemoteNet
+    from processes.workers.net import RemoteNet
 
     state.net_sim = RemoteNet(control, arena, options, state.world[0], state.net_sim)
     return state.net_sim
@@ -124,7 +124,7 @@ def _net_ticks(net) -> dict:
 class _RemoteAI:
     """An ai_driver for engine.match.Match that asks the AI worker, which thinks while we step.
 
-    request() at a control tick: if the AIs must decide (processes.worker_ai: the decision key
+    request() at a control tick: if the AIs must decide (processes.workers.ai: the decision key
     changed since their last decision, or the clock reached its wakes), copy the state into the
     AI's view and give the AI worker its turn, at once; otherwise compute the forces here, as
     the AI would, with control_bats on the ctl rows of its last answer. collect() at the next
@@ -135,7 +135,7 @@ class _RemoteAI:
     """
 
     def __init__(self, control: Control, arena: Arena, options: dict, scene):
-        from processes.worker_ai import PlanFollower
+        from processes.workers.ai import PlanFollower
 
         self.control = control
         self.n_bats = len(scene.bats)
@@ -240,9 +240,9 @@ class _RemoteInputs:
     """
 
     def __init__(self, arena: Arena, options: dict, match: Match):
-        from processes.gateway import REMOTE_INPUT_DTYPE, RUN_LOCK_NAMES
-        from processes.locks import LockTable
-        from processes.mailbox import Mailbox
+        from processes.network.gateway import REMOTE_INPUT_DTYPE, RUN_LOCK_NAMES
+        from processes.runtime.locks import LockTable
+        from processes.runtime.mailbox import Mailbox
 
         self.locks = LockTable(options["lock_path"], RUN_LOCK_NAMES, arena["lock_holders"])
         self.box = Mailbox("remote_inputs", arena["remote_header"], arena["remote_inputs"], self.locks)
@@ -273,7 +273,7 @@ class _RemoteInputs:
     def publish_ack(self, tick: int) -> None:
         """Before the snapshot of `tick` is published: the seqs it acknowledges (the inputs applied
         so far, none of the next tick's), for the gateway to pair with that snapshot."""
-        from processes.gateway import write_ack
+        from processes.network.gateway import write_ack
 
         write_ack(self.acks, tick, self.applied)
 

@@ -22,7 +22,7 @@ import tty
 
 import numpy as np
 
-from processes.wire import Slot
+from processes.network.wire import Slot
 
 STEP_M = 0.05  # target move per key press
 STROKE_M = 0.30  # how far a stroke lunges forward

@@ -40,9 +40,9 @@ from pathlib import Path
 
 import numpy as np
 
-from processes import shm
+from processes.runtime import shm
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SCENARIOS = ("load", "churn", "cable", "kill", "malformed")
 PER_SWARM = 250  # clients per swarm process (each one socket, two descriptors)
 CLK_TCK = os.sysconf("SC_CLK_TCK")
@@ -240,7 +240,7 @@ class Server(Child):
                      "timeout_s": timeout_s, "grace_s": grace_s, "max_spectators": max_spectators,
                      "ticks": int(seconds * 1000), "best_of": best_of, "tick_log": self.tick_log, "feed": feed,
                      "gateway_stats": os.path.join(tmp, f"gateway-{stamp}.json")}
-        super().__init__(["-m", "processes.stress_server", json.dumps(self.spec)], "server")
+        super().__init__(["-m", "processes.stress.server", json.dumps(self.spec)], "server")
         hello = self.expect(lambda o: "listening" in o, 120, "listening line")
         self.endpoint, self.run_id, self.pids, self.dt = hello["listening"], hello["run_id"], hello["pids"], hello["dt"]
         self.feed = hello.get("feed", "")
@@ -286,7 +286,7 @@ class Server(Child):
 
 
 def swarm(spec: dict, name: str) -> Child:
-    return Child(["-m", "processes.stress_swarm", json.dumps(spec)], name)
+    return Child(["-m", "processes.stress.swarm", json.dumps(spec)], name)
 
 
 def bot(endpoint: str, seconds: float, seed: int) -> Child:
@@ -767,7 +767,7 @@ def _goodbye(client, seconds: float):
 def scenario_cable(args, run: Run) -> dict:
     import zmq
 
-    from processes.client import Client, Rejected
+    from processes.network.client import Client, Rejected
 
     result = _base("cable")
     shm_before = shm_names()

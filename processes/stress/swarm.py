@@ -1,6 +1,6 @@
 """A swarm of ZeroMQ clients in one process, for `pingpong stress` (processes/stress.py).
 
-Run as `python -m processes.stress_swarm SPEC_JSON`; prints JSON lines on stdout: {"event": "ready",
+Run as `python -m processes.stress.swarm SPEC_JSON`; prints JSON lines on stdout: {"event": "ready",
 ...} once its clients are in, {"event": "progress", ...} now and then, and a final {"event":
 "report", ...}. Tasks (SPEC "task"):
 
@@ -42,10 +42,10 @@ from collections import Counter
 import numpy as np
 import zmq
 
-from processes import wire
-from processes.client import Client, Rejected
-from processes.gateway import MAX_BAD, MAX_FRAME_BYTES
-from processes.wire import GoodbyeReason, InputMode, Kind, RejectReason, Role, Slot
+from processes.network import wire
+from processes.network.client import Client, Rejected
+from processes.network.gateway import MAX_BAD, MAX_FRAME_BYTES
+from processes.network.wire import GoodbyeReason, InputMode, Kind, RejectReason, Role, Slot
 
 HEADER = struct.Struct("<4sHBBQq")  # wire.HEADER_DTYPE
 SCORE = struct.Struct("<HHBB")  # snapshot score[2], games_won[2] at offset 324

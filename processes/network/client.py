@@ -24,8 +24,8 @@ import time
 import numpy as np
 import zmq
 
-from processes import wire
-from processes.wire import GoodbyeReason, InputMode, Kind, Role, Slot
+from processes.network import wire
+from processes.network.wire import GoodbyeReason, InputMode, Kind, Role, Slot
 
 NO_TOKEN = bytes(wire.TOKEN_SIZE)
 JOIN_TIMEOUT_S = 10.0
@@ -389,7 +389,7 @@ def run_session(client: Client, welcome: wire.Message, *, brain=None, pilot=None
         The summary: snapshots, events, inputs_sent, goodbye, the last snapshot's tick and score,
         prediction statistics (a player with a predictor) or interpolation counts (a spectator).
     """
-    from processes.prediction import RoundTrip, ServerClock
+    from processes.network.prediction import RoundTrip, ServerClock
 
     dt = welcome["dt"]
     server_clock = ServerClock(dt)
@@ -500,7 +500,7 @@ def _frame(last: wire.Message, predictor, view, pilot, now: float) -> dict:
 
 def keyboard_screen(summary: dict, frame: dict, slot: Slot, predictor=None) -> str:
     """The keyboard player's screen: score, top view, keys, prediction error so far."""
-    from processes.keyboard import top_view
+    from processes.network.keyboard import top_view
 
     lines = [f"pingpong - you play {slot.name} (+ is your target)",
              _score_line(frame["snapshot"], frame["ball_pos"], frame["ball_vel"], frame["tick"]), ""]
@@ -573,7 +573,7 @@ def _warm_up(skill: str) -> None:
     """Load (or compile) every kernel a player's client runs, with the bundled match scene: the
     kernels depend on types, not on the scene, so the served scene's objects build at once later."""
     from engine.scene import load_scene
-    from processes.prediction import Predictor
+    from processes.network.prediction import Predictor
 
     Predictor(load_scene("match"), Slot.A).advance_to(0)
     BotBrain("match", Slot.A, skill)
@@ -581,7 +581,7 @@ def _warm_up(skill: str) -> None:
 
 def _play(client: Client, welcome: wire.Message, args: argparse.Namespace, keyboard: bool) -> dict:
     """The session of `pingpong join` once welcomed: bot, keyboard or spectator."""
-    from processes.prediction import Interpolator, Predictor
+    from processes.network.prediction import Interpolator, Predictor
 
     if client.slot == Slot.NONE:
         view = Interpolator(welcome["dt"], args.delay_ms / 1000.0)
@@ -601,7 +601,7 @@ def _play(client: Client, welcome: wire.Message, args: argparse.Namespace, keybo
     from rich.live import Live
     from rich.text import Text
 
-    from processes.keyboard import KeyboardPilot, TerminalKeys
+    from processes.network.keyboard import KeyboardPilot, TerminalKeys
 
     pilot = KeyboardPilot(predictor.model, client.slot, args.skill)
     with TerminalKeys(sys.stdin.fileno()) as keys, Live(Text("joining ..."), console=Console(),
@@ -619,8 +619,8 @@ def serve_command(args: argparse.Namespace) -> int:
 
     from engine.scene import SceneError, load_scene, with_remote_players
     from engine.world import SimulationError
-    from processes.gateway import GatewayConfig
-    from processes.match import _summary_from_processes
+    from processes.network.gateway import GatewayConfig
+    from processes.cli.match import _summary_from_processes
     from processes.supervisor import Supervisor
 
     try:

@@ -1,7 +1,7 @@
 """The server under test of `pingpong stress`: a Supervisor serving a match, as `pingpong serve` runs it,
 plus a tick clock that publishes when each physics tick came out.
 
-Run as `python -m processes.stress_server SPEC_JSON` by processes/stress.py. It prints JSON lines:
+Run as `python -m processes.stress.server SPEC_JSON` by processes/stress.py. It prints JSON lines:
   {"listening": endpoint, "run_id", "pids": {kind: pid}, "server_pid"}    once every worker is ready
   {"pids": {...}, "restarts": {...}, "tick": n}                            for each "pids" line on stdin
   {"end": "match_over"|"stopped", "summary": {...}, "gateway": {...}, "points": [...], "final": {...}}
@@ -46,7 +46,7 @@ class TickClock(threading.Thread):
 
     def __init__(self, layout: dict, kinds: list[str]):
         super().__init__(name="tick-clock", daemon=True)
-        from processes.shm import Arena
+        from processes.runtime.shm import Arena
 
         self.arena = Arena.attach(layout)  # our own mapping: the supervisor unlinks, we close
         self.kinds = kinds
@@ -98,7 +98,7 @@ class TickClock(threading.Thread):
 
     def _encodable(self, block, record) -> None:
         """Can this state go on the wire? (The gateway skips, and only counts, a state it cannot encode.)"""
-        from processes import wire
+        from processes.network import wire
 
         block.snapshot(record)
         self.encode_checked += 1
@@ -139,7 +139,7 @@ def main(argv: list[str]) -> int:
     from dataclasses import replace
 
     from engine.scene import load_scene, with_remote_players
-    from processes.gateway import GatewayConfig
+    from processes.network.gateway import GatewayConfig
     from processes.supervisor import Supervisor
 
     scene = with_remote_players(load_scene(spec.get("scene", "match")), spec["players"])

@@ -11,75 +11,75 @@ def _add_common(parser: argparse.ArgumentParser) -> None:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from processes.run import run_scene_command
+    from processes.cli.run import run_scene_command
 
     return run_scene_command(args)
 
 
 def _cmd_match(args: argparse.Namespace) -> int:
-    from processes.match import match_command
+    from processes.cli.match import match_command
 
     return match_command(args)
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
-    from processes.match import replay_command
+    from processes.cli.match import replay_command
 
     return replay_command(args)
 
 
 def _cmd_profile_net(args: argparse.Namespace) -> int:
-    from processes.profile_net import profile_net_command
+    from processes.cli.profile_net import profile_net_command
 
     return profile_net_command(args)
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
     if args.what == "handoff":
-        from processes.bench_handoff import handoff_command
+        from processes.cli.handoff import handoff_command
 
         return handoff_command(args)
     if args.what == "match":
-        from processes.match import bench_match_command
+        from processes.cli.match import bench_match_command
 
         return bench_match_command(args)
-    from processes.bench import bench_command
+    from processes.cli.bench import bench_command
 
     return bench_command(args)
 
 
 def _cmd_stability(args: argparse.Namespace) -> int:
-    from processes.run import stability_command
+    from processes.cli.run import stability_command
 
     return stability_command(args)
 
 
 def _cmd_decode(args: argparse.Namespace) -> int:
-    from processes.wire import decode_command
+    from processes.network.wire import decode_command
 
     return decode_command(args)
 
 
 def _cmd_serve(args: argparse.Namespace) -> int:
-    from processes.client import serve_command
+    from processes.network.client import serve_command
 
     return serve_command(args)
 
 
 def _cmd_join(args: argparse.Namespace) -> int:
-    from processes.client import join_command
+    from processes.network.client import join_command
 
     return join_command(args)
 
 
 def _cmd_stress(args: argparse.Namespace) -> int:
-    from processes.stress import stress_command
+    from processes.stress.scenarios import stress_command
 
     return stress_command(args)
 
 
 def _cmd_keys(args: argparse.Namespace) -> int:
-    from processes.client import keys_command
+    from processes.network.client import keys_command
 
     return keys_command(args)
 

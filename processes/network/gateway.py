@@ -62,8 +62,8 @@ from dataclasses import dataclass
 import numpy as np
 import zmq
 
-from processes import wire
-from processes.wire import GoodbyeReason, InputMode, Kind, RejectReason, Role, Slot
+from processes.network import wire
+from processes.network.wire import GoodbyeReason, InputMode, Kind, RejectReason, Role, Slot
 
 # One remote input on its way to the physics worker (the remote-input mailbox's record).
 REMOTE_INPUT_DTYPE = np.dtype([("tick", "<i8"), ("seq", "<u8"), ("bat", "<i8"), ("inputs", "<f8", (6,))])
@@ -183,7 +183,7 @@ class _Seat:
 
 
 class SeatStore:
-    """The seat table in a processes.shm.SnapshotBlock of SEAT_DTYPE records (one per seat): a
+    """The seat table in a processes.runtime.shm.SnapshotBlock of SEAT_DTYPE records (one per seat): a
     restarted gateway finds its seats' tokens there, so a rejoin token outlives the gateway.
     Double-buffered, so a gateway killed mid-save leaves the previous table intact."""
 
@@ -766,9 +766,9 @@ def gateway_worker(control, arena, scene, options: dict) -> None:
     only: a stopped worker's last message is never read).
     """
     from engine.dtypes import physics_snapshot_dtype
-    from processes.locks import LockTable
-    from processes.mailbox import Mailbox
-    from processes.worker import GO_TIMEOUT_S, StopRequested, WorkerState
+    from processes.runtime.locks import LockTable
+    from processes.runtime.mailbox import Mailbox
+    from processes.runtime.control import GO_TIMEOUT_S, StopRequested, WorkerState
 
     config: GatewayConfig = options["gateway"]
     locks = LockTable(options["lock_path"], RUN_LOCK_NAMES, arena["lock_holders"])

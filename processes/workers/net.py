@@ -34,9 +34,9 @@ import numpy as np
 from engine.dtypes import net_snapshot_dtype
 from net_kernel import NO_CONTACT, NetContact, NetSim, build_topology
 from net_kernel.sim import ball_far_from_box, compile_kernels, net_box
-from processes.handoff import HandoffTimeout
-from processes.shm import Arena
-from processes.worker import GO_TIMEOUT_S, Control, WorkerState
+from processes.runtime.handoff import HandoffTimeout
+from processes.runtime.shm import Arena
+from processes.runtime.control import GO_TIMEOUT_S, Control, WorkerState
 
 NET_IO_DTYPE = np.dtype([
     ("tick", "<i8"),  # the tick to step (the physics' tick at its start)
@@ -99,7 +99,7 @@ def _publish(sim: NetSim, tick: int, state: np.ndarray, blocks) -> None:
 
 
 def net_worker(control: Control, arena: Arena, scene, options: dict) -> None:
-    """options: net_baton (processes.handoff.Baton); crash_at_tick (tests: SIGKILL this process
+    """options: net_baton (processes.runtime.handoff.Baton); crash_at_tick (tests: SIGKILL this process
     after publishing that ball tick's state and before saying it is done, the hardest moment)."""
     topo = build_topology(scene.cloth)
     sim = NetSim(topo, scene.dt)
