@@ -4,6 +4,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from processes.cli import sweep, tournament
+
 
 def _add_common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of every random number in the run")
@@ -221,6 +223,9 @@ def build_parser() -> argparse.ArgumentParser:
     stress.add_argument("--seed", type=int, default=0, help="seed of the churn mix and of the bad messages")
     stress.add_argument("--json", action="store_true", help="one JSON object per scenario, one per line")
     stress.set_defaults(func=_cmd_stress)
+
+    tournament.add_parser(sub, formatter)
+    sweep.add_parser(sub, formatter)
     return parser
 
 
