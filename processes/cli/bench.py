@@ -1,4 +1,5 @@
-"""`pingpong bench accuracy|effects|net-resolution`: thin front end to the studies in bench/ (parse, call, format).
+"""`pingpong bench STUDY`: thin front end to the studies in bench/ (parse, call, format), and to
+the hand-off and match benchmarks (processes.cli.handoff, processes.cli.match).
 
 The studies live in bench/accuracy.py, bench/effects.py and bench/net_resolution.py, next to the pytest-benchmark suite,
 and need a source checkout (bench/ is not an installed package) and the dev extras (scipy).
@@ -10,6 +11,7 @@ import json
 import math
 import sys
 from pathlib import Path
+from processes.cli.common import FORMATTER
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -132,6 +134,19 @@ def _print_net_resolution(study, result: dict) -> None:
 
 
 def bench_command(args) -> int:
+    """Run `pingpong bench STUDY`; returns the exit status."""
+    if args.what == "handoff":
+        from processes.cli.handoff import handoff_command
+
+        return handoff_command(args)
+    if args.what == "match":
+        from processes.cli.match import bench_match_command
+
+        return bench_match_command(args)
+    return _study_command(args)
+
+
+def _study_command(args) -> int:
     """Run `pingpong bench accuracy`, `effects` or `net-resolution`; returns the exit status."""
     quick = bool(getattr(args, "quick", False))
     as_json = bool(getattr(args, "json", False))
@@ -172,3 +187,21 @@ def bench_command(args) -> int:
             _print_net_resolution(study, result)
         return 0
     raise SystemExit(f"pingpong bench: unknown study {args.what!r}")
+
+
+def add_commands(sub) -> None:
+    """`pingpong bench STUDY`."""
+    bench = sub.add_parser("bench", help="measured answers to 'what does it cost'", formatter_class=FORMATTER)
+    bench.add_argument("what", choices=["accuracy", "effects", "handoff", "match", "net-resolution"],
+                       help="which study to run")
+    bench.add_argument("--best-of", type=int, default=5, help="match: games in the benchmarked match")
+    bench.add_argument("--scene", default="match",
+                       help="match: scene TOML file or bundled scene name (match_cloth: the cloth net)")
+    bench.add_argument("--seed", type=int, default=0, help="match: the match's seed")
+    bench.add_argument("--json", action="store_true", help="print one JSON object")
+    bench.add_argument("--png", default=None, help="accuracy: write the work-precision plot to this PNG file")
+    bench.add_argument("--quick", action="store_true", help="fewer step sizes and repeats (smoke runs)")
+    bench.add_argument("--sizes", default=None,
+                       help="net-resolution: nets as COLSxROWS, comma-separated (the finest is the reference)")
+    bench.add_argument("--impacts", type=int, default=None, help="net-resolution: number of impacts")
+    bench.set_defaults(func=bench_command)

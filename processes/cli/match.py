@@ -15,6 +15,7 @@ from engine.match import Match, MatchResult, point_from_row, point_row
 from engine.rules import REASONS, Referee
 from engine.scene import SceneError, load_scene
 from engine.world import SimulationError
+from processes.cli.common import FORMATTER, add_common
 
 FRAME_EVERY = 10  # replay frames every 10 ms at 1 kHz
 
@@ -60,7 +61,7 @@ class _Scoreboard:
         self.live.update(self._render(record))
 
 
-def _summary_from_processes(scene, seed, result) -> dict:
+def summary_from_processes(scene, seed, result) -> dict:
     points = [point_from_row(row) for row in result.points]
     spec = scene.match
     referee = Referee.restore(result.final["rally"], spec.best_of, "ab".index(spec.first_server), points)
@@ -125,7 +126,7 @@ def match_command(args: argparse.Namespace) -> int:
                     result = supervisor.run(progress=board.update)
             else:
                 result = supervisor.run()
-            summary = _summary_from_processes(scene, args.seed, result)
+            summary = summary_from_processes(scene, args.seed, result)
             points, frame_array, event_array = result.points, result.frames, result.events
     except (SceneError, SimulationError) as exc:
         print(f"pingpong: {exc}", file=sys.stderr)
@@ -230,7 +231,7 @@ def bench_match_command(args: argparse.Namespace) -> int:
     scene = replace(scene, match=replace(scene.match, best_of=args.best_of if not args.quick else 1))
     ticks = scene.ticks if not args.quick else 20_000
     result = Supervisor(scene, ticks, "lockstep", seed=args.seed).run()
-    multi = _summary_from_processes(scene, args.seed, result)
+    multi = summary_from_processes(scene, args.seed, result)
     match = Match(scene, seed=args.seed)
     reference = match.play(max_ticks=ticks).summary()
     net = match.state.net_sim  # the cloth net's awake ticks: what it cost, to set beside the net worker's
@@ -266,3 +267,25 @@ def bench_match_command(args: argparse.Namespace) -> int:
     print(f"  in-process reference:        {r['wall_seconds']:.2f} s wall, {r['realtime_factor']:.1f}x realtime, "
           f"{r['us_per_tick']:.1f} us/tick (AI {r['ai_seconds']:.2f} s)")
     return 0
+
+
+def add_commands(sub) -> None:
+    """`pingpong match` and `pingpong replay`."""
+    match = sub.add_parser("match", help="play a match (AI against AI by default) in worker processes",
+                           formatter_class=FORMATTER)
+    match.add_argument("--scene", default="match", help="scene TOML file or bundled scene name")
+    match.add_argument("--best-of", type=int, default=None, help="games in the match (default: the scene's)")
+    match.add_argument("--mode", choices=["lockstep", "realtime"], default="lockstep",
+                       help="lockstep (deterministic, flat out) or realtime (wall-clock paced)")
+    match.add_argument("--ticks", type=int, default=None, help="stop after this many ticks even if undecided")
+    match.add_argument("--replay", default=None, help="write a replay file here")
+    match.add_argument("--in-process", action="store_true", help="run the in-process reference instead of workers")
+    add_common(match)
+    match.set_defaults(func=match_command)
+
+    replay = sub.add_parser("replay", help="summarise a replay file", formatter_class=FORMATTER)
+    replay.add_argument("file", help="a file written by `pingpong match --replay`")
+    replay.add_argument("--json", action="store_true", help="print one JSON object")
+    replay.add_argument("--png", default=None, help="draw side and top views of the last rally to this PNG")
+    replay.add_argument("--gif", default=None, help="animate the last seconds to this GIF")
+    replay.set_defaults(func=replay_command)

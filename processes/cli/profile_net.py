@@ -4,6 +4,7 @@ import json
 import sys
 
 from net_kernel.profile import parse_knots, profile_net
+from processes.cli.common import FORMATTER
 
 
 def profile_net_command(args: argparse.Namespace) -> int:
@@ -49,3 +50,15 @@ def profile_net_command(args: argparse.Namespace) -> int:
           "excess over the second (0 when numba's cache is warm); grid: a tick's substeps per call, as NetSim "
           "steps a net the ball is away from; csr: one step per call")
     return 0
+
+
+def add_commands(sub) -> None:
+    """`pingpong profile-net`."""
+    profile = sub.add_parser("profile-net", help="profile the net kernel", formatter_class=FORMATTER)
+    profile.add_argument("--knots", default="184x16", help="knot grid, COLUMNSxROWS")
+    profile.add_argument("--steps", type=int, default=None, help="timed steps (default: sized to ~1 s per backend)")
+    profile.add_argument("--backend", choices=["numba", "reference", "both"], default="both")
+    profile.add_argument("--path", choices=["grid", "csr", "both"], default="both",
+                         help="kernel path: the grid kernel NetSim uses, the general CSR kernel, or both")
+    profile.add_argument("--json", action="store_true", help="print one JSON object")
+    profile.set_defaults(func=profile_net_command)

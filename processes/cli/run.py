@@ -1,4 +1,4 @@
-"""`pingpong run` and, until the referee and AI exist, `pingpong match`: in-process runs of a scene."""
+"""`pingpong run` and `pingpong stability`: in-process runs of a scene and the stability suite."""
 from __future__ import annotations
 
 import argparse
@@ -8,6 +8,7 @@ import sys
 from engine.run import run
 from engine.scene import SceneError, load_scene, with_overrides
 from engine.world import SimulationError
+from processes.cli.common import FORMATTER, add_common
 
 
 def _load(args: argparse.Namespace):
@@ -140,3 +141,26 @@ def stability_command(args: argparse.Namespace) -> int:
         if known:
             print(f"    known failure: {known}")
     return 1 if failed else 0
+
+
+def add_commands(sub) -> None:
+    """`pingpong run` and `pingpong stability`."""
+    run = sub.add_parser("run", help="run a scene in-process", formatter_class=FORMATTER)
+    run.add_argument("scene", help="scene TOML file, or the name of a bundled scene (drop, serve, rally)")
+    run.add_argument("--ticks", type=int, default=None, help="ticks to run (default: the scene's duration)")
+    run.add_argument("--dt", type=float, default=None, help="tick length in seconds (default: the scene's)")
+    run.add_argument("--integrator", default=None, help="ball integrator (default: the scene's)")
+    run.add_argument("--processes", action="store_true", help="run in separate worker processes")
+    run.add_argument("--mode", choices=["lockstep", "realtime"], default="lockstep",
+                     help="with --processes: lockstep (deterministic, flat out) or realtime (wall-clock paced)")
+    run.add_argument("--check-reference", action="store_true",
+                     help="with --processes: also run in-process and check every tick is bitwise equal")
+    run.add_argument("--crash-at-tick", type=int, default=None, help=argparse.SUPPRESS)
+    add_common(run)
+    run.set_defaults(func=run_scene_command)
+
+    stability = sub.add_parser("stability", help="run the stability suite's hard cases", formatter_class=FORMATTER)
+    stability.add_argument("--long", action="store_true", help="also the long runs (10^6 ticks)")
+    stability.add_argument("--case", default=None, help="only cases whose name contains this text")
+    stability.add_argument("--json", action="store_true", help="one JSON object per case, one per line")
+    stability.set_defaults(func=stability_command)

@@ -17,6 +17,7 @@ import tomllib
 from pathlib import Path
 
 from processes.cli import tournament
+from processes.cli.common import FORMATTER
 
 CELLS_FILE = "cells.jsonl"
 
@@ -154,10 +155,10 @@ def sweep_command(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parser(sub, formatter) -> None:
+def add_commands(sub) -> None:
     """`pingpong sweep`."""
     parser = sub.add_parser("sweep", help="a grid over scene keys, each cell's matches on a local pool or Ray",
-                            formatter_class=formatter)
+                            formatter_class=FORMATTER)
     parser.add_argument("scene", help="scene TOML file or bundled scene name (needs a referee)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2",
                         help="a scene key and its values (repeat for a grid): match.ai_hz=50,100,250")

@@ -17,6 +17,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from processes.cli.common import FORMATTER
+
 PROFILES = ("pro", "club", "novice")  # engine.scene.SKILL_NAMES, spelled out to keep the parser light
 MAX_RETRIES = 3  # Ray re-runs a task whose worker died this many times (Ray's task retries)
 WAIT_S = 1.0  # each wait for finished tasks is bounded: the progress bar and Ctrl-C stay live
@@ -335,10 +337,10 @@ def add_run_options(parser: argparse.ArgumentParser, out: str) -> None:
     parser.add_argument("--json", action="store_true", help="print JSON instead of tables")
 
 
-def add_parser(sub, formatter) -> None:
+def add_commands(sub) -> None:
     """`pingpong tournament`."""
     parser = sub.add_parser("tournament", help="every pair of AI profiles over many seeds, on a local pool or Ray",
-                            formatter_class=formatter)
+                            formatter_class=FORMATTER)
     parser.add_argument("--skills", default=",".join(PROFILES), help="comma-separated profiles to pit")
     parser.add_argument("--scene", default="match", help="scene TOML file or bundled scene name (needs a referee)")
     add_run_options(parser, out="tournament")

@@ -46,14 +46,13 @@ Every message from outside that fails wire.decode, or arrives in more than one f
 from a peer without a session, is dropped and counted by reason, never fatal. A session that
 sends MAX_BAD bad messages is kicked.
 
-`Gateway` is the socket logic alone (the tests drive it in-process); `gateway_worker` runs it
-as the supervisor's worker, fed by the run's shared memory.
+`Gateway` is the socket logic alone (the tests drive it in-process);
+processes.workers.gateway runs it as the supervisor's worker, fed by the run's shared memory.
 """
 from __future__ import annotations
 
 import os
 import secrets
-import signal
 import struct
 import time
 from collections import Counter
@@ -62,20 +61,10 @@ from dataclasses import dataclass
 import numpy as np
 import zmq
 
+from engine.arm import BRAKE_EVERY_S, BRAKE_MIN_SPEED, brake_force
 from processes.network import wire
 from processes.network.wire import GoodbyeReason, InputMode, Kind, RejectReason, Role, Slot
 
-# One remote input on its way to the physics worker (the remote-input mailbox's record).
-REMOTE_INPUT_DTYPE = np.dtype([("tick", "<i8"), ("seq", "<u8"), ("bat", "<i8"), ("inputs", "<f8", (6,))])
-REMOTE_CAPACITY = 64  # inputs queued between two physics ticks; more are dropped and counted
-# The acknowledged input seq per bat at each published tick, written by the physics worker just
-# before it publishes that tick's snapshot, in a ring indexed by tick: the gateway pairs a
-# snapshot of tick T with the entry of tick T, so snapshot.input_seq names exactly the inputs
-# whose effect the snapshot shows (the last input applied before the step T-1 -> T).
-REMOTE_ACK_DTYPE = np.dtype([("tick", "<i8"), ("input_seq", "<u8", (2,))])
-REMOTE_ACK_RING = 1024  # ticks (1 s at 1 kHz): a reader this late gets None, never a wrong pair
-# Every arbitrated lock of a run, in the one global order of acquisition.
-RUN_LOCK_NAMES = ("remote_inputs",)
 # The seat table as it survives a gateway's restart (a SnapshotBlock the supervisor owns; the
 # gateway of the moment is its one writer): who holds each seat's token and its grace.
 SEAT_DTYPE = np.dtype([("slot", "u1"), ("taken", "u1"), ("token", "u1", (16,)), ("name", "u1", (32,)),
@@ -84,25 +73,6 @@ SEAT_DTYPE = np.dtype([("slot", "u1"), ("taken", "u1"), ("token", "u1", (16,)), 
 # must not leave its bat pushed by a constant force (120 N on a 0.17 kg bat is 70 m/s in 0.1 s).
 # After it, the gateway posts a zero input (same seq) until the next input comes.
 INPUT_HOLD_S = 0.1
-# An idle arm (its input expired, or no player holds the seat) stops its bat instead of letting
-# it coast off (a coasting bat leaves the wire's +-8 m and no snapshot can be sent any more):
-# force = -mass * BRAKE_PER_S * bat velocity, at most BRAKE_MAX_N, posted every BRAKE_EVERY_S
-# while the bat moves faster than BRAKE_MIN_SPEED. The AI arm's own damping and weakest limit.
-BRAKE_PER_S = 60.0  # 1/s, engine.ai.BatAI.KD
-BRAKE_MAX_N = 50.0  # N, the novice arm's max_force_n
-BRAKE_EVERY_S = 0.01
-BRAKE_MIN_SPEED = 0.01  # m/s
-
-
-def brake_force(mass: float, vel, out: np.ndarray) -> np.ndarray:
-    """out[0:6] := an idle arm's force (N) on a bat of `mass` kg moving at `vel` (m/s), no torque."""
-    out[:] = 0.0
-    out[0:3] = vel
-    out[0:3] *= -mass * BRAKE_PER_S
-    norm = float(np.sqrt(out[0:3] @ out[0:3]))
-    if norm > BRAKE_MAX_N:
-        out[0:3] *= BRAKE_MAX_N / norm
-    return out
 MAX_BAD = 64  # bad messages one session may send before it is kicked
 MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messages
 MAX_FRAME_BYTES = 4096  # libzmq disconnects a peer sending a bigger frame (MAXMSGSIZE)
@@ -213,31 +183,6 @@ class SeatStore:
 
 def _zero_inputs():
     return np.zeros(6)
-
-
-def write_ack(ring: np.ndarray, tick: int, input_seq) -> None:
-    """Physics side: the acknowledged seqs of tick `tick`, written before that tick is published.
-
-    ring: (REMOTE_ACK_RING,) REMOTE_ACK_DTYPE in shared memory. The entry's tick is made invalid
-    (-1) while its seqs change and set last, so a reader never pairs a tick with a torn entry
-    (stores stay in order on x86-64, as processes/shm.py relies on too).
-    """
-    i = tick % len(ring)
-    ring["tick"][i] = -1
-    ring["input_seq"][i] = input_seq
-    ring["tick"][i] = tick
-
-
-def read_ack(ring: np.ndarray, tick: int) -> tuple[int, int] | None:
-    """Gateway side: the acknowledged seqs (bat A, bat B) of tick `tick`, or None if the ring no
-    longer (or not yet) holds that tick."""
-    i = tick % len(ring)
-    before = int(ring["tick"][i])
-    seqs = ring["input_seq"][i].copy()
-    after = int(ring["tick"][i])
-    if before != tick or after != tick:
-        return None
-    return int(seqs[0]), int(seqs[1])
 
 
 class Gateway:
@@ -735,104 +680,3 @@ class Gateway:
 def _any_port(endpoint: str) -> str:
     """tcp://host:0 means any free port, which libzmq spells tcp://host:*."""
     return endpoint[:-2] + ":*" if endpoint.endswith(":0") else endpoint
-
-
-# --- the worker ---------------------------------------------------------------------------------
-def _consistent_snapshot(snapshots, acks: np.ndarray, record: np.ndarray, tries: int = 3):
-    """The latest physics snapshot and the input seqs acknowledged at its very tick (None after
-    `tries` snapshots whose tick left the ring meanwhile)."""
-    for _ in range(tries):
-        snapshots.snapshot(record)
-        rec = record[0]
-        ack = read_ack(acks, int(rec["world"]["tick"]))
-        if ack is not None:
-            return rec, ack
-    return record[0], None
-
-
-def gateway_worker(control, arena, scene, options: dict) -> None:
-    """Serve the run's match to network clients until the match ends or the supervisor stops it.
-
-    options: gateway (GatewayConfig), lock_path, ticks (the run's tick limit), start_event (set
-    once every remote seat is taken: the physics worker waits for it), crash_at_tick (fault
-    injection: SIGKILL this process once the physics reached that tick).
-
-    A restarted gateway binds the same endpoint and has lost its sessions, not its seats: the
-    seat table lives in the supervisor's "seats" block (SeatStore), so clients that hear nothing
-    more hello again, a player with its token gets its seat back. Its feed binds a free port
-    again (the supervisor passes on the session's endpoint only): the new welcome names it.
-    The "ready" report names both endpoints; the counters go to GatewayConfig.stats_path every
-    STATS_EVERY_S and at the end (the supervisor's "done" report carries them at a match's end
-    only: a stopped worker's last message is never read).
-    """
-    from engine.dtypes import physics_snapshot_dtype
-    from processes.runtime.locks import LockTable
-    from processes.runtime.mailbox import Mailbox
-    from processes.runtime.control import GO_TIMEOUT_S, StopRequested, WorkerState
-
-    config: GatewayConfig = options["gateway"]
-    locks = LockTable(options["lock_path"], RUN_LOCK_NAMES, arena["lock_holders"])
-    box = Mailbox("remote_inputs", arena["remote_header"], arena["remote_inputs"], locks)
-    acks = arena["remote_acks"].array
-    points = arena["points"].array
-    snapshots = arena["physics"]
-    record = np.zeros(1, physics_snapshot_dtype(len(scene.bats)))
-    post = np.zeros((), REMOTE_INPUT_DTYPE)
-
-    def post_input(bat: int, seq: int, tick: int, inputs) -> bool:
-        post["tick"], post["seq"], post["bat"], post["inputs"] = tick, seq, bat, inputs
-        return box.post(post)
-
-    remote = [Slot(i + 1) for i, bat in enumerate(scene.bats) if bat.remote]
-    zctx = zmq.Context(io_threads=2)  # sessions and the feed's fan-out each on their own (Gateway)
-    seat_store = SeatStore(arena["seats"]) if "seats" in arena.blocks else None
-    gateway = Gateway(zctx, config, scene_name=scene.name, best_of=scene.match.best_of, dt=scene.dt,
-                      remote_slots=remote, post_input=post_input, seat_store=seat_store,
-                      bat_mass=[bat.mass for bat in scene.bats])
-    start_event = options.get("start_event")
-    n_ticks = options["ticks"]
-    crash_at_tick = options.get("crash_at_tick")
-    for slot in remote:  # a restarted gateway has no sessions yet: no remote arm holds a force
-        post_input(int(slot) - 1, 0, 0, np.zeros(6))
-    reason = GoodbyeReason.SHUTDOWN
-    try:
-        control.set_state(WorkerState.READY)
-        control.send("ready", {"endpoint": gateway.endpoint, "feed": gateway.feed_endpoint})
-        control.wait_for("go", GO_TIMEOUT_S)
-        control.set_state(WorkerState.RUNNING)
-        poll_ms = max(1, int(500 / config.snapshot_hz))
-        next_stats = 0.0
-        while True:
-            gateway.poll(poll_ms)
-            if config.stats_path and time.monotonic() >= next_stats:
-                next_stats = time.monotonic() + STATS_EVERY_S
-                gateway.write_stats({"end": None, "tick": gateway.tick})
-            rec, ack = _consistent_snapshot(snapshots, acks, record)
-            if ack is None:
-                gateway.counts["snapshots_without_ack"] += 1  # the gateway fell a ring behind: skip one
-                gateway.service(None)
-                continue
-            gateway.service(rec, ack, points)
-            if start_event is not None and not start_event.is_set() and gateway.seats_filled:
-                start_event.set()
-            control.beat(gateway.tick)
-            if crash_at_tick is not None and gateway.tick >= crash_at_tick:
-                os.kill(os.getpid(), signal.SIGKILL)  # fault injection (tests)
-            if int(rec["rally"]["winner"]) >= 0 or gateway.tick >= n_ticks:
-                gateway.broadcast_snapshot(rec, ack)  # the final state
-                reason = GoodbyeReason.MATCH_OVER
-                break
-    except StopRequested:
-        reason = GoodbyeReason.SHUTDOWN
-        raise
-    finally:
-        told = gateway.shutdown(reason)
-        stats = gateway.stats()
-        stats["goodbyes_at_end"] = told
-        gateway.write_stats({"goodbyes_at_end": told, "end": reason.name.lower(), "tick": gateway.tick})
-        gateway.close()
-        zctx.term()
-        del record, acks, points, snapshots, box, seat_store
-        locks.close()
-        if reason == GoodbyeReason.MATCH_OVER:
-            control.send("done", {"tick": gateway.tick, "gateway": stats})

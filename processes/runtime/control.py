@@ -1,4 +1,4 @@
-"""What every worker process shares: its state enum, status row, entry point and command loop.
+"""What every worker process shares: its state enum, status row, start handshake, entry point and command loop.
 
 A worker is started by the supervisor with a control pipe (commands in, reports out: pickled,
 but only at start, end and on errors, never per tick), attaches the run's shared memory, and
@@ -15,6 +15,8 @@ import time
 import traceback
 
 import numpy as np
+
+from processes.runtime.shm import Arena
 
 STATUS_DTYPE = np.dtype([
     ("pid", "<i8"),
@@ -68,6 +70,23 @@ class Control:
         self._tick_word = tick_word
         self._parent = os.getppid()
         self._next_check = 0.0
+
+    def start(self, report=None) -> float:
+        """The start handshake: say ready (with `report`), wait (bounded) for "go", run.
+
+        Returns go's payload: the supervisor's time.monotonic() at which the run starts.
+        """
+        self.set_state(WorkerState.READY)
+        self.send("ready", report)
+        start_wall = self.wait_for("go", GO_TIMEOUT_S)
+        self.set_state(WorkerState.RUNNING)
+        return start_wall
+
+    def finish(self, busy_s: float, handoff_s: float, report: dict) -> None:
+        """Add the worker's own work and its hand-offs to its status row; say done with `report`."""
+        self.row["busy_s"] = float(self.row["busy_s"]) + busy_s
+        self.row["handoff_s"] = float(self.row["handoff_s"]) + handoff_s
+        self.send("done", report)
 
     def set_state(self, state: WorkerState) -> None:
         self.row["state"] = state
@@ -124,11 +143,10 @@ def _beat_while_starting(row, started: threading.Event) -> None:
         row["heartbeat"] = time.monotonic()
 
 
-def worker_entry(kind: str, conn, layout: dict, status_index: int, scene, options: dict) -> None:
-    """Process entry point: run the worker of `kind`, ship any error back with its traceback."""
+def worker_main(target, conn, layout: dict, status_index: int, scene, options) -> None:
+    """Process entry point: attach the run's memory, run `target(control, arena, scene, options)`
+    (a worker function of the processes.workers registry), ship any error back with its traceback."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    from processes.runtime.shm import Arena
-
     arena = Arena.attach(layout)
     status = arena["status"].array
     row = status[status_index]
@@ -138,24 +156,7 @@ def worker_entry(kind: str, conn, layout: dict, status_index: int, scene, option
     started = threading.Event()
     threading.Thread(target=_beat_while_starting, args=(row, started), name="startup-heartbeat", daemon=True).start()
     try:
-        if kind == "physics":
-            from processes.workers.physics import physics_worker
-
-            physics_worker(control, arena, scene, options)
-        elif kind == "ai":
-            from processes.workers.ai import ai_worker
-
-            ai_worker(control, arena, scene, options)
-        elif kind == "net":
-            from processes.workers.net import net_worker
-
-            net_worker(control, arena, scene, options)
-        elif kind == "gateway":
-            from processes.network.gateway import gateway_worker
-
-            gateway_worker(control, arena, scene, options)
-        else:
-            raise ValueError(f"unknown worker kind {kind!r}")
+        target(control, arena, scene, options)
         control.set_state(WorkerState.DONE)
     except StopRequested:
         control.set_state(WorkerState.STOPPED)

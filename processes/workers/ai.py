@@ -27,40 +27,20 @@ strokes are the same, bit for bit, however the thinking was spread.
 """
 from __future__ import annotations
 
-import math
 import os
 import signal
 import time
 
 import numpy as np
 
-from engine.ai import BAT_FLOATS, CTL_SIZE
-from engine.dtypes import BAT_DTYPE, physics_snapshot_dtype
+from engine.dtypes import physics_snapshot_dtype
 from engine.match import ai_inputs, make_ais
-from engine.rules import Phase, next_striker
 from engine.world import build_model, copy_record
 from processes.runtime.handoff import NO_TURN, HandoffTimeout
 from processes.runtime.shm import Arena
-from processes.runtime.control import GO_TIMEOUT_S, Control, WorkerState
-
-MAX_BATS = 2
-# The AIs' answer to one turn: the tick it answers, a bit per AI bat, every AI bat's inputs, and
-# what the physics needs to compute the forces itself until the next decision: the decision key
-# it was made under (decision_key), the wakes (BatAI.wakes) and each AI's ctl row, in the order
-# of the scene's AI bats.
-ANSWER_DTYPE = np.dtype([("tick", "<i8"), ("mask", "<i8"), ("inputs", "<f8", (MAX_BATS, 6)), ("key", "<i8", (4,)),
-                         ("due", "<f8"), ("end", "<f8"), ("ctl", "<f8", (MAX_BATS, CTL_SIZE))])
-# The inputs the physics computed itself at its last control tick without a turn (a restarted
-# physics takes them up again): written only by the physics worker, read only by its successor.
-LOCAL_DTYPE = np.dtype([("tick", "<i8"), ("inputs", "<f8", (MAX_BATS, 6))])
-
-
-def decision_key(rally: int, shots: int, phase: int, server: int, striker: int) -> tuple[int, int, int, int]:
-    """What the AIs' decisions depend on besides the clock and the ball: (rally, shots) (the rally
-    key, which changes whenever the ball changes hands), the player to strike next and whether
-    that strike is a service (the arguments of ai_inputs)."""
-    return (rally, shots, next_striker(phase, server, striker), int(phase == Phase.WAITING_SERVE))
-
+from processes.runtime.control import Control
+from processes.workers.layout import ANSWER_DTYPE, decision_key
+from processes.workers.options import RunOptions
 
 class Answerer:
     """The AI side of a turn: the AIs' decision from one state, as an ANSWER_DTYPE record.
@@ -97,63 +77,19 @@ class Answerer:
         return record
 
 
-class PlanFollower:
-    """The physics side: the AIs' forces at a control tick that needs no decision, from the
-    ctl rows of their last answer (the same control_bats the AIs call, so the same bits).
-
-    Args:
-        scene: the match scene (its AI bats, in order, are the answer's ctl rows).
-    """
-
-    def __init__(self, scene):
-        from engine.ai import CTL_NORMAL, control_bats
-
-        self.n_bats = len(scene.bats)
-        self.players = np.array([i for i, bat in enumerate(scene.bats) if bat.skill is not None], np.int64)
-        self.ctl = np.zeros((len(self.players), CTL_SIZE))
-        self.key = None  # the decision key of the last answer taken; None: none yet
-        self.due = self.end = -math.inf
-        self._control_bats = control_bats
-        # Load (or compile) control_bats for these array types (the AIs' own) before the run.
-        bats = np.zeros(self.n_bats, BAT_DTYPE)
-        bats["quat"] = (1.0, 0.0, 0.0, 0.0)
-        ctl = self.ctl.copy()
-        ctl[:, CTL_NORMAL] = 1.0
-        control_bats(0.0, bats.view(np.float64).reshape(self.n_bats, BAT_FLOATS), ctl, self.players,
-                     np.zeros((self.n_bats, 6)))
-
-    def take(self, answer) -> None:
-        """What the AIs' controllers track until their next decision, from an ANSWER_DTYPE record."""
-        self.ctl[:] = answer["ctl"][:len(self.players)]
-        self.key = tuple(int(v) for v in answer["key"])
-        self.due, self.end = float(answer["due"]), float(answer["end"])
-
-    def needs_decision(self, key, now: float) -> bool:
-        """Whether BatAI.decide could change anything now (see BatAI.wakes): the key changed, or
-        the clock reached a wake."""
-        return key != self.key or now >= self.due or now > self.end
-
-    def control(self, now: float, bat_floats: np.ndarray, out: np.ndarray) -> None:
-        """bat_floats: (n_bats, BAT_FLOATS) float64 view of the bats; out: (n_bats, 6), written at the AI rows."""
-        self._control_bats(now, bat_floats, self.ctl, self.players, out)
-
-
-def ai_worker(control: Control, arena: Arena, scene, options: dict) -> None:
-    """options: seed, baton (processes.runtime.handoff.Baton); crash_at_tick (tests: SIGKILL this process
+def ai_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
+    """options: seed, ai_baton; crash_at_tick (tests: SIGKILL this process
     after its first turn at or after that tick)."""
     model = build_model(scene)
-    ais = make_ais(scene, model, options["seed"], eager=False)
+    ais = make_ais(scene, model, options.seed, eager=False)
     thinkers = list(ais.values())
-    baton = options["baton"].attach(arena["baton"].array)
+    baton = options.ai_baton.attach(arena["ai_baton"].array)
     answer = arena["ai_answer"].array
     view = arena["ai_view"].array
     answerer = Answerer(ais, len(scene.bats))
-    crash_at = options.get("crash_at_tick")
+    crash_at = options.crash_at_tick
     ais.warm_up()
-    control.set_state(WorkerState.READY)
-    control.send("ready", 0)
-    control.wait_for("go", GO_TIMEOUT_S)
-    control.set_state(WorkerState.RUNNING)
+    control.start(0)
     busy = think = longest = 0.0
     turns = 0
     last_tick = None
@@ -190,10 +126,9 @@ def ai_worker(control: Control, arena: Arena, scene, options: dict) -> None:
                 os.kill(os.getpid(), signal.SIGKILL)
             control.beat(tick)
         busy += think
-        control.row["busy_s"] = float(control.row["busy_s"]) + busy
-        control.send("done", {"tick": int(control.row["tick"]), "busy_s": busy, "think_s": think,
-                              "late_thoughts": sum(ai.late_thoughts for ai in thinkers),
-                              "late_thinking_s": sum(ai.late_thinking_s for ai in thinkers),
-                              "turns": turns, "longest_turn_s": longest})
+        control.finish(busy, 0.0, {"tick": int(control.row["tick"]), "busy_s": busy, "think_s": think,
+                                   "late_thoughts": sum(ai.late_thoughts for ai in thinkers),
+                                   "late_thinking_s": sum(ai.late_thinking_s for ai in thinkers),
+                                   "turns": turns, "longest_turn_s": longest})
     finally:
         del view, answer, baton, answerer

@@ -32,27 +32,15 @@ import time
 import numpy as np
 
 from engine.dtypes import net_snapshot_dtype
-from net_kernel import NO_CONTACT, NetContact, NetSim, build_topology
-from net_kernel.sim import ball_far_from_box, compile_kernels, net_box
+from net_kernel import NetSim, build_topology
+from net_kernel.sim import compile_kernels, net_box
 from processes.runtime.handoff import HandoffTimeout
 from processes.runtime.shm import Arena
-from processes.runtime.control import GO_TIMEOUT_S, Control, WorkerState
+from processes.runtime.control import Control
+from processes.workers.layout import NET_BLOCKS
+from processes.workers.options import RunOptions
 
-NET_IO_DTYPE = np.dtype([
-    ("tick", "<i8"),  # the tick to step (the physics' tick at its start)
-    ("ball", "<f8", (2, 3)),  # position m, velocity m/s at the tick's start
-    ("radius", "<f8"), ("inv_mass", "<f8"),  # m, 1/kg
-    ("toi", "<f8"), ("impulse", "<f8", 3), ("offset", "<f8", 3),  # NetSim.step's answer
-    ("sleeping", "<i8"),  # the net sleeps after this step
-    ("box", "<f8", (2, 3)),  # m, lo and hi corners of the knots' box after this step (NetSim.box)
-    ("granted", "<i8"),  # the physics: the net may step every tick below this without the ball
-    ("turn", "<i8"),  # the physics: counts its ball ticks (a repeated turn counts again)
-    ("served", "<i8"),  # the worker: the last turn it answered
-])
-NET_BLOCKS = ("net_even", "net_odd")  # by the parity of the tick a state holds
-NET_HANDOFF_S = 1.0  # one wait's bound; retried while a killed net worker is restarted
-NET_GIVE_UP_S = 60.0
-FREE_BEAT_TICKS = 256  # free ticks between two heartbeats (a 184 x 16 net: about 0.3 s of work)
+FREE_BEAT_TICKS = 256  # free ticks between two heartbeats: well inside the supervisor's stall timeout
 
 
 def net_blocks(arena: Arena) -> list:
@@ -98,13 +86,13 @@ def _publish(sim: NetSim, tick: int, state: np.ndarray, blocks) -> None:
     blocks[tick % 2].publish(state, tick)
 
 
-def net_worker(control: Control, arena: Arena, scene, options: dict) -> None:
+def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
     """options: net_baton (processes.runtime.handoff.Baton); crash_at_tick (tests: SIGKILL this process
     after publishing that ball tick's state and before saying it is done, the hardest moment)."""
     topo = build_topology(scene.cloth)
     sim = NetSim(topo, scene.dt)
     compile_kernels(topo, scene.dt)  # before "ready": nothing compiles mid-run
-    baton = options["net_baton"].attach(arena["net_baton"].array)
+    baton = options.net_baton.attach(arena["net_baton"].array)
     row = arena["net_io"].array[0]
     blocks = net_blocks(arena)
     state = np.zeros(1, net_snapshot_dtype(topo.n_knots))
@@ -116,10 +104,7 @@ def net_worker(control: Control, arena: Arena, scene, options: dict) -> None:
         _publish(sim, net_tick, state, blocks)
     published = net_tick  # the tick of the newest published state
     served = int(row["served"])
-    control.set_state(WorkerState.READY)
-    control.send("ready", net_tick)
-    control.wait_for("go", GO_TIMEOUT_S)
-    control.set_state(WorkerState.RUNNING)
+    control.start(net_tick)
     busy = 0.0
     steps = 0
     try:
@@ -172,81 +157,10 @@ def net_worker(control: Control, arena: Arena, scene, options: dict) -> None:
             row["served"] = served
             steps += 1
             busy += time.perf_counter() - t0
-            if tick == options.get("crash_at_tick"):
+            if tick == options.crash_at_tick:
                 os.kill(os.getpid(), signal.SIGKILL)
             baton.done()
             control.beat(tick)
-        control.row["busy_s"] = float(control.row["busy_s"]) + busy
-        control.send("done", {"tick": net_tick, "busy_s": busy, "steps": steps, "awake_ticks": sim.awake_ticks})
+        control.finish(busy, 0.0, {"tick": net_tick, "busy_s": busy, "steps": steps, "awake_ticks": sim.awake_ticks})
     finally:
         del row, blocks
-
-
-class RemoteNet:
-    """The physics worker's stand-in for the NetSim in engine.world: same `sleeping`, step() and
-    step_free().
-
-    Args:
-        control: the physics worker's Control (heartbeats while it waits).
-        arena, options: the run's (net_io, net_baton).
-        world: the physics state's world record (its tick says which tick is being stepped).
-        local: a NetSim of the same net as built (its knot radius, tick and built shape).
-
-    A sleeping net and a ball that cannot touch its frozen shape cost no hand-off, exactly as
-    NetSim.step returns early: the stand-in keeps the box the net froze in (from net_io after each
-    ball tick). What it knows of `sleeping` comes from the net's last answer, so after free ticks,
-    in which the net may have fallen asleep, it may still think the net awake: that costs one
-    hand-off more, never a different bit (the net worker then steps exactly as NetSim.step would).
-    """
-
-    def __init__(self, control: Control, arena: Arena, options: dict, world, local: NetSim):
-        self.control = control
-        self.local = local
-        self.world = world
-        self.baton = options["net_baton"].attach(arena["net_baton"].array)
-        self.io = arena["net_io"].array
-        self._none = np.zeros(3)
-        self.waits = 0.0
-        self.ball_ticks = 0  # ticks handed to the net worker with the ball (and waited for)
-        self.free_ticks = 0  # ticks granted without the ball (not waited for)
-        # Nothing known yet (a fresh run's net is as built and awake; a resumed one, whatever the
-        # net says at its first answer): awake is the guess that can cost a hand-off but no bit.
-        self.sleeping = False
-        self.box = local.box.copy()
-
-    def step_free(self, ticks: int) -> None:
-        """NetSim.step_free: grant the net the ticks just done (the world's tick is past them) and go on."""
-        if ticks > 0:
-            self.io[0]["granted"] = int(self.world["tick"])
-            self.baton.nudge()
-            self.free_ticks += ticks
-
-    def step(self, ball_pos, ball_vel, ball_radius: float, ball_inv_mass: float) -> NetContact:
-        """NetSim.step, done by the net worker (called after the ball's tick, as engine.world does)."""
-        local = self.local
-        if self.sleeping and ball_far_from_box(self.box, True, local.knot_radius, local.dt, ball_pos, ball_vel,
-                                               ball_radius):
-            self._none[:] = 0.0
-            return NetContact(NO_CONTACT, self._none, self._none)
-        started = time.perf_counter()
-        tick = int(self.world["tick"]) - 1
-        row = self.io[0]
-        row["tick"] = tick
-        row["ball"][0] = ball_pos
-        row["ball"][1] = ball_vel
-        row["radius"] = ball_radius
-        row["inv_mass"] = ball_inv_mass
-        row["turn"] += 1  # last: the worker reads it before the fields above (see net_worker)
-        self.baton.give(tick)
-        # The net may still be stepping free ticks, or restarting: stay alive and ask again (a
-        # new turn; net_io still holds the ball).
-        self.baton.wait_done_or_retry(tick, NET_HANDOFF_S, NET_GIVE_UP_S, self._ask_again)
-        self.sleeping = bool(row["sleeping"])
-        self.box[:] = row["box"]
-        self.waits += time.perf_counter() - started
-        self.ball_ticks += 1
-        return NetContact(float(row["toi"]), row["impulse"].copy(), row["offset"].copy())
-
-    def _ask_again(self, tick: int) -> None:
-        self.control.beat(tick)
-        self.io[0]["turn"] += 1
