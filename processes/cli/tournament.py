@@ -14,6 +14,7 @@ import os
 import signal
 import sys
 import time
+from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -160,8 +161,8 @@ def ray_address(cluster: str) -> str | None:
 def runtime_env() -> dict:
     """What a Ray cluster's workers need of this project: its source tree as their working
     directory (the packages and the bundled scenes), without the local virtual environment,
-    caches and run outputs. The cluster's Python must have the dependencies (`pip install
-    'pingpong[ray]'` on every node)."""
+    caches and run outputs. Every node's Python must have the dependencies (README: Beyond one
+    machine)."""
     root = Path(__file__).resolve().parents[2]
     return {"working_dir": str(root),
             "excludes": [".venv", ".git", ".numba_cache", "__pycache__", "*.egg-info", ".pytest_cache", ".benchmarks",
@@ -242,11 +243,12 @@ def run_tasks(tasks: list[MatchTask], out: Path, cluster: str, workers: int, sho
         with progress:
             bar = progress.add_task("matches", total=len(tasks), completed=skipped, pace="")
             if todo:
-                for record in results(todo, cluster, workers, crash_marker):
-                    log.append(record)
-                    played += 1
-                    minutes = (time.perf_counter() - started) / 60.0
-                    progress.update(bar, advance=1, pace=f"{played / minutes:.1f}/min")
+                with closing(results(todo, cluster, workers, crash_marker)) as finished:
+                    for record in finished:
+                        log.append(record)
+                        played += 1
+                        minutes = (time.perf_counter() - started) / 60.0
+                        progress.update(bar, advance=1, pace=f"{played / minutes:.1f}/min")
     except KeyboardInterrupt:
         interrupted = True
     finally:
