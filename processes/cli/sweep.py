@@ -148,11 +148,7 @@ def sweep_command(args: argparse.Namespace) -> int:
         print(f"{report.played} matches played, {report.skipped} found in {out / tournament.MATCHES_FILE}"
               + (f"; {pace:.1f} matches/min on {args.cluster}" if pace else ""))
         print(f"cells written to {out / CELLS_FILE}, plot to {out / 'sweep.png'}")
-    if report.interrupted:
-        print(f"pingpong sweep: stopped; {len(report.records)} of {report.planned} matches are in "
-              f"{out / tournament.MATCHES_FILE}, a rerun with the same --out plays the rest", file=sys.stderr)
-        return 130
-    return 0
+    return tournament.stopped("sweep", report, out)
 
 
 def add_commands(sub) -> None:

@@ -214,6 +214,7 @@ class RunReport:
     played: int  # finished in this run
     wall_seconds: float
     interrupted: bool
+    failure: str | None = None  # why the run stopped early: a task raised, or a pool process died
 
     @property
     def matches_per_minute(self) -> float | None:
@@ -224,8 +225,9 @@ def run_tasks(tasks: list[MatchTask], out: Path, cluster: str, workers: int, sho
               crash_marker: str | None = None) -> RunReport:
     """Play the tasks not yet in out/matches.jsonl, appending each as it finishes.
 
-    Ctrl-C stops the run: the matches finished so far stay in the file (a rerun resumes), the
-    ones running are dropped.
+    Ctrl-C stops the run, and so does a task that fails (a match that raised, a pool process
+    that died; Ray re-runs a task whose worker died itself): the matches finished so far stay in
+    the file (a rerun resumes), the ones running are dropped.
     """
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
@@ -238,6 +240,7 @@ def run_tasks(tasks: list[MatchTask], out: Path, cluster: str, workers: int, sho
                         console=Console(stderr=True), disable=not show_progress)
     played = 0
     interrupted = False
+    failure = None
     started = time.perf_counter()
     try:
         with progress:
@@ -251,11 +254,13 @@ def run_tasks(tasks: list[MatchTask], out: Path, cluster: str, workers: int, sho
                         progress.update(bar, advance=1, pace=f"{played / minutes:.1f}/min")
     except KeyboardInterrupt:
         interrupted = True
+    except Exception as exc:  # noqa: BLE001 - whatever a task raised ends the run, not the finished records
+        failure = f"{type(exc).__name__}: {exc}"
     finally:
         log.close()
     wall = time.perf_counter() - started
     records = [log.records[task.key] for task in tasks if task.key in log]
-    return RunReport(records, len(tasks), skipped, played, wall, interrupted)
+    return RunReport(records, len(tasks), skipped, played, wall, interrupted, failure)
 
 
 def parse_skills(text: str) -> list[str]:
@@ -282,7 +287,8 @@ def check_run_options(args: argparse.Namespace) -> None:
 def run_summary(report: RunReport, cluster: str, workers: int) -> dict:
     return {"cluster": cluster, "workers": workers, "matches": len(report.records), "planned": report.planned,
             "skipped": report.skipped, "played": report.played, "wall_seconds": report.wall_seconds,
-            "matches_per_minute": report.matches_per_minute, "interrupted": report.interrupted}
+            "matches_per_minute": report.matches_per_minute, "interrupted": report.interrupted,
+            "failure": report.failure}
 
 
 def tournament_command(args: argparse.Namespace) -> int:
@@ -317,11 +323,17 @@ def tournament_command(args: argparse.Namespace) -> int:
               f"{report.played} matches played, {report.skipped} found in {out / MATCHES_FILE}")
         if "png" in summary:
             print(f"heatmap written to {summary['png']}")
-    if report.interrupted:
-        print(f"pingpong tournament: stopped; {len(report.records)} of {report.planned} matches are in "
-              f"{out / MATCHES_FILE}, a rerun with the same --out plays the rest", file=sys.stderr)
-        return 130
-    return 0
+    return stopped("tournament", report, out)
+
+
+def stopped(command: str, report: RunReport, out: Path) -> int:
+    """The exit code of a run; for one that stopped early, what stopped it and what was kept."""
+    if not (report.interrupted or report.failure):
+        return 0
+    why = "stopped" if report.failure is None else f"a task failed ({report.failure})"
+    print(f"pingpong {command}: {why}; {len(report.records)} of {report.planned} matches are in "
+          f"{out / MATCHES_FILE}, a rerun with the same --out plays the rest", file=sys.stderr)
+    return 130 if report.failure is None else 1
 
 
 def add_run_options(parser: argparse.ArgumentParser, out: str) -> None:

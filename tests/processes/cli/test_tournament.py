@@ -74,6 +74,14 @@ def test_a_killed_ray_worker_is_retried_and_its_match_recorded_once(tmp_path, ta
     assert report.played == 1 and len(_lines(tmp_path / MATCHES_FILE)) == 1
 
 
+def test_a_killed_pool_process_stops_the_run_and_a_rerun_plays_its_match(tmp_path, tasks):
+    marker = tmp_path / "killed-once"
+    report = run_tasks(tasks[:1], tmp_path, "local", 1, show_progress=False, crash_marker=str(marker))
+    assert marker.exists() and report.played == 0 and "BrokenProcessPool" in report.failure
+    again = run_tasks(tasks[:1], tmp_path, "local", 1, show_progress=False, crash_marker=str(marker))
+    assert again.failure is None and again.played == 1 and len(_lines(tmp_path / MATCHES_FILE)) == 1
+
+
 def test_sweep_over_two_values_of_one_key(tmp_path, local_ray, capsys):
     code = main(["sweep", "match", "--set", "match.ai_hz=50,100", "--seeds", "1", "--best-of", "1",
                  "--ticks", str(TICKS), "--cluster", "ray", "--out", str(tmp_path), "--json"])
