@@ -16,7 +16,11 @@ import sys
 import tomllib
 from pathlib import Path
 
-from processes.cli import tournament
+from rich.console import Console
+from rich.table import Table
+
+from engine.scene import SceneError, load_scene
+from processes.cli import standings, tournament
 from processes.cli.common import FORMATTER
 
 CELLS_FILE = "cells.jsonl"
@@ -60,8 +64,7 @@ def cells_of(grid: dict[str, list]) -> list[dict]:
 
 
 def cell_summary(cell: dict, records: list[dict], profiles: list[str]) -> dict:
-    from processes.cli import standings
-
+    """A cell's standings, with its overrides and its mean rally length over all its points."""
     table = standings.standings(records, profiles)
     points = sum(sum(r["points"]) for r in records)
     shots = sum(r["mean_rally_shots"] * sum(r["points"]) for r in records)
@@ -76,9 +79,6 @@ def _write_cells(path: Path, cells: list[dict]) -> None:
 
 
 def _print_cells(cells: list[dict], multi: bool) -> None:
-    from rich.console import Console
-    from rich.table import Table
-
     grid = Table(title="sweep")
     columns = ["cell", "matches", "end A wins [95 %]", "mean rally shots", "realtime factor", "points lost by"]
     if multi:
@@ -104,9 +104,12 @@ def _print_cells(cells: list[dict], multi: bool) -> None:
 
 
 def sweep_command(args: argparse.Namespace) -> int:
-    from engine.scene import SceneError, load_scene
-    from processes.cli import standings
+    """Validate every cell's scene, run all cells' matches as one run, summarise each cell.
 
+    Returns:
+        0; 2 for a bad --set, option or scene (before any match runs); 130 after Ctrl-C, 1
+        after a failed task.
+    """
     try:
         tournament.check_run_options(args)
         cells = cells_of(parse_sets(args.set))

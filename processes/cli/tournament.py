@@ -10,17 +10,25 @@ from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import os
 import signal
 import sys
 import time
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from rich.console import Console
+from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn,
+                           TimeRemainingColumn)
+
+from engine.match import match_hash, match_record, match_scene
+from engine.scene import SKILL_NAMES, Scene, SceneError, load_scene
+from processes.cli import standings
 from processes.cli.common import FORMATTER
 
-PROFILES = ("pro", "club", "novice")  # engine.scene.SKILL_NAMES, spelled out to keep the parser light
 MAX_RETRIES = 3  # Ray re-runs a task whose worker died this many times (Ray's task retries)
 WAIT_S = 1.0  # each wait for finished tasks is bounded: the progress bar and Ctrl-C stay live
 MATCHES_FILE = "matches.jsonl"
@@ -30,7 +38,7 @@ MATCHES_FILE = "matches.jsonl"
 class MatchTask:
     """One match to play: the arguments of engine.match.match_record, and its record's key."""
 
-    scene: object  # engine.scene.Scene (kept untyped: the parser must not import the engine)
+    scene: Scene
     seed: int
     a: str
     b: str
@@ -49,11 +57,9 @@ def record_key(record: dict) -> tuple:
     return (record["a"], record["b"], record["seed"], record["scene_hash"])
 
 
-def plan(scene, pairs: list[tuple[str, str]], seeds: int, best_of: int | None, max_ticks: int | None,
+def plan(scene: Scene, pairs: list[tuple[str, str]], seeds: int, best_of: int | None, max_ticks: int | None,
          cell: dict | None = None) -> list[MatchTask]:
     """The tasks of `pairs` (skill at end A, skill at end B) over seeds 0 .. seeds - 1."""
-    from engine.match import match_hash, match_scene
-
     tasks = []
     for a, b in pairs:
         played = match_scene(scene, a, b, best_of)
@@ -80,8 +86,6 @@ def play(task: MatchTask, crash_marker: str | None = None) -> dict:
     if crash_marker is not None and not os.path.exists(crash_marker):
         Path(crash_marker).touch()
         os.kill(os.getpid(), signal.SIGKILL)
-    from engine.match import match_record
-
     record = match_record(task.scene, task.seed, task.a, task.b, task.best_of, task.max_ticks)
     if task.cell:
         record["cell"] = task.cell
@@ -127,9 +131,6 @@ def _ignore_sigint() -> None:
 
 def _local_results(tasks: list[MatchTask], workers: int, crash_marker: str | None):
     """Finished records, in the order they finish, from a local forkserver process pool."""
-    import multiprocessing
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-
     # forkserver, as the supervisor: numba's threads make fork() after a kernel has run unsafe.
     ctx = multiprocessing.get_context("forkserver")
     ctx.set_forkserver_preload(["engine.match"])
@@ -171,7 +172,7 @@ def runtime_env() -> dict:
 
 def _ray_results(tasks: list[MatchTask], cluster: str, workers: int, crash_marker: str | None):
     """Finished records, in the order they finish, from Ray tasks (retried if their worker dies)."""
-    import ray
+    import ray  # the optional extra pingpong[ray]
 
     if not ray.is_initialized():
         address = ray_address(cluster)
@@ -229,9 +230,6 @@ def run_tasks(tasks: list[MatchTask], out: Path, cluster: str, workers: int, sho
     that died; Ray re-runs a task whose worker died itself): the matches finished so far stay in
     the file (a rerun resumes), the ones running are dropped.
     """
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-
     log = MatchLog(out / MATCHES_FILE)
     todo = [task for task in tasks if task.key not in log]
     skipped = len(tasks) - len(todo)
@@ -265,9 +263,9 @@ def run_tasks(tasks: list[MatchTask], out: Path, cluster: str, workers: int, sho
 
 def parse_skills(text: str) -> list[str]:
     skills = [s.strip() for s in text.split(",") if s.strip()]
-    unknown = [s for s in skills if s not in PROFILES]
+    unknown = [s for s in skills if s not in SKILL_NAMES]
     if not skills or unknown or len(set(skills)) != len(skills):
-        raise ValueError(f"--skills: a comma-separated list of different profiles out of {', '.join(PROFILES)}; "
+        raise ValueError(f"--skills: a comma-separated list of different profiles out of {', '.join(SKILL_NAMES)}; "
                          f"got {text!r}")
     return skills
 
@@ -292,9 +290,12 @@ def run_summary(report: RunReport, cluster: str, workers: int) -> dict:
 
 
 def tournament_command(args: argparse.Namespace) -> int:
-    from engine.scene import SceneError, load_scene
-    from processes.cli import standings
+    """Plan, run and summarise a tournament.
 
+    Returns:
+        0; 2 for a bad option or scene; 130 after Ctrl-C, 1 after a failed task (the finished
+        matches kept either way).
+    """
     try:
         check_run_options(args)
         skills = parse_skills(args.skills)
@@ -355,7 +356,7 @@ def add_commands(sub) -> None:
     """`pingpong tournament`."""
     parser = sub.add_parser("tournament", help="every pair of AI profiles over many seeds, on a local pool or Ray",
                             formatter_class=FORMATTER)
-    parser.add_argument("--skills", default=",".join(PROFILES), help="comma-separated profiles to pit")
+    parser.add_argument("--skills", default=",".join(SKILL_NAMES), help="comma-separated profiles to pit")
     parser.add_argument("--scene", default="match", help="scene TOML file or bundled scene name (needs a referee)")
     add_run_options(parser, out="tournament")
     parser.set_defaults(func=tournament_command)
