@@ -11,7 +11,7 @@ from scipy.stats import binomtest
 
 from engine.match import match_record
 from engine.scene import load_scene
-from processes.cli import main, standings
+from processes.cli import main, standings, sweep
 from processes.cli.tournament import MATCHES_FILE, pairs_of, plan, run_tasks
 from tests.processes.conftest import ctrl_c_able
 
@@ -138,6 +138,21 @@ def test_tournament_cli_on_the_local_pool_and_ctrl_c_keeps_the_finished(tmp_path
     planned = {(a, b, seed) for a, b in (("pro", "novice"), ("novice", "pro")) for seed in range(2)}
     assert summary["matches"] == 4 and summary["skipped"] == len(kept & planned)
     assert summary["matches_per_minute"] > 0 and (tmp_path / "standings.json").exists()
+
+
+@pytest.mark.parametrize("text, values", [
+    ("50,100,250", [50, 100, 250]),
+    ("verlet,rk4", ["verlet", "rk4"]),
+    ("[92,8],[184,16]", [[92, 8], [184, 16]]),
+    ("0.5,true", [0.5, True]),
+])
+def test_set_values_read_as_toml_or_bare_words(text, values):
+    assert sweep.parse_values(text) == values
+
+
+def test_a_swept_net_resolution_is_validated_as_the_files_own_key():
+    scene = load_scene("match_cloth", overrides={"net.resolution": [92, 8]})
+    assert (scene.cloth.cols, scene.cloth.rows) == (92, 8)
 
 
 def test_wilson_interval_matches_scipy():
