@@ -4,7 +4,7 @@ Beside the kernels: the textbook per-spring scatter loop timed on the same net i
 (the ratios), the grid kernel's passes timed apart (grid_passes), and the vector width of each
 kernel's loops (kernel_vectors, from numba's assembly).
 
-Plain dicts out (stdlib + numpy + numba only); processes/profile_net.py formats them.
+Plain dicts out (stdlib + numpy + numba only); processes/cli/profile_net.py formats them.
 
 Two kernel paths (both give the same bits): "csr", the general per-knot gather over the CSR
 adjacency (kernels.step_knots, one step a call), and "grid", the structured-grid kernel
