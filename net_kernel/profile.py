@@ -432,6 +432,47 @@ def _divider_floor(length2, out, reps):
             out[s] = 1.0 / math.sqrt(length2[s])
 
 
+@njit(inline="always")
+def _spring_t(d0, d1, d2, e0, e1, e2, length, inv_len, out, q):
+    rate = e0 * d0 + e1 * d1 + e2 * d2
+    scale = (200.0 * (length - 0.01) + 0.1 * rate * inv_len) * inv_len
+    out[0, q] = scale * d0
+    out[1, q] = scale * d1
+    out[2, q] = scale * d2
+
+
+@njit(cache=True, error_model="numpy")
+def _spring_floor(x, v, out, lines, reps):
+    """The grid's spring arithmetic (_grid_line's) over `lines` rows of out.shape[1] springs, nothing else."""
+    n = out.shape[1]
+    for _ in range(reps):
+        for _ in range(lines):
+            for q in range(n):
+                d0, d1, d2 = x[0, q + 1] - x[0, q], x[1, q + 1] - x[1, q], x[2, q + 1] - x[2, q]
+                length = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                _spring_t(d0, d1, d2, v[0, q + 1] - v[0, q], v[1, q + 1] - v[1, q], v[2, q + 1] - v[2, q], length,
+                          1.0 / length, out, q)
+
+
+@njit(cache=True, error_model="numpy")
+def _spring_floor_no_divider(x, v, out, lines, reps):
+    """_spring_floor with 1/|L| from a float32 root and division refined by one float64 Newton step.
+
+    Relative error ~1e-14: what a spring would cost without the float64 divider; for the floor
+    only, no kernel rounds this way.
+    """
+    n = out.shape[1]
+    for _ in range(reps):
+        for _ in range(lines):
+            for q in range(n):
+                d0, d1, d2 = x[0, q + 1] - x[0, q], x[1, q + 1] - x[1, q], x[2, q + 1] - x[2, q]
+                length2 = d0 * d0 + d1 * d1 + d2 * d2
+                y = np.float64(np.float32(1.0) / np.sqrt(np.float32(length2)))
+                inv_len = y * (1.5 - 0.5 * length2 * y * y)
+                _spring_t(d0, d1, d2, v[0, q + 1] - v[0, q], v[1, q + 1] - v[1, q], v[2, q + 1] - v[2, q],
+                          length2 * inv_len, inv_len, out, q)
+
+
 def _best_us(call, target_s: float) -> float:
     """µs per call of call(reps), this thread's CPU time, the best of REPEATS runs sized to target_s."""
     call(1)  # compile or load
@@ -468,8 +509,9 @@ def grid_passes(topo, target_s: float = 1.0) -> dict:
         {"rows", "cols", "passes": {name: (µs, springs or knots, unit)}, "long_rows": the same
         on rows 8 times longer and 8 times fewer (per spring or knot against "passes": what the
         short rows' per-loop overhead costs; None below 16 rows), "divider_floor_us" (a root and
-        a division for each of the net's springs), "step_us", "rest_us" (the step minus its
-        passes: block set-up, band copies, calls)}.
+        a division for each of the net's springs), "spring_floor_us" and
+        "spring_floor_no_divider_us" (_spring_floor, _spring_floor_no_divider for as many springs),
+        "step_us", "rest_us" (the step minus its passes: block set-up, band copies, calls)}.
     """
     rows, cols = topo.spec.rows, topo.spec.cols
     budget = target_s / 8
@@ -497,11 +539,20 @@ def grid_passes(topo, target_s: float = 1.0) -> dict:
     inv_mass = topo.knot_inv_mass.reshape(rows, cols)
     step_us = _best_us(lambda r: kernels.step_grid_serial(state, inv_mass, topo.grid_params, topo.spec.gravity,
                                                           topo.spec.air_damping, 0.5 * topo.h_max, r, work), budget)
-    length2 = 1e-4 * (1.0 + 0.01 * np.random.default_rng(1).random(topo.n_springs))
+    rng = np.random.default_rng(1)
+    length2 = 1e-4 * (1.0 + 0.01 * rng.random(topo.n_springs))
     floor = _best_us(lambda r: _divider_floor(length2, np.empty_like(length2), r), budget)
+    # The spring arithmetic alone on contiguous rows of the net's row length, scaled to its springs.
+    x = 0.01 * np.arange(cols + 1) + 1e-4 * rng.random((3, cols + 1))
+    v = 1e-3 * rng.random((3, cols + 1))
+    lines = math.ceil(topo.n_springs / (cols - 1))
+    per_spring = topo.n_springs / (lines * (cols - 1))
+    springs = [per_spring * _best_us(lambda r, f=f: f(x, v, np.empty((3, cols - 1)), lines, r), budget)
+               for f in (_spring_floor, _spring_floor_no_divider)]
     spent = sum(us for name, (us, _, _) in short.items() if name != "knots: the border columns alone")
     return {"rows": rows, "cols": cols, "passes": short, "long_rows": long_rows, "divider_floor_us": floor,
-            "step_us": step_us, "rest_us": step_us - spent}
+            "spring_floor_us": springs[0], "spring_floor_no_divider_us": springs[1], "step_us": step_us,
+            "rest_us": step_us - spent}
 
 
 def kernel_vectors(topo) -> dict:

@@ -84,6 +84,9 @@ def _print_anatomy(report: dict) -> None:
         print(f"  {'step_grid_serial':<36} {passes['step_us']:>8.2f} µs; outside the passes "
               f"{passes['rest_us']:.2f} µs; the divider's floor (a root and a division per spring, float64) "
               f"{passes['divider_floor_us']:.2f} µs")
+        print(f"  floors: the springs' arithmetic alone (contiguous rows, as many springs) "
+              f"{passes['spring_floor_us']:.2f} µs; the same without the divider (float32 root and division, one "
+              f"float64 Newton step) {passes['spring_floor_no_divider_us']:.2f} µs")
     vectors = report.get("vectors")
     if vectors:
         print("vectorised? each kernel's widest loop, from numba's assembly (float64 lanes: xmm 2, ymm 4, zmm 8)")

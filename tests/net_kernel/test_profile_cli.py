@@ -26,6 +26,7 @@ def test_profile_net_smoke():
     passes = report["passes"]
     assert set(passes["passes"]) >= {"springs: vertical and shear bands", "knots: update (with borders)"}
     assert passes["step_us"] > 0 and passes["divider_floor_us"] > 0 and passes["long_rows"] is None  # 8 rows < 16
+    assert passes["spring_floor_us"] > 0 and passes["spring_floor_no_divider_us"] > 0
     assert set(report["vectors"]) == {"grid springs (_grid_line)", "grid knots (_grid_update)",
                                       "csr (step_knots_serial)", "textbook scatter (step_knots_scatter)"}
 
