@@ -27,7 +27,7 @@ lint: install
 # per effect combination. A test file stays on one worker (loadfile), so its specialisations
 # compile once; the other worker finds them in numba's on-disk cache.
 test: lint
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=25
 
 test-long: install
 	$(BIN)/python -m pytest -q -m long

@@ -4,8 +4,8 @@ Two sockets. The sessions live on a ROUTER: a client is a DEALER that sends one-
 messages (processes/wire.py); the gateway sees [identity, message]. What every spectator gets
 (snapshots, events) goes out once on a PUB socket, the feed, whose port the welcome announces
 (welcome.feed_port): the gateway encodes and sends a snapshot once per tick and libzmq's I/O
-thread copies it to each subscriber, where one send per spectator session cost ~25 us of the
-gateway's Python each (1000 spectators at 120 Hz were 3 s of CPU per second). Players keep
+thread copies it to each subscriber, where one send per spectator session would cost the
+gateway's Python a send each, times the spectators, times the snapshot rate. Players keep
 theirs on the session (two sends, and a player's snapshots are counted per session). Sessions:
 
 - hello -> welcome (slot A/B with a fresh rejoin token, or spectator) or reject (full,
