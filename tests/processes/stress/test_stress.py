@@ -122,6 +122,10 @@ def test_a_bad_scenario_name_is_refused_with_the_choices(capsys):
     assert "flood" in err and "load,churn,cable,kill,malformed" in err
     assert main(["stress", "--spectators", "0"]) == 2
     assert "--spectators must be at least 1" in capsys.readouterr().err
+    assert main(["stress", "--scenario", "load", "--swarm-only"]) == 2  # no --target
+    assert "--swarm-only needs --target" in capsys.readouterr().err
+    assert main(["stress", "--swarm-only", "--target", "tcp://127.0.0.1:1"]) == 2  # every scenario
+    assert "run the load scenario alone" in capsys.readouterr().err
 
 
 @pytest.mark.timeout(240)
