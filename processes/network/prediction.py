@@ -13,7 +13,7 @@ What the client cannot know, it predicts as follows, and the statistics measure 
 - an input holds from the tick it was stamped with (the server applies it on arrival, about a
   one-way trip later), and an input not yet acknowledged at T holds from T at the earliest;
   it holds for the gateway's INPUT_HOLD_S at most (then the server's idle arm brakes the bat,
-  processes.network.gateway.brake_force), counted in ticks from its stamp (the gateway counts from its
+  engine.arm.brake_force), counted in ticks from its stamp (the gateway counts from its
   arrival, and brakes every 10 ms where the prediction brakes every tick);
 - the ball at a snapshot is in flight (the wire has no support flag: a resting ball settles
   again within a tick);
