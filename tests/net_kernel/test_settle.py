@@ -1,5 +1,4 @@
 """A net hanging from its top cord settles to rest with the cable's sag, W L / (8 T)."""
-import numpy as np
 import pytest
 
 from net_kernel import NetSim, build_topology, grid_spec

@@ -14,7 +14,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import zmq
 
 from engine.scene import load_scene
 from engine.world import build_model, initial_state
