@@ -326,7 +326,7 @@ def match_record(scene: Scene, seed: int, skill_a: str, skill_b: str, best_of: i
     """Play one match in this process and describe it in a small JSON-able record.
 
     The record: a, b (the skills at ends A and B), seed, scene (its name), scene_hash
-    (match_hash), winner ("a", "b", or None when max_ticks came first), games (finished games'
+    (match_hash), best_of, winner ("a", "b", or None when max_ticks came first), games (finished games'
     scores), points (won by A, by B), lets, reasons (per end, the reasons of the points it
     lost), mean_rally_shots, ticks, sim_seconds, wall_seconds (the play, not the kernels' load),
     record_hash: sha256 over the match's contact events, point log and final state, so two runs
