@@ -35,6 +35,7 @@ from engine.dtypes import (CONTACT_DTYPE, POINT_DTYPE, ai_answer_dtype, ai_local
                            physics_snapshot_dtype)
 from engine.rules import Phase, next_striker
 from engine.scene import Scene
+from net_kernel import build_topology
 from processes.network.gateway import SEAT_DTYPE
 from processes.runtime.control import STATUS_DTYPE
 from processes.runtime.handoff import TICK_SLOT_DTYPE, Baton
@@ -159,8 +160,6 @@ def build_layout(scene: Scene, kinds: list[str], ticks: int, trace: bool, frame_
             if frame_every:
                 arena.shared_array("frames", snapshot, ticks // frame_every + 1)
         if "net" in kinds:
-            from net_kernel import build_topology
-
             knots = net_snapshot_dtype(build_topology(scene.cloth).n_knots)
             for name in NET_BLOCKS:
                 arena.snapshot_block(name, knots, 1)
