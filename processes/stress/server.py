@@ -190,7 +190,6 @@ class Server(Child):
         with np.load(self.tick_log) as data:
             return {k: data[k] for k in data.files}
 
-
     def gateway_stats(self) -> dict:
         """The gateway's counters as it last wrote them (every second), {} before the first."""
         try:
