@@ -109,7 +109,7 @@ def match_command(args: argparse.Namespace) -> int:
                     m.save(record)
                     frames.append(record[0].copy())
 
-            # A per-tick callback makes play() advance one tick a call (2x slower): only for frames.
+            # A per-tick callback makes play() advance one tick a call, not in chunks: only for frames.
             result = match.play(max_ticks=ticks, on_tick=keep if frame_every else None, events_out=events)
             summary = result.summary()
             summary.update(mode="in-process", processes=False)
