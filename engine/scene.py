@@ -30,7 +30,7 @@ CLOTH_RESOLUTION = "resolution"
 BAT_NAMES = ("a", "b")
 MATERIAL_BODIES = ("table", "floor", "net", "bat")
 # Explicit net substeps per tick beyond which a scene is refused: each is a full pass over the
-# net (~90 us for the default 184 x 16 net, which needs 25), so 1000 already makes a tick ~0.1 s.
+# net, and the default 184 x 16 net needs 25, so 1000 already makes a tick 40 times as costly.
 MAX_NET_SUBSTEPS = 1000
 
 
@@ -81,7 +81,7 @@ class MatchSpec:
 @dataclass(frozen=True)
 class Scene:
     """Static description of a run. Derived numbers (drag factor, inertia...) are computed in
-    engine.world.build, never here."""
+    engine.world.build_model, never here."""
 
     name: str
     source: str
