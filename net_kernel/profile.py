@@ -167,7 +167,7 @@ def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True
     per_call = 1
     if path == "grid":
         # A tick's substeps (NetSim's call), fewer where that would not fit one timed run
-        # (1000 x 1000: ~650 substeps of ~30 ms).
+        # (a large net: hundreds of substeps a tick, each of them long).
         per_call = steps_per_call or max(1, min(_substeps_per_tick(topo), int(budget / max(one, 1e-7))))
         if steps is not None:
             per_call = min(per_call, steps)
@@ -215,9 +215,11 @@ def profile_net(cols: int, rows: int, steps: int | None = None, backends=("numba
     """The whole profile: net size, copy bandwidth, and one entry per path and backend (numba: parallel and serial).
 
     Returns:
-        {"knots", "springs", "cols", "rows", "h_s", "byte_model", "copy": {...}, "results": [...]}
-        where each result carries "copy_share" = its gb_per_s / the copy's gb_per_s. A net
-        whose arrays fit in cache can exceed 100 %: the copy is sized to leave the caches.
+        {"cols", "rows", "knots", "springs", "h_s", "substeps_per_tick", "byte_model", "copy": {...},
+        "threads", "threading_layer", "load_avg", "results": [...], "passes" (grid_passes, or None),
+        "vectors" (kernel_vectors, or None)} where each result carries "copy_share" = its gb_per_s /
+        the copy's gb_per_s (a net whose arrays fit in cache can exceed 100 %: the copy is sized to
+        leave the caches) and, when numba is profiled, "textbook_ratio".
     """
     topo = build_topology(grid_spec(cols, rows))
     load_before = os.getloadavg()[0]
