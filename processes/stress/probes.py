@@ -46,15 +46,19 @@ def loadavg() -> list[float]:
     return [float(x) for x in Path("/proc/loadavg").read_text().split()[:3]]
 
 
+def _thread_ids(pid: int | str) -> list[str]:
+    """The thread ids of a process (/proc/PID/task), [] once it is gone."""
+    try:
+        return os.listdir(f"/proc/{pid}/task")
+    except OSError:
+        return []
+
+
 def thread_cpu_seconds(pid: int | str = "self") -> dict[str, float]:
     """CPU seconds of each thread of a process, summed by thread name (/proc/PID/task/TID/stat:
     the Python thread is named like its program, libzmq's are ZMQbg/IO/0, ZMQbg/Reaper)."""
     out: dict[str, float] = {}
-    try:
-        tids = os.listdir(f"/proc/{pid}/task")
-    except OSError:
-        return out
-    for tid in tids:
+    for tid in _thread_ids(pid):
         try:
             text = Path(f"/proc/{pid}/task/{tid}/stat").read_text()
         except OSError:
@@ -71,11 +75,7 @@ def thread_sched_seconds(pid: int | str = "self") -> dict[str, tuple[float, floa
     documentation); {} without schedstats. Their sum over a wall time says how much a thread wanted
     to run: near all of it, it always had work left, whatever share of a CPU it was given."""
     out: dict[str, tuple[float, float]] = {}
-    try:
-        tids = os.listdir(f"/proc/{pid}/task")
-    except OSError:
-        return out
-    for tid in tids:
+    for tid in _thread_ids(pid):
         try:
             name = Path(f"/proc/{pid}/task/{tid}/comm").read_text().strip()
             on_cpu, waiting = Path(f"/proc/{pid}/task/{tid}/schedstat").read_text().split()[:2]
