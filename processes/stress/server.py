@@ -32,6 +32,8 @@ from collections import Counter
 
 import numpy as np
 
+from processes.network import wire
+from processes.runtime.shm import Arena
 from processes.stress.harness import Child, StressError
 
 SAMPLE_PERIOD_S = 0.0002
@@ -49,8 +51,6 @@ class TickClock(threading.Thread):
 
     def __init__(self, layout: dict, kinds: list[str]):
         super().__init__(name="tick-clock", daemon=True)
-        from processes.runtime.shm import Arena
-
         self.arena = Arena.attach(layout)  # our own mapping: the supervisor unlinks, we close
         self.kinds = kinds
         self.stop_flag = threading.Event()
@@ -101,8 +101,6 @@ class TickClock(threading.Thread):
 
     def _encodable(self, block, record) -> None:
         """Can this state go on the wire? (The gateway skips, and only counts, a state it cannot encode.)"""
-        from processes.network import wire
-
         block.snapshot(record)
         self.encode_checked += 1
         try:
