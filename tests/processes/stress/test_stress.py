@@ -45,10 +45,9 @@ def test_load_every_spectator_watches_the_whole_match_and_is_told_it_ended():
     assert sum(bot["goodbye"] == "server_lost" for bot in c["bots"]) == c["bots_without_goodbye"]
     assert 0 < result["latency_ms"]["n"] <= c["snapshots_received"]  # those sent once the match had started
     assert result["tick_jitter_ms"]["n"] > 0 and "gateway" in result["cpu_pct"]
-    # Whether the swarm fell behind (swarm["saturated"], result["limited_by_load_generator"]) is
-    # a share of wall time spent wanting a CPU: it depends on the machine's load, so it is reported,
-    # not asserted.
+    # 50 spectators are a light load for one swarm process: it waited for messages most of the time
     swarm = result["swarm"]
+    assert result["limited_by_load_generator"] is False and swarm["saturated"] == []
     assert swarm["received"] >= c["snapshots_received"] // 2 and swarm["cpu_us_per_message"] > 0
 
 
