@@ -5,7 +5,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install match test test-long bench bench-accuracy lint clean
+.PHONY: install match test test-long bench bench-accuracy protocol lint clean
 
 install: $(STAMP)
 
@@ -39,6 +39,10 @@ bench: install bench-accuracy
 # The work-precision study: rewrites README.md's accuracy block and bench/accuracy.png (a few minutes).
 bench-accuracy: install
 	$(BIN)/python -m bench.accuracy --png bench/accuracy.png --readme README.md
+
+# The protocol document's generated tables (layouts, enums, limits), from the wire's code.
+protocol: install
+	$(BIN)/python -m processes.network.protocol docs/protocol.md
 
 clean:
 	rm -rf $(VENV) .pytest_cache .benchmarks

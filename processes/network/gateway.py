@@ -71,7 +71,7 @@ SEAT_DTYPE = np.dtype([("slot", "u1"), ("taken", "u1"), ("token", "u1", (16,)), 
 # A remote arm's input holds at most this long: a client that stalls (or whose snapshots stop)
 # must not leave its bat pushed by a constant force (120 N on a 0.17 kg bat is 70 m/s in 0.1 s).
 # After it, the gateway posts a zero input (same seq) until the next input comes.
-INPUT_HOLD_S = 0.1
+INPUT_HOLD_S = 0.1  # a player's input is let go of (zero force) this long after it arrived
 # An idle arm (its input expired, or no player holds the seat) stops its bat instead of letting
 # it coast off (a coasting bat leaves the wire's +-8 m and no snapshot can be sent any more):
 # force = -mass * BRAKE_PER_S * bat velocity, at most BRAKE_MAX_N, posted every BRAKE_EVERY_S
