@@ -9,16 +9,20 @@ gateway's Python each (1000 spectators at 120 Hz were 3 s of CPU per second). Pl
 theirs on the session (two sends, and a player's snapshots are counted per session). Sessions:
 
 - hello -> welcome (slot A/B with a fresh rejoin token, or spectator) or reject (full,
-  version, bad_request, bad_token, shutting_down), and the session is closed on a reject.
+  version, bad_request, bad_token, shutting_down), and the session is closed on a reject. A
+  frame that claims to be a hello (magic, version, kind) but fails to decode is rejected
+  bad_request, with the decoder's reason in the detail.
 - heartbeats both ways: the gateway sends one every `heartbeat_s` to each session; any valid
   message from a peer counts as a sign of life; a peer silent for `timeout_s` is sent goodbye
   (timeout) and dropped. A dropped player's seat is kept for `grace_s`: only its token may
-  reclaim it (rejoin); after the grace anyone may take it. A player who says goodbye frees its
-  seat at once. A hello with the token of a seat whose old connection is still open takes the
-  seat over (the old session is told goodbye, kicked).
+  reclaim it (rejoin); after the grace the token expires (bad_token) and anyone may take the
+  seat. A player who says goodbye frees its seat at once. A hello with the token of a seat
+  whose old connection is still open takes the seat over (the old session is told goodbye,
+  kicked).
 - input: decoded and validated, accepted only for the sender's own bat (another bat's input,
-  a spectator's input, target mode and stale sequence numbers are refused and counted), then
-  posted to the locked remote-input mailbox that the physics worker drains each tick.
+  a spectator's input, target mode and stale sequence numbers are refused and counted; all but
+  stale ones count towards MAX_BAD: target mode is reserved in protocol 2), then posted to
+  the locked remote-input mailbox that the physics worker drains each tick.
 - snapshots at `snapshot_hz` from the physics snapshot block, plus point/game/match events
   from the point log. Sends never block: ROUTER_MANDATORY with NOBLOCK raises when a peer's
   pipe is at its high-water mark (SNDHWM), and that peer's snapshot is dropped and counted,
@@ -32,7 +36,9 @@ theirs on the session (two sends, and a player's snapshots are counted per sessi
   its feed connection does. The feed serves whoever connects to its port, as the session
   port welcomes any spectator (max_spectators bounds sessions, not feed readers; with CURVE
   the feed is encrypted and the server authenticated like the sessions, clients are not).
-- goodbye to every session on shutdown (shutdown) or at the end of the match (match_over).
+- goodbye to every session on shutdown (shutdown) or at the end of the match (match_over); a
+  peer without a session that sends anything but a hello (a session of the gateway this one
+  replaced after a crash) is told goodbye (shutdown), once per connection, and may hello again.
 - a snapshot of tick T says in input_seq the inputs applied before the step into T (the
   physics writes them per tick into the remote_acks ring before publishing T), so a client
   rewinds to T and replays exactly its later inputs; an input holds input_hold_s at most, then
@@ -92,6 +98,7 @@ def brake_force(mass: float, vel, out: np.ndarray) -> np.ndarray:
         out[0:3] *= BRAKE_MAX_N / norm
     return out
 MAX_BAD = 64  # bad messages one session may send before it is kicked
+MAX_STRANGERS_TOLD = 4096  # connections without a session told goodbye, remembered so each is told once
 MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messages
 MAX_FRAME_BYTES = 4096  # libzmq disconnects a peer sending a bigger frame (MAXMSGSIZE)
 SWEEPS_PER_HEARTBEAT = 10  # passes over every session (timeouts, heartbeats) per heartbeat period
@@ -102,6 +109,7 @@ NO_TOKEN = bytes(wire.TOKEN_SIZE)
 # this fixed prefix and the tick's sign, exactly what wire.decode would accept, without decoding.
 _HEARTBEAT_PREFIX = wire.MAGIC + struct.pack("<HBB", wire.PROTOCOL_VERSION, Kind.HEARTBEAT, 0)
 _HEARTBEAT_SIZE = wire.SIZES[Kind.HEARTBEAT]
+_HELLO_PREFIX = wire.MAGIC + struct.pack("<HB", wire.PROTOCOL_VERSION, Kind.HELLO)
 _SEQ_TICK = struct.Struct("<Qq")
 
 
@@ -243,6 +251,7 @@ class Gateway:
         self._points_seen: int | None = None
         self._games_seen = (0, 0)
         self._match_sent = False
+        self._strangers_told: set[bytes] = set()
         self.router = zctx.socket(zmq.ROUTER)
         self.router.setsockopt(zmq.LINGER, 0)
         self._two_io_threads = zctx.get(zmq.IO_THREADS) >= 2
@@ -372,7 +381,12 @@ class Gateway:
 
     def _reject(self, identity: bytes, reason: RejectReason, detail: str) -> None:
         self.counts[f"rejected.{reason.name.lower()}"] += 1
-        self._reply(identity, wire.encode(Kind.REJECT, tick=self.tick, reason=reason, detail=detail[:64]))
+        detail = detail.encode("utf-8")[:wire.DETAIL_SIZE].decode("utf-8", errors="ignore").strip()
+        try:
+            data = wire.encode(Kind.REJECT, tick=self.tick, reason=reason, detail=detail)
+        except wire.WireError:  # a detail quoting what the peer sent may hold text the wire refuses
+            data = wire.encode(Kind.REJECT, tick=self.tick, reason=reason, detail="")
+        self._reply(identity, data)
 
     def _welcome(self, session: _Session, token: bytes) -> None:
         config = self.config
@@ -431,6 +445,8 @@ class Gateway:
             return
         except wire.WireError as err:
             self.drops.by_reason[err.reason] += 1
+            if session is None and _looks_like_hello(data):
+                self._reject(identity, RejectReason.BAD_REQUEST, str(err))
             self._bad(session)
             return
         if session is None:
@@ -438,6 +454,7 @@ class Gateway:
                 self._hello(identity, message, now)
             else:
                 self.counts["dropped.no_session"] += 1
+                self._goodbye_stranger(identity)
             return
         session.last_seen = now
         session.seq_in = max(session.seq_in, message.seq)
@@ -454,6 +471,18 @@ class Gateway:
         else:  # welcome, reject, snapshot, event: only a server sends those
             self.counts["dropped.server_message"] += 1
             self._bad(session)
+
+    def _goodbye_stranger(self, identity: bytes) -> None:
+        """Goodbye (shutdown), once per connection, to a peer that talks as if it had a session:
+        a session of a gateway this one replaced (restarted after a crash), or one already
+        closed. It may hello again (with its token, within the grace)."""
+        if identity in self._strangers_told:
+            return
+        if len(self._strangers_told) >= MAX_STRANGERS_TOLD:
+            self._strangers_told.clear()
+        self._strangers_told.add(identity)
+        self.counts["goodbyes_to_strangers"] += 1
+        self._reply(identity, wire.encode(Kind.GOODBYE, tick=self.tick, reason=GoodbyeReason.SHUTDOWN))
 
     def _bad(self, session: _Session | None) -> None:
         if session is None:
@@ -479,6 +508,7 @@ class Gateway:
             self._welcome(session, NO_TOKEN)
             return
         token, wanted = message["token"], message["slot"]
+        self._expire_tokens(now)
         if token != NO_TOKEN:
             seat = next((s for s in self.seats.values() if s.remote and s.token == token), None)
             if seat is None or (wanted != Slot.NONE and wanted != seat.slot):
@@ -502,6 +532,17 @@ class Gateway:
         self._save_seats()
         session = self._open(identity, Role.PLAYER, seat.slot, name, now, message.seq)
         self._welcome(session, seat.token)
+
+    def _expire_tokens(self, now: float) -> None:
+        """A seat left empty past its grace loses its token (and name): it is free for anyone."""
+        expired = False
+        for seat in self.seats.values():
+            if seat.identity is None and seat.token != NO_TOKEN and now >= seat.grace_until:
+                seat.token, seat.name, seat.grace_until = NO_TOKEN, "", 0.0
+                self.counts["tokens_expired"] += 1
+                expired = True
+        if expired:
+            self._save_seats()
 
     def _free_seat(self, wanted: Slot, now: float) -> _Seat | None:
         candidates = [self.seats[wanted]] if wanted != Slot.NONE else list(self.seats.values())
@@ -544,7 +585,8 @@ class Gateway:
             self._bad(session)
             return
         if message["mode"] != InputMode.FORCE:
-            self.counts["refused.target_mode"] += 1  # the server-side arm controller comes later
+            self.counts["refused.target_mode"] += 1  # reserved in protocol 2: no server-side arm controller
+            self._bad(session)
             return
         if message.seq <= session.input_seq:
             self.counts["refused.stale_input"] += 1  # reordered or replayed
@@ -571,6 +613,7 @@ class Gateway:
             # call: with 1000 spectators a pass is ~0.5 ms of Python and the worker calls this
             # every few ms
             self._next_sweep = now + self.config.heartbeat_s / SWEEPS_PER_HEARTBEAT
+            self._expire_tokens(now)
             for session in list(self.sessions.values()):
                 if now - session.last_seen > self.config.timeout_s:
                     self.counts["timeouts"] += 1
@@ -693,6 +736,11 @@ class Gateway:
         self.router.close(linger=linger_ms)
         if self.feed is not None:
             self.feed.close(linger=0)  # a snapshot nobody took yet is worth nothing after the end
+
+
+def _looks_like_hello(data: bytes) -> bool:
+    """A frame whose header claims to be a hello of our version (the rest may be wrong)."""
+    return data[:len(_HELLO_PREFIX)] == _HELLO_PREFIX
 
 
 def _any_port(endpoint: str) -> str:

@@ -485,6 +485,100 @@ def test_shutdown_says_goodbye_to_everyone_and_refuses_newcomers(rig):
     assert refused.value.reason == RejectReason.SHUTTING_DOWN
 
 
+@pytest.mark.timeout(30)
+def test_a_malformed_hello_is_rejected_bad_request_with_the_decoders_reason(rig):
+    r = rig()
+    hello = wire.encode(Kind.HELLO, role=Role.PLAYER, slot=Slot.NONE, name="ann", token=bytes(16))
+    bad_name = bytearray(hello)
+    bad_name[26:30] = b"\x1b[2J"[:4]  # a terminal escape in the name
+    watcher_with_slot = bytearray(wire.encode(Kind.HELLO, role=Role.SPECTATOR, slot=Slot.NONE, name="sp",
+                                              token=bytes(16)))
+    watcher_with_slot[25] = int(Slot.A)
+    cases = {"too_short": hello[:40], "too_long": hello + b"\0", "bad_text": bytes(bad_name),
+             "out_of_range": bytes(watcher_with_slot)}
+    for reason, data in cases.items():
+        client = r.client()
+        client.send_raw(data)
+        reject = r.until(client, lambda m: m.kind == Kind.REJECT)
+        assert reject["reason"] == RejectReason.BAD_REQUEST and reject["detail"], reason
+        assert r.gateway.stats()[f"dropped.{reason}"] == 1
+    assert "hello.slot" in reject["detail"]  # the decoder's own words: what was wrong
+    assert r.gateway.counts["rejected.bad_request"] == len(cases) and r.gateway.sessions == {}
+    stranger = r.client()
+    stranger.send_raw(bytes(_good_input()))  # not a hello: no reject (a goodbye, see below)
+    assert r.until(stranger, lambda m: True).kind == Kind.GOODBYE
+
+
+@pytest.mark.timeout(30)
+def test_target_mode_is_refused_counted_and_kicks_like_any_bad_message(rig):
+    from processes.network.gateway import MAX_BAD
+
+    r = rig()
+    player = r.client()
+    r.join(player)
+    for _ in range(MAX_BAD):
+        player.send(Kind.INPUT, slot=Slot.A, mode=wire.InputMode.TARGET, force=[0, 0, 0], torque=[0, 0, 0],
+                    target_pos=[-1.6, 0.0, 0.15], target_quat=[1.0, 0, 0, 0])
+    goodbye = r.until(player, lambda m: m.kind == Kind.GOODBYE)
+    assert goodbye["reason"] == GoodbyeReason.KICKED
+    assert r.gateway.counts["refused.target_mode"] == MAX_BAD and r.gateway.counts["kicked"] == 1
+    assert all(not inputs.any() for *_, inputs in r.posted)  # the kicked arm let go; no target reached it
+
+
+@pytest.mark.timeout(30)
+def test_a_token_expires_with_the_grace_and_the_seat_is_anyones(rig):
+    r = rig(remote=(Slot.A,), heartbeat_s=1.0, timeout_s=5.0, grace_s=30.0)
+    ann = r.client(name="ann")
+    token = r.join(ann)["token"]
+    r.clock.now += 6.0
+    assert r.until(ann, lambda m: m.kind == Kind.GOODBYE)["reason"] == GoodbyeReason.TIMEOUT
+    r.clock.now += 30.0  # the grace is over
+    with pytest.raises(Rejected) as refused:
+        r.join(r.client(name="ann", token=token))
+    assert refused.value.reason == RejectReason.BAD_TOKEN and r.gateway.counts["tokens_expired"] == 1
+    bob = r.join(r.client(name="bob"))
+    assert bob["slot"] == Slot.A and bob["token"] != token and bob["name_a"] == "bob"
+    with pytest.raises(Rejected) as refused:  # and the old token is no key to the new player's seat
+        r.join(r.client(name="ann", token=token))
+    assert refused.value.reason == RejectReason.BAD_TOKEN
+
+
+@pytest.mark.timeout(30)
+def test_a_session_of_a_replaced_gateway_is_told_goodbye_once_and_rejoins(zctx, no_leftovers):
+    from processes.network.gateway import SEAT_DTYPE, SeatStore
+
+    arena = shm.Arena()
+    store = SeatStore(arena.snapshot_block("seats", SEAT_DTYPE, 2))
+    old_context = zmq.Context()  # the first gateway's own: terminating it frees the port at once
+    first = Rig(old_context, remote=(Slot.A,), seat_store=store)
+    endpoint = first.gateway.endpoint
+    ann = Client(endpoint, "player", "ann", zctx=zctx)
+    first.clients.append(ann)
+    token = first.join(ann)["token"]
+    first.gateway.close(linger_ms=0)  # gone without a word, as a killed gateway
+    old_context.term()
+    second = Rig(zctx, remote=(Slot.A,), bind=endpoint, seat_store=store)  # its successor, same endpoint
+    try:
+        goodbye = None
+        for _ in range(ROUNDS):  # the client's heartbeats reach the new gateway once it reconnects
+            ann.send(Kind.HEARTBEAT, ack=0)
+            second.step()
+            goodbye = ann.recv(5)
+            if goodbye is not None:
+                break
+        assert goodbye is not None and goodbye.kind == Kind.GOODBYE and goodbye["reason"] == GoodbyeReason.SHUTDOWN
+        ann.send(Kind.HEARTBEAT, ack=0)
+        second.settle(lambda: second.gateway.counts["dropped.no_session"] >= 2)
+        assert second.gateway.counts["goodbyes_to_strangers"] == 1  # told once per connection
+        welcome = second.join(ann)  # hello again: the token (kept by the client) reclaims the seat
+        assert welcome["slot"] == Slot.A and welcome["token"] == token and second.gateway.counts["rejoined"] == 1
+    finally:
+        ann.close()
+        second.close()
+        del store
+        arena.close()
+
+
 def test_serving_a_scene_makes_its_bats_remote_and_starts_a_gateway():
     scene = load_scene("match")
     one, two = with_remote_players(scene, 1), with_remote_players(scene, 2)
