@@ -6,6 +6,7 @@ import argparse
 import json
 import os
 import sys
+import tempfile
 from dataclasses import replace
 from pathlib import Path
 
@@ -181,26 +182,27 @@ def serve_command(args: argparse.Namespace) -> int:
         if getattr(args, "curve_secret", None):
             public, secret = load_curve_key(args.curve_secret, secret=True)
             curve = {"curve_public_key": public, "curve_secret_key": secret}
-        config = GatewayConfig(bind=args.bind, snapshot_hz=args.snapshot_hz, timeout_s=args.timeout,
-                               grace_s=args.grace, **curve)
-        crash = getattr(args, "crash_gateway_at_tick", None)
-        supervisor = Supervisor(scene, ticks, "realtime", seed=args.seed, gateway=config,
-                                players_timeout=args.wait, crash_at_tick=crash, crash_worker="gateway")
+        with tempfile.TemporaryDirectory(prefix="pingpong-serve-") as tmp:
+            stats_path = os.path.join(tmp, "gateway.json")  # the counters of a gateway stopped by Ctrl-C
+            config = GatewayConfig(bind=args.bind, snapshot_hz=args.snapshot_hz, timeout_s=args.timeout,
+                                   grace_s=args.grace, stats_path=stats_path, **curve)
+            crash = getattr(args, "crash_gateway_at_tick", None)
+            supervisor = Supervisor(scene, ticks, "realtime", seed=args.seed, gateway=config,
+                                    players_timeout=args.wait, crash_at_tick=crash, crash_worker="gateway")
 
-        def ready(reports: dict) -> None:
-            endpoint = reports["gateway"]["endpoint"]
-            if args.json:
-                print(json.dumps({"listening": endpoint, "run_id": supervisor.arena.run_id,
-                                  "players": args.players}), flush=True)
-            else:
-                print(f"serving {scene.name} on {endpoint}: {args.players} remote player(s), "
-                      f"{2 - args.players} AI; join with `pingpong join {endpoint} --as player --bot`", flush=True)
+            def ready(reports: dict) -> None:
+                endpoint = reports["gateway"]["endpoint"]
+                if args.json:
+                    print(json.dumps({"listening": endpoint, "run_id": supervisor.arena.run_id,
+                                      "players": args.players}), flush=True)
+                else:
+                    print(_serving_line(scene.name, endpoint, args.players), flush=True)
 
-        try:
-            result = supervisor.run(on_ready=ready)
-        except KeyboardInterrupt:
-            print("pingpong serve: interrupted; every client was told goodbye", file=sys.stderr)
-            return 130
+            try:
+                result = supervisor.run(on_ready=ready)
+            except KeyboardInterrupt:
+                _interrupted(args, stats_path)
+                return 130
     except (SceneError, SimulationError, ValueError) as exc:
         print(f"pingpong: {exc}", file=sys.stderr)
         return 2
@@ -214,6 +216,30 @@ def serve_command(args: argparse.Namespace) -> int:
         print(f"{'winner: ' + winner.upper() if winner else 'no winner'}  games: {games}  ticks {summary['ticks']}")
         print("gateway: " + ", ".join(f"{k} {v}" for k, v in summary["gateway"].items()))
     return 0
+
+
+def _serving_line(scene_name: str, endpoint: str, players: int) -> str:
+    """What `pingpong serve` prints once it listens: who plays, and how to join."""
+    if players == 0:
+        return (f"serving {scene_name} on {endpoint}: the AI plays both bats; "
+                f"watch with `pingpong join {endpoint} --as spectator`")
+    return (f"serving {scene_name} on {endpoint}: {players} remote player(s), {2 - players} AI; "
+            f"join with `pingpong join {endpoint} --as player --bot` (or --as spectator); the match "
+            f"starts once every remote seat is taken")
+
+
+def _interrupted(args: argparse.Namespace, stats_path: str) -> None:
+    """Ctrl-C on `pingpong serve`: the gateway's last counters (it wrote them as it stopped)."""
+    try:
+        with open(stats_path) as f:
+            stats = json.load(f)
+    except (OSError, ValueError):
+        stats = {}
+    if args.json:
+        print(json.dumps({"interrupted": True, "gateway": stats}), flush=True)
+    elif stats:
+        print("gateway: " + ", ".join(f"{k} {v}" for k, v in stats.items()))
+    print("pingpong serve: interrupted; every client was told goodbye", file=sys.stderr)
 
 
 def _read_capture(source: str) -> bytes:
@@ -280,7 +306,8 @@ def add_commands(sub) -> None:
     serve.add_argument("--snapshot-hz", type=int, default=100, help="snapshots per second to every client")
     serve.add_argument("--timeout", type=float, default=5.0, help="s, a silent client is dropped after this")
     serve.add_argument("--grace", type=float, default=30.0, help="s, a dropped player's seat waits for its token")
-    serve.add_argument("--wait", type=float, default=PLAYERS_TIMEOUT_S, help="s, wait for the remote players, then start")
+    serve.add_argument("--wait", type=float, default=PLAYERS_TIMEOUT_S, help="s, wait this long for every remote player before the first serve, then start anyway "
+                            "(and play on when a seat empties)")
     serve.add_argument("--crash-gateway-at-tick", type=int, default=None, help=argparse.SUPPRESS)
     serve.add_argument("--curve-secret", default=None, metavar="FILE",
                        help="CURVE-encrypt every session with this server secret key file (`pingpong keys DIR`)")

@@ -131,6 +131,8 @@ class GatewayConfig:
     measure against); it needs a tcp:// bind. feed_bind: the feed's endpoint; "": the session's
     host on a free port. stats_path: a JSON file the gateway writes its counters to (atomically)
     every second and when it ends, whether the match ended or it was stopped; "": none.
+    pause_for_players: the served match (its physics worker) pauses while a remote seat is
+    empty once every seat was held (False: it plays on against the empty seat's idle arm).
     """
 
     bind: str = "tcp://127.0.0.1:0"
@@ -147,6 +149,7 @@ class GatewayConfig:
     feed: bool = True
     feed_bind: str = ""
     stats_path: str = ""
+    pause_for_players: bool = True
 
 
 @dataclass

@@ -120,7 +120,7 @@ class RunLayout:
 
     arena: every block of the table above that the run's workers need. ai_baton, net_baton:
     the turns' batons (None without that worker). lock_path: the lock table's file (a run with a
-    gateway, else None). start_event: set once every remote seat is taken (a run with a gateway).
+    gateway, else None). start_event: set while every remote seat is held (a run with a gateway).
     """
 
     arena: Arena

@@ -741,8 +741,79 @@ def test_ctrl_c_on_the_server_says_goodbye_and_leaves_nothing_behind(served, zct
     finally:
         client.close()
     assert server.wait(30) == 130
+    interrupted = json.loads(server.stdout.read().strip().splitlines()[-1])  # the counters, also on Ctrl-C
+    assert interrupted["interrupted"] and interrupted["gateway"]["players_joined"] == 1
+    assert interrupted["gateway"]["goodbyes_at_end"] == 1 and interrupted["gateway"]["end"] == "shutdown"
     assert _await_gone(workers) == []
     assert not shm.leftover_segments(hello["run_id"])
+
+
+def test_serve_tells_how_to_join_what_it_serves():
+    from processes.cli.remote import _serving_line
+
+    assert "--as player" not in _serving_line("match", "tcp://127.0.0.1:1", 0)  # nobody to play: watch
+    assert "--as spectator" in _serving_line("match", "tcp://127.0.0.1:1", 0)
+    assert "--as player" in _serving_line("match", "tcp://127.0.0.1:1", 1)
+
+
+def _ticks_seen(client, count, rounds=3000):
+    """The ticks of the next `count` snapshots `client` gets (heartbeating; bounded)."""
+    ticks = []
+    for _ in range(rounds):
+        client.heartbeat_if_due()
+        message = client.recv(100)
+        if message is not None and message.kind == Kind.SNAPSHOT:
+            ticks.append(message.tick)
+            if len(ticks) == count:
+                return ticks
+    raise AssertionError(f"{len(ticks)} snapshots of {count} within the bound")
+
+
+@pytest.mark.timeout(150)
+def test_a_served_match_waits_for_its_player_and_pauses_while_the_seat_is_in_its_grace(served, zctx):
+    server = _pingpong("serve", "--players", "1", "--ticks", "600000", "--timeout", "1", "--grace", "60", "--json")
+    served.append(server)
+    endpoint = json.loads(_line(server, 60))["listening"]
+    watcher = Client(endpoint, "spectator", "sp", zctx=zctx)
+    player = Client(endpoint, "player", "ann", zctx=zctx)
+    try:
+        watcher.join(30)
+        assert set(_ticks_seen(watcher, 30)) == {0}  # nobody on seat A: no serve, the clock stands
+        token = player.join(30)["token"]
+        for _ in range(3000):  # the match starts: the ticks move
+            player.heartbeat_if_due()
+            player.recv(0)
+            if _ticks_seen(watcher, 1)[0] > 0:
+                break
+        else:
+            raise AssertionError("the match never started")
+        # the player falls silent: dropped after the 1 s timeout, its seat in its grace, the match paused
+        for _ in range(100):
+            window = _ticks_seen(watcher, 30)
+            if len(set(window)) == 1:
+                break
+        else:
+            raise AssertionError("the match never paused")
+        paused_at = window[0]
+        assert paused_at > 0
+        player.token = token
+        player.hello()  # back with the token: the match goes on from where it stood
+        for _ in range(300):
+            message = player.recv(100)
+            if message is not None and player.accept(message):
+                break
+        else:
+            raise AssertionError("no welcome back")
+        for _ in range(3000):
+            player.heartbeat_if_due()
+            player.recv(0)
+            tick = _ticks_seen(watcher, 1)[0]
+            if tick > paused_at:
+                break
+        assert tick > paused_at
+    finally:
+        watcher.close()
+        player.close()
 
 
 def test_a_remote_bat_needs_the_effect_and_no_skill():
