@@ -1,5 +1,5 @@
-"""`pingpong serve`, `join`, `keys` and `decode`: a match that remote players and spectators join,
-its CURVE keys, and a captured wire message pretty-printed."""
+"""`pingpong serve`, `join`, `relay`, `keys` and `decode`: a match that remote players and spectators
+join, a relay of its spectator feed, its CURVE keys, and a captured wire message pretty-printed."""
 from __future__ import annotations
 
 import argparse
@@ -193,8 +193,8 @@ def serve_command(args: argparse.Namespace) -> int:
             def ready(reports: dict) -> None:
                 endpoint = reports["gateway"]["endpoint"]
                 if args.json:
-                    print(json.dumps({"listening": endpoint, "run_id": supervisor.arena.run_id,
-                                      "players": args.players}), flush=True)
+                    print(json.dumps({"listening": endpoint, "feed": reports["gateway"]["feed"],
+                                      "run_id": supervisor.arena.run_id, "players": args.players}), flush=True)
                 else:
                     print(_serving_line(scene.name, endpoint, args.players), flush=True)
 
@@ -240,6 +240,42 @@ def _interrupted(args: argparse.Namespace, stats_path: str) -> None:
     elif stats:
         print("gateway: " + ", ".join(f"{k} {v}" for k, v in stats.items()))
     print("pingpong serve: interrupted; every client was told goodbye", file=sys.stderr)
+
+
+def relay_command(args: argparse.Namespace) -> int:
+    """`pingpong relay UPSTREAM --bind ENDPOINT`: re-publish a gateway's feed (processes.network.relay)."""
+    import threading
+
+    import zmq
+
+    from processes.network.relay import Relay
+
+    try:
+        socket_options = curve_client_options(getattr(args, "curve_server_key", None))
+    except (ValueError, OSError) as err:
+        print(f"pingpong relay: {err}", file=sys.stderr)
+        return 2
+    zctx = zmq.Context()
+    relay = Relay(zctx, args.upstream, args.bind, socket_options=socket_options)
+    try:
+        try:
+            endpoint = relay.start()
+        except zmq.ZMQError as err:
+            print(f"pingpong relay: {err}", file=sys.stderr)
+            return 2
+        if args.json:
+            print(json.dumps({"relaying": args.upstream, "listening": endpoint}), flush=True)
+        else:
+            print(f"relaying the feed {args.upstream} on {endpoint}; subscribers connect a SUB socket there",
+                  flush=True)
+        try:
+            threading.Event().wait(args.seconds)  # the proxy runs in its thread; Ctrl-C ends the wait
+        except KeyboardInterrupt:
+            pass
+    finally:
+        relay.stop()
+        zctx.destroy(linger=0)
+    return 0
 
 
 def _read_capture(source: str) -> bytes:
@@ -294,7 +330,7 @@ def decode_command(args: argparse.Namespace) -> int:
 
 
 def add_commands(sub) -> None:
-    """`pingpong serve`, `join`, `keys` and `decode`."""
+    """`pingpong serve`, `join`, `relay`, `keys` and `decode`."""
     serve = sub.add_parser("serve", help="serve a realtime match that remote players and spectators join",
                            formatter_class=FORMATTER)
     serve.add_argument("--scene", default="match", help="scene TOML file or bundled scene name (needs a referee)")
@@ -329,6 +365,16 @@ def add_commands(sub) -> None:
                       help="the server's public key file: connect CURVE-encrypted (`pingpong keys DIR`)")
     add_common(join)
     join.set_defaults(func=join_command)
+
+    relay = sub.add_parser("relay", help="re-publish a served match's spectator feed (a ZeroMQ XSUB/XPUB proxy)",
+                           formatter_class=FORMATTER)
+    relay.add_argument("upstream", help="the gateway's feed endpoint (the 'feed' of `pingpong serve --json`)")
+    relay.add_argument("--bind", default="tcp://127.0.0.1:0", help="where subscribers connect; port 0 picks one")
+    relay.add_argument("--seconds", type=float, default=24 * 3600.0, help="stop after this long at most")
+    relay.add_argument("--curve-server-key", default=None, metavar="FILE",
+                       help="the upstream server's public key file, if its feed is CURVE-encrypted")
+    relay.add_argument("--json", action="store_true", help="print one JSON object when listening")
+    relay.set_defaults(func=relay_command)
 
     keys = sub.add_parser("keys", help="make a CURVE key pair for `serve --curve-secret` / `join --curve-server-key`",
                           formatter_class=FORMATTER)

@@ -579,6 +579,74 @@ def test_a_session_of_a_replaced_gateway_is_told_goodbye_once_and_rejoins(zctx, 
         arena.close()
 
 
+@pytest.mark.timeout(30)
+def test_a_relay_republishes_the_feed_byte_for_byte_to_its_subscribers(rig, zctx):
+    from processes.network.relay import Relay
+
+    r = rig()
+    watcher = r.client(role="spectator")
+    r.join(watcher)  # a spectator of the gateway itself, to compare with
+    relay = Relay(zctx, r.gateway.feed_endpoint, "tcp://127.0.0.1:0")
+    endpoint = relay.start()
+    subscribers = []
+    try:
+        for _ in range(2):
+            sub = zctx.socket(zmq.SUB)
+            sub.setsockopt(zmq.LINGER, 0)
+            sub.setsockopt(zmq.SUBSCRIBE, b"")
+            sub.connect(endpoint)
+            subscribers.append(sub)
+        tick = 0
+        got = [None, None]
+        for _ in range(ROUNDS):  # serve ticks until both relayed subscriptions are live
+            tick += 1
+            r.record["world"]["tick"] = tick
+            r.clock.now += 0.002
+            r.gateway.service(r.record)
+            for i, sub in enumerate(subscribers):
+                if got[i] is None and sub.poll(5, zmq.POLLIN):
+                    got[i] = sub.recv()
+            if all(got):
+                break
+        assert all(got), "the relay forwarded nothing"
+        later = tick + 1  # one more snapshot: every subscriber gets exactly the feed's bytes
+        r.record["world"]["tick"] = later
+        r.clock.now += 0.002
+        r.gateway.service(r.record)
+        relayed = []
+        for sub in subscribers:
+            for _ in range(ROUNDS):
+                assert sub.poll(50, zmq.POLLIN), "the relay lost a snapshot"
+                data = sub.recv()
+                if wire.decode(data).tick == later:
+                    relayed.append(data)
+                    break
+        direct = _first_tick(watcher, later)
+        direct_bytes = wire.encode(direct.kind, seq=direct.seq, tick=direct.tick, flags=direct.flags, **direct.fields)
+        assert relayed[0] == relayed[1] == direct_bytes  # the feed's own bytes, its seq included
+    finally:
+        for sub in subscribers:
+            sub.close(linger=0)
+        relay.stop()
+
+
+def _first_tick(client, tick):
+    for _ in range(ROUNDS):
+        message = client.recv(10)
+        if message is not None and message.kind == Kind.SNAPSHOT and message.tick == tick:
+            return message
+    raise AssertionError(f"no snapshot of tick {tick}")
+
+
+@pytest.mark.timeout(60)
+def test_relay_smoke_runs(served):
+    relay = _pingpong("relay", "tcp://127.0.0.1:9", "--bind", "tcp://127.0.0.1:0", "--seconds", "0.2", "--json")
+    served.append(relay)
+    line = json.loads(_line(relay, 30))
+    assert line["relaying"] == "tcp://127.0.0.1:9" and line["listening"].startswith("tcp://127.0.0.1:")
+    assert relay.wait(20) == 0
+
+
 def test_serving_a_scene_makes_its_bats_remote_and_starts_a_gateway():
     scene = load_scene("match")
     one, two = with_remote_players(scene, 1), with_remote_players(scene, 2)
