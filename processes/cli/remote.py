@@ -255,8 +255,7 @@ def relay_command(args: argparse.Namespace) -> int:
     except (ValueError, OSError) as err:
         print(f"pingpong relay: {err}", file=sys.stderr)
         return 2
-    zctx = zmq.Context()
-    relay = Relay(zctx, args.upstream, args.bind, socket_options=socket_options)
+    relay = Relay(args.upstream, args.bind, socket_options=socket_options)
     try:
         try:
             endpoint = relay.start()
@@ -274,7 +273,6 @@ def relay_command(args: argparse.Namespace) -> int:
             pass
     finally:
         relay.stop()
-        zctx.destroy(linger=0)
     return 0
 
 

@@ -38,7 +38,8 @@ theirs on the session (two sends, and a player's snapshots are counted per sessi
   the feed is encrypted and the server authenticated like the sessions, clients are not).
 - goodbye to every session on shutdown (shutdown) or at the end of the match (match_over); a
   peer without a session that sends anything but a hello (a session of the gateway this one
-  replaced after a crash) is told goodbye (shutdown), once per connection, and may hello again.
+  replaced after a crash) is told goodbye (unknown_session), once per connection, and may
+  hello again (a player with its token, within the grace).
 - a snapshot of tick T says in input_seq the inputs applied before the step into T (the
   physics writes them per tick into the remote_acks ring before publishing T), so a client
   rewinds to T and replays exactly its later inputs; an input holds input_hold_s at most, then
@@ -476,16 +477,16 @@ class Gateway:
             self._bad(session)
 
     def _goodbye_stranger(self, identity: bytes) -> None:
-        """Goodbye (shutdown), once per connection, to a peer that talks as if it had a session:
-        a session of a gateway this one replaced (restarted after a crash), or one already
-        closed. It may hello again (with its token, within the grace)."""
+        """Goodbye (unknown_session), once per connection, to a peer that talks as if it had a
+        session: a session of a gateway this one replaced (restarted after a crash), or one
+        already closed. It may hello again (with its token, within the grace)."""
         if identity in self._strangers_told:
             return
         if len(self._strangers_told) >= MAX_STRANGERS_TOLD:
             self._strangers_told.clear()
         self._strangers_told.add(identity)
         self.counts["goodbyes_to_strangers"] += 1
-        self._reply(identity, wire.encode(Kind.GOODBYE, tick=self.tick, reason=GoodbyeReason.SHUTDOWN))
+        self._reply(identity, wire.encode(Kind.GOODBYE, tick=self.tick, reason=GoodbyeReason.UNKNOWN_SESSION))
 
     def _bad(self, session: _Session | None) -> None:
         if session is None:

@@ -2,7 +2,7 @@
 
 An XSUB socket connects to the gateway's feed (its PUB: the endpoint `pingpong serve` reports
 as "feed", the session's host with welcome.feed_port), an XPUB socket binds where the relay's
-subscribers connect, and libzmq's own proxy (zmq_proxy_steerable) moves the messages one way and
+subscribers connect, and libzmq's own proxy (zmq_proxy) moves the messages one way and
 the subscriptions the other, in its C loop: one subscription upstream, whatever the number of
 subscribers downstream, so spectators and web bridges on other machines fan out without loading
 the gateway. The bytes are the feed's own (same header seq stream, so a subscriber still counts
@@ -24,24 +24,23 @@ _START_TIMEOUT_S = 10.0
 
 
 class Relay:
-    """One XSUB -> XPUB proxy in a thread of its own.
+    """One XSUB -> XPUB proxy in a thread of its own, on a ZeroMQ context of its own: stop()
+    terminates the context, the proxy returns (ETERM) and the thread closes the sockets.
 
     Args:
-        zctx: a zmq.Context. upstream: the feed's endpoint (tcp://host:port). bind: where
-            subscribers connect; port 0 picks a free one (see `endpoint` after start()).
+        upstream: the feed's endpoint (tcp://host:port). bind: where subscribers connect; port
+            0 picks a free one (see `endpoint` after start()).
         sndhwm: messages queued per subscriber before its newest are dropped.
-        socket_options: {zmq option: value} for both sockets (e.g. CURVE keys of the upstream).
+        socket_options: {zmq option: value} for the upstream socket (e.g. CURVE keys).
     """
 
-    def __init__(self, zctx, upstream: str, bind: str, *, sndhwm: int = RELAY_SNDHWM,
-                 socket_options: dict | None = None):
-        self.zctx = zctx
+    def __init__(self, upstream: str, bind: str, *, sndhwm: int = RELAY_SNDHWM, socket_options: dict | None = None):
         self.upstream = upstream
         self.bind = bind
         self.sndhwm = sndhwm
         self.socket_options = dict(socket_options or {})
         self.endpoint = ""
-        self._control = f"inproc://relay-control-{id(self)}"
+        self.zctx = zmq.Context()
         self._ready = threading.Event()
         self._error: BaseException | None = None
         self._thread = threading.Thread(target=self._run, name="relay", daemon=True)
@@ -52,47 +51,42 @@ class Relay:
         if not self._ready.wait(_START_TIMEOUT_S):
             raise TimeoutError("the relay's sockets did not start")
         if self._error is not None:
+            self._thread.join(_START_TIMEOUT_S)
             raise self._error
         return self.endpoint
 
     def _run(self) -> None:
         xsub = self.zctx.socket(zmq.XSUB)
         xpub = self.zctx.socket(zmq.XPUB)
-        control = self.zctx.socket(zmq.PAIR)
         try:
-            for sock in (xsub, xpub, control):
-                sock.setsockopt(zmq.LINGER, 0)
-            for option, value in self.socket_options.items():
-                xsub.setsockopt(option, value)
-            xpub.setsockopt(zmq.SNDHWM, self.sndhwm)
-            xpub.setsockopt(zmq.MAXMSGSIZE, MAX_FRAME_BYTES)  # what a subscriber may send: subscriptions
-            control.bind(self._control)
-            xpub.bind(self.bind[:-2] + ":*" if self.bind.endswith(":0") else self.bind)
-            self.endpoint = xpub.getsockopt_string(zmq.LAST_ENDPOINT)
-            xsub.connect(self.upstream)
-        except zmq.ZMQError as err:
-            self._error = err
-            self._ready.set()
-            for sock in (xsub, xpub, control):
-                sock.close(linger=0)
-            return
-        self._ready.set()
-        try:
-            zmq.proxy_steerable(xsub, xpub, None, control)  # returns on TERMINATE
+            try:
+                for sock in (xsub, xpub):
+                    sock.setsockopt(zmq.LINGER, 0)
+                for option, value in self.socket_options.items():
+                    xsub.setsockopt(option, value)
+                xpub.setsockopt(zmq.SNDHWM, self.sndhwm)
+                xpub.setsockopt(zmq.MAXMSGSIZE, MAX_FRAME_BYTES)  # what a subscriber may send: subscriptions
+                xpub.bind(self.bind[:-2] + ":*" if self.bind.endswith(":0") else self.bind)
+                self.endpoint = xpub.getsockopt_string(zmq.LAST_ENDPOINT)
+                xsub.connect(self.upstream)
+            except zmq.ZMQError as err:
+                self._error = err
+                return
+            finally:
+                self._ready.set()
+            try:
+                zmq.proxy(xsub, xpub)
+            except zmq.ContextTerminated:  # stop()
+                pass
         finally:
-            for sock in (xsub, xpub, control):
-                sock.close(linger=0)
+            xsub.close(linger=0)
+            xpub.close(linger=0)
 
     def stop(self, timeout_s: float = 5.0) -> None:
-        """Tell the proxy to terminate and wait (bounded) for its thread."""
-        if not self._thread.is_alive():
-            return
-        command = self.zctx.socket(zmq.PAIR)
-        command.setsockopt(zmq.LINGER, 0)
-        command.setsockopt(zmq.SNDTIMEO, int(timeout_s * 1000))
-        try:
-            command.connect(self._control)
-            command.send(b"TERMINATE")
-        finally:
-            command.close(linger=0)
+        """End the proxy: terminate the context (it waits for the thread to close its sockets)."""
+        terminator = threading.Thread(target=self.zctx.term, name="relay-term", daemon=True)
+        terminator.start()
+        terminator.join(timeout_s)
         self._thread.join(timeout_s)
+        if terminator.is_alive() or self._thread.is_alive():
+            raise TimeoutError("the relay's proxy did not terminate")

@@ -11,7 +11,8 @@ Run as `python -m processes.stress.swarm SPEC_JSON`; prints JSON lines on stdout
   numbers every message it publishes, so a gap is a message dropped at the high-water mark),
   score or tick regressions, goodbyes. A spectator subscribes to the feed its welcome names
   (its snapshots and events come there, heartbeats and goodbye on the session). With "rejoin"
-  a client silent for silence_s says hello again (a restarted gateway lost its sessions).
+  a client silent for silence_s, or told goodbye unknown_session, says hello again (a restarted
+  gateway lost its sessions).
 - churn: join and leave in a loop, `concurrency` sessions in flight: players claim and free
   seats, spectators come and go, a fraction leaves without goodbye (socket closed, linger 0).
 - malformed: N bad messages of every class from sessionless sockets (each one's expected
@@ -230,7 +231,12 @@ def watch(spec: dict) -> dict:
                                 by_sock[w.feed] = w
                         continue
                     if message.kind == Kind.GOODBYE:
-                        w.goodbye = message["reason"].name.lower()
+                        if message["reason"] == GoodbyeReason.UNKNOWN_SESSION and spec.get("rejoin"):
+                            client.hello()  # a restarted gateway lost our session: hello again now
+                            w.hello_at = t
+                            w.hellos += 1
+                        else:
+                            w.goodbye = message["reason"].name.lower()
                     elif message.kind == Kind.EVENT:
                         events += 1
                 if seq <= w.last_seq:

@@ -93,7 +93,10 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
                 continue
             gateway.service(rec, ack, points)
             if start_event is not None and gateway.seats_filled != start_event.is_set():
-                (start_event.set if gateway.seats_filled else start_event.clear)()  # physics plays or pauses
+                if gateway.seats_filled:
+                    start_event.set()  # the physics plays
+                elif config.pause_for_players:
+                    start_event.clear()  # the physics pauses (and a restarted one waits)
             control.beat(gateway.tick)
             if crash_at_tick is not None and gateway.tick >= crash_at_tick:
                 os.kill(os.getpid(), signal.SIGKILL)  # fault injection (tests)

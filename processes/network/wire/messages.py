@@ -71,10 +71,11 @@ class EventKind(enum.IntEnum):
 
 class GoodbyeReason(enum.IntEnum):
     QUIT = 1  # the client leaves
-    SHUTDOWN = 2  # the server stops, or a restarted server knows no such session
+    SHUTDOWN = 2  # the server stops
     TIMEOUT = 3  # no heartbeat from the peer in time
     MATCH_OVER = 4  # the match is decided or reached its tick limit
     KICKED = 5  # too many bad messages, or the seat's token was used by a new connection
+    UNKNOWN_SESSION = 6  # the server has no session for this connection (it restarted): hello again
 
 
 HEADER_FIELDS = [
@@ -359,7 +360,8 @@ class Goodbye(_Spec):
     Layout, 25 bytes:
         off  size  field   type  unit / meaning
           0    24  header        HEADER_DTYPE
-         24     1  reason  u1    GoodbyeReason: 1 quit, 2 shutdown, 3 timeout, 4 match_over, 5 kicked
+         24     1  reason  u1    GoodbyeReason: 1 quit, 2 shutdown, 3 timeout, 4 match_over, 5 kicked,
+                                 6 unknown_session
     """
 
     kind = Kind.GOODBYE
