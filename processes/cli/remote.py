@@ -190,6 +190,8 @@ def serve_command(args: argparse.Namespace) -> int:
             supervisor = Supervisor(scene, ticks, "realtime", seed=args.seed, gateway=config,
                                     players_timeout=args.wait, crash_at_tick=crash, crash_worker="gateway")
 
+            bridges: list = []
+
             def ready(reports: dict) -> None:
                 endpoint = reports["gateway"]["endpoint"]
                 if args.json:
@@ -197,12 +199,17 @@ def serve_command(args: argparse.Namespace) -> int:
                                       "run_id": supervisor.arena.run_id, "players": args.players}), flush=True)
                 else:
                     print(_serving_line(scene.name, endpoint, args.players), flush=True)
+                if args.web:
+                    bridges.append(_web_bridge(endpoint, args))
 
             try:
                 result = supervisor.run(on_ready=ready)
             except KeyboardInterrupt:
                 _interrupted(args, stats_path)
                 return 130
+            finally:
+                for bridge in bridges:
+                    _stop_process(bridge)
     except (SceneError, SimulationError, ValueError) as exc:
         print(f"pingpong: {exc}", file=sys.stderr)
         return 2
@@ -216,6 +223,50 @@ def serve_command(args: argparse.Namespace) -> int:
         print(f"{'winner: ' + winner.upper() if winner else 'no winner'}  games: {games}  ticks {summary['ticks']}")
         print("gateway: " + ", ".join(f"{k} {v}" for k, v in summary["gateway"].items()))
     return 0
+
+
+def _web_bridge(endpoint: str, args: argparse.Namespace):
+    """`pingpong watch ENDPOINT --web HOST:PORT` as a process of its own beside the served match:
+    a gateway client like any other. Its stderr is ours; its first line (the URL) is printed."""
+    import subprocess
+    import threading
+
+    command = [sys.executable, "-m", "processes.cli", "watch", endpoint, "--web", args.web, "--json"]
+    if getattr(args, "curve_secret", None):
+        command += ["--curve-server-key", _public_key_file(args.curve_secret)]
+    bridge = subprocess.Popen(command, stdout=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True)
+
+    def announce() -> None:  # not in on_ready: the gateway answers the bridge only once it runs
+        line = bridge.stdout.readline()  # bounded by the bridge's own join timeout
+        try:
+            url = json.loads(line)["url"]
+        except (ValueError, KeyError, TypeError):
+            return
+        print(json.dumps({"web": url}) if args.json else f"watch in a browser: {url}", flush=True)
+
+    threading.Thread(target=announce, name="web-bridge-url", daemon=True).start()
+    return bridge
+
+
+def _public_key_file(secret_file: str) -> str:
+    """The public key file beside a `pingpong keys` secret one (NAME.key_secret -> NAME.key)."""
+    return secret_file[:-len("_secret")] if secret_file.endswith(".key_secret") else secret_file
+
+
+def _stop_process(process) -> None:
+    """End a child we started (SIGINT, so it says goodbye; then SIGKILL), bounded."""
+    import signal
+    import subprocess
+
+    if process.poll() is None:
+        process.send_signal(signal.SIGINT)
+        try:
+            process.wait(10)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait(10)
+    if process.stdout is not None:
+        process.stdout.close()
 
 
 def _serving_line(scene_name: str, endpoint: str, players: int) -> str:
@@ -240,6 +291,48 @@ def _interrupted(args: argparse.Namespace, stats_path: str) -> None:
     elif stats:
         print("gateway: " + ", ".join(f"{k} {v}" for k, v in stats.items()))
     print("pingpong serve: interrupted; every client was told goodbye", file=sys.stderr)
+
+
+def watch_command(args: argparse.Namespace) -> int:
+    """`pingpong watch ADDRESS --web HOST:PORT`: the match in the browser (processes.network.web)."""
+    import threading
+
+    from processes.network.web import WebBridge
+
+    try:
+        socket_options = curve_client_options(getattr(args, "curve_server_key", None))
+        bridge = WebBridge(args.address, args.web, socket_options=socket_options)
+    except (ValueError, OSError) as err:
+        print(f"pingpong watch: {err}", file=sys.stderr)
+        return 2
+    try:
+        try:
+            url = bridge.start(args.join_timeout)
+        except Rejected as err:
+            print(f"pingpong watch: {err}", file=sys.stderr)
+            return 3
+        except TimeoutError as err:
+            print(f"pingpong watch: {err}", file=sys.stderr)
+            return 4
+        except OSError as err:
+            print(f"pingpong watch: {args.web}: {err}", file=sys.stderr)
+            return 2
+        if args.json:
+            print(json.dumps({"url": url, "watching": args.address}), flush=True)
+        else:
+            print(f"open {url} in a browser to watch {bridge.counts['scene']} (Ctrl-C stops)", flush=True)
+        try:
+            bridge.ended.wait(args.seconds)  # the session thread sets it when the match or the server ends
+            if bridge.ended.is_set():
+                threading.Event().wait(args.linger)  # the page keeps showing the end a little longer
+        except KeyboardInterrupt:
+            pass
+    finally:
+        bridge.stop()
+    summary = {"url": bridge.url, "end": bridge.end_reason or "stopped", **bridge.counts}
+    print(json.dumps(summary) if args.json else f"session ended: {summary['end']}; "
+          f"{summary['snapshots']} snapshots, {summary['browsers']} browser(s)")
+    return 0
 
 
 def relay_command(args: argparse.Namespace) -> int:
@@ -343,6 +436,8 @@ def add_commands(sub) -> None:
     serve.add_argument("--wait", type=float, default=PLAYERS_TIMEOUT_S, help="s, wait this long for every remote player before the first serve, then start anyway "
                             "(and play on when a seat empties)")
     serve.add_argument("--crash-gateway-at-tick", type=int, default=None, help=argparse.SUPPRESS)
+    serve.add_argument("--web", default=None, metavar="HOST:PORT",
+                       help="also show the match in the browser: a web bridge (`pingpong watch`) serves it there")
     serve.add_argument("--curve-secret", default=None, metavar="FILE",
                        help="CURVE-encrypt every session with this server secret key file (`pingpong keys DIR`)")
     add_common(serve)
@@ -363,6 +458,19 @@ def add_commands(sub) -> None:
                       help="the server's public key file: connect CURVE-encrypted (`pingpong keys DIR`)")
     add_common(join)
     join.set_defaults(func=join_command)
+
+    watch = sub.add_parser("watch", help="watch a served match in the browser, in 3D (a web bridge)",
+                           formatter_class=FORMATTER)
+    watch.add_argument("address", help="the server's endpoint, e.g. tcp://127.0.0.1:5555")
+    watch.add_argument("--web", default="127.0.0.1:8080", metavar="HOST:PORT",
+                       help="where the page is served; port 0 picks a free one")
+    watch.add_argument("--seconds", type=float, default=24 * 3600.0, help="stop after this long at most")
+    watch.add_argument("--linger", type=float, default=5.0, help="s the page stays up after the match ends")
+    watch.add_argument("--join-timeout", type=float, default=10.0, help="s to wait for the welcome")
+    watch.add_argument("--curve-server-key", default=None, metavar="FILE",
+                       help="the server's public key file: connect CURVE-encrypted (`pingpong keys DIR`)")
+    watch.add_argument("--json", action="store_true", help="print JSON: the URL, then the summary")
+    watch.set_defaults(func=watch_command)
 
     relay = sub.add_parser("relay", help="re-publish a served match's spectator feed (a ZeroMQ XSUB/XPUB proxy)",
                            formatter_class=FORMATTER)

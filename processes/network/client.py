@@ -116,6 +116,7 @@ class Client:
         self.drops = wire.DropCounter()
         self.received = 0
         self.goodbye: GoodbyeReason | None = None
+        self.last_data = b""  # the bytes of the last valid message received
         self.rejoins = 0  # hellos again after a goodbye unknown_session (a restarted gateway)
         self.rejected = None  # the RejectReason that ended a rejoin, if one did
         self.last_seen = time.monotonic()
@@ -210,6 +211,7 @@ class Client:
         message = self.drops.decode(data)
         if message is None:
             return None
+        self.last_data = data  # the message's own bytes (the web bridge forwards them unchanged)
         self.received += 1
         self.tick = max(self.tick, message.tick)
         if sock is self.feed:

@@ -172,6 +172,33 @@ def defaults_block() -> str:
     return _table(("setting", "default", "announced in", "meaning"), rows)
 
 
+def layout_json() -> dict:
+    """The wire's layouts and enum names as plain data, for a decoder in another language (the
+    web page's decoder.js reads it): per message kind its size and fields (offset, numpy type
+    without byte order, shape, and whether it is text or a token), and every enum's names."""
+    def fields(dtype, spec=None):
+        out = []
+        for name in dtype.names:
+            field, offset = dtype.fields[name][0], dtype.fields[name][1]
+            kind = "text" if spec is not None and name in spec.text else (
+                "token" if spec is not None and name in spec.tokens else "number")
+            out.append({"name": name, "offset": offset, "type": field.base.str.lstrip("<|"),
+                        "shape": list(field.shape), "kind": kind})
+        return out
+
+    return {
+        "version": wire.PROTOCOL_VERSION, "magic": wire.MAGIC.decode("ascii"),
+        "header": fields(wire.HEADER_DTYPE),
+        "messages": {kind.name.lower(): {"kind": int(kind), "size": spec.dtype.itemsize,
+                                         "fields": fields(spec.dtype, spec)[len(wire.HEADER_FIELDS):],
+                                         "enums": {name: e.__name__ for name, e in spec.enums.items()}}
+                     for kind, spec in wire.SPECS.items()},
+        "enums": {cls.__name__: {str(int(m.value) if values is None else values[m]):
+                                 (m.name.lower() if isinstance(m.value, int) else m.value) for m in cls}
+                  for cls, _, values in ENUMS.values()},
+    }
+
+
 def blocks() -> dict[str, str]:
     """Every generated block of the document by name."""
     out = {"header": header_block()}

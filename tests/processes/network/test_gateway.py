@@ -639,6 +639,32 @@ def _first_tick(client, tick):
     raise AssertionError(f"no snapshot of tick {tick}")
 
 
+@pytest.mark.timeout(120)
+def test_serve_web_shows_the_page_beside_the_match(served):
+    import urllib.request
+
+    server = _pingpong("serve", "--players", "0", "--ticks", "600000", "--web", "127.0.0.1:0", "--json")
+    served.append(server)
+    assert "listening" in json.loads(_line(server, 60))
+    url = json.loads(_line(server, 60))["web"]  # the bridge joined as a spectator and serves the page
+    with urllib.request.urlopen(url, timeout=10) as reply:
+        assert reply.status == 200 and b"app.js" in reply.read()
+    os.kill(server.pid, signal.SIGINT)
+    assert server.wait(30) == 130
+    interrupted = json.loads(server.stdout.read().strip().splitlines()[-1])
+    assert interrupted["gateway"]["spectators_joined"] == 1  # the bridge, a gateway client like any other
+
+
+@pytest.mark.timeout(60)
+def test_watch_smoke_runs(served):
+    lonely = _pingpong("watch", "tcp://127.0.0.1:9", "--web", "127.0.0.1:0", "--join-timeout", "0.5")
+    served.append(lonely)
+    assert lonely.wait(30) == 4 and "no welcome" in lonely.stderr.read()  # nobody there: no welcome in time
+    bad = _pingpong("watch", "tcp://127.0.0.1:9", "--web", "8080")
+    served.append(bad)
+    assert bad.wait(30) == 2 and "HOST:PORT" in bad.stderr.read()
+
+
 @pytest.mark.timeout(60)
 def test_relay_smoke_runs(served):
     relay = _pingpong("relay", "tcp://127.0.0.1:9", "--bind", "tcp://127.0.0.1:0", "--seconds", "0.2", "--json")
