@@ -27,7 +27,7 @@ lint: install
 # per effect combination. A test file stays on one worker (loadfile), so its specialisations
 # compile once; the other worker finds them in numba's on-disk cache.
 test: lint browser
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=25
 
 # The web page's tests run in the system's headless Chromium: installed here as root where it is
 # missing (CI); without root they are skipped, and say how to install.

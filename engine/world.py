@@ -212,7 +212,7 @@ def initial_state(scene: Scene) -> State:
 
 def copy_record(src: np.ndarray, dst: np.ndarray, index: int = 0) -> None:
     """dst[index] = src[0], byte for byte (numpy copies nested structured records field by field,
-    ~10x slower)."""
+    which is far slower)."""
     dst.view(np.uint8).reshape(len(dst), -1)[index] = src.view(np.uint8)
 
 

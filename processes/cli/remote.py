@@ -231,7 +231,8 @@ def _web_bridge(endpoint: str, args: argparse.Namespace):
     import subprocess
     import threading
 
-    command = [sys.executable, "-m", "processes.cli", "watch", endpoint, "--web", args.web, "--json"]
+    command = [sys.executable, "-m", "processes.cli", "watch", endpoint, "--web", args.web, "--json",
+               "--join-timeout", "60"]  # the gateway answers once the run is under way, on a busy machine later
     if getattr(args, "curve_secret", None):
         command += ["--curve-server-key", _public_key_file(args.curve_secret)]
     bridge = subprocess.Popen(command, stdout=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True)

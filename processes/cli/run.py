@@ -1,4 +1,4 @@
-"""`pingpong run` and, until the referee and AI exist, `pingpong match`: in-process runs of a scene."""
+"""`pingpong run` and `pingpong stability`: in-process runs of a scene and the stability suite."""
 from __future__ import annotations
 
 import argparse

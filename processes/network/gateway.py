@@ -4,8 +4,8 @@ Two sockets. The sessions live on a ROUTER: a client is a DEALER that sends one-
 messages (processes/wire.py); the gateway sees [identity, message]. What every spectator gets
 (snapshots, events) goes out once on a PUB socket, the feed, whose port the welcome announces
 (welcome.feed_port): the gateway encodes and sends a snapshot once per tick and libzmq's I/O
-thread copies it to each subscriber, where one send per spectator session cost ~25 us of the
-gateway's Python each (1000 spectators at 120 Hz were 3 s of CPU per second). Players keep
+thread copies it to each subscriber, where one send per spectator session would cost the
+gateway's Python a send each, times the spectators, times the snapshot rate. Players keep
 theirs on the session (two sends, and a player's snapshots are counted per session). Sessions:
 
 - hello -> welcome (slot A/B with a fresh rejoin token, or spectator) or reject (full,
@@ -68,6 +68,7 @@ from dataclasses import dataclass
 import numpy as np
 import zmq
 
+from engine.arm import BRAKE_EVERY_S, BRAKE_MIN_SPEED, brake_force
 from processes.network import wire
 from processes.network.wire import GoodbyeReason, InputMode, Kind, RejectReason, Role, Slot
 
@@ -79,25 +80,6 @@ SEAT_DTYPE = np.dtype([("slot", "u1"), ("taken", "u1"), ("token", "u1", (16,)), 
 # must not leave its bat pushed by a constant force (120 N on a 0.17 kg bat is 70 m/s in 0.1 s).
 # After it, the gateway posts a zero input (same seq) until the next input comes.
 INPUT_HOLD_S = 0.1  # a player's input is let go of (zero force) this long after it arrived
-# An idle arm (its input expired, or no player holds the seat) stops its bat instead of letting
-# it coast off (a coasting bat leaves the wire's +-8 m and no snapshot can be sent any more):
-# force = -mass * BRAKE_PER_S * bat velocity, at most BRAKE_MAX_N, posted every BRAKE_EVERY_S
-# while the bat moves faster than BRAKE_MIN_SPEED. The AI arm's own damping and weakest limit.
-BRAKE_PER_S = 60.0  # 1/s, engine.ai.BatAI.KD
-BRAKE_MAX_N = 50.0  # N, the novice arm's max_force_n
-BRAKE_EVERY_S = 0.01
-BRAKE_MIN_SPEED = 0.01  # m/s
-
-
-def brake_force(mass: float, vel, out: np.ndarray) -> np.ndarray:
-    """out[0:6] := an idle arm's force (N) on a bat of `mass` kg moving at `vel` (m/s), no torque."""
-    out[:] = 0.0
-    out[0:3] = vel
-    out[0:3] *= -mass * BRAKE_PER_S
-    norm = float(np.sqrt(out[0:3] @ out[0:3]))
-    if norm > BRAKE_MAX_N:
-        out[0:3] *= BRAKE_MAX_N / norm
-    return out
 MAX_BAD = 64  # bad messages one session may send before it is kicked
 MAX_STRANGERS_TOLD = 4096  # connections without a session told goodbye, remembered so each is told once
 MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messages

@@ -26,7 +26,7 @@ from collections import deque
 
 import numpy as np
 
-from processes.network.gateway import brake_force
+from engine.arm import brake_force
 from processes.network.wire import Slot
 
 MAX_AHEAD_TICKS = 500  # a prediction runs at most this far past the last snapshot (0.5 s at 1 kHz)

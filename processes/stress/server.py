@@ -1,7 +1,7 @@
 """The server under test of `pingpong stress`: a Supervisor serving a match, as `pingpong serve` runs it,
-plus a tick clock that publishes when each physics tick came out.
+plus a tick clock that publishes when each physics tick came out; and Server, the harness's handle on it.
 
-Run as `python -m processes.stress.server SPEC_JSON` by processes/stress.py. It prints JSON lines:
+Run as `python -m processes.stress.server SPEC_JSON` (Server starts it). It prints JSON lines:
   {"listening": endpoint, "run_id", "pids": {kind: pid}, "server_pid"}    once every worker is ready
   {"pids": {...}, "restarts": {...}, "tick": n}                            for each "pids" line on stdin
   {"end": "match_over"|"stopped", "summary": {...}, "gateway": {...}, "points": [...], "final": {...}}
@@ -21,6 +21,7 @@ so T(k) = that + k*dt is the earliest time tick k can be out; a tick's lateness 
 from __future__ import annotations
 
 import json
+import os
 import resource
 import signal
 import sys
@@ -30,6 +31,8 @@ from array import array
 from collections import Counter
 
 import numpy as np
+
+from processes.stress.harness import Child, StressError
 
 SAMPLE_PERIOD_S = 0.0002
 ENCODE_EVERY = 10  # the tick clock checks one published state in this many for the wire's ranges
@@ -128,6 +131,72 @@ class TickClock(threading.Thread):
         self.arena.close()
         return {"final": final, "points": rows, "encode_checked": self.encode_checked,
                 "unencodable": dict(self.unencodable), "unencodable_examples": self.unencodable_examples}
+
+
+class Server(Child):
+    """This module run as a child: a served match; `state()` asks it for pids, restarts and score."""
+
+    def __init__(self, tmp: str, players: int = 2, snapshot_hz: int = 120, heartbeat_s: float = 0.5,
+                 timeout_s: float = 5.0, grace_s: float = 30.0, max_spectators: int = 64, seconds: float = 3600.0,
+                 best_of: int = 9, feed: bool = True):
+        stamp = time.monotonic_ns()
+        self.tick_log = os.path.join(tmp, f"ticks-{stamp}.npz")
+        self.spec = {"players": players, "snapshot_hz": snapshot_hz, "heartbeat_s": heartbeat_s,
+                     "timeout_s": timeout_s, "grace_s": grace_s, "max_spectators": max_spectators,
+                     "ticks": int(seconds * 1000), "best_of": best_of, "tick_log": self.tick_log, "feed": feed,
+                     "gateway_stats": os.path.join(tmp, f"gateway-{stamp}.json")}
+        super().__init__(["-m", "processes.stress.server", json.dumps(self.spec)], "server")
+        hello = self.expect(lambda o: "listening" in o, 120, "listening line")
+        self.endpoint, self.run_id, self.pids, self.dt = hello["listening"], hello["run_id"], hello["pids"], hello["dt"]
+        self.feed = hello.get("feed", "")
+        self.rlimit_nofile = hello["rlimit_nofile"]
+        self.end: dict | None = None
+
+    def state(self) -> dict:
+        self.send("pids")
+        state = self.expect(lambda o: "restarts" in o, 10, "state line")
+        self.pids = state["pids"]
+        return state
+
+    def tick(self) -> int | None:
+        """The physics tick now, None once the server has ended (its match is over)."""
+        if self.proc.poll() is not None or any("end" in o for o in self.pending):
+            return None
+        try:
+            return self.state()["tick"]
+        except StressError:
+            if self.proc.poll() is not None or any("end" in o for o in self.pending):
+                return None
+            raise
+
+    def all_pids(self) -> dict[str, int]:
+        return {"supervisor": self.pid, **{k: v for k, v in self.pids.items() if v}}
+
+    def stop(self, timeout: float = 30.0) -> dict:
+        """SIGTERM (the supervisor stops its workers: the gateway says goodbye to everyone)."""
+        if self.proc.poll() is None:
+            os.kill(self.pid, signal.SIGTERM)
+        return self.finish(timeout)
+
+    def finish(self, timeout: float) -> dict:
+        self.end = self.expect(lambda o: "end" in o, timeout, "end line")
+        self.wait(10)
+        return self.end
+
+    def tick_clock(self) -> dict | None:
+        if not os.path.exists(self.tick_log):
+            return None
+        with np.load(self.tick_log) as data:
+            return {k: data[k] for k in data.files}
+
+
+    def gateway_stats(self) -> dict:
+        """The gateway's counters as it last wrote them (every second), {} before the first."""
+        try:
+            with open(self.spec["gateway_stats"]) as f:
+                return json.load(f)
+        except (OSError, ValueError):
+            return {}
 
 
 def main(argv: list[str]) -> int:

@@ -30,8 +30,9 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.dtypes import CONTACT_DTYPE, POINT_DTYPE, net_snapshot_dtype, physics_snapshot_dtype
-from engine.ai import CTL_SIZE
+from engine.arm import CTL_SIZE
+from engine.dtypes import (CONTACT_DTYPE, POINT_DTYPE, ai_answer_dtype, ai_local_dtype, net_snapshot_dtype,
+                           physics_snapshot_dtype)
 from engine.rules import Phase, next_striker
 from engine.scene import Scene
 from processes.network.gateway import SEAT_DTYPE
@@ -45,15 +46,8 @@ EVENT_LOG_CAPACITY = 1 << 16
 POINT_LOG_CAPACITY = 1 << 12  # a best-of-9 match has at most a few hundred rallies
 
 MAX_BATS = 2
-# The AIs' answer to one turn: the tick it answers, a bit per AI bat, every AI bat's inputs, and
-# what the physics needs to compute the forces itself until the next decision: the decision key
-# it was made under (decision_key), the wakes (BatAI.wakes) and each AI's ctl row, in the order
-# of the scene's AI bats.
-ANSWER_DTYPE = np.dtype([("tick", "<i8"), ("mask", "<i8"), ("inputs", "<f8", (MAX_BATS, 6)), ("key", "<i8", (4,)),
-                         ("due", "<f8"), ("end", "<f8"), ("ctl", "<f8", (MAX_BATS, CTL_SIZE))])
-# The inputs the physics computed itself at its last control tick without a turn (a restarted
-# physics takes them up again): written only by the physics worker, read only by its successor.
-LOCAL_DTYPE = np.dtype([("tick", "<i8"), ("inputs", "<f8", (MAX_BATS, 6))])
+ANSWER_DTYPE = ai_answer_dtype(MAX_BATS, CTL_SIZE)
+LOCAL_DTYPE = ai_local_dtype(MAX_BATS)
 
 # The physics' hand-off of a ball tick to the net worker, and the net's answer (NetSim.step's).
 NET_IO_DTYPE = np.dtype([

@@ -40,7 +40,7 @@ from processes.runtime.control import Control
 from processes.workers.layout import NET_BLOCKS
 from processes.workers.options import RunOptions
 
-FREE_BEAT_TICKS = 256  # free ticks between two heartbeats (a 184 x 16 net: about 0.3 s of work)
+FREE_BEAT_TICKS = 256  # free ticks between two heartbeats: well inside the supervisor's stall timeout
 
 
 def net_blocks(arena: Arena) -> list:

@@ -24,7 +24,7 @@ def test_bench_accuracy_quick_json_and_plot(tmp_path):
     assert png.stat().st_size > 10_000  # a rendered figure, not an empty file
     labels = {row["label"] for row in result["rows"]}
     assert {"explicit_euler", "semi_implicit_euler", "verlet", "rk4", "dopri5 tick 1 ms"} <= labels
-    assert result["compile_seconds"] >= 0.0
+    assert result["compile_seconds"] > 0.0  # compiling or loading the kernels from the cache takes time
     timed = [row for row in result["rows"] if "wall_s_per_sim_s" in row]
     assert timed and all(row["wall_s_per_sim_s"] > 0.0 for row in timed)
     # Every shot bounced twice in the reference, and the reference converged.

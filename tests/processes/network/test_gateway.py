@@ -41,15 +41,6 @@ class Clock:
         return self.now
 
 
-@pytest.fixture
-def zctx():
-    """A context whose sockets all close with linger 0 at the end of the test."""
-    context = zmq.Context()
-    context.setsockopt(zmq.LINGER, 0)
-    yield context
-    context.destroy(linger=0)
-
-
 class Rig:
     """A Gateway on a random port of 127.0.0.1, its clients, and a physics record to serve."""
 
@@ -193,7 +184,7 @@ def test_an_input_expires_after_the_hold_time_and_the_arm_lets_go(rig):
 
 @pytest.mark.timeout(30)
 def test_an_idle_arm_brakes_its_bat_and_a_players_input_takes_over(rig):
-    from processes.network.gateway import BRAKE_MAX_N, BRAKE_PER_S
+    from engine.arm import BRAKE_MAX_N, BRAKE_PER_S
 
     mass = 0.17
     r = rig(input_hold_s=0.1, bat_mass=(mass, mass))
@@ -646,7 +637,7 @@ def test_serve_web_shows_the_page_beside_the_match(served):
     server = _pingpong("serve", "--players", "0", "--ticks", "600000", "--web", "127.0.0.1:0", "--json")
     served.append(server)
     assert "listening" in json.loads(_line(server, 60))
-    url = json.loads(_line(server, 60))["web"]  # the bridge joined as a spectator and serves the page
+    url = json.loads(_line(server, 90))["web"]  # the bridge joined as a spectator and serves the page
     with urllib.request.urlopen(url, timeout=10) as reply:
         assert reply.status == 200 and b"app.js" in reply.read()
     os.kill(server.pid, signal.SIGINT)

@@ -125,13 +125,6 @@ class GatewayThread:
         self.gateway.close()
 
 
-@pytest.fixture
-def zctx():
-    context = zmq.Context()
-    yield context
-    context.destroy(linger=0)
-
-
 @pytest.mark.timeout(60)
 def test_a_keyboard_session_sends_the_arms_forces_towards_the_target(zctx):
     scene = load_scene("match")

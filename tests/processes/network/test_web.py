@@ -19,7 +19,7 @@ import pytest
 from processes.network import protocol, wire
 from processes.network.web import STATIC, WebBridge, parse_host_port
 from processes.network.wire import Kind
-from tests.processes.network.test_gateway import ROUNDS, Rig, zctx  # noqa: F401 (a fixture)
+from tests.processes.network.test_gateway import ROUNDS, Rig
 from tests.processes.network.test_wire import GOLDEN
 
 pytest.importorskip("websockets")
@@ -34,7 +34,7 @@ def _get(url: str) -> tuple[int, str, bytes]:
 
 
 @pytest.fixture
-def bridged(zctx):  # noqa: F811
+def bridged(zctx):
     """A gateway with a snapshot to serve, and a bridge joined to it as a spectator."""
     rig = Rig(zctx)
     bridge = WebBridge(rig.gateway.endpoint, "127.0.0.1:0")
@@ -72,7 +72,7 @@ def test_the_page_and_its_scripts_load_from_the_bridge_and_nothing_from_elsewher
 
 
 @pytest.mark.timeout(60)
-def test_a_browser_gets_the_welcome_then_the_feeds_own_snapshot_bytes(bridged, zctx):  # noqa: F811
+def test_a_browser_gets_the_welcome_then_the_feeds_own_snapshot_bytes(bridged):
     from websockets.sync.client import connect
 
     rig, bridge, url = bridged

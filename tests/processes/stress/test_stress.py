@@ -105,7 +105,7 @@ def test_malformed_messages_are_all_counted_by_the_gateway_and_the_match_goes_on
 
 
 def stress_classes():
-    from processes.stress.swarm import CLASSES
+    from processes.stress.swarm.malformed import CLASSES
 
     return CLASSES
 
