@@ -164,6 +164,11 @@ class KeyboardPilot:
             return
         self.presses += 1
 
+    def aim_at(self, pos) -> None:
+        """Move the target to `pos` (m, world frame; a pointer's point), kept in the reach box."""
+        self.target = self._clamp(np.asarray(pos, dtype=np.float64))
+        self.presses += 1
+
     def _clamp(self, target: np.ndarray) -> np.ndarray:
         from engine.ai import HALF_LENGTH
 

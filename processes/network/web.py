@@ -7,7 +7,15 @@ load from this server only, so it works offline. Every wire message the session 
 welcome, snapshots, events, the goodbye) goes unchanged, binary, to every browser on /ws; a
 browser that connects late first gets the welcome and the latest snapshot. The page decodes the
 wire itself (web_static/decoder.js), with the layouts of /protocol.json (protocol.layout_json).
-A browser never talks to the gateway: the bridge forwards nothing from it.
+
+A browser may also play: it asks for a seat ({"play": "a"|"b"|"any"}, a JSON text message) and
+the bridge opens a player session for it, a client like `pingpong join --as player` (run_session
+with a KeyboardPilot and a Predictor). The browser sends key names ({"key": "up"}: the keys
+`join` uses) and pointer aims ({"aim": [x, y, z]}: a point the bat is driven to, kept in the
+pilot's reach box); the pilot turns them into force and torque for that seat's bat only, and
+the bridge sends the browser its predicted bat ({"predicted": {...}}, about 60 times a second)
+beside the wire messages. The gateway decides as for any player: the other bat is out of reach,
+a spectator's page can never move one.
 
 Sends to browsers never wait: websockets' broadcast skips a browser whose buffer is full (it
 misses that message, the others do not), so a slow browser stalls nobody.
@@ -19,6 +27,7 @@ import base64
 import html
 import json
 import mimetypes
+import queue
 import threading
 from pathlib import Path
 
@@ -26,6 +35,7 @@ import numpy as np
 
 from processes.network import protocol, wire
 from processes.network.client import Client
+from processes.network.keyboard import KEYS
 from processes.network.wire import Kind
 
 STATIC = Path(__file__).with_name("web_static")
@@ -55,6 +65,7 @@ class WebBridge:
     def __init__(self, address: str, web: str, *, socket_options: dict | None = None, name: str = "web"):
         self.address = address
         self.host, self.port = parse_host_port(web)
+        self.socket_options = dict(socket_options or {})
         self.client = Client(address, "spectator", name, socket_options=socket_options)
         self.url = ""
         self.counts = {"forwarded": 0, "browsers": 0, "browsers_now": 0, "snapshots": 0, "events": 0}
@@ -190,23 +201,148 @@ class WebBridge:
         return Response(200, "OK", headers, body)
 
     async def _browser(self, websocket) -> None:
-        """One browser: the welcome and the latest snapshot, then whatever the session brings."""
+        """One browser: the welcome and the latest snapshot, then whatever the session brings;
+        its requests to play, keys and aims go to its player session (BrowserPlayer)."""
         from websockets.exceptions import ConnectionClosed
 
         self.counts["browsers"] += 1
         self.counts["browsers_now"] += 1
+        player: BrowserPlayer | None = None
         try:
             for data in (self._welcome, self._latest):
                 if data is not None:
                     await websocket.send(data)
             self._browsers.add(websocket)
-            async for _ in websocket:  # a browser says nothing the bridge acts on
-                self.counts["ignored_from_browser"] = self.counts.get("ignored_from_browser", 0) + 1
+            async for text in websocket:
+                request = _request(text)
+                if request is None:
+                    self.counts["ignored_from_browser"] = self.counts.get("ignored_from_browser", 0) + 1
+                elif "play" in request and player is None:
+                    player = BrowserPlayer(self, websocket, request["play"])
+                    player.start()
+                elif player is not None:
+                    player.take(request)
+                else:  # keys or aims from a browser that plays no seat: it controls nothing
+                    self.counts["ignored_from_browser"] = self.counts.get("ignored_from_browser", 0) + 1
         except ConnectionClosed:  # a browser that went away: its connection is over, nothing more
             pass
         finally:
             self._browsers.discard(websocket)
             self.counts["browsers_now"] -= 1
+            if player is not None:
+                player.stop()
+
+    def send_text(self, websocket, payload: dict) -> None:
+        """A JSON text message to one browser, from any thread (dropped once the bridge stops)."""
+        loop = self._loop
+        if loop is None or loop.is_closed():
+            return
+        text = json.dumps(payload)
+
+        def send() -> None:
+            from websockets.asyncio.server import broadcast
+
+            broadcast([websocket], text)  # never waits: a full browser misses it
+
+        try:
+            loop.call_soon_threadsafe(send)
+        except RuntimeError:  # the loop closed meanwhile
+            pass
+
+
+def _request(text) -> dict | None:
+    """A browser's JSON request, or None for anything else (binary, not JSON, unknown)."""
+    if not isinstance(text, str) or len(text) > 512:
+        return None
+    try:
+        request = json.loads(text)
+    except ValueError:
+        return None
+    if not isinstance(request, dict) or len(request) != 1:
+        return None
+    (name, value), = request.items()
+    if name == "play" and value in ("a", "b", "any"):
+        return request
+    if name == "key" and value in KEYS and value != "quit":
+        return request
+    if name == "aim" and isinstance(value, list) and len(value) == 3 and all(
+            isinstance(v, (int, float)) and abs(v) <= wire.MAX_POS_M for v in value):
+        return request
+    return None
+
+
+class BrowserPlayer:
+    """A browser's player session: `pingpong join --as player` driven by the browser's keys
+    and pointer, in a thread of its own (run_session with a KeyboardPilot and a Predictor)."""
+
+    SHOW_EVERY_S = 1.0 / 60.0
+
+    def __init__(self, bridge: WebBridge, websocket, seat: str):
+        self.bridge, self.websocket = bridge, websocket
+        self.wanted = {"a": wire.Slot.A, "b": wire.Slot.B, "any": wire.Slot.NONE}[seat]
+        self.requests: queue.SimpleQueue = queue.SimpleQueue()
+        self.pilot = None
+        self._thread = threading.Thread(target=self._run, name="web-bridge-player", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def take(self, request: dict) -> None:
+        self.requests.put(request)
+
+    def stop(self, timeout_s: float = 5.0) -> None:
+        self.requests.put({"key": "quit"})
+        self._thread.join(timeout_s)
+
+    def poll(self, timeout_s: float = 0.0) -> list[str]:
+        """run_session's key source: the browser's keys; its aims move the pilot's target here,
+        in the session's thread."""
+        keys = []
+        while True:
+            try:
+                request = self.requests.get_nowait()
+            except queue.Empty:
+                return keys
+            if "aim" in request and self.pilot is not None:
+                self.pilot.aim_at(request["aim"])
+            elif "key" in request:
+                keys.append(request["key"])
+
+    def _run(self) -> None:
+        from engine.scene import load_scene
+        from processes.network.client import Rejected
+        from processes.network.keyboard import KeyboardPilot
+        from processes.network.prediction import Predictor
+        from processes.network.session import run_session
+
+        bridge = self.bridge
+        client = Client(bridge.address, "player", "browser", self.wanted, socket_options=bridge.socket_options)
+        try:
+            try:
+                welcome = client.join(JOIN_TIMEOUT_S)
+            except (Rejected, TimeoutError) as err:
+                reason = err.reason.name.lower() if isinstance(err, Rejected) else "timeout"
+                bridge.send_text(self.websocket, {"rejected": reason, "detail": str(err)})
+                return
+            bridge.counts["players"] = bridge.counts.get("players", 0) + 1
+            predictor = Predictor(load_scene(welcome["scene"]), client.slot)
+            self.pilot = KeyboardPilot(predictor.model, client.slot)
+            bridge.send_text(self.websocket, {"seat": client.slot.name.lower(), "token": client.token.hex()})
+
+            def show(summary, frame) -> None:
+                if predictor.tick is None:
+                    return
+                bat = predictor.bat
+                bridge.send_text(self.websocket, {"predicted": {
+                    "tick": int(predictor.tick), "bat_pos": np.asarray(bat["pos"]).tolist(),
+                    "bat_quat": np.asarray(bat["quat"]).tolist(), "aim": np.asarray(frame["target"]).tolist(),
+                    "inputs_sent": summary["inputs_sent"]}})
+
+            summary = run_session(client, welcome, pilot=self.pilot, keys=self, predictor=predictor, show=show,
+                                  show_every_s=self.SHOW_EVERY_S)
+            bridge.send_text(self.websocket, {"ended": summary["goodbye"], "inputs_sent": summary["inputs_sent"]})
+        finally:
+            client.close()
 
 
 # --- a recorded match as one offline page ------------------------------------------------------

@@ -1,7 +1,9 @@
 // The match in 3D: the table, the net, both bats, the ball and its shadow, the score, the
 // server, a banner with each point's reason; an orbit camera, a broadcast side camera and each
 // player's view. Drawn at the display's refresh rate, 100 ms behind the snapshots and
-// interpolated between them, as `pingpong join --as spectator` shows them.
+// interpolated between them, as `pingpong join --as spectator` shows them. A browser may play a
+// seat: its keys (those of `pingpong join`) and pointer go to the bridge, which plays the seat
+// through a player session, and the page draws its own bat where the bridge predicts it.
 //
 // Frame: the engine's (x along the table, player A at x < 0, y across, z up, origin at the
 // centre of the playing surface, metres); ITTF dimensions as in the engine's scenes.
@@ -17,7 +19,11 @@ const BANNER_S = 2.5;
 const state = {
   frames: 0, snapshots: 0, events: 0, connected: false, ended: "", tick: -1, score: [0, 0],
   games: [0, 0], server: 0, phase: "", lastEvent: null, camera: "side", errors: [],
+  seat: "", predicted: 0, rejected: "", keysSent: 0, aimsSent: 0,
 };
+const KEYS = { w: "up", ArrowUp: "up", s: "down", ArrowDown: "down", a: "left", ArrowLeft: "left", d: "right",
+               ArrowRight: "right", r: "raise", f: "lower", " ": "stroke" };
+const AIM_EVERY_S = 1 / 30;
 window.__pingpong = state;  // what the page shows, for its tests
 
 function box(w, d, h, color, x, y, z) {
@@ -174,7 +180,7 @@ const lerp = (p, q, f) => p.map((v, i) => v + (q[i] - v) * f);
 function quatOf(wxyz) { return new THREE.Quaternion(wxyz[1], wxyz[2], wxyz[3], wxyz[0]); }
 
 // --- the page -------------------------------------------------------------------------------------
-function page(protocol) {
+function page(protocol, send) {
   const decoder = new Decoder(protocol);
   const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
   renderer.setPixelRatio(window.devicePixelRatio || 1);
@@ -185,6 +191,7 @@ function page(protocol) {
   const timeline = new Timeline();
   const $ = (id) => document.getElementById(id);
   let bannerUntil = 0;
+  let predicted = null, predictedAt = 0, lastAim = 0;
 
   function resize() {
     renderer.setSize(window.innerWidth, window.innerHeight);
@@ -209,6 +216,30 @@ function page(protocol) {
   window.addEventListener("keydown", (e) => {
     const name = { 1: "orbit", 2: "side", 3: "a", 4: "b" }[e.key];
     if (name) choose(name);
+    const key = KEYS[e.key.length === 1 ? e.key.toLowerCase() : e.key];
+    if (key && state.seat && send) {
+      send({ key });
+      state.keysSent += 1;
+      e.preventDefault();
+    }
+  });
+  for (const button of document.querySelectorAll("#play button")) {
+    button.addEventListener("click", () => { if (send && !state.seat) send({ play: button.dataset.seat }); });
+    if (!send) button.style.display = "none";  // a replay plays nothing
+  }
+  const ray = new THREE.Raycaster(), pointer = new THREE.Vector2(), hit = new THREE.Vector3();
+  renderer.domElement.addEventListener("pointermove", (e) => {  // the bat follows the pointer on a plane
+    const now = performance.now() / 1000;  // in front of the player: its end line, 30 cm out
+    if (!state.seat || !send || e.buttons || now - lastAim < AIM_EVERY_S) return;
+    const sign = state.seat === "a" ? -1 : 1;
+    pointer.set((e.clientX / window.innerWidth) * 2 - 1, -(e.clientY / window.innerHeight) * 2 + 1);
+    ray.setFromCamera(pointer, views[state.camera]);
+    const plane = new THREE.Plane(new THREE.Vector3(1, 0, 0), -sign * (TABLE_LENGTH / 2 + 0.3));
+    if (ray.ray.intersectPlane(plane, hit)) {
+      send({ aim: [hit.x, hit.y, hit.z] });
+      state.aimsSent += 1;
+      lastAim = now;
+    }
   });
   choose(state.camera);
 
@@ -249,6 +280,25 @@ function page(protocol) {
     return message;
   }
 
+  function takeText(reply) {  // the bridge's answers to a browser that plays
+    if (reply.seat) {
+      state.seat = reply.seat;
+      document.body.classList.add("playing");
+      $("status").textContent = `you play ${reply.seat.toUpperCase()}`;
+      choose(reply.seat);
+    } else if (reply.predicted) {
+      predicted = reply.predicted;
+      predictedAt = performance.now() / 1000;
+      state.predicted += 1;
+    } else if (reply.rejected) {
+      state.rejected = reply.rejected;
+      $("status").textContent = `no seat: ${reply.rejected.replaceAll("_", " ")}`;
+    } else if (reply.ended) {
+      state.seat = "";
+      document.body.classList.remove("playing");
+    }
+  }
+
   function draw() {
     const now = performance.now() / 1000;
     const sample = timeline.sample(now);
@@ -258,6 +308,11 @@ function page(protocol) {
       for (let i = 0; i < 2; i++) {
         world.bats[i].position.fromArray(lerp(a.bat_pos[i], b.bat_pos[i], f));
         world.bats[i].quaternion.copy(quatOf(a.bat_quat[i]).slerp(quatOf(b.bat_quat[i]), f));
+      }
+      if (state.seat && predicted && performance.now() / 1000 - predictedAt < 0.25) {  // our bat, predicted
+        const own = world.bats[state.seat === "a" ? 0 : 1];
+        own.position.fromArray(predicted.bat_pos);
+        own.quaternion.copy(quatOf(predicted.bat_quat));
       }
       const p = world.ball.position;
       const onTable = Math.abs(p.x) <= TABLE_LENGTH / 2 && Math.abs(p.y) <= TABLE_WIDTH / 2 && p.z > -0.01;
@@ -272,7 +327,7 @@ function page(protocol) {
     requestAnimationFrame(draw);
   }
   requestAnimationFrame(draw);
-  return { take };
+  return { take, takeText };
 }
 
 window.addEventListener("error", (e) => state.errors.push(String(e.message)));
@@ -280,20 +335,25 @@ window.addEventListener("error", (e) => state.errors.push(String(e.message)));
 /** The live page: the bridge's /protocol.json, then its WebSocket /ws. */
 export async function startLive() {
   const protocol = await (await fetch("protocol.json")).json();
-  const view = page(protocol);
   const socket = new WebSocket(`${location.protocol === "https:" ? "wss" : "ws"}://${location.host}/ws`);
+  const view = page(protocol, (request) => {
+    if (socket.readyState === WebSocket.OPEN) socket.send(JSON.stringify(request));
+  });
   socket.binaryType = "arraybuffer";
   socket.addEventListener("open", () => { state.connected = true; });
   socket.addEventListener("close", () => {
     state.connected = false;
     if (!state.ended) document.getElementById("status").textContent = "disconnected";
   });
-  socket.addEventListener("message", (e) => view.take(e.data, performance.now() / 1000));
+  socket.addEventListener("message", (e) => {
+    if (typeof e.data === "string") view.takeText(JSON.parse(e.data));
+    else view.take(e.data, performance.now() / 1000);
+  });
 }
 
 /** A recorded match, offline: `messages` are wire messages (base64), played at their ticks. */
 export function startReplay(protocol, messages) {
-  const view = page(protocol);
+  const view = page(protocol, null);
   const bytes = messages.map((text) => Uint8Array.from(atob(text), (c) => c.charCodeAt(0)));
   state.connected = true;
   let dt = 0.001, start = null, next = 0;

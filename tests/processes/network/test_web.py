@@ -257,3 +257,93 @@ def test_the_replay_page_plays_offline_from_one_file(browser, tmp_path):
     assert state["lastEvent"]["reason"] == "out_long" and state["lastEvent"]["winner"] == 1
     assert _screenshot(browser).std() > 0.05
     assert _errors(browser) == [] and state["errors"] == []
+
+
+def _serving(rig, stop):
+    """The gateway serves its record (a ball flying along the table) until `stop` (a thread)."""
+    def serve():
+        tick = 0
+        while not stop.is_set():
+            tick += 1
+            rig.record["world"]["tick"] = tick
+            rig.record["ball"]["pos"] = (-1.2 + 2.4 * ((tick // 10) % 100) / 100.0, 0.1, 0.25)
+            rig.clock.now += 0.001
+            rig.gateway.poll(1)
+            rig.gateway.service(rig.record)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    return thread
+
+
+def _texts(browser, check, rounds=600):
+    """JSON text messages from the bridge until check(message) holds (binary ones skipped; bounded)."""
+    for _ in range(rounds):
+        try:
+            data = browser.recv(timeout=0.05)
+        except TimeoutError:
+            continue
+        if isinstance(data, str) and check(json.loads(data)):
+            return json.loads(data)
+    raise AssertionError("no such message from the bridge")
+
+
+@pytest.mark.timeout(120)
+def test_a_browser_plays_its_own_seat_and_moves_only_its_own_bat(bridged):
+    from websockets.sync.client import connect
+
+    rig, bridge, url = bridged
+    stop = threading.Event()
+    pumping = _serving(rig, stop)
+    try:
+        with connect(url.replace("http://", "ws://") + "ws", open_timeout=10) as watcher, \
+                connect(url.replace("http://", "ws://") + "ws", open_timeout=10) as browser:
+            watcher.send(json.dumps({"key": "up"}))  # a page that plays no seat controls nothing
+            browser.send(json.dumps({"play": "a"}))
+            assert _texts(browser, lambda m: "seat" in m or "rejected" in m)["seat"] == "a"
+            for _ in range(5):
+                browser.send(json.dumps({"key": "up"}))  # the keys `join` uses, towards the net
+            browser.send(json.dumps({"aim": [-1.6, 0.3, 0.2]}))  # the pointer's point
+            browser.send(json.dumps({"aim": [99.0, 0.0, 0.0]}))  # beyond the wire's range: ignored
+            predicted = _texts(browser, lambda m: "predicted" in m and m["predicted"]["inputs_sent"] > 5)
+            assert len(predicted["predicted"]["bat_pos"]) == 3 and predicted["predicted"]["aim"][1] == pytest.approx(0.3)
+            for _ in range(ROUNDS):
+                if any(bat == 0 and np.any(inputs != 0.0) for bat, _, _, inputs in list(rig.posted)):
+                    break
+                browser.recv(timeout=0.05)
+            pushed = [(bat, inputs) for bat, _, _, inputs in list(rig.posted) if np.any(inputs != 0.0)]
+            assert pushed and {bat for bat, _ in pushed} == {0}  # bat A only: the other is out of reach
+            assert rig.gateway.counts.get("refused.other_bat", 0) == 0
+    finally:
+        stop.set()
+        pumping.join(10)
+    assert bridge.counts["players"] == 1 and bridge.counts["ignored_from_browser"] >= 2
+
+
+@pytest.mark.timeout(150)
+def test_in_the_browser_a_player_takes_seat_a_and_its_keys_push_only_bat_a(bridged, browser):
+    from selenium.webdriver.common.by import By
+
+    rig, bridge, url = bridged
+    stop = threading.Event()
+    pumping = _serving(rig, stop)
+    try:
+        browser.get(url)
+        _await_page(browser, lambda s: s["connected"] and s["snapshots"] > 2)
+        browser.find_element(By.CSS_SELECTOR, '#play button[data-seat="a"]').click()
+        _await_page(browser, lambda s: s["seat"] == "a" or s["rejected"])
+        body = browser.find_element(By.TAG_NAME, "body")
+        for key in "wwwwaaddr ":
+            body.send_keys(key)
+        state = _await_page(browser, lambda s: s["keysSent"] >= 10 and s["predicted"] > 5)
+        assert state["seat"] == "a" and state["camera"] == "a"  # the player's own view
+        for _ in range(ROUNDS):
+            if any(bat == 0 and np.any(inputs != 0.0) for bat, _, _, inputs in list(rig.posted)):
+                break
+            _page_state(browser)
+        pushed = {bat for bat, _, _, inputs in list(rig.posted) if np.any(inputs != 0.0)}
+        assert pushed == {0}  # the browser's bat, never the other
+        assert _errors(browser) == [] and _page_state(browser)["errors"] == []
+    finally:
+        stop.set()
+        pumping.join(10)
