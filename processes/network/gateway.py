@@ -70,12 +70,9 @@ import zmq
 
 from engine.arm import BRAKE_EVERY_S, BRAKE_MIN_SPEED, brake_force
 from processes.network import wire
+from processes.network.seats import SeatStore
 from processes.network.wire import GoodbyeReason, InputMode, Kind, RejectReason, Role, Slot
 
-# The seat table as it survives a gateway's restart (a SnapshotBlock the supervisor owns; the
-# gateway of the moment is its one writer): who holds each seat's token and its grace.
-SEAT_DTYPE = np.dtype([("slot", "u1"), ("taken", "u1"), ("token", "u1", (16,)), ("name", "u1", (32,)),
-                       ("grace_until", "<f8")])  # taken: a connection held it; grace_until: time.monotonic s
 # A remote arm's input holds at most this long: a client that stalls (or whose snapshots stop)
 # must not leave its bat pushed by a constant force (120 N on a 0.17 kg bat is 70 m/s in 0.1 s).
 # After it, the gateway posts a zero input (same seq) until the next input comes.
@@ -162,35 +159,6 @@ class _Seat:
     grace_until: float = 0.0  # while empty: only `token` may take it until then
     last_seq: int = 0  # seq of the last input posted for this bat (what an idle arm's posts carry)
     next_brake: float = 0.0
-
-
-class SeatStore:
-    """The seat table in a processes.runtime.shm.SnapshotBlock of SEAT_DTYPE records (one per seat): a
-    restarted gateway finds its seats' tokens there, so a rejoin token outlives the gateway.
-    Double-buffered, so a gateway killed mid-save leaves the previous table intact."""
-
-    def __init__(self, block):
-        self.block = block
-        self._table = np.zeros(block.count, SEAT_DTYPE)
-
-    def save(self, seats) -> None:
-        table = self._table
-        table[:] = 0
-        for i, seat in enumerate(seats):
-            raw = seat.name.encode("utf-8")[:32]
-            table[i]["slot"], table[i]["taken"] = int(seat.slot), seat.identity is not None
-            table[i]["token"] = np.frombuffer(seat.token, np.uint8)
-            table[i]["name"] = np.frombuffer(raw.ljust(32, b"\0"), np.uint8)
-            table[i]["grace_until"] = seat.grace_until
-        self.block.publish(table, 0)
-
-    def load(self) -> np.ndarray | None:
-        """The last table saved, None if no gateway saved one yet."""
-        if self.block.version < 2:
-            return None
-        out = np.zeros(self.block.count, SEAT_DTYPE)
-        self.block.snapshot(out)
-        return out
 
 
 def _zero_inputs():
@@ -431,7 +399,7 @@ class Gateway:
             return
         except wire.WireError as err:
             self.drops.by_reason[err.reason] += 1
-            if session is None and _looks_like_hello(data):
+            if session is None and data[:len(_HELLO_PREFIX)] == _HELLO_PREFIX:  # a hello of ours, malformed
                 self._reject(identity, RejectReason.BAD_REQUEST, str(err))
             self._bad(session)
             return
@@ -521,13 +489,12 @@ class Gateway:
 
     def _expire_tokens(self, now: float) -> None:
         """A seat left empty past its grace loses its token (and name): it is free for anyone."""
-        expired = False
-        for seat in self.seats.values():
-            if seat.identity is None and seat.token != NO_TOKEN and now >= seat.grace_until:
-                seat.token, seat.name, seat.grace_until = NO_TOKEN, "", 0.0
-                self.counts["tokens_expired"] += 1
-                expired = True
+        expired = [seat for seat in self.seats.values()
+                   if seat.identity is None and seat.token != NO_TOKEN and now >= seat.grace_until]
+        for seat in expired:
+            seat.token, seat.name, seat.grace_until = NO_TOKEN, "", 0.0
         if expired:
+            self.counts["tokens_expired"] += len(expired)
             self._save_seats()
 
     def _free_seat(self, wanted: Slot, now: float) -> _Seat | None:
@@ -722,11 +689,6 @@ class Gateway:
         self.router.close(linger=linger_ms)
         if self.feed is not None:
             self.feed.close(linger=0)  # a snapshot nobody took yet is worth nothing after the end
-
-
-def _looks_like_hello(data: bytes) -> bool:
-    """A frame whose header claims to be a hello of our version (the rest may be wrong)."""
-    return data[:len(_HELLO_PREFIX)] == _HELLO_PREFIX
 
 
 def _any_port(endpoint: str) -> str:

@@ -138,13 +138,14 @@ class Server(Child):
 
     def __init__(self, tmp: str, players: int = 2, snapshot_hz: int = 120, heartbeat_s: float = 0.5,
                  timeout_s: float = 5.0, grace_s: float = 30.0, max_spectators: int = 64, seconds: float = 3600.0,
-                 best_of: int = 9, feed: bool = True):
+                 best_of: int = 9, feed: bool = True, bind: str = "tcp://127.0.0.1:0", players_timeout: float = 300.0):
         stamp = time.monotonic_ns()
         self.tick_log = os.path.join(tmp, f"ticks-{stamp}.npz")
         self.spec = {"players": players, "snapshot_hz": snapshot_hz, "heartbeat_s": heartbeat_s,
                      "timeout_s": timeout_s, "grace_s": grace_s, "max_spectators": max_spectators,
                      "ticks": int(seconds * 1000), "best_of": best_of, "tick_log": self.tick_log, "feed": feed,
-                     "gateway_stats": os.path.join(tmp, f"gateway-{stamp}.json")}
+                     "gateway_stats": os.path.join(tmp, f"gateway-{stamp}.json"), "bind": bind,
+                     "players_timeout": players_timeout}
         super().__init__(["-m", "processes.stress.server", json.dumps(self.spec)], "server")
         hello = self.expect(lambda o: "listening" in o, 120, "listening line")
         self.endpoint, self.run_id, self.pids, self.dt = hello["listening"], hello["run_id"], hello["pids"], hello["dt"]
@@ -214,7 +215,7 @@ def main(argv: list[str]) -> int:
     scene = with_remote_players(load_scene(spec.get("scene", "match")), spec["players"])
     if spec.get("best_of"):
         scene = replace(scene, match=replace(scene.match, best_of=spec["best_of"]))
-    config = GatewayConfig(bind="tcp://127.0.0.1:0", snapshot_hz=spec["snapshot_hz"], heartbeat_s=spec["heartbeat_s"],
+    config = GatewayConfig(bind=spec.get("bind", "tcp://127.0.0.1:0"), snapshot_hz=spec["snapshot_hz"], heartbeat_s=spec["heartbeat_s"],
                            timeout_s=spec["timeout_s"], grace_s=spec["grace_s"], max_spectators=spec["max_spectators"],
                            sndhwm=spec.get("sndhwm", GatewayConfig.sndhwm), feed=spec.get("feed", True),
                            stats_path=spec.get("gateway_stats", ""),

@@ -14,7 +14,8 @@ import numpy as np
 import zmq
 
 from engine.dtypes import physics_snapshot_dtype
-from processes.network.gateway import STATS_EVERY_S, Gateway, GatewayConfig, SeatStore
+from processes.network.gateway import STATS_EVERY_S, Gateway, GatewayConfig
+from processes.network.seats import SeatStore
 from processes.network.wire import GoodbyeReason, Slot
 from processes.runtime.control import Control, StopRequested
 from processes.runtime.locks import LockTable

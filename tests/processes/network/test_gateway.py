@@ -536,7 +536,7 @@ def test_a_token_expires_with_the_grace_and_the_seat_is_anyones(rig):
 
 @pytest.mark.timeout(30)
 def test_a_session_of_a_replaced_gateway_is_told_goodbye_once_and_rejoins(zctx, no_leftovers):
-    from processes.network.gateway import SEAT_DTYPE, SeatStore
+    from processes.network.seats import SEAT_DTYPE, SeatStore
 
     arena = shm.Arena()
     store = SeatStore(arena.snapshot_block("seats", SEAT_DTYPE, 2))
@@ -1086,7 +1086,7 @@ def test_a_curve_session_works_and_a_client_without_the_server_key_cannot_join(r
 # --- seats outlive a gateway --------------------------------------------------------------------
 @pytest.mark.timeout(30)
 def test_a_restarted_gateway_finds_its_seats_and_the_token_reclaims_one(zctx, no_leftovers):
-    from processes.network.gateway import SEAT_DTYPE, SeatStore
+    from processes.network.seats import SEAT_DTYPE, SeatStore
 
     arena = shm.Arena()
     first = second = None
