@@ -160,6 +160,11 @@ class KeyboardPilot:
             return
         self.presses += 1
 
+    def aim_at(self, pos) -> None:
+        """Move the target to `pos` (m, world frame; a pointer's point), kept in the reach box."""
+        self.target = self._clamp(np.asarray(pos, dtype=np.float64))
+        self.presses += 1
+
     def _clamp(self, target: np.ndarray) -> np.ndarray:
         depth = min(max(self.end_sign * target[0], HALF_LENGTH - REACH_IN_M), HALF_LENGTH + REACH_OUT_M)
         return np.array([self.end_sign * depth, min(max(target[1], -REACH_Y_M), REACH_Y_M),

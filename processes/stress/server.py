@@ -215,7 +215,8 @@ def main(argv: list[str]) -> int:
     config = GatewayConfig(bind=spec.get("bind", "tcp://127.0.0.1:0"), snapshot_hz=spec["snapshot_hz"], heartbeat_s=spec["heartbeat_s"],
                            timeout_s=spec["timeout_s"], grace_s=spec["grace_s"], max_spectators=spec["max_spectators"],
                            sndhwm=spec.get("sndhwm", GatewayConfig.sndhwm), feed=spec.get("feed", True),
-                           stats_path=spec.get("gateway_stats", ""))
+                           stats_path=spec.get("gateway_stats", ""),
+                           pause_for_players=False)  # players are killed on purpose: the match goes on
     supervisor = Supervisor(scene, spec["ticks"], "realtime", seed=spec.get("seed", 0), gateway=config,
                             players_timeout=spec.get("players_timeout", 300.0))
     clock: list[TickClock] = []

@@ -4,8 +4,8 @@ Players send a zero force at input_hz (an arm at rest). Per snapshot the receipt
 (CLOCK_MONOTONIC) and tick go to SPEC "record" (.npz) for the latency; per client the snapshots,
 the messages missed (gaps in the sequence numbers, swarm.tally), tick and score regressions,
 goodbyes. A spectator subscribes to the feed its welcome names (its snapshots and events come
-there, heartbeats and goodbye on the session). With "rejoin" a client silent for silence_s says
-hello again (a restarted gateway lost its sessions).
+there, heartbeats and goodbye on the session). With "rejoin" a client silent for silence_s, or
+told goodbye unknown_session, says hello again (a restarted gateway lost its sessions).
 
 The receive loop waits on the sockets' ZMQ_FD descriptors with epoll, which costs per ready
 socket, not per socket (zmq_poll over 500 sockets costs a few hundred microseconds a call), and
@@ -40,7 +40,7 @@ import numpy as np
 import zmq
 
 from processes.network.client import Client, Rejected
-from processes.network.wire import Kind, RejectReason
+from processes.network.wire import GoodbyeReason, Kind, RejectReason
 from processes.stress.probes import cpu_seconds, fd_count, rss_kb, thread_cpu_seconds, thread_sched_seconds
 from processes.stress.swarm import NO_TOKEN, context, emit
 from processes.stress.swarm.tally import Sequence, Tally, header
@@ -266,7 +266,12 @@ def watch(spec: dict) -> dict:
                     w.feed_fd = register(w, w.feed, True)
                 continue
             if message.kind == Kind.GOODBYE:
-                w.goodbye = message["reason"].name.lower()
+                if message["reason"] == GoodbyeReason.UNKNOWN_SESSION and spec.get("rejoin"):
+                    client.hello()  # a restarted gateway lost our session: hello again now
+                    w.hello_at = t
+                    w.hellos += 1
+                else:
+                    w.goodbye = message["reason"].name.lower()
             elif message.kind == Kind.EVENT:
                 counts["events"] += 1
             if w.welcomed:
