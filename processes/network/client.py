@@ -215,8 +215,8 @@ class Client:
         self.received += 1
         self.tick = max(self.tick, message.tick)
         if sock is self.feed:
-            if message.kind not in (Kind.SNAPSHOT, Kind.EVENT):
-                self.drops.by_reason["not_on_feed"] += 1  # only snapshots and events go out on the feed
+            if message.kind not in (Kind.SNAPSHOT, Kind.EVENT, Kind.NET):
+                self.drops.by_reason["not_on_feed"] += 1  # only snapshots, events and nets go out on the feed
                 return None
             if self.feed_seq and message.seq > self.feed_seq:
                 self.feed_missed += message.seq - self.feed_seq - 1

@@ -21,10 +21,12 @@ theirs on the session (two sends, and a player's snapshots are counted per sessi
   kicked).
 - input: decoded and validated, accepted only for the sender's own bat (another bat's input,
   a spectator's input, target mode and stale sequence numbers are refused and counted; all but
-  stale ones count towards MAX_BAD: target mode is reserved in protocol 2), then posted to
+  stale ones count towards MAX_BAD: target mode is reserved in protocol 3), then posted to
   the locked remote-input mailbox that the physics worker drains each tick.
 - snapshots at `snapshot_hz` from the physics snapshot block, plus point/game/match events
-  from the point log. Sends never block: ROUTER_MANDATORY with NOBLOCK raises when a peer's
+  from the point log; with a cloth net (net_grid), the net's knots (wire.Net) at most NET_HZ
+  and snapshot_hz times a second while it is awake, once when it falls asleep, and its latest
+  state once on every session after the welcome (service_net). Sends never block: ROUTER_MANDATORY with NOBLOCK raises when a peer's
   pipe is at its high-water mark (SNDHWM), and that peer's snapshot is dropped and counted,
   so a slow peer stalls nobody.
 - the feed's slow-subscriber policy: the PUB queues at most SNDHWM messages per subscriber
@@ -83,6 +85,7 @@ MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messa
 MAX_FRAME_BYTES = 4096  # libzmq disconnects a peer sending a bigger frame (MAXMSGSIZE)
 SWEEPS_PER_HEARTBEAT = 10  # passes over every session (timeouts, heartbeats) per heartbeat period
 STATS_EVERY_S = 1.0  # the worker writes its counters to GatewayConfig.stats_path this often
+NET_HZ = 60  # net messages per second at most, while the net is awake: the page's frame rate
 NO_TOKEN = bytes(wire.TOKEN_SIZE)
 # A session's heartbeat, the message a thousand spectators send twice a second: magic, version,
 # kind, flags 0 and the size say it all (its only body field, ack, is any u64), so it is taken by
@@ -180,11 +183,13 @@ class Gateway:
             for their tokens); None: seats live and die with this object.
         bat_mass: kg per bat (A, B): an idle remote arm brakes its bat (brake_force, from the
             served record's velocity); None: an idle arm only lets go (zero force).
+        net_grid: (cols, rows, width m, height m) of the scene's cloth net, whose knots go out
+            as net messages (service_net); None: a rigid net, no net messages.
     """
 
     def __init__(self, zctx, config: GatewayConfig, *, scene_name: str, best_of: int, dt: float,
                  remote_slots, post_input, clock=time.monotonic, seat_store: SeatStore | None = None,
-                 bat_mass=None):
+                 bat_mass=None, net_grid=None):
         self.config = config
         self.scene_name = scene_name
         self.best_of = best_of
@@ -206,6 +211,12 @@ class Gateway:
         self._games_seen = (0, 0)
         self._match_sent = False
         self._strangers_told: set[bytes] = set()
+        self.net_grid = net_grid
+        self._net_every = 1.0 / min(NET_HZ, config.snapshot_hz)
+        self._next_net = 0.0
+        self._net_tick: int | None = None  # tick of the net state sent last
+        self._net_asleep = False  # the state sent last was asleep: the net is frozen, nothing more to send
+        self._net_latest: list[bytes] = []  # its messages, for each new session
         self.router = zctx.socket(zmq.ROUTER)
         self.router.setsockopt(zmq.LINGER, 0)
         self._two_io_threads = zctx.get(zmq.IO_THREADS) >= 2
@@ -350,6 +361,8 @@ class Gateway:
             heartbeat_ms=heartbeat_ms, timeout_ms=max(heartbeat_ms, int(config.timeout_s * 1000)), dt=self.dt,
             token=token, scene=self.scene_name[:32], name_a=self.seats[Slot.A].name, name_b=self.seats[Slot.B].name,
             feed_port=self.feed_port if session.role == Role.SPECTATOR else 0), "welcomes")
+        for data in self._net_latest:  # the net as it is now, on the session: the feed may not be connected yet
+            self._send(session, data, "nets")
 
     def _goodbye(self, session: _Session, reason: GoodbyeReason) -> None:
         self._send(session, wire.encode(Kind.GOODBYE, tick=self.tick, reason=reason), "goodbyes")
@@ -538,7 +551,7 @@ class Gateway:
             self._bad(session)
             return
         if message["mode"] != InputMode.FORCE:
-            self.counts["refused.target_mode"] += 1  # reserved in protocol 2: no server-side arm controller
+            self.counts["refused.target_mode"] += 1  # reserved in protocol 3: no server-side arm controller
             self._bad(session)
             return
         if message.seq <= session.input_seq:
@@ -594,6 +607,32 @@ class Gateway:
         # on a fixed grid (no drift from the poll loop's latency); after a stall, restart from now
         self._next_snapshot = max(self._next_snapshot + 1.0 / self.config.snapshot_hz, now)
         self.broadcast_snapshot(record, input_seq)
+
+    def net_due(self) -> bool:
+        """Is a net message due (a cloth net, and 1 / min(NET_HZ, snapshot_hz) s since the last)?
+        The worker reads the net's state only then."""
+        return self.net_grid is not None and self.clock() >= self._next_net
+
+    def service_net(self, tick: int, asleep: bool, knot_pos) -> None:
+        """The net's state at `tick` (knot_pos (cols * rows, 3) m) to every client, if it is new:
+        sent while awake, and once when it has fallen asleep."""
+        if tick == self._net_tick or (asleep and self._net_asleep):
+            return
+        now = self.clock()
+        self._next_net = max(self._next_net + self._net_every, now)
+        cols, rows, width, height = self.net_grid
+        try:
+            messages, clamped = wire.net_messages(knot_pos, cols=cols, rows=rows, width=width, height=height,
+                                                  asleep=asleep, tick=tick)
+        except wire.WireError:
+            self.counts["net_unencodable"] += 1  # a grid the wire cannot carry: viewers draw a panel
+            self.net_grid = None
+            return
+        if clamped:
+            self.counts["net_clamped"] += 1  # knots beyond +-0.33 m of their rest: drawn at the edge
+        self._net_tick, self._net_asleep, self._net_latest = tick, asleep, messages
+        for data in messages:
+            self._broadcast(data, "nets")
 
     def _heartbeat(self, ack: int) -> bytes:
         """A heartbeat at the current tick acknowledging `ack` (seq set by _send): the fixed

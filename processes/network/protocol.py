@@ -1,6 +1,6 @@
 """The published protocol document (docs/protocol.md): its tables, generated from the code.
 
-Every table of the document that a number or a name of the code fills in (the header, the eight
+Every table of the document that a number or a name of the code fills in (the header, the nine
 messages' layouts, every enum, the limits and the gateway's defaults) sits between a pair of
 markers and is rewritten by `python -m processes.network.protocol docs/protocol.md` (`make
 protocol`) from the dtypes, the enums and the constants themselves; the prose between the blocks
@@ -34,7 +34,7 @@ _MEMBER = re.compile(r"^\s+([A-Z_]+)\s*=\s*[^#]+?(?:#\s*(.*))?$")
 _DIRECTIONS = {wire.Kind.HELLO: "client → server", wire.Kind.WELCOME: "server → client",
                wire.Kind.REJECT: "server → client", wire.Kind.INPUT: "player → server",
                wire.Kind.SNAPSHOT: "server → client", wire.Kind.EVENT: "server → client",
-               wire.Kind.HEARTBEAT: "both ways", wire.Kind.GOODBYE: "both ways"}
+               wire.Kind.HEARTBEAT: "both ways", wire.Kind.GOODBYE: "both ways", wire.Kind.NET: "server → client"}
 
 
 def type_name(dtype: np.dtype) -> str:
@@ -144,9 +144,12 @@ LIMITS = [(messages, "MAX_FORCE_N", "N"), (messages, "MAX_TORQUE_NM", "N m"), (m
           (messages, "MAX_SPEED_MS", "m/s"), (messages, "MAX_SPIN_RADS", "rad/s"),
           (messages, "MAX_BAT_ANG_VEL_RADS", "rad/s"), (messages, "MAX_GAMES_WON", "games"),
           (messages, "MAX_BEST_OF", "games"), (messages, "MAX_DT_S", "s"), (messages, "TOKEN_SIZE", "bytes"),
-          (messages, "NAME_SIZE", "bytes"), (messages, "DETAIL_SIZE", "bytes"),
+          (messages, "NAME_SIZE", "bytes"), (messages, "DETAIL_SIZE", "bytes"), (messages, "NET_STEP_M", "m"),
+          (messages, "NET_MAX_OFFSET", "steps"), (messages, "NET_CHUNK_KNOTS", "knots"),
+          (messages, "NET_MAX_SIDE", "knots"),
           (wire.checks, "QUAT_TOL", ""), (gateway, "MAX_BAD", "messages"),
-          (gateway, "MAX_FRAME_BYTES", "bytes"), (gateway, "INPUT_HOLD_S", "s")]
+          (gateway, "MAX_FRAME_BYTES", "bytes"), (gateway, "INPUT_HOLD_S", "s"),
+          (gateway, "NET_HZ", "Hz")]
 
 
 def limits_block() -> str:

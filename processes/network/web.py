@@ -4,8 +4,9 @@ A spectator session with the gateway (processes.network.client.Client: hello, he
 feed) in a thread of its own, and an HTTP + WebSocket server (the `websockets` asyncio library)
 in another. The page and its scripts, three.js among them (vendored, see web_static/vendor),
 load from this server only, so it works offline. Every wire message the session takes (the
-welcome, snapshots, events, the goodbye) goes unchanged, binary, to every browser on /ws; a
-browser that connects late first gets the welcome and the latest snapshot. The page decodes the
+welcome, snapshots, events, a cloth net's knots, the goodbye) goes unchanged, binary, to every
+browser on /ws; a browser that connects late first gets the welcome, the latest snapshot and the
+latest net message of each chunk of knots. The page decodes the
 wire itself (web_static/decoder.js), with the layouts of /protocol.json (protocol.layout_json).
 
 A browser may also play: it asks for a seat ({"play": "a"|"b"|"any"}, a JSON text message) and
@@ -68,11 +69,12 @@ class WebBridge:
         self.socket_options = dict(socket_options or {})
         self.client = Client(address, "spectator", name, socket_options=socket_options)
         self.url = ""
-        self.counts = {"forwarded": 0, "browsers": 0, "browsers_now": 0, "snapshots": 0, "events": 0}
+        self.counts = {"forwarded": 0, "browsers": 0, "browsers_now": 0, "snapshots": 0, "events": 0, "nets": 0}
         self.ended = threading.Event()  # the session is over (goodbye, server lost, or stop())
         self.end_reason = ""
         self._welcome: bytes | None = None
         self._latest: bytes | None = None
+        self._nets: dict[int, bytes] = {}  # the latest net message by its first knot (replaced, never changed)
         self._browsers: set = set()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._server = None
@@ -130,6 +132,9 @@ class WebBridge:
                     self.counts["snapshots"] += 1
                 elif message.kind == Kind.EVENT:
                     self.counts["events"] += 1
+                elif message.kind == Kind.NET:
+                    self._nets = {**self._nets, message["first"]: client.last_data}
+                    self.counts["nets"] += 1
                 elif message.kind == Kind.WELCOME:  # a rejoin's welcome (a restarted gateway)
                     self._welcome = client.last_data
                 elif message.kind not in (Kind.GOODBYE,):
@@ -201,7 +206,7 @@ class WebBridge:
         return Response(200, "OK", headers, body)
 
     async def _browser(self, websocket) -> None:
-        """One browser: the welcome and the latest snapshot, then whatever the session brings;
+        """One browser: the welcome, the latest snapshot and net, then whatever the session brings;
         its requests to play, keys and aims go to its player session (BrowserPlayer)."""
         from websockets.exceptions import ConnectionClosed
 
@@ -209,7 +214,7 @@ class WebBridge:
         self.counts["browsers_now"] += 1
         player: BrowserPlayer | None = None
         try:
-            for data in (self._welcome, self._latest):
+            for data in (self._welcome, self._latest, *self._nets.values()):
                 if data is not None:
                     await websocket.send(data)
             self._browsers.add(websocket)

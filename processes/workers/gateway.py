@@ -2,7 +2,10 @@
 
 It reads the physics snapshots and the point log, pairs each snapshot with the remote inputs it
 acknowledges (remote_acks), and posts the remote players' inputs to the locked remote-input
-mailbox that the physics drains before each tick.
+mailbox that the physics drains before each tick. In a run with a net worker (a scene with a
+cloth net: processes.workers.workers_for; build_layout then makes the net_even/net_odd blocks)
+it also reads the net's newest published state, never torn (SnapshotBlock.snapshot) and only
+when a net message is due, for the clients' view of the net (Gateway.service_net).
 """
 from __future__ import annotations
 
@@ -13,7 +16,7 @@ import time
 import numpy as np
 import zmq
 
-from engine.dtypes import physics_snapshot_dtype
+from engine.dtypes import net_snapshot_dtype, physics_snapshot_dtype
 from processes.network.gateway import STATS_EVERY_S, Gateway, GatewayConfig
 from processes.network.seats import SeatStore
 from processes.network.wire import GoodbyeReason, Slot
@@ -21,7 +24,8 @@ from processes.runtime.control import Control, StopRequested
 from processes.runtime.locks import LockTable
 from processes.runtime.mailbox import Mailbox
 from processes.runtime.shm import Arena
-from processes.workers.layout import REMOTE_INPUT_DTYPE, RUN_LOCK_NAMES, read_ack
+from processes.workers.layout import NET_BLOCKS, REMOTE_INPUT_DTYPE, RUN_LOCK_NAMES, read_ack
+from processes.workers.net import net_blocks, newest_state
 from processes.workers.options import RunOptions
 
 
@@ -69,9 +73,15 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
     remote = [Slot(i + 1) for i, bat in enumerate(scene.bats) if bat.remote]
     zctx = zmq.Context(io_threads=2)  # sessions and the feed's fan-out each on their own (Gateway)
     seat_store = SeatStore(arena["seats"]) if "seats" in arena.blocks else None
+    knots = blocks = net_grid = None
+    if NET_BLOCKS[0] in arena.blocks:  # the run has a net worker
+        spec = scene.cloth
+        net_grid = (spec.cols, spec.rows, spec.width, spec.height)
+        blocks = net_blocks(arena)
+        knots = np.zeros(1, net_snapshot_dtype(spec.cols * spec.rows))
     gateway = Gateway(zctx, config, scene_name=scene.name, best_of=scene.match.best_of, dt=scene.dt,
                       remote_slots=remote, post_input=post_input, seat_store=seat_store,
-                      bat_mass=[bat.mass for bat in scene.bats])
+                      bat_mass=[bat.mass for bat in scene.bats], net_grid=net_grid)
     start_event = options.start_event
     n_ticks = options.ticks
     crash_at_tick = options.crash_at_tick
@@ -93,6 +103,9 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
                 gateway.service(None)
                 continue
             gateway.service(rec, ack, points)
+            if blocks is not None and gateway.net_due() and newest_state(blocks, knots):
+                state = knots[0]
+                gateway.service_net(int(state["tick"]), bool(state["sleeping"]), state["pos"])
             if start_event is not None and gateway.seats_filled != start_event.is_set():
                 if gateway.seats_filled:
                     start_event.set()  # the physics plays
@@ -115,7 +128,7 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
         gateway.write_stats({"goodbyes_at_end": told, "end": reason.name.lower(), "tick": gateway.tick})
         gateway.close()
         zctx.term()
-        del record, acks, points, snapshots, box, seat_store
+        del record, acks, points, snapshots, box, seat_store, blocks
         locks.close()
         if reason == GoodbyeReason.MATCH_OVER:
             control.send("done", {"tick": gateway.tick, "gateway": stats})

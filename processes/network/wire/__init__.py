@@ -6,9 +6,9 @@ message type. Every message starts with the same 24-byte header:
 
     off  size  field    type  unit / meaning
       0     4  magic    S4    b"PPNG", the same in every version
-      4     2  version  <u2   PROTOCOL_VERSION (2); with magic, frozen for all versions
-      6     1  kind     u1    Kind: 1 hello ... 8 goodbye
-      7     1  flags    u1    no bits defined in version 2: a set bit is refused (bad_flags)
+      4     2  version  <u2   PROTOCOL_VERSION (3); with magic, frozen for all versions
+      6     1  kind     u1    Kind: 1 hello ... 9 net
+      7     1  flags    u1    no bits defined in version 3: a set bit is refused (bad_flags)
       8     8  seq      <u8   sender's sequence number, +1 per message it sends on that stream
                               (a session; the gateway's spectator feed numbers its own stream)
      16     8  tick     <i8   physics tick the message refers to, >= 0 (see each message)
@@ -26,6 +26,10 @@ grows from 156 to 158 bytes): a spectator takes snapshots and events from the ga
 socket (the feed) instead of its session, so the gateway encodes and sends each one once
 whatever the number of spectators. The layout changed, so the version did: a version-1 client
 is told "version" by the gateway instead of failing on a welcome of a size it does not know.
+3 adds the net message (kind 9, wire.Net): a cloth net's knots for display, as 0.01 mm int16
+offsets from the rest grid the message itself describes, in chunks of 640 knots (every message
+keeps one fixed size and stays within the gateway's 4096-byte frame bound). Nothing else
+changed, but a version-2 client would count each net message as an unknown type.
 
 `decode(buf)` validates everything before any field is used (size exactly right for the type,
 magic, version, type, flags, finite numbers, ranges, unit quaternions, enums, text) and returns
@@ -35,18 +39,22 @@ validation on what it built, so a peer never sends what the other side would dro
 
 Floats go on the wire as float64, the engine's own bits: a client rewinds its prediction to the
 snapshot's exact state, and a 334-byte snapshot at 60 Hz is 20 kB/s per spectator, so
-quantisation would buy little and cost a documented error in every reconciliation.
+quantisation would buy little and cost a documented error in every reconciliation. The net's
+knots are the exception: 680 to 2944 knots in float64 would be 16 to 70 kB a message, and they
+are only drawn, never predicted from (wire.Net says why 0.01 mm steps are harmless there).
 """
 from processes.network.wire.checks import (QUAT_TOL, REASON_CODES, WIRE_ERRORS, BadEnum, BadFlags, BadMagic, BadText,
                                            BadVersion, NonFinite, OutOfRange, TooLong, TooShort, UnknownType,
                                            WireError)
 from processes.network.wire.codec import DropCounter, Message, decode, encode, snapshot_from_physics
+from processes.network.wire.knots import net_knots, net_messages, net_rest
 from processes.network.wire.messages import (DETAIL_SIZE, Event, EventKind, Goodbye, GoodbyeReason, HEADER_DTYPE,
                                              HEADER_FIELDS, HEADER_SIZE, Heartbeat, Hello, Input, InputMode, Kind,
                                              MAGIC, MAX_BAT_ANG_VEL_RADS, MAX_BEST_OF, MAX_DT_S, MAX_FORCE_N,
                                              MAX_GAMES_WON, MAX_POS_M, MAX_SPEED_MS, MAX_SPIN_RADS, MAX_TORQUE_NM,
-                                             NAME_SIZE, PROTOCOL_VERSION, Reject, RejectReason, Role,
-                                             SIZES, SPECS, Slot, Snapshot, TOKEN_SIZE, Welcome)
+                                             NAME_SIZE, NET_CHUNK_KNOTS, NET_MAX_OFFSET, NET_MAX_SIDE, NET_STEP_M,
+                                             PROTOCOL_VERSION, Net, Reject, RejectReason, Role, SIZES, SPECS, Slot,
+                                             Snapshot, TOKEN_SIZE, Welcome)
 
 
 __all__ = [
@@ -54,7 +62,7 @@ __all__ = [
     "EventKind", "Goodbye", "GoodbyeReason", "HEADER_DTYPE", "HEADER_FIELDS", "HEADER_SIZE", "Heartbeat", "Hello",
     "Input", "InputMode", "Kind", "MAGIC", "MAX_BAT_ANG_VEL_RADS", "MAX_BEST_OF", "MAX_DT_S", "MAX_FORCE_N",
     "MAX_GAMES_WON", "MAX_POS_M", "MAX_SPEED_MS", "MAX_SPIN_RADS", "MAX_TORQUE_NM", "Message", "NAME_SIZE",
-    "NonFinite", "OutOfRange", "PROTOCOL_VERSION", "QUAT_TOL", "REASON_CODES", "Reject", "RejectReason", "Role",
+    "NET_CHUNK_KNOTS", "NET_MAX_OFFSET", "NET_MAX_SIDE", "NET_STEP_M", "Net", "NonFinite", "OutOfRange", "PROTOCOL_VERSION", "QUAT_TOL", "REASON_CODES", "Reject", "RejectReason", "Role",
     "SIZES", "SPECS", "Slot", "Snapshot", "TOKEN_SIZE", "TooLong", "TooShort", "UnknownType", "WIRE_ERRORS",
-    "Welcome", "WireError", "decode", "encode", "snapshot_from_physics"
+    "Welcome", "WireError", "decode", "encode", "net_knots", "net_messages", "net_rest", "snapshot_from_physics"
 ]

@@ -1,4 +1,4 @@
-"""Every wire message's byte layout: the header, the enums, the limits and the eight message types."""
+"""Every wire message's byte layout: the header, the enums, the limits and the nine message types."""
 from __future__ import annotations
 
 import enum
@@ -9,7 +9,7 @@ from engine.rules import REASONS, Phase, Reason
 from processes.network.wire.checks import BadEnum, OutOfRange, _box, _norm_at_most, _unit, _within, _zero
 
 MAGIC = b"PPNG"
-PROTOCOL_VERSION = 2  # 2: welcome.feed_port (the spectator feed); see the module docstring
+PROTOCOL_VERSION = 3  # 2: welcome.feed_port (the spectator feed); 3: net (the cloth net's knots)
 
 # Ranges: generous for real play, tight enough that a corrupted or hostile value is refused.
 MAX_FORCE_N = 500.0  # |force| of an input; the AI arm's own limit is 50..120 N (engine/ai.py SKILLS)
@@ -24,6 +24,10 @@ MAX_DT_S = 0.05  # the scene's own bound on a tick's length
 TOKEN_SIZE = 16  # bytes of a rejoin token; all zero = none
 NAME_SIZE = 32  # bytes of a UTF-8 name, NUL-padded
 DETAIL_SIZE = 64  # bytes of a UTF-8 human-readable detail, NUL-padded
+NET_STEP_M = 1e-5  # one unit of a net message's knot offset: 0.01 mm
+NET_MAX_OFFSET = 32767  # |offset| in steps: 0.32767 m from the rest grid, twice the net's height
+NET_CHUNK_KNOTS = 640  # knots per net message: 3891 bytes, within MAX_FRAME_BYTES like every message
+NET_MAX_SIDE = 4000  # knots along a side of the net at most (net_kernel.topology's own bound)
 
 
 class Kind(enum.IntEnum):
@@ -35,6 +39,7 @@ class Kind(enum.IntEnum):
     EVENT = 6  # a point, a game or the match decided
     HEARTBEAT = 7  # alive, and the highest seq received
     GOODBYE = 8  # the session ends
+    NET = 9  # the cloth net's knots, for display (protocol 3)
 
 
 class Role(enum.IntEnum):
@@ -52,7 +57,7 @@ class Slot(enum.IntEnum):
 
 class InputMode(enum.IntEnum):
     FORCE = 1  # force and torque held over the ticks until the next input
-    TARGET = 2  # reserved: a pose for a server-side arm controller; protocol 2 gateways refuse it
+    TARGET = 2  # reserved: a pose for a server-side arm controller; protocol 3 gateways refuse it
 
 
 class RejectReason(enum.IntEnum):
@@ -159,8 +164,9 @@ class Welcome(_Spec):
                                          endpoint, of the gateway's PUB socket that carries every
                                          snapshot and event (subscribe to all; its own seq stream,
                                          so a gap is a message dropped at the high-water mark), and
-                                         none come on the session; 0: none, they come on the
-                                         session (always for a player)
+                                         none come on the session but the net's state right after
+                                         the welcome; 0: none, they come on the session (always
+                                         for a player)
     """
 
     kind = Kind.WELCOME
@@ -216,7 +222,7 @@ class Input(_Spec):
     which tick (header seq is echoed there once the server applied it). The gateway refuses an
     input whose slot is not the session's own, and lets go of it (zero force, same seq) if no
     other input follows within its input_hold_s (0.1 s by default). Mode 2 (target) is
-    reserved: valid on the wire, refused by a protocol-2 gateway like another bat's input.
+    reserved: valid on the wire, refused by a protocol-3 gateway like another bat's input.
 
     Layout, 130 bytes:
         off  size  field        type      unit / meaning
@@ -369,6 +375,65 @@ class Goodbye(_Spec):
     enums = {"reason": GoodbyeReason}
 
 
+class Net(_Spec):
+    """net, server -> every client: the cloth net's knots at header tick (the net worker's state).
+
+    Sent only for a scene with a cloth net (a rigid net is a panel: no net message ever comes):
+    at most 60 times a second (and never more often than snapshots) while the net is awake,
+    once when it falls asleep (asleep 1: it stays in that shape until the next net message),
+    and once on each session right after its welcome (a spectator's too), so a client knows the
+    net from its first moment. A player gets them on its session, a spectator on the feed. The
+    net's knots need more than one message: each carries `count` knots from knot `first`;
+    every message of one tick has the same header tick. Write each message's knots into an
+    array of cols x rows knots as it comes (a lost one leaves its knots a frame old).
+
+    Each message says its grid: cols x rows knots, numbered row-major from the bottom row
+    (knot = row * cols + col), whose rest position is the regular grid in the plane x = 0:
+    (0, -width / 2 + col * width / (cols - 1), row * height / (rows - 1)) m, the net as
+    net_kernel.topology builds it. A knot is at rest + offset * NET_STEP_M (0.01 mm steps).
+    The quantisation error (5 um at most) is far below a pixel of any view of the table and the
+    range (+-0.33 m) beyond any bulge a ball makes in a 15 cm net; a knot beyond it is drawn at
+    its edge (the gateway clamps and counts). The knots are for display only: the server's
+    physics is authoritative and a client's prediction never uses them.
+
+    Layout, 3891 bytes:
+        off  size  field     type        unit / meaning
+          0    24  header                HEADER_DTYPE
+         24     2  cols      <u2         knots along y, 2..4000
+         26     2  rows      <u2         knots along z, 2..4000
+         28     4  first     <u4         the knot of offset[0]; first + count <= cols * rows
+         32     2  count     <u2         knots in this message, 1..640
+         34     1  asleep    u1          1: the net fell asleep in this shape, 0: it moves
+         35     8  width     <f8         m, the rest grid's extent along y, (0, 16]
+         43     8  height    <f8         m, the rest grid's extent along z, (0, 8]
+         51  3840  offset    <i2[640,3]  knots first .. first + count - 1: position - rest, in
+                                         NET_STEP_M (1e-5 m), each in -32767..32767; rows from
+                                         count on are zero
+    """
+
+    kind = Kind.NET
+    body = [("cols", "<u2"), ("rows", "<u2"), ("first", "<u4"), ("count", "<u2"), ("asleep", "u1"),
+            ("width", "<f8"), ("height", "<f8"), ("offset", "<i2", (NET_CHUNK_KNOTS, 3))]
+
+    @staticmethod
+    def check(rec):
+        cols, rows, first, count = int(rec["cols"]), int(rec["rows"]), int(rec["first"]), int(rec["count"])
+        _within("net.cols", cols, 2, NET_MAX_SIDE)
+        _within("net.rows", rows, 2, NET_MAX_SIDE)
+        _within("net.count", count, 1, NET_CHUNK_KNOTS)
+        _within("net.first", first, 0, cols * rows - count)
+        _within("net.asleep", int(rec["asleep"]), 0, 1)
+        for name, limit in (("width", 2 * MAX_POS_M), ("height", MAX_POS_M)):
+            value = float(rec[name])
+            if not 0.0 < value <= limit:
+                raise OutOfRange(f"net.{name}: must be in (0, {limit:g}] m, got {value!r}")
+        offset = rec["offset"]
+        if int(offset[:count].min()) < -NET_MAX_OFFSET:
+            raise OutOfRange(f"net.offset: {int(offset[:count].min())} is beyond -{NET_MAX_OFFSET} steps")
+        if offset[count:].any():
+            raise OutOfRange(f"net.offset: the rows from count ({count}) on must be zero")
+
+
 SPECS: dict[Kind, type[_Spec]] = {spec.kind: spec for spec in (Hello, Welcome, Reject, Input, Snapshot, Event,
-                                                                 Heartbeat, Goodbye)}
+                                                                 Heartbeat, Goodbye, Net)}
 SIZES = {kind: spec.dtype.itemsize for kind, spec in SPECS.items()}

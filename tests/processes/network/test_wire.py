@@ -22,8 +22,11 @@ TIMEOUT = 60  # s, for each subprocess
 TOKEN = bytes(range(0xA0, 0xB0))
 R = math.sqrt(0.5)  # a 90-degree turn about y: (R, 0, +-R, 0), norm 1 to the last bit or two
 
-# Eleven predefined messages: fixed field values and their exact bytes. The hex is frozen on purpose
+# Twelve predefined messages: fixed field values and their exact bytes. The hex is frozen on purpose
 # (computed once, pasted here): a change of layout, order, size or byte order fails this test.
+# The second message of an 85 x 8 net: knots 640..679, the first two moved, the rest at rest.
+NET_OFFSET = np.zeros((wire.NET_CHUNK_KNOTS, 3), np.int16)
+NET_OFFSET[0], NET_OFFSET[1] = (1500, -2, 32767), (-32767, 0, 7)
 GOLDEN_FIELDS = {
     "hello_player": (Kind.HELLO, dict(seq=1, tick=0, role=Role.PLAYER, slot=Slot.NONE, name="Ada", token=bytes(16))),
     "hello_rejoin_b": (Kind.HELLO, dict(seq=7, tick=0, role=Role.PLAYER, slot=Slot.B, name="Zoë 卓球", token=TOKEN)),
@@ -50,45 +53,47 @@ GOLDEN_FIELDS = {
                                      shots=6, rally=17)),
     "heartbeat": (Kind.HEARTBEAT, dict(seq=77, tick=17000, ack=1001)),
     "goodbye_shutdown": (Kind.GOODBYE, dict(seq=1200, tick=20000, reason=GoodbyeReason.SHUTDOWN)),
+    "net": (Kind.NET, dict(seq=1300, tick=20001, cols=85, rows=8, first=640, count=40, asleep=0, width=1.83,
+                           height=0.1525, offset=NET_OFFSET)),
 }
 
 GOLDEN_HEX = {
     "hello_player": (
-        "50504e470200010001000000000000000000000000000000010041646100000000000000000000000000000000000000"
+        "50504e470300010001000000000000000000000000000000010041646100000000000000000000000000000000000000"
         "0000000000000000000000000000000000000000000000000000"
     ),
     "hello_rejoin_b": (
-        "50504e47020001000700000000000000000000000000000001025a6fc3ab20e58d93e790830000000000000000000000"
+        "50504e47030001000700000000000000000000000000000001025a6fc3ab20e58d93e790830000000000000000000000"
         "00000000000000000000a0a1a2a3a4a5a6a7a8a9aaabacadaeaf"
     ),
     "welcome_a": (
-        "50504e47020002000100000000000000d20400000000000001053c00f4010000b80b0000fca9f1d24d62503fa0a1a2a3"
+        "50504e47030002000100000000000000d20400000000000001053c00f4010000b80b0000fca9f1d24d62503fa0a1a2a3"
         "a4a5a6a7a8a9aaabacadaeaf6d6174636800000000000000000000000000000000000000000000000000000041646100"
         "000000000000000000000000000000000000000000000000000000004149202870726f29000000000000000000000000"
         "0000000000000000000000000000"
     ),
     "welcome_spectator": (
-        "50504e47020002000100000000000000d20400000000000000057800f401000088130000fca9f1d24d62503f00000000"
+        "50504e47030002000100000000000000d20400000000000000057800f401000088130000fca9f1d24d62503f00000000"
         "0000000000000000000000006d6174636800000000000000000000000000000000000000000000000000000041646100"
         "000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000"
         "000000000000000000000000b415"
     ),
     "reject_full": (
-        "50504e47020003000200000000000000630000000000000001626f7468207365617473206172652074616b656e000000"
+        "50504e47030003000200000000000000630000000000000001626f7468207365617473206172652074616b656e000000"
         "0000000000000000000000000000000000000000000000000000000000000000000000000000000000"
     ),
     "input_force": (
-        "50504e47020004002a00000000000000d0070000000000000101000000000000294000000000000008c01f85eb51b89e"
+        "50504e47030004002a00000000000000d0070000000000000101000000000000294000000000000008c01f85eb51b89e"
         "23400000000000000000000000000000d03f000000000000f8bf00000000000000000000000000000000000000000000"
         "00000000000000000000000000000000000000000000000000000000000000000000"
     ),
     "input_target": (
-        "50504e47020004002b00000000000000da07000000000000020200000000000000000000000000000000000000000000"
+        "50504e47030004002b00000000000000da07000000000000020200000000000000000000000000000000000000000000"
         "00000000000000000000000000000000000000000000000000009a9999999999f93f9a9999999999c9bf333333333333"
         "c33fcd3b7f669ea0e63f0000000000000000cd3b7f669ea0e6bf0000000000000000"
     ),
     "snapshot": (
-        "50504e4702000500e8030000000000001b41000000000000000000000000e0bf000000000000c03f333333333333d33f"
+        "50504e4703000500e8030000000000001b41000000000000000000000000e0bf000000000000c03f333333333333d33f"
         "0000000000001840000000000000e0bf000000000000f43f00000000000000000000000000c062c00000000000003440"
         "9a9999999999f9bf9a9999999999b93f9a9999999999c93fcdccccccccccf83f333333333333d3bf000000000000d03f"
         "cd3b7f669ea0e63f0000000000000000cd3b7f669ea0e63f0000000000000000cd3b7f669ea0e63f0000000000000000"
@@ -97,18 +102,22 @@ GOLDEN_HEX = {
         "000000000000000000000000000000c02a00000000000000000000000000000011000000070009000102030100ff"
     ),
     "event_point": (
-        "50504e4702000600e90300000000000004420000000000000101040307000a000102060011000000"
+        "50504e4703000600e90300000000000004420000000000000101040307000a000102060011000000"
     ),
     "heartbeat": (
-        "50504e47020007004d000000000000006842000000000000e903000000000000"
+        "50504e47030007004d000000000000006842000000000000e903000000000000"
     ),
     "goodbye_shutdown": (
-        "50504e4702000800b004000000000000204e00000000000002"
+        "50504e4703000800b004000000000000204e00000000000002"
+    ),
+    "net": (  # 63 bytes, then zero: the offsets of the 38 knots at rest and the 600 rows past count
+        "50504e47030009001405000000000000214e000000000000550008008002000028000048e17a14ae47fd3f85eb51b81e"
+        "85c33fdc05feffff7f018000000700" + "00" * (3891 - 63)
     ),
 }
 GOLDEN = {name: bytes.fromhex(text) for name, text in GOLDEN_HEX.items()}
 EXPECTED_SIZES = {Kind.HELLO: 74, Kind.WELCOME: 158, Kind.REJECT: 89, Kind.INPUT: 130, Kind.SNAPSHOT: 334,
-                  Kind.EVENT: 40, Kind.HEARTBEAT: 32, Kind.GOODBYE: 25}
+                  Kind.EVENT: 40, Kind.HEARTBEAT: 32, Kind.GOODBYE: 25, Kind.NET: 3891}
 
 
 def _reencode(message):
@@ -125,8 +134,8 @@ def _patched(golden, /, **changes):
 
 
 # --- layouts -----------------------------------------------------------------------------------------------
-def test_eleven_golden_messages_cover_every_type():
-    assert len(GOLDEN) == 11
+def test_twelve_golden_messages_cover_every_type():
+    assert len(GOLDEN) == 12
     assert {kind for kind, _ in GOLDEN_FIELDS.values()} == set(Kind)
 
 
@@ -247,9 +256,10 @@ BAD = {
     "magic": (b"PPNH" + GOLDEN["heartbeat"][4:], BadMagic),
     "version_0": (_with_header("heartbeat", version=0), BadVersion),
     "version_1": (_with_header("heartbeat", version=1), BadVersion),  # the first layout, before the feed
-    "version_3": (_with_header("heartbeat", version=3), BadVersion),
+    "version_2": (_with_header("heartbeat", version=2), BadVersion),  # before the net message
+    "version_4": (_with_header("heartbeat", version=4), BadVersion),
     "type_0": (_with_header("heartbeat", kind=0), UnknownType),
-    "type_9": (_with_header("heartbeat", kind=9), UnknownType),
+    "type_10": (_with_header("heartbeat", kind=10), UnknownType),
     "type_255": (_with_header("heartbeat", kind=255), UnknownType),
     "flags": (_with_header("heartbeat", flags=0x80), BadFlags),
     "negative_tick": (_with_header("heartbeat", tick=-1), OutOfRange),
@@ -286,6 +296,20 @@ BAD = {
     "event_kind_4": (_patched("event_point", event=4), BadEnum),
     "rules_reason_past_the_end": (_patched("event_point", reason=len(REASONS)), BadEnum),
     "goodbye_reason_99": (_patched("goodbye_shutdown", reason=99), BadEnum),
+    "net_cut_by_one": (GOLDEN["net"][:-1], TooShort),
+    "net_one_byte_extra": (GOLDEN["net"] + b"\0", TooLong),
+    "net_offset_minus_32768": (_patched("net", offset=np.where(np.arange(640)[:, None] == 3, -32768, NET_OFFSET)),
+                               OutOfRange),
+    "net_offset_past_count": (_patched("net", offset=np.where(np.arange(640)[:, None] == 40, 1, NET_OFFSET)),
+                              OutOfRange),
+    "net_count_0": (_patched("net", count=0), OutOfRange),
+    "net_count_641": (_patched("net", count=641), OutOfRange),
+    "net_past_the_last_knot": (_patched("net", first=641), OutOfRange),
+    "net_one_column": (_patched("net", cols=1, first=0), OutOfRange),
+    "net_asleep_2": (_patched("net", asleep=2), OutOfRange),
+    "net_width_zero": (_patched("net", width=0.0), OutOfRange),
+    "net_height_9": (_patched("net", height=9.0), OutOfRange),
+    "net_nan_width": (_patched("net", width=math.nan), NonFinite),
 }
 
 
@@ -469,7 +493,7 @@ def test_printable_names_round_trip(name):
 def test_drop_counter_counts_by_reason():
     drops = DropCounter()
     assert drops.decode(GOLDEN["heartbeat"]).kind is Kind.HEARTBEAT
-    for case in ("empty", "body_cut_by_one", "one_byte_extra", "version_1", "type_9", "nan_force", "force_501_N",
+    for case in ("empty", "body_cut_by_one", "one_byte_extra", "version_1", "type_10", "nan_force", "force_501_N",
                  "torque_51_N_m"):
         assert drops.decode(BAD[case][0]) is None
     assert drops.by_reason == {"too_short": 2, "too_long": 1, "bad_version": 1, "unknown_type": 1,
@@ -536,3 +560,41 @@ def test_decode_command_bad_message_exits_2_with_the_reason():
 def test_decode_command_neither_file_nor_hex_exits_2():
     done = _pingpong("decode", "no-such-capture.bin")
     assert done.returncode == 2 and "neither a file nor a hex string" in done.stderr
+
+
+# --- the cloth net's knots -----------------------------------------------------------------------------------
+def test_a_nets_knots_round_trip_within_half_a_step():
+    """Knots 85 x 8 (scenes/match_cloth.toml's grid) moved up to 5 cm: two messages, and every
+    coordinate back within NET_STEP_M / 2 (round to nearest) of what was sent."""
+    cols, rows, width, height = 85, 8, 1.83, 0.1525
+    rest = wire.net_rest(cols, rows, width, height)
+    knots = rest + np.random.default_rng(3).uniform(-0.05, 0.05, rest.shape)
+    messages, clamped = wire.net_messages(knots, cols=cols, rows=rows, width=width, height=height, asleep=True,
+                                          tick=77)
+    assert clamped == 0 and len(messages) == 2 and {len(m) for m in messages} == {wire.SIZES[Kind.NET]}
+    back = np.full_like(knots, np.nan)
+    for data in messages:
+        message = decode(data)
+        assert message.tick == 77 and message["asleep"] == 1
+        wire.net_knots(message, back)
+    np.testing.assert_allclose(back, knots, rtol=0, atol=wire.NET_STEP_M / 2 + 1e-12)  # rounding, + float error
+
+
+def test_a_knot_beyond_the_wires_range_is_clamped_and_counted():
+    rest = wire.net_rest(4, 2, 1.0, 0.2)
+    knots = rest.copy()
+    knots[5, 0] = 0.5  # 50,000 steps: beyond +-32767
+    (data,), clamped = wire.net_messages(knots, cols=4, rows=2, width=1.0, height=0.2, asleep=False, tick=1)
+    assert clamped == 1
+    back = np.zeros_like(knots)
+    wire.net_knots(decode(data), back)
+    assert back[5, 0] == pytest.approx(wire.NET_MAX_OFFSET * wire.NET_STEP_M, abs=1e-12)  # the range's edge
+
+
+def test_the_wires_rest_grid_is_the_nets_built_shape():
+    from net_kernel import build_topology
+    from net_kernel.topology import NetSpec
+
+    spec = NetSpec(cols=85, rows=8)
+    rest = wire.net_rest(spec.cols, spec.rows, spec.width, spec.height)
+    np.testing.assert_array_equal(rest, build_topology(spec).knot_pos)  # the same formula, bit for bit
