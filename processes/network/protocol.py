@@ -178,7 +178,8 @@ def defaults_block() -> str:
 def layout_json() -> dict:
     """The wire's layouts and enum names as plain data, for a decoder in another language (the
     web page's decoder.js reads it): per message kind its size and fields (offset, numpy type
-    without byte order, shape, and whether it is text or a token), and every enum's names."""
+    without byte order, shape, and whether it is text or a token), every enum's names, and the
+    net message's offset unit (net_step_m, m)."""
     def fields(dtype, spec=None):
         out = []
         for name in dtype.names:
@@ -191,6 +192,7 @@ def layout_json() -> dict:
 
     return {
         "version": wire.PROTOCOL_VERSION, "magic": wire.MAGIC.decode("ascii"),
+        "net_step_m": wire.NET_STEP_M,  # a net message's offset unit
         "header": fields(wire.HEADER_DTYPE),
         "messages": {kind.name.lower(): {"kind": int(kind), "size": spec.dtype.itemsize,
                                          "fields": fields(spec.dtype, spec)[len(wire.HEADER_FIELDS):],

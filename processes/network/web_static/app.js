@@ -1,4 +1,5 @@
-// The match in 3D: the table, the net, both bats, the ball and its shadow, the score, the
+// The match in 3D: the table, the net (a panel; a cloth net's knots as line segments of its mesh
+// once net messages come, shown when their tick comes up), both bats, the ball and its shadow, the score, the
 // server, a banner with each point's reason; an orbit camera, a broadcast side camera and each
 // player's view. Drawn at the display's refresh rate, 100 ms behind the snapshots and
 // interpolated between them, as `pingpong join --as spectator` shows them. A browser may play a
@@ -15,10 +16,12 @@ const NET_HEIGHT = 0.1525, NET_OVERHANG = 0.1525, BALL_RADIUS = 0.02, BAT_RADIUS
 const DELAY_S = 0.1;  // the spectator's view runs this far behind (join --delay-ms 100)
 const BUFFER = 64;  // snapshots kept for interpolation
 const BANNER_S = 2.5;
+const NET_QUEUE = 256;  // net messages waiting for their tick (4 s of a 60 Hz two-message net)
 
 const state = {
   frames: 0, snapshots: 0, events: 0, connected: false, ended: "", tick: -1, score: [0, 0],
-  games: [0, 0], server: 0, phase: "", lastEvent: null, camera: "side", errors: [],
+  games: [0, 0], server: 0, phase: "", lastEvent: null, camera: "side", errors: [], nets: 0, netShown: 0,
+  netTick: -1, netKnots: 0,
   seat: "", predicted: 0, rejected: "", keysSent: 0, aimsSent: 0,
 };
 const KEYS = { w: "up", ArrowUp: "up", s: "down", ArrowDown: "down", a: "left", ArrowLeft: "left", d: "right",
@@ -68,7 +71,7 @@ function buildScene() {
   net.quaternion.setFromRotationMatrix(new THREE.Matrix4().makeBasis(  // width along y, height up z
     new THREE.Vector3(0, 1, 0), new THREE.Vector3(0, 0, 1), new THREE.Vector3(1, 0, 0)));
   net.position.set(0, 0, NET_HEIGHT / 2);
-  scene.add(net);
+  scene.add(net);  // the rigid net; hidden once a cloth net's knots come
   scene.add(box(0.004, 2 * postY, 0.012, white, 0, 0, NET_HEIGHT - 0.006));  // the net's white top band
   const bats = [0xc0392b, 0x27ae60].map((rim) => {
     const bat = new THREE.Group();
@@ -94,7 +97,47 @@ function buildScene() {
   const shadow = new THREE.Mesh(new THREE.CircleGeometry(BALL_RADIUS, 24),
                                 new THREE.MeshBasicMaterial({ color: 0x000000, transparent: true, opacity: 0.45 }));
   scene.add(shadow);
-  return { scene, bats, ball, shadow };
+  return { scene, bats, ball, shadow, net };
+}
+
+// --- the cloth net: its knots (net messages) as the mesh's line segments ----------------------------
+class Cloth {
+  constructor(world, stepM) { this.world = world; this.stepM = stepM; this.lines = null; this.grid = ""; }
+
+  build(m) {  // the mesh of a cols x rows grid: a segment to the right and one up from each knot
+    const { cols, rows } = m;
+    const index = [];
+    for (let r = 0; r < rows; r++) for (let c = 0; c < cols; c++) {
+      const k = r * cols + c;
+      if (c + 1 < cols) index.push(k, k + 1);
+      if (r + 1 < rows) index.push(k, k + cols);
+    }
+    const geometry = new THREE.BufferGeometry();
+    this.pos = new Float32Array(cols * rows * 3);
+    geometry.setAttribute("position", new THREE.BufferAttribute(this.pos, 3));
+    geometry.setIndex(index);
+    if (this.lines) { this.world.scene.remove(this.lines); this.lines.geometry.dispose(); }
+    this.lines = new THREE.LineSegments(geometry, new THREE.LineBasicMaterial({ color: 0xf2f2f2 }));
+    this.lines.frustumCulled = false;  // its knots move: no stale bounding sphere
+    this.world.scene.add(this.lines);
+    this.world.net.visible = false;
+    this.grid = `${cols}x${rows}x${m.width}x${m.height}`;
+    state.netKnots = cols * rows;
+  }
+
+  take(m) {  // knot = rest (the grid in the plane x = 0) + offset * step, for knots first .. first + count
+    if (this.grid !== `${m.cols}x${m.rows}x${m.width}x${m.height}`) this.build(m);
+    const { cols, rows, width, height, first, count, offset } = m;
+    for (let i = 0; i < count; i++) {
+      const k = first + i, c = k % cols, r = Math.floor(k / cols);
+      this.pos[3 * k] = offset[i][0] * this.stepM;
+      this.pos[3 * k + 1] = -width / 2 + c * (width / (cols - 1)) + offset[i][1] * this.stepM;
+      this.pos[3 * k + 2] = r * (height / (rows - 1)) + offset[i][2] * this.stepM;
+    }
+    this.lines.geometry.attributes.position.needsUpdate = true;
+    state.netShown += 1;
+    state.netTick = m.tick;
+  }
 }
 
 // --- cameras ------------------------------------------------------------------------------------
@@ -189,6 +232,8 @@ function page(protocol, send) {
   const views = cameras(window.innerWidth / window.innerHeight);
   const orbit = new Orbit(views.orbit, renderer.domElement);
   const timeline = new Timeline();
+  const cloth = new Cloth(world, protocol.net_step_m);
+  const netQueue = [];  // net messages in arrival order, each shown once the view reaches its tick
   const $ = (id) => document.getElementById(id);
   let bannerUntil = 0;
   let predicted = null, predictedAt = 0, lastAim = 0;
@@ -266,6 +311,10 @@ function page(protocol, send) {
     } else if (message.kind === "snapshot") {
       state.snapshots += 1;
       timeline.push(message, now);
+    } else if (message.kind === "net") {
+      state.nets += 1;
+      netQueue.push(message);
+      if (netQueue.length > NET_QUEUE) cloth.take(netQueue.shift());  // a view that fell behind
     } else if (message.kind === "event") {
       state.events += 1;
       state.lastEvent = { event: decoder.name("EventKind", message.event), winner: message.winner,
@@ -321,6 +370,8 @@ function page(protocol, send) {
       state.tick = shown.tick;
       showScore(shown);
     }
+    const viewTick = sample ? sample.a.tick + (sample.b.tick - sample.a.tick) * sample.f : Infinity;
+    while (netQueue.length && netQueue[0].tick <= viewTick) cloth.take(netQueue.shift());
     if (now > bannerUntil) $("banner").textContent = state.ended === "match_over" ? "match over" : "";
     renderer.render(world.scene, views[state.camera]);
     state.frames += 1;

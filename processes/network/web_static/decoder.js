@@ -11,6 +11,7 @@ const TYPES = {
   i8: [8, (dv, at) => Number(dv.getBigInt64(at, true))],
   u4: [4, (dv, at) => dv.getUint32(at, true)],
   u2: [2, (dv, at) => dv.getUint16(at, true)],
+  i2: [2, (dv, at) => dv.getInt16(at, true)],
   u1: [1, (dv, at) => dv.getUint8(at)],
   i1: [1, (dv, at) => dv.getInt8(at)],
 };
@@ -59,7 +60,7 @@ export class Decoder {
     const flat = [];
     for (let i = 0; i < count; i++) flat.push(read(dv, field.offset + i * size));
     if (field.shape.length === 1) return flat;
-    const rows = [];  // two dimensions at most on this wire (bat_pos: 2 x 3)
+    const rows = [];  // two dimensions at most on this wire (bat_pos: 2 x 3, net offset: 640 x 3)
     const width = field.shape[1];
     for (let i = 0; i < field.shape[0]; i++) rows.push(flat.slice(i * width, (i + 1) * width));
     return rows;

@@ -230,6 +230,43 @@ def test_the_live_page_draws_the_match_and_shows_the_servers_score(bridged, brow
 
 
 @pytest.mark.timeout(120)
+def test_the_live_page_draws_a_cloth_nets_knots_in_place_of_the_panel(bridged, browser):
+    """The gateway's net messages (an 85 x 8 net bulging and moving, two messages a state) reach
+    the page through the bridge, which draws the mesh from them, every knot of it."""
+    rig, bridge, url = bridged
+    cols, rows, width, height = 85, 8, 1.83, 0.1525
+    rig.gateway.net_grid = (cols, rows, width, height)  # as a run with a net worker makes it
+    rest = wire.net_rest(cols, rows, width, height)
+    stop = threading.Event()
+
+    def serve():
+        tick = 0
+        while not stop.is_set():
+            tick += 1
+            rig.record["world"]["tick"] = tick
+            rig.clock.now += 0.001
+            rig.gateway.poll(1)
+            rig.gateway.service(rig.record)
+            if rig.gateway.net_due():
+                knots = rest.copy()
+                knots[:, 0] = 0.03 * np.sin(np.pi * (rest[:, 1] / width + 0.5)) * np.sin(tick * 0.01)
+                rig.gateway.service_net(tick, False, knots)
+
+    pumping = threading.Thread(target=serve, daemon=True)
+    pumping.start()
+    try:
+        browser.get(url)
+        state = _await_page(browser, lambda s: s["connected"] and s["netShown"] >= 4 and s["frames"] > 5)
+        assert state["netKnots"] == cols * rows and state["nets"] >= state["netShown"]
+        assert browser.execute_script("return window.__pingpong.netTick") > 0
+        assert _errors(browser) == [] and _page_state(browser)["errors"] == []
+    finally:
+        stop.set()
+        pumping.join(10)
+    assert bridge.counts["nets"] >= 4
+
+
+@pytest.mark.timeout(120)
 def test_the_replay_page_plays_offline_from_one_file(browser, tmp_path):
     from engine.dtypes import physics_snapshot_dtype
     from engine.rules import REASONS, Reason

@@ -1,0 +1,76 @@
+"""The cloth net on the wire in a served match: a spectator's net messages carry the net worker's
+knots, within the wire's quantisation step, while the net is awake and once when it sleeps.
+
+A served match_cloth (`pingpong serve`) with one remote seat: the physics does not step before
+the seat is held, so the spectator joins first and sees the net settle from its built shape
+(it is awake for the match's first ~0.7 s, far from the ball). Until the ball comes near it the
+net steps only its free ticks (NetSim.step_free), bit for bit as the in-process NetSim does
+(tests/processes/workers/test_net_worker.py), which is the reference here.
+"""
+import json
+import time
+
+import numpy as np
+import pytest
+
+from engine.scene import load_scene
+from net_kernel import NetSim, build_topology
+from processes.network import wire
+from processes.network.client import Client
+from processes.network.wire import Kind
+from tests.processes.network.test_gateway import _line, _pingpong, served  # noqa: F401 (a fixture)
+
+TICKS = 1500  # 1.5 s of realtime play: the settling net falls asleep within it
+
+
+def _reference(spec, dt, ticks) -> dict[int, np.ndarray]:
+    """{tick: knot_pos} of the net stepped free from its built shape, for each of `ticks`."""
+    sim = NetSim(build_topology(spec), dt)
+    out, tick = {}, 0
+    for wanted in sorted(ticks):
+        sim.step_free(wanted - tick)
+        tick = wanted
+        out[wanted] = sim.knot_pos.copy()
+    return out
+
+
+@pytest.mark.timeout(180)
+def test_a_spectator_gets_the_net_workers_knots_while_the_net_is_awake_and_once_asleep(served):
+    server = _pingpong("serve", "--scene", "match_cloth", "--players", "1", "--ticks", str(TICKS), "--json")
+    served.append(server)
+    endpoint = json.loads(_line(server, 120))["listening"]
+    spectator = Client(endpoint, "spectator", "net-watcher")
+    player = Client(endpoint, "player", "idle")
+    nets = []  # (tick, asleep, first, knots of the message)
+    try:
+        spectator.join(30)
+        player.join(30)  # the match starts: the net's first tick
+        deadline = time.monotonic() + 90
+        while spectator.goodbye is None and not spectator.server_lost and time.monotonic() < deadline:
+            player.heartbeat_if_due()
+            player.recv_batch(0)
+            spectator.heartbeat_if_due()
+            message = spectator.recv(20)
+            if message is not None and message.kind == Kind.NET:
+                knots = np.full((message["cols"] * message["rows"], 3), np.nan)
+                wire.net_knots(message, knots)
+                first, count = message["first"], message["count"]
+                nets.append((message.tick, message["asleep"], first, knots[first:first + count]))
+    finally:
+        spectator.close()
+        player.close()
+    assert spectator.goodbye == wire.GoodbyeReason.MATCH_OVER
+    scene = load_scene("match_cloth")
+    spec = scene.cloth
+    chunks = -(-spec.cols * spec.rows // wire.NET_CHUNK_KNOTS)
+    awake = [n for n in nets if not n[1]]
+    asleep = [n for n in nets if n[1]]
+    assert len({tick for tick, *_ in awake}) >= 5  # the settling net, at up to 60 Hz
+    assert len(asleep) == chunks  # one state when it fell asleep, nothing more while it sleeps
+    fell_asleep = asleep[0][0]
+    assert all(tick < fell_asleep for tick, *_ in awake)
+    reference = _reference(spec, scene.dt, {tick for tick, *_ in nets})
+    for tick, _, first, knots in nets:
+        expected = reference[tick][first:first + len(knots)]
+        # round to the nearest 0.01 mm step: half a step, plus float64 rounding
+        np.testing.assert_allclose(knots, expected, rtol=0, atol=wire.NET_STEP_M / 2 + 1e-12)
