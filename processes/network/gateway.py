@@ -24,9 +24,8 @@ theirs on the session (two sends, and a player's snapshots are counted per sessi
   stale ones count towards MAX_BAD: target mode is reserved in protocol 3), then posted to
   the locked remote-input mailbox that the physics worker drains each tick.
 - snapshots at `snapshot_hz` from the physics snapshot block, plus point/game/match events
-  from the point log; with a cloth net (net_grid), the net's knots (wire.Net) at most NET_HZ
-  and snapshot_hz times a second while it is awake, once when it falls asleep, and its latest
-  state once on every session after the welcome (service_net). Sends never block: ROUTER_MANDATORY with NOBLOCK raises when a peer's
+  from the point log, and a cloth net's knots (network.feed.NetFeed). Sends never block:
+  ROUTER_MANDATORY with NOBLOCK raises when a peer's
   pipe is at its high-water mark (SNDHWM), and that peer's snapshot is dropped and counted,
   so a slow peer stalls nobody.
 - the feed's slow-subscriber policy: the PUB queues at most SNDHWM messages per subscriber
@@ -72,6 +71,7 @@ import zmq
 
 from engine.arm import BRAKE_EVERY_S, BRAKE_MIN_SPEED, brake_force
 from processes.network import wire
+from processes.network.feed import NetFeed, feed_socket
 from processes.network.seats import SeatStore
 from processes.network.wire import GoodbyeReason, InputMode, Kind, RejectReason, Role, Slot
 
@@ -85,7 +85,6 @@ MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messa
 MAX_FRAME_BYTES = 4096  # libzmq disconnects a peer sending a bigger frame (MAXMSGSIZE)
 SWEEPS_PER_HEARTBEAT = 10  # passes over every session (timeouts, heartbeats) per heartbeat period
 STATS_EVERY_S = 1.0  # the worker writes its counters to GatewayConfig.stats_path this often
-NET_HZ = 60  # net messages per second at most, while the net is awake: the page's frame rate
 NO_TOKEN = bytes(wire.TOKEN_SIZE)
 # A session's heartbeat, the message a thousand spectators send twice a second: magic, version,
 # kind, flags 0 and the size say it all (its only body field, ack, is any u64), so it is taken by
@@ -183,8 +182,7 @@ class Gateway:
             for their tokens); None: seats live and die with this object.
         bat_mass: kg per bat (A, B): an idle remote arm brakes its bat (brake_force, from the
             served record's velocity); None: an idle arm only lets go (zero force).
-        net_grid: (cols, rows, width m, height m) of the scene's cloth net, whose knots go out
-            as net messages (service_net); None: a rigid net, no net messages.
+        net_grid: (cols, rows, width m, height m) of a cloth net (service_net); None: no net messages.
     """
 
     def __init__(self, zctx, config: GatewayConfig, *, scene_name: str, best_of: int, dt: float,
@@ -211,12 +209,7 @@ class Gateway:
         self._games_seen = (0, 0)
         self._match_sent = False
         self._strangers_told: set[bytes] = set()
-        self.net_grid = net_grid
-        self._net_every = 1.0 / min(NET_HZ, config.snapshot_hz)
-        self._next_net = 0.0
-        self._net_tick: int | None = None  # tick of the net state sent last
-        self._net_asleep = False  # the state sent last was asleep: the net is frozen, nothing more to send
-        self._net_latest: list[bytes] = []  # its messages, for each new session
+        self.net = NetFeed(net_grid, config.snapshot_hz) if net_grid is not None else None
         self.router = zctx.socket(zmq.ROUTER)
         self.router.setsockopt(zmq.LINGER, 0)
         self._two_io_threads = zctx.get(zmq.IO_THREADS) >= 2
@@ -239,35 +232,13 @@ class Gateway:
         self.feed_port = 0
         self.feed_seq = 0
         if config.feed and self.endpoint.startswith("tcp://"):
-            self.feed = self._feed_socket(zctx, config.feed_bind or self.endpoint.rsplit(":", 1)[0] + ":0")
+            self.feed = feed_socket(zctx, config, _any_port(config.feed_bind or self.endpoint.rsplit(":", 1)[0] + ":0"),
+                                    self._two_io_threads, MAX_FRAME_BYTES)
             self.feed_endpoint = self.feed.getsockopt_string(zmq.LAST_ENDPOINT)
             self.feed_port = int(self.feed_endpoint.rsplit(":", 1)[1])
         self._beat = bytearray(wire.encode(Kind.HEARTBEAT, tick=0, ack=0))
         if seat_store is not None:
             self._restore_seats(seat_store.load())
-
-    def _feed_socket(self, zctx, bind: str):
-        """The PUB socket: SNDHWM messages per subscriber at most (then that subscriber's newest
-        are dropped), never blocking; a CURVE server with the sessions' keys."""
-        config = self.config
-        feed = zctx.socket(zmq.PUB)
-        feed.setsockopt(zmq.LINGER, 0)
-        if self._two_io_threads:
-            # its own I/O thread: 120,000 copies a second to 1000 subscribers kept one thread
-            # busy, and the sessions' heartbeats on the same thread waited behind them for
-            # seconds (`pingpong stress`: every spectator timed out, its heartbeats unread)
-            feed.setsockopt(zmq.AFFINITY, 1 << 1)
-        feed.setsockopt(zmq.SNDHWM, config.sndhwm)
-        feed.setsockopt(zmq.MAXMSGSIZE, MAX_FRAME_BYTES)  # what a subscriber may send: subscriptions
-        if config.sndbuf:
-            feed.setsockopt(zmq.SNDBUF, config.sndbuf)
-        if config.curve_secret_key:
-            feed.curve_server = True
-            feed.curve_secretkey = config.curve_secret_key
-            if config.curve_public_key:
-                feed.curve_publickey = config.curve_public_key
-        feed.bind(_any_port(bind))
-        return feed
 
     # --- state ---------------------------------------------------------------------------------
     def _restore_seats(self, table) -> None:
@@ -298,7 +269,7 @@ class Gateway:
 
     def stats(self) -> dict:
         """Counters: sessions, inputs, refusals, drops by reason, snapshots sent and dropped."""
-        out = dict(sorted(self.counts.items()))
+        out = dict(sorted({**self.counts, **(self.net.counts if self.net is not None else {})}.items()))
         for reason, n in self.drops.by_reason.items():
             out[f"dropped.{reason}"] = out.get(f"dropped.{reason}", 0) + n
         out["dropped_total"] = sum(v for k, v in out.items() if k.startswith("dropped."))
@@ -361,7 +332,7 @@ class Gateway:
             heartbeat_ms=heartbeat_ms, timeout_ms=max(heartbeat_ms, int(config.timeout_s * 1000)), dt=self.dt,
             token=token, scene=self.scene_name[:32], name_a=self.seats[Slot.A].name, name_b=self.seats[Slot.B].name,
             feed_port=self.feed_port if session.role == Role.SPECTATOR else 0), "welcomes")
-        for data in self._net_latest:  # the net as it is now, on the session: the feed may not be connected yet
+        for data in self.net.latest if self.net is not None else ():  # on the session: the feed may not be up yet
             self._send(session, data, "nets")
 
     def _goodbye(self, session: _Session, reason: GoodbyeReason) -> None:
@@ -609,29 +580,11 @@ class Gateway:
         self.broadcast_snapshot(record, input_seq)
 
     def net_due(self) -> bool:
-        """Is a net message due (a cloth net, and 1 / min(NET_HZ, snapshot_hz) s since the last)?
-        The worker reads the net's state only then."""
-        return self.net_grid is not None and self.clock() >= self._next_net
+        return self.net is not None and self.net.due(self.clock())
 
     def service_net(self, tick: int, asleep: bool, knot_pos) -> None:
-        """The net's state at `tick` (knot_pos (cols * rows, 3) m) to every client, if it is new:
-        sent while awake, and once when it has fallen asleep."""
-        if tick == self._net_tick or (asleep and self._net_asleep):
-            return
-        now = self.clock()
-        self._next_net = max(self._next_net + self._net_every, now)
-        cols, rows, width, height = self.net_grid
-        try:
-            messages, clamped = wire.net_messages(knot_pos, cols=cols, rows=rows, width=width, height=height,
-                                                  asleep=asleep, tick=tick)
-        except wire.WireError:
-            self.counts["net_unencodable"] += 1  # a grid the wire cannot carry: viewers draw a panel
-            self.net_grid = None
-            return
-        if clamped:
-            self.counts["net_clamped"] += 1  # knots beyond +-0.33 m of their rest: drawn at the edge
-        self._net_tick, self._net_asleep, self._net_latest = tick, asleep, messages
-        for data in messages:
+        """The cloth net's state at `tick` to every client, if NetFeed takes it."""
+        for data in self.net.update(tick, asleep, knot_pos, self.clock()):
             self._broadcast(data, "nets")
 
     def _heartbeat(self, ack: int) -> bytes:

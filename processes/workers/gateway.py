@@ -5,7 +5,7 @@ acknowledges (remote_acks), and posts the remote players' inputs to the locked r
 mailbox that the physics drains before each tick. In a run with a net worker (a scene with a
 cloth net: processes.workers.workers_for; build_layout then makes the net_even/net_odd blocks)
 it also reads the net's newest published state, never torn (SnapshotBlock.snapshot) and only
-when a net message is due, for the clients' view of the net (Gateway.service_net).
+when a net message is due, for the clients' view of the net (network.feed.NetFeed).
 """
 from __future__ import annotations
 

@@ -64,5 +64,6 @@ __all__ = [
     "MAX_GAMES_WON", "MAX_POS_M", "MAX_SPEED_MS", "MAX_SPIN_RADS", "MAX_TORQUE_NM", "Message", "NAME_SIZE",
     "NET_CHUNK_KNOTS", "NET_MAX_OFFSET", "NET_MAX_SIDE", "NET_STEP_M", "Net", "NonFinite", "OutOfRange", "PROTOCOL_VERSION", "QUAT_TOL", "REASON_CODES", "Reject", "RejectReason", "Role",
     "SIZES", "SPECS", "Slot", "Snapshot", "TOKEN_SIZE", "TooLong", "TooShort", "UnknownType", "WIRE_ERRORS",
-    "Welcome", "WireError", "decode", "encode", "net_knots", "net_messages", "net_rest", "snapshot_from_physics"
+    "Welcome", "WireError", "decode", "encode", "net_knots", "net_messages", "net_rest",
+    "snapshot_from_physics"
 ]

@@ -235,11 +235,11 @@ def watch(spec: dict) -> dict:
             seq = message.seq
             kinds[message.kind.name.lower()] += 1
             if on_feed:
-                if message.kind != Kind.EVENT:
-                    bad["not_on_feed"] += 1  # only snapshots and events go out on the feed
+                if message.kind not in (Kind.EVENT, Kind.NET):
+                    bad["not_on_feed"] += 1  # only snapshots, events and a cloth net's knots go out on the feed
                     continue
                 w.feed_seq.see(seq)
-                counts["events"] += 1
+                counts["events"] += message.kind == Kind.EVENT
                 continue
             if message.kind in (Kind.WELCOME, Kind.REJECT):
                 if w.feed is not None:  # a welcome may name a new feed: the old socket may close now

@@ -17,8 +17,9 @@ from engine.scene import load_scene
 from net_kernel import NetSim, build_topology
 from processes.network import wire
 from processes.network.client import Client
+from processes.network.feed import NetFeed
 from processes.network.wire import Kind
-from tests.processes.network.test_gateway import _line, _pingpong, served  # noqa: F401 (a fixture)
+from tests.processes.network.test_gateway import ROUNDS, _line, _pingpong, rig, served  # noqa: F401 (fixtures)
 
 TICKS = 1500  # 1.5 s of realtime play: the settling net falls asleep within it
 
@@ -74,3 +75,30 @@ def test_a_spectator_gets_the_net_workers_knots_while_the_net_is_awake_and_once_
         expected = reference[tick][first:first + len(knots)]
         # round to the nearest 0.01 mm step: half a step, plus float64 rounding
         np.testing.assert_allclose(knots, expected, rtol=0, atol=wire.NET_STEP_M / 2 + 1e-12)
+
+
+def test_the_gateway_sends_a_moving_net_at_its_rate_a_sleeping_one_once_and_the_latest_to_a_newcomer(rig):
+    """In-process: a Gateway with a 4 x 2 net (one message a state) and 100 Hz snapshots, so a
+    net message at most every 1 / 60 s; the knots of the first state come to a spectator who
+    joins after it, on its session, right after its welcome."""
+    rig = rig(snapshot_hz=100)
+    gateway = rig.gateway
+    gateway.net = NetFeed((4, 2, 1.0, 0.2), gateway.config.snapshot_hz)
+    knots = wire.net_rest(4, 2, 1.0, 0.2)
+    knots[5, 0] = 0.01
+    assert gateway.net_due()
+    gateway.service_net(10, False, knots)
+    assert gateway.counts["nets_published"] == 1 and not gateway.net_due()  # the next one in 1 / 60 s
+    gateway.service_net(10, False, knots)  # the same state again: nothing
+    rig.clock.now += 1.0 / 60.0
+    gateway.service_net(20, True, knots)  # it fell asleep: once
+    rig.clock.now += 1.0 / 60.0
+    gateway.service_net(30, True, knots)  # asleep still: nothing more
+    assert gateway.counts["nets_published"] == 2
+    spectator = rig.client("spectator")
+    rig.join(spectator)
+    message = rig.until(spectator, lambda m: m.kind == Kind.NET)
+    assert message.tick == 20 and message["asleep"] == 1
+    got = np.zeros_like(knots)
+    wire.net_knots(message, got)
+    np.testing.assert_allclose(got, knots, rtol=0, atol=wire.NET_STEP_M / 2 + 1e-12)  # rounding to a step

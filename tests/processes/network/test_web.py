@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from processes.network import protocol, wire
+from processes.network.feed import NetFeed
 from processes.network.web import STATIC, WebBridge, parse_host_port
 from processes.network.wire import Kind
 from tests.processes.network.test_gateway import ROUNDS, Rig
@@ -235,7 +236,7 @@ def test_the_live_page_draws_a_cloth_nets_knots_in_place_of_the_panel(bridged, b
     the page through the bridge, which draws the mesh from them, every knot of it."""
     rig, bridge, url = bridged
     cols, rows, width, height = 85, 8, 1.83, 0.1525
-    rig.gateway.net_grid = (cols, rows, width, height)  # as a run with a net worker makes it
+    rig.gateway.net = NetFeed((cols, rows, width, height), rig.gateway.config.snapshot_hz)  # as a cloth run's
     rest = wire.net_rest(cols, rows, width, height)
     stop = threading.Event()
 

@@ -1,0 +1,90 @@
+"""The gateway's feed: its PUB socket, and which states of a cloth net go out on it (NetFeed).
+
+What every spectator gets goes out once on the feed (processes.network.gateway explains why);
+since protocol 3 that includes a cloth net's knots (wire.Net), at most NET_HZ times a second
+while the net moves, once when it falls asleep, and its latest state on each new session.
+"""
+from __future__ import annotations
+
+from collections import Counter
+
+import zmq
+
+from processes.network import wire
+
+NET_HZ = 60  # net messages per second at most, while the net is awake: the page's frame rate
+
+
+def feed_socket(zctx, config, endpoint: str, own_io_thread: bool, max_frame_bytes: int):
+    """The PUB socket bound to `endpoint`: SNDHWM messages per subscriber at most (then that
+    subscriber's newest are dropped), never blocking; a CURVE server with the sessions' keys.
+
+    config: the gateway's GatewayConfig (sndhwm, sndbuf, curve keys). own_io_thread: put it on
+    libzmq's I/O thread 1. max_frame_bytes: MAXMSGSIZE, what a subscriber may send (subscriptions).
+    """
+    feed = zctx.socket(zmq.PUB)
+    feed.setsockopt(zmq.LINGER, 0)
+    if own_io_thread:
+        # its own I/O thread: 120,000 copies a second to 1000 subscribers kept one thread
+        # busy, and the sessions' heartbeats on the same thread waited behind them for
+        # seconds (`pingpong stress`: every spectator timed out, its heartbeats unread)
+        feed.setsockopt(zmq.AFFINITY, 1 << 1)
+    feed.setsockopt(zmq.SNDHWM, config.sndhwm)
+    feed.setsockopt(zmq.MAXMSGSIZE, max_frame_bytes)
+    if config.sndbuf:
+        feed.setsockopt(zmq.SNDBUF, config.sndbuf)
+    if config.curve_secret_key:
+        feed.curve_server = True
+        feed.curve_secretkey = config.curve_secret_key
+        if config.curve_public_key:
+            feed.curve_publickey = config.curve_public_key
+    feed.bind(endpoint)
+    return feed
+
+
+class NetFeed:
+    """Which states of the scene's cloth net become net messages, and when.
+
+    Args:
+        grid: (cols, rows, width m, height m) of the cloth net (scene.cloth).
+        snapshot_hz: the gateway's snapshot rate: net messages never come more often.
+
+    Attributes:
+        latest: the messages of the state sent last, for each new session after its welcome.
+        counts: net_clamped (states with a knot beyond the wire's +-0.33 m, drawn at the edge),
+            net_unencodable (a grid the wire cannot carry: no net message at all, viewers draw a panel).
+    """
+
+    def __init__(self, grid: tuple[int, int, float, float], snapshot_hz: int):
+        self.grid: tuple | None = grid
+        self.every_s = 1.0 / min(NET_HZ, snapshot_hz)
+        self.next_at = 0.0
+        self.tick: int | None = None  # the tick of the state sent last
+        self.asleep = False  # the state sent last was asleep: the net is frozen, nothing more to send
+        self.latest: list[bytes] = []
+        self.counts: Counter[str] = Counter()
+
+    def due(self, now: float) -> bool:
+        """Is a net message due at `now` (s)? A caller reads the net's state only then."""
+        return self.grid is not None and now >= self.next_at
+
+    def update(self, tick: int, asleep: bool, knot_pos, now: float) -> list[bytes]:
+        """The messages to send of the net's state at `tick` (knot_pos (cols * rows, 3) m): those
+        of a new state while the net is awake, or of the first state asleep; [] otherwise."""
+        if self.grid is None or tick == self.tick or (asleep and self.asleep):
+            return []
+        # on a fixed grid while on time; late by a period or more (a net that slept): from now on
+        late = now - self.next_at >= self.every_s
+        self.next_at = (now if late else self.next_at) + self.every_s
+        cols, rows, width, height = self.grid
+        try:
+            messages, clamped = wire.net_messages(knot_pos, cols=cols, rows=rows, width=width, height=height,
+                                                  asleep=asleep, tick=tick)
+        except wire.WireError:
+            self.counts["net_unencodable"] += 1
+            self.grid = None
+            return []
+        if clamped:
+            self.counts["net_clamped"] += 1
+        self.tick, self.asleep, self.latest = tick, asleep, messages
+        return messages
