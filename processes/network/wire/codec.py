@@ -137,7 +137,11 @@ def _put_int(rec, name: str, label: str, value) -> None:
     whole = array.dtype.kind in "iub" or (array.dtype.kind == "O" and all(isinstance(v, int) for v in array.flat))
     if array.shape != field.shape or not whole:
         raise TypeError(f"{label}: expected integers of shape {field.shape}, got {value!r}")
-    if any(not info.min <= int(v) <= info.max for v in array.flat):
+    if array.dtype.kind == "O":
+        fits = all(info.min <= int(v) <= info.max for v in array.flat)
+    else:  # vectorised: a net message's 1920 offsets
+        fits = array.size == 0 or (info.min <= int(array.min()) and int(array.max()) <= info.max)
+    if not fits:
         raise OutOfRange(f"{label}: {array.tolist()} does not fit {field.base}")
     rec[name] = array.astype(field.base)
 
