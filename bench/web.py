@@ -27,6 +27,7 @@ import numpy as np
 
 from processes.network.client import Client
 from processes.network.wire import Kind
+from processes.stress.scenarios.web import browsers
 
 CLK_TCK = os.sysconf("SC_CLK_TCK")
 
@@ -56,23 +57,6 @@ def _direct(endpoint: str, stop: threading.Event, seen: dict) -> None:
     finally:
         client.leave()
         client.close()
-
-
-async def _browsers(url: str, n: int, seconds: float, seen: list[dict]) -> None:
-    from websockets.asyncio.client import connect
-
-    async def one(k: int) -> None:
-        async with connect(url.replace("http://", "ws://") + "ws", max_size=None) as ws:
-            deadline = time.monotonic() + seconds
-            while time.monotonic() < deadline:
-                try:
-                    data = await asyncio.wait_for(ws.recv(), timeout=max(0.01, deadline - time.monotonic()))
-                except (asyncio.TimeoutError, TimeoutError):
-                    break
-                if data[6] == Kind.SNAPSHOT:
-                    seen[k].setdefault(int.from_bytes(data[16:24], "little", signed=True), time.monotonic())
-
-    await asyncio.gather(*(one(k) for k in range(n)))
 
 
 def _fps(url: str, seconds: float = 5.0, screenshot: str = "") -> float:
@@ -124,9 +108,10 @@ def main(argv=None) -> int:
         direct: dict = {}
         spectator = threading.Thread(target=_direct, args=(endpoint, stop, direct), daemon=True)
         spectator.start()
-        seen = [dict() for _ in range(args.browsers)]
+        received: list[dict] = [dict() for _ in range(args.browsers)]
         cpu0, wall0 = _cpu_s(bridge.pid), time.monotonic()
-        asyncio.run(_browsers(url, args.browsers, args.seconds, seen))
+        asyncio.run(browsers(url, args.browsers, args.seconds, received))
+        seen = [per.get(Kind.SNAPSHOT, {}) for per in received]
         cpu, wall = _cpu_s(bridge.pid) - cpu0, time.monotonic() - wall0
         stop.set()
         spectator.join(10)

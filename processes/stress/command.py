@@ -5,7 +5,7 @@ import argparse
 import json
 import sys
 
-SCENARIOS = ("load", "churn", "cable", "kill", "malformed")
+SCENARIOS = ("load", "churn", "cable", "kill", "malformed", "web")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -20,6 +20,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fanout", choices=("pub", "router"), default="pub",
                         help="load: spectators' snapshots from the gateway's PUB feed, or one send per session "
                              "(protocol 1's fan-out, to compare)")
+    parser.add_argument("--browsers", type=int, default=50, help="web: WebSocket browsers on one web bridge")
     parser.add_argument("--churn", type=int, default=10_000, help="churn: join/leave cycles")
     parser.add_argument("--churn-places", type=int, default=64, help="churn: spectator places, filled after it")
     parser.add_argument("--churn-seconds", type=float, default=600.0, help="churn: give up after this long")

@@ -11,10 +11,10 @@ import tempfile
 from processes.stress.harness import Run, StressError
 from processes.stress.probes import loadavg
 from processes.stress.result import base
-from processes.stress.scenarios import cable, churn, kill, load, malformed
+from processes.stress.scenarios import cable, churn, kill, load, malformed, web
 
 RUNNERS = {"load": load.scenario, "churn": churn.scenario, "cable": cable.scenario, "kill": kill.scenario,
-           "malformed": malformed.scenario}
+           "malformed": malformed.scenario, "web": web.scenario}
 
 __all__ = ["RUNNERS", "run_scenario"]
 

@@ -17,7 +17,7 @@ from processes.cli import main
 
 def _args(**overrides) -> argparse.Namespace:
     settings = dict(spectators=50, players=2, hz=120, duration=2.0, churn=200, churn_places=16, churn_seconds=60.0,
-                    malformed=5000, malformed_rate=5000, kill=1, kill_spectators=20, seed=0)
+                    malformed=5000, malformed_rate=5000, kill=1, kill_spectators=20, seed=0, browsers=10)
     settings.update(overrides)
     return argparse.Namespace(**settings)
 
@@ -114,6 +114,16 @@ def stress_classes():
     from processes.stress.swarm.malformed import CLASSES
 
     return CLASSES
+
+
+@pytest.mark.timeout(240)
+def test_web_every_browser_of_one_bridge_gets_the_snapshots():
+    pytest.importorskip("websockets")
+    result = stress.run_scenario("web", _args())
+    _clean(result)
+    c = result["counts"]
+    assert c["browsers"] == 10 and c["browser_errors"] == 0 and c["snapshots_per_browser_min"] > 0
+    assert result["cpu_pct"]["bridge"] is not None  # the bridge ran through the whole window
 
 
 def test_a_bad_scenario_name_is_refused_with_the_choices(capsys):
