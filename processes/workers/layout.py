@@ -11,7 +11,7 @@ and removes them at the end. The blocks of a run, by name:
 | trace | physics snapshot per tick (with trace) | physics | supervisor |
 | points | POINT_DTYPE log (a match) | physics | supervisor, gateway |
 | frames | physics snapshot every frame_every ticks (replays) | physics | supervisor |
-| net_even, net_odd | net snapshot (SnapshotBlock), by tick parity | net | physics, a restarted net |
+| net_even, net_odd | net snapshot (SnapshotBlock), by tick parity | net | physics, a restarted net, gateway |
 | net_io | NET_IO_DTYPE | physics and net, ordered by net_baton | both |
 | ai_view | physics snapshot | physics, ordered by ai_baton | ai |
 | ai_answer | ANSWER_DTYPE | ai, ordered by ai_baton | physics |
