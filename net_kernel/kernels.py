@@ -13,6 +13,10 @@ per spring. So `parallel=True` changes no bit: no prange scatter-add, no prange 
 reductions (CG dot products, speed maximum) are serial loops. fastmath stays off. No kernel
 allocates; scratch comes in as arguments.
 
+Knot-table contact: after every step, a free knot below the playing surface (TABLE_Z) is put
+back on it with its downward velocity removed (a one-sided, inelastic, frictionless contact,
+the projection cloth solvers apply against colliders).
+
 Every kernel has a numpy twin with the same signature in net_kernel/reference.py.
 """
 import math
@@ -21,6 +25,10 @@ import numpy as np
 from numba import njit, prange
 
 NO_CONTACT = -1.0
+# m: the playing surface (DESIGN.md frame). No free knot ends a step below it: a knot that would
+# is put on it and loses its downward speed (an inelastic, frictionless one-sided contact). A
+# hanging net's hem swings down onto the table when struck low; a real net cannot pass through it.
+TABLE_Z = 0.0
 STEP_WORK_ROWS = 3  # spring_work rows of step_knots: |L|^2, (v_j - v_i) . L, f / |L|
 # error_model="numpy" on the step kernels: no ZeroDivisionError test on 1/|L| (the builder
 # refuses zero-length springs, and a collapse would surface as a non-finite knot, which NetSim
@@ -111,12 +119,16 @@ def step_knots(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_sprin
         nv0 = vi0 + h * (w * f0 - drag * vi0)
         nv1 = vi1 + h * (w * f1 - drag * vi1)
         nv2 = vi2 + h * (w * f2 - drag * vi2 - gravity)
+        z = xi2 + h * nv2
+        if z < TABLE_Z:  # the playing surface stops the knot (one-sided, inelastic, frictionless)
+            z = TABLE_Z
+            nv2 = max(nv2, 0.0)
         out_vel[i, 0] = nv0
         out_vel[i, 1] = nv1
         out_vel[i, 2] = nv2
         out_pos[i, 0] = xi0 + h * nv0
         out_pos[i, 1] = xi1 + h * nv1
-        out_pos[i, 2] = xi2 + h * nv2
+        out_pos[i, 2] = z
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
@@ -175,12 +187,16 @@ def step_knots_serial(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, ad
         nv0 = vi0 + h * (w * f0 - drag * vi0)
         nv1 = vi1 + h * (w * f1 - drag * vi1)
         nv2 = vi2 + h * (w * f2 - drag * vi2 - gravity)
+        z = xi2 + h * nv2
+        if z < TABLE_Z:  # the playing surface stops the knot (one-sided, inelastic, frictionless)
+            z = TABLE_Z
+            nv2 = max(nv2, 0.0)
         out_vel[i, 0] = nv0
         out_vel[i, 1] = nv1
         out_vel[i, 2] = nv2
         out_pos[i, 0] = xi0 + h * nv0
         out_pos[i, 1] = xi1 + h * nv1
-        out_pos[i, 2] = xi2 + h * nv2
+        out_pos[i, 2] = z
 
 
 # ---------------------------------------------------------------------------------------------
@@ -212,9 +228,10 @@ def step_knots_serial(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, ad
 # checks stay few enough to vectorise it: written together, a knot pass that read 19 arrays
 # and wrote 6 stayed scalar (47 us on the 184 x 16 net, 16 us split).
 
-# Spring classes of a grid net: rows of NetTopology.grid_params (k N/m, c N s/m, rest m).
-GRID_MESH, GRID_VERTICAL, GRID_SHEAR, GRID_CORD = 0, 1, 2, 3
-GRID_CLASSES = 4
+# Spring classes of a grid net: rows of NetTopology.grid_params (k N/m, c N s/m, rest m); the
+# top row's horizontals are the top cord, the bottom row's the bottom cord (hem).
+GRID_MESH, GRID_VERTICAL, GRID_SHEAR, GRID_CORD, GRID_HEM = 0, 1, 2, 3, 4
+GRID_CLASSES = 5
 # Scratch rows of one row block (grid_work[block]), each (cols,): the row's horizontal
 # springs' t (3 rows), two rolling bands of the springs between a row and the next
 # (vertical, shear / and shear \ t: 9 rows each), and the band below the block's first row.
@@ -269,9 +286,9 @@ def _grid_band(x, v, r, params, work, band):
 
 @njit(cache=True, fastmath=False, error_model="numpy")
 def _grid_row(x, v, r, params, work):
-    """t of row r's horizontal springs (the top cord on the last row) into work[_H : _H + 3]."""
+    """t of row r's horizontal springs (the top cord on the last row, the bottom cord on the first) into work[_H : _H + 3]."""
     cols = x.shape[2]
-    kind = GRID_CORD if r == x.shape[1] - 1 else GRID_MESH
+    kind = GRID_CORD if r == x.shape[1] - 1 else (GRID_HEM if r == 0 else GRID_MESH)
     u = np.uint64
     _grid_line(x, v, u(r), u(r), u(0), u(1), u(cols - 1), params[kind, 0], params[kind, 1], params[kind, 2], work, _H)
     for row in range(_H, _H + 3):
@@ -296,8 +313,12 @@ def _grid_border(state, knot_inv_mass, r, q, ql, down, up, work, gravity, drag, 
         xi = state[0, k, r, q]
         vi = state[1, k, r, q]
         nv = vi + h * (w * f - drag * vi - g)
+        z = xi + h * nv
+        if k == 2 and w != 0.0 and z < TABLE_Z:  # the playing surface (TABLE_Z)
+            z = TABLE_Z
+            nv = max(nv, 0.0)
         state[1, k, r, q] = vi if w == 0.0 else nv
-        state[0, k, r, q] = xi if w == 0.0 else xi + h * nv
+        state[0, k, r, q] = xi if w == 0.0 else z
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
@@ -338,6 +359,14 @@ def _grid_update(state, knot_inv_mass, r, down, up, work, gravity, drag, h):
             nv = vi + free * (h * (w * f - drag * vi - g))
             v_row[q] = nv
             x_row[q] = xi + free * (h * nv)
+        if k == 2:
+            # The playing surface (TABLE_Z): fixed knots never start below it, so only free ones
+            # are moved; a separate pass keeps the force loop above free of branches.
+            for q in range(1, last):
+                z = x_row[q]
+                below = z < TABLE_Z
+                x_row[q] = TABLE_Z if below else z
+                v_row[q] = max(v_row[q], 0.0) if below else v_row[q]
     # Border columns: the springs missing to the left sit in the zeroed last column.
     _grid_border(state, knot_inv_mass, r, 0, last, down, up, work, gravity, drag, h)
     _grid_border(state, knot_inv_mass, r, last, last - 1, down, up, work, gravity, drag, h)
@@ -694,6 +723,9 @@ def step_knots_implicit(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, 
         for c in range(3):
             out_vel[i, c] = knot_vel[i, c] + dv[i, c]
             out_pos[i, c] = knot_pos[i, c] + h * out_vel[i, c]
+        if knot_inv_mass[i] != 0.0 and out_pos[i, 2] < TABLE_Z:  # the playing surface (TABLE_Z)
+            out_pos[i, 2] = TABLE_Z
+            out_vel[i, 2] = max(out_vel[i, 2], 0.0)
     return it
 
 
