@@ -5,7 +5,7 @@ prestress, sheet stiffness, cord tension and stiffness, air damping kept) on a g
 knots. A fixed, seeded set of match-like impacts (5-30 m/s; centre into the cord's top 2 cm, mid-net
 or low; up to 45 deg off the net's normal; anywhere across the table's width) is fired into each
 net, stepped as the engine couples ball and net (engine.world._advance_with_cloth,
-processes.worker_net): per 1 ms tick the ball flies straight under gravity, NetSim.step sees it
+processes.workers.net): per 1 ms tick the ball flies straight under gravity, NetSim.step sees it
 at the tick's start and the ball then takes the net's offset and impulse. No table, drag or spin:
 the same for every net, so the comparison sees only the net.
 

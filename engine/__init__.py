@@ -1,6 +1,6 @@
 """The simulation itself, in one process: dtypes, scenes, integrators, forces, collisions, contact."""
-from engine.jit_cache import use_source_keyed_cache
-
-use_source_keyed_cache()  # before any kernel of the engine is decorated (engine/jit_cache.py says why)
+# Imported first: importing net_kernel points numba's cache at a directory keyed on the engine's
+# and the net kernels' sources, before any kernel of the engine is decorated (net_kernel/jit_cache.py).
+import net_kernel  # noqa: F401
 
 __all__: list[str] = []

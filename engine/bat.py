@@ -30,7 +30,7 @@ from engine.dtypes import BAT_DTYPE
 from engine.geometry import FLOOR_Z
 
 # m/s: 1.4x the AI's fastest stroke (24.5 m/s) and as fast as a bat may go for
-# the ball it strikes to stay within the wire's 100 m/s (processes/wire.py MAX_SPEED_MS): a bat
+# the ball it strikes to stay within the wire's 100 m/s (processes.network.wire MAX_SPEED_MS): a bat
 # at v returns a ball arriving at u at about (1 + e) v + e u, e = 0.85 (equipment.BAT_RESTITUTION),
 # so 35 m/s against a 30 m/s smash gives 90 m/s.
 BAT_MAX_SPEED = 35.0

@@ -2,7 +2,7 @@
 
 Each effect's parameter is a float when the scene asks for the effect and None when it does
 not. Numba compiles one specialisation per combination and prunes the `is not None` branches at
-compile time, so an absent effect has no code in the compiled step (see tests/engine/test_effects.py).
+compile time, so an absent effect has no code in the compiled step (see tests/engine/test_forces.py).
 """
 import math
 

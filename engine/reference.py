@@ -1,6 +1,6 @@
 """Numpy twins of the engine's numba kernels, same signatures, written for clarity not speed.
 
-Tests hold the numba kernels to these (tests/engine/test_reference.py). Where a kernel is
+Tests hold the numba kernels to these (tests/engine/test_integrators.py). Where a kernel is
 scalar code with nothing to vectorise (the collision search), its twin is the kernel's own
 Python function run by the interpreter (`kernel.py_func`), which checks the compiled code
 against the source semantics.

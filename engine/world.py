@@ -328,7 +328,7 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
     the net was stepped with the ball (STOP_NET, unless another reason): a caller that publishes
     its state after each call then always has a state the net's agrees with, which a restarted
     net or physics worker resumes from exactly. `state.net_sim` is a NetSim, or anything with
-    its `sleeping`, `step` and `step_free` (processes.worker_net.RemoteNet).
+    its `sleeping`, `step` and `step_free` (processes.workers.net.RemoteNet).
     """
     net = state.net_sim
     y = state.ball_y

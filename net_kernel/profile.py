@@ -1,6 +1,6 @@
 """Profile of the net step: compile time, time per step, springs per second, bandwidth share.
 
-Plain dicts out (stdlib + numpy + numba only); processes/profile_net.py formats them.
+Plain dicts out (stdlib + numpy + numba only); processes/cli/profile_net.py formats them.
 
 Two kernel paths (both give the same bits): "csr", the general per-knot gather over the CSR
 adjacency (kernels.step_knots, one step a call), and "grid", the structured-grid kernel
@@ -238,11 +238,6 @@ def _layer() -> str:
         return str(numba.threading_layer())
     except ValueError:
         return "not started"
-
-
-def isfinite_result(result: dict) -> bool:
-    """True when every number of one backend's result is finite (a smoke check)."""
-    return all(math.isfinite(v) for v in result.values() if isinstance(v, float))
 
 
 # ---------------------------------------------------------------------------------------------

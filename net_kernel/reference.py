@@ -1,4 +1,4 @@
-"""Numpy twins of net_kernel/kernels.py: same signatures, vectorised, for checking and profiling.
+"""Numpy twins of net_kernel/kernels/: same signatures, vectorised, for checking and profiling.
 
 Each twin evaluates every CSR slot at once and sums a knot's slots with np.add.reduceat, so
 it sums in the same slot order as the kernels; results match them to rounding (the tests
@@ -79,7 +79,7 @@ step_knots_serial = step_knots
 
 
 def _grid_t(xi, xj, vi, vj, k, c, rest):
-    """(3, ...) t = scale (x_j - x_i) per spring, kernels._grid_scale's operations in its order."""
+    """(3, ...) t = scale (x_j - x_i) per spring, kernels.grid._grid_line's operations in its order."""
     d0, d1, d2 = xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]
     e0, e1, e2 = vj[0] - vi[0], vj[1] - vi[1], vj[2] - vi[2]
     length2 = d0 * d0 + d1 * d1 + d2 * d2

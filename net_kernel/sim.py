@@ -50,14 +50,12 @@ KNOT_RADIUS = 0.5e-3  # m
 NET_RESTITUTION = 0.0
 MAX_HITS = 8
 # m: with the ball near, a tick takes enough substeps that ball and knots close in by at most this
-# far in one (contact_substeps).
-# Within a substep the contact and the springs are split (struck knots ride with the ball, the
-# springs pull at the step), an error first order in the substep that decides fast impacts, and
-# the stability bound alone does not keep it small: head-on 60 m/s shots at 12 random points of
-# the 85 x 8 net went through 12 times at 5 mm a substep (12 substeps a tick), 4 at 3 mm, 1 at
-# 1.5 mm, none at 1 or 0.75 mm; 184 x 16 stops them all at 2.4 mm (session 5,
-# /work/notes/s5/thru_sub.py). The AI's strokes (11.4 m/s at most) need no more substeps than the
-# bound's 10 on 85 x 8: only fast shots pay.
+# far in one (contact_substeps). Within a substep the contact and the springs are split (struck
+# knots ride with the ball, the springs pull at the step): an error of first order in the substep
+# that decides whether a fast shot goes through the mesh, and the stability bound alone does not
+# keep it small. 1 mm stops head-on shots at the scene's speed bound (engine.equipment.BALL_SPEED_MAX)
+# on the match's 85 x 8 net (tests/net_kernel/test_ball.py, bench net-resolution's stress shots);
+# slow strokes, such as the AI's, already meet it at the bound's substeps and pay nothing more.
 CONTACT_TRAVEL = 1e-3
 # m/s: the closing speed the contact substeps follow at most (twice the ball's bound, 60 m/s:
 # engine.equipment.BALL_SPEED_MAX, which net_kernel may not import), so a net that went wrong

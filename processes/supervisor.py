@@ -11,25 +11,19 @@ from __future__ import annotations
 
 import multiprocessing
 import multiprocessing.connection
-import shutil
 import signal
-import tempfile
 import time
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from engine.dtypes import CONTACT_DTYPE, POINT_DTYPE, physics_snapshot_dtype
+from engine.dtypes import CONTACT_DTYPE, physics_snapshot_dtype
 from engine.scene import Scene
-from processes.handoff import TICK_SLOT_DTYPE, Baton
-from processes.locks import HOLDER_DTYPE, LockTable
-from processes.mailbox import MAILBOX_HEADER
-from processes.shm import Arena
-from processes.worker import READY_TIMEOUT_S, STARTUP_LIMIT_S, STATUS_DTYPE, WorkerState, worker_entry
+from processes.runtime.control import READY_TIMEOUT_S, STARTUP_LIMIT_S, WorkerState, worker_main
+from processes.runtime.shm import Arena
+from processes.workers import PLAYERS_TIMEOUT_S, WORKERS, RunLayout, RunOptions, build_layout, workers_for
+from processes.workers.layout import EVENT_LOG_CAPACITY
 
-EVENT_LOG_CAPACITY = 1 << 16
-POINT_LOG_CAPACITY = 1 << 12  # a best-of-9 match has at most a few hundred rallies
 STOP_TIMEOUT_S = 5.0
 STALL_TIMEOUT_S = 10.0  # a RUNNING worker silent this long is killed and restarted
 MAX_RESTARTS = 3
@@ -57,18 +51,6 @@ class ProcessRunResult:
     frames: np.ndarray | None = None  # decimated snapshots for a replay
 
 
-def workers_for(scene: Scene) -> list[str]:
-    """The workers a scene needs, no more: a scene without a cloth net or AI starts none of those."""
-    kinds = ["physics"]
-    if scene.cloth is not None and "net" in scene.effects:
-        kinds.append("net")
-    if any(bat.skill is not None for bat in scene.bats):
-        kinds.append("ai")
-    if "remote" in scene.effects:
-        kinds.append("gateway")
-    return kinds
-
-
 class _Worker:
     def __init__(self, kind: str, index: int):
         self.kind = kind
@@ -90,119 +72,48 @@ class Supervisor:
         crash_at_tick: fault injection for tests and `pingpong stress`: the first incarnation of
             `crash_worker` SIGKILLs itself at this tick.
         seed: the match's seed. frame_every: keep a snapshot every this many ticks (replays), 0: none.
-        gateway: processes.gateway.GatewayConfig for a scene with the effect "remote".
+        gateway: processes.network.gateway.GatewayConfig for a scene with the effect "remote".
         players_timeout: s, a served match waits this long for its remote players, then starts.
     """
 
     def __init__(self, scene: Scene, ticks: int, mode: str = "lockstep", trace: bool = False,
                  crash_at_tick: int | None = None, seed: int = 0, frame_every: int = 0,
-                 crash_worker: str = "physics", gateway=None, players_timeout: float = 300.0):
-        if mode not in ("lockstep", "realtime"):
-            raise ValueError(f"mode must be lockstep or realtime, got {mode!r}")
+                 crash_worker: str = "physics", gateway=None, players_timeout: float = PLAYERS_TIMEOUT_S):
         self.scene = scene
         self.ticks = ticks
         self.mode = mode
         self.trace = trace
         self.crash_at_tick = crash_at_tick
         self.crash_worker = crash_worker
-        self.seed = seed
         self.frame_every = frame_every
-        self.players_timeout = players_timeout
-        self._tmp = None
-        self._start_event = None
-        self._baton = None
-        self._net_baton = None
         self.kinds = workers_for(scene)
-        if "gateway" in self.kinds:
-            from processes.gateway import GatewayConfig
+        if "gateway" in self.kinds and gateway is None:
+            from processes.network.gateway import GatewayConfig
 
-            self.gateway = gateway or GatewayConfig()
+            gateway = GatewayConfig()
+        self.options = RunOptions(ticks=ticks, mode=mode, trace=trace, seed=seed, frame_every=frame_every,
+                                  players_timeout=players_timeout, gateway=gateway)
+        self.layout: RunLayout | None = None
         # forkserver: workers fork from a clean server that never ran threads or kernels.
         self._ctx = multiprocessing.get_context("forkserver")
-        self._ctx.set_forkserver_preload(["engine.world", "engine.match", "processes.worker",
-                                          "processes.worker_physics", "processes.worker_ai", "processes.worker_net",
-                                          "processes.gateway"])
+        self._ctx.set_forkserver_preload(["engine.world", "engine.match", "processes.workers"])
         self.arena: Arena | None = None
         self._workers: list[_Worker] = []
 
-    def _build_arena(self) -> Arena:
-        arena = Arena()
-        arena.snapshot_block("physics", physics_snapshot_dtype(len(self.scene.bats)), 1)
-        arena.shared_array("events", CONTACT_DTYPE, EVENT_LOG_CAPACITY)
-        arena.shared_array("status", STATUS_DTYPE, len(self.kinds))
-        snapshot = physics_snapshot_dtype(len(self.scene.bats))
-        if self.trace:
-            arena.shared_array("trace", snapshot, self.ticks + 1)
-        if self.scene.match is not None:
-            arena.shared_array("points", POINT_DTYPE, POINT_LOG_CAPACITY)
-            if self.frame_every:
-                arena.shared_array("frames", snapshot, self.ticks // self.frame_every + 1)
-        if "net" in self.kinds:
-            from engine.dtypes import net_snapshot_dtype
-            from net_kernel import build_topology
-            from processes.worker_net import NET_BLOCKS, NET_IO_DTYPE
-
-            knots = net_snapshot_dtype(build_topology(self.scene.cloth).n_knots)
-            for name in NET_BLOCKS:
-                arena.snapshot_block(name, knots, 1)
-            arena.shared_array("net_io", NET_IO_DTYPE, 1)
-            self._net_baton = Baton("net", self._ctx, arena.shared_array("net_baton", TICK_SLOT_DTYPE, 1).array)
-        if "gateway" in self.kinds:
-            from processes.gateway import RUN_LOCK_NAMES
-
-            self._tmp = tempfile.mkdtemp(prefix=f"pingpong-{arena.run_id}-")
-            self._lock_path = str(Path(self._tmp) / "locks")
-            LockTable.create(self._lock_path, RUN_LOCK_NAMES, arena.shared_array("lock_holders", HOLDER_DTYPE,
-                                                                                  len(RUN_LOCK_NAMES))).close()
-        if "ai" in self.kinds:
-            from processes.worker_ai import ANSWER_DTYPE, LOCAL_DTYPE
-
-            # The state the AI decides from, written by the physics at a control tick and read by
-            # the AI during its turn, and the AI's answer, written during the turn and read by the
-            # physics once the turn is done: the baton orders each pair (its semaphores are full
-            # barriers), so neither needs a seqlock or a lock. ai_local: the physics' own inputs
-            # of a control tick that needed no turn, for a restarted physics (one writer, no reader
-            # while it runs). Tick -1: none yet.
-            arena.shared_array("ai_view", snapshot, 1)
-            arena.shared_array("ai_answer", ANSWER_DTYPE, 1).array["tick"] = -1
-            arena.shared_array("ai_local", LOCAL_DTYPE, 1).array["tick"] = -1
-            self._baton = Baton("ai", self._ctx, arena.shared_array("baton", TICK_SLOT_DTYPE, 1).array)
-        if "gateway" in self.kinds:
-            from processes.gateway import REMOTE_ACK_DTYPE, REMOTE_ACK_RING, REMOTE_CAPACITY, REMOTE_INPUT_DTYPE
-
-            arena.shared_array("remote_header", MAILBOX_HEADER, 1)
-            arena.shared_array("remote_inputs", REMOTE_INPUT_DTYPE, REMOTE_CAPACITY)
-            arena.shared_array("remote_applied", np.dtype("<u8"), 2)  # seq of the last input applied per bat
-            arena.shared_array("remote_acks", REMOTE_ACK_DTYPE, REMOTE_ACK_RING)  # those seqs by published tick
-            from processes.gateway import SEAT_DTYPE
-
-            arena.snapshot_block("seats", SEAT_DTYPE, 2)  # the seat table, so a restarted gateway keeps its tokens
-            self._start_event = self._ctx.Event()
-        return arena
-
     def _start(self, worker: _Worker) -> None:
         parent, child = self._ctx.Pipe()
-        crash = self.crash_at_tick if worker.restarts == 0 and worker.kind == self.crash_worker else None
-        options = {"ticks": self.ticks, "mode": self.mode, "trace": self.trace, "crash_at_tick": crash,
-                   "seed": self.seed, "frame_every": self.frame_every}
-        if self._baton is not None:
-            options.update(baton=self._baton)
-        if self._net_baton is not None:
-            options.update(net_baton=self._net_baton)
-        if self._tmp is not None:
-            options.update(lock_path=self._lock_path)
-        if self._start_event is not None:
-            options.update(start_event=self._start_event, players_timeout=self.players_timeout,
-                           gateway=self.gateway)
-            if worker.kind == "gateway" and worker.ready.get("endpoint"):
-                from dataclasses import replace
-
-                # a restarted gateway listens where its clients already are, its feed included
-                options["gateway"] = replace(self.gateway, bind=worker.ready["endpoint"],
-                                             feed_bind=worker.ready.get("feed") or "")
+        layout = self.layout
+        options = replace(self.options, ai_baton=layout.ai_baton, net_baton=layout.net_baton,
+                          lock_path=layout.lock_path, start_event=layout.start_event,
+                          crash_at_tick=self.crash_at_tick if worker.restarts == 0 and worker.kind == self.crash_worker
+                          else None)
+        if worker.kind == "gateway" and worker.ready.get("endpoint"):
+            # a restarted gateway listens where its clients already are, its feed included
+            options = replace(options, gateway=replace(options.gateway, bind=worker.ready["endpoint"],
+                                                       feed_bind=worker.ready.get("feed") or ""))
         worker.process = self._ctx.Process(
-            target=worker_entry, name=f"pingpong-{worker.kind}",
-            args=(worker.kind, child, self.arena.layout(), worker.index, self.scene, options))
+            target=worker_main, name=f"pingpong-{worker.kind}",
+            args=(WORKERS[worker.kind], child, self.arena.layout(), worker.index, self.scene, options))
         worker.process.start()
         child.close()
         worker.conn = parent
@@ -300,7 +211,8 @@ class Supervisor:
         `on_ready({kind: ready report})` once every worker is ready (the gateway's endpoint)."""
         previous_term = signal.signal(signal.SIGTERM, _exit_on_sigterm)
         started = time.monotonic()
-        self.arena = self._build_arena()
+        self.layout = build_layout(self.scene, self.kinds, self.ticks, self.trace, self.frame_every, self._ctx)
+        self.arena = self.layout.arena
         try:
             self._workers = [_Worker(kind, i) for i, kind in enumerate(self.kinds)]
             for worker in self._workers:
@@ -317,14 +229,10 @@ class Supervisor:
             wall = time.monotonic() - start_wall
             return self._collect(wall, startup)
         finally:
-            for baton in (self._baton, self._net_baton):
-                if baton is not None:
-                    baton.stop()  # an AI or net worker waiting for its turn exits at once
+            self.layout.stop_turns()  # an AI or net worker waiting for its turn exits at once
             for worker in self._workers:
                 self._reap(worker)
-            self.arena.close()
-            if self._tmp is not None:
-                shutil.rmtree(self._tmp, ignore_errors=True)
+            self.layout.close()
             signal.signal(signal.SIGTERM, previous_term)
 
     def _collect(self, wall: float, startup: float) -> ProcessRunResult:

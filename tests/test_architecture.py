@@ -30,3 +30,88 @@ def test_package_imports_only_what_it_may(package):
     for path in sorted((ROOT / package).rglob("*.py")):
         extra = imported_roots(path) - ALLOWED[package] - stdlib
         assert not extra, f"{path.relative_to(ROOT)} imports {sorted(extra)}"
+
+
+PACKAGES = ("engine", "net_kernel", "processes")
+MAX_MODULE_LINES = 700
+# processes/ holds its layers as subpackages; directly in it only the package, its entry point
+# and the supervisor.
+PROCESSES_TOP = {"__init__.py", "__main__.py", "supervisor.py"}
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(ROOT).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _import_graph() -> dict[str, set[str]]:
+    """Every module of the three packages -> the project modules it imports, anywhere in its body
+    (inside functions too), except the command line's lazy imports inside its command functions."""
+    paths = {_module_name(p): p for package in PACKAGES for p in (ROOT / package).rglob("*.py")}
+    graph = {}
+    for name, path in paths.items():
+        lazy_ok = name.startswith("processes.cli")
+        edges = set()
+        tree = ast.parse(path.read_text(), str(path))
+        top_level = set(map(id, tree.body))
+        for node in ast.walk(tree):
+            if lazy_ok and id(node) not in top_level:
+                continue
+            targets = []
+            if isinstance(node, ast.Import):
+                targets = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                # `from package import submodule` imports the submodule; a name defined in the
+                # package's __init__ makes the package itself the target
+                targets = [f"{node.module}.{alias.name}" if f"{node.module}.{alias.name}" in paths else node.module
+                           for alias in node.names]
+            for target in targets:
+                while target and target not in paths:
+                    target = target.rpartition(".")[0]
+                if target and target != name:
+                    edges.add(target)
+        graph[name] = edges
+    return graph
+
+
+def test_no_import_cycle_counting_imports_inside_functions():
+    graph = _import_graph()
+    index, low, stack, on_stack, cycles = {}, {}, [], set(), []
+
+    def visit(v):  # Tarjan's strongly connected components
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                cycles.append(sorted(component))
+
+    sys.setrecursionlimit(10_000)
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    assert not cycles, f"import cycles: {cycles}"
+
+
+def test_no_module_over_700_lines():
+    long = {str(p.relative_to(ROOT)): n for package in PACKAGES for p in (ROOT / package).rglob("*.py")
+            if (n := len(p.read_text().splitlines())) > MAX_MODULE_LINES}
+    assert not long, f"modules over {MAX_MODULE_LINES} lines (split them by concept): {long}"
+
+
+def test_processes_keeps_its_layers_in_subpackages():
+    top = {p.name for p in (ROOT / "processes").glob("*.py")}
+    assert top <= PROCESSES_TOP, f"modules directly in processes/ (move them into a layer): {sorted(top - PROCESSES_TOP)}"

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from engine.ai import NO_STRIKE, SKILLS, STOP_EVENTS, STOP_RETURN_STRIKE, STOP_SERVE_STRIKE, BatAI
+from engine.ai import NO_STRIKE, SKILLS, STOP_EVENTS, STOP_RETURN_STRIKE, STOP_SERVE_STRIKE, BatAI, strike_index
 from engine.collision import EVENT_ROW, MAX_IMPACTS_PER_TICK, SCRATCH_SHAPE, ball_tick
 from engine.contact import impact
 from engine.dtypes import BAT_DTYPE
@@ -71,7 +71,7 @@ def test_strike_search_stops_early_with_the_answer_of_the_whole_path(ai):
     outcomes = {"none": 0, "strike": 0, "stopped_early": 0}
     for y0 in _incoming_balls(40, seed=5):
         times, traj, events = ai.predict(y0, 2.0, max_events=3)
-        want = ai._hit_index(times, traj.copy(), events, 1, False)
+        want = strike_index(traj.copy(), events, 1, False)
         ticks, _, got, _ = ai._predict(y0, h, n_max, 3, STOP_RETURN_STRIKE, 1)
         assert got == (NO_STRIKE if want is None else want)  # exact: the same rule on the same ticks
         outcomes["none" if want is None else "strike"] += 1
@@ -79,7 +79,7 @@ def test_strike_search_stops_early_with_the_answer_of_the_whole_path(ai):
     for toss in np.linspace(1.8, 5.0, 5):  # the scene's toss_speed range
         y0 = np.array([1.47, 0.0, 0.12, 0.0, 0.0, toss, 0.0, 0.0, 0.0])
         times, traj, events = ai.predict(y0, 2.0, max_events=3)
-        want = ai._hit_index(times, traj.copy(), events, 1, True)
+        want = strike_index(traj.copy(), events, 1, True)
         assert want is not None and ai._predict(y0, h, n_max, 3, STOP_SERVE_STRIKE, 1)[2] == want
     assert min(outcomes.values()) >= 5, outcomes  # both answers and the early stop were exercised
 

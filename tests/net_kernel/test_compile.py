@@ -15,8 +15,10 @@ from net_kernel import NetSim, build_topology, kernels
 from net_kernel.sim import compile_kernels
 from net_kernel.topology import resolution_spec
 
-def signatures():
-    return {name: sorted(map(str, d.signatures)) for name, d in vars(kernels).items() if isinstance(d, CPUDispatcher)}
+def signatures():  # every dispatcher of every module of the kernels package, private ones too
+    return {module.__name__ + "." + name: sorted(map(str, d.signatures))
+            for module in (kernels.contact, kernels.csr, kernels.grid, kernels.implicit)
+            for name, d in vars(module).items() if isinstance(d, CPUDispatcher)}
 
 topo = build_topology(resolution_spec(46, 4))
 compile_kernels(topo, 1e-3)

@@ -3,8 +3,9 @@ import multiprocessing
 import sys
 
 import pytest
+import zmq
 
-from processes import shm
+from processes.runtime import shm
 
 
 def ctrl_c_able(*args: str) -> list[str]:
@@ -41,3 +42,17 @@ def procs():
         if p.is_alive():
             p.kill()
         p.join(5)
+
+
+@pytest.fixture
+def zctx():
+    """A ZeroMQ context for the test's sockets. A socket the code under test left open is a leak:
+    the test fails and names it (after closing it with linger 0, so the context still ends)."""
+    context = zmq.Context()
+    context.setsockopt(zmq.LINGER, 0)  # a closed socket's unsent messages never hold up the end
+    yield context
+    leaked = [socket for socket in list(context._sockets) if not socket.closed]
+    for socket in leaked:
+        socket.close(linger=0)
+    context.term()
+    assert not leaked, f"sockets left open: {[zmq.SocketType(s.socket_type).name for s in leaked]}"

@@ -1,0 +1,43 @@
+"""pingpong: a distributed table tennis engine.
+
+Physics, the cloth net and the bat AI run as separate OS processes sharing numpy arrays in
+shared memory; a ZeroMQ gateway lets remote people play a bat or watch. Play a match (AI
+against AI), replay it, serve it to remote players and spectators, measure what accuracy costs,
+profile the net kernel, and stress-test the connections.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from processes.cli import bench, match, profile_net, remote, run, stress
+
+EPILOG = """examples:
+  pingpong match                          a best-of-5 AI match in worker processes, live score
+  pingpong match --replay m.replay        ... and record it; pingpong replay m.replay --png m.png
+  pingpong serve --players 1              serve a match; pingpong join ADDRESS --as player --bot
+  pingpong bench accuracy                 what accuracy costs in time (work-precision study)
+  pingpong profile-net                    springs per second, share of the memory bandwidth
+  pingpong stress --scenario load         1000 spectators against the gateway
+`pingpong COMMAND --help` describes each command."""
+
+FAMILIES = (run, match, bench, profile_net, remote, stress)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The whole `pingpong` parser: each command family adds its own commands and arguments."""
+    parser = argparse.ArgumentParser(prog="pingpong", description=__doc__,
+                                     epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for family in FAMILIES:
+        family.add_commands(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    return int(args.func(args) or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

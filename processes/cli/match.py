@@ -1,0 +1,291 @@
+"""`pingpong match` and `pingpong replay`: a whole match in worker processes, scoreboard, replay file."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from engine import replay as replay_file
+from engine.geometry import Body
+from engine.match import Match, MatchResult, point_from_row, point_row
+from engine.rules import REASONS, Referee
+from engine.scene import SceneError, load_scene
+from engine.world import SimulationError
+from processes.cli.common import FORMATTER, add_common
+
+FRAME_EVERY = 10  # replay frames every 10 ms at 1 kHz
+
+
+def _scene(args):
+    scene = load_scene(args.scene)
+    if scene.match is None:
+        raise SceneError(f"{scene.source}: scene {scene.name!r} has no referee; `pingpong match` needs a scene "
+                         "with the effect 'referee' (the bundled one is `match`)")
+    if args.best_of is not None:
+        if args.best_of < 1 or args.best_of % 2 == 0:
+            raise SceneError(f"--best-of must be an odd number >= 1, got {args.best_of}")
+        scene = replace(scene, match=replace(scene.match, best_of=args.best_of))
+    return scene
+
+
+class _Scoreboard:
+    """Live score in the terminal (rich), refreshed from the physics snapshot."""
+
+    def __init__(self, scene):
+        from rich.live import Live
+
+        self.scene = scene
+        self.live = Live(self._render(None), refresh_per_second=4, transient=False)
+
+    def _render(self, record):
+        from rich.table import Table
+
+        table = Table(title=f"pingpong: {self.scene.name}, best of {self.scene.match.best_of}")
+        for column in ("player", "games", "points", "serving"):
+            table.add_column(column)
+        if record is None:
+            table.caption = "starting workers..."
+            return table
+        rally = record["rally"]
+        for player in (0, 1):
+            table.add_row("AB"[player], str(int(rally["games_won"][player])), str(int(rally["score"][player])),
+                          "*" if int(rally["server"]) == player else "")
+        table.caption = f"t = {float(record['world']['time']):.1f} s, rally {int(rally['rally']) + 1}"
+        return table
+
+    def update(self, record):
+        self.live.update(self._render(record))
+
+
+def summary_from_processes(scene, seed, result) -> dict:
+    points = [point_from_row(row) for row in result.points]
+    spec = scene.match
+    referee = Referee.restore(result.final["rally"], spec.best_of, "ab".index(spec.first_server), points)
+    summary = MatchResult(scene, seed, referee, result.ticks, result.ticks * scene.dt, result.wall_seconds,
+                          result.startup_seconds, 0.0).summary()
+    summary.update(mode=result.mode, processes=True, startup_seconds=result.startup_seconds,
+                   workers=result.workers, compile_seconds=None, ai_seconds=None)
+    return summary
+
+
+def _print_summary(summary: dict) -> None:
+    winner = summary["winner"]
+    games = ", ".join(f"{a}-{b}" for a, b in summary["games"])
+    print(f"{'winner: ' + winner.upper() if winner else 'no winner yet'}   games: {games or '-'}"
+          f"   current game: {summary['score_in_game'][0]}-{summary['score_in_game'][1]}")
+    print(f"points {summary['points']} (lets {summary['lets']}), won A {summary['points_won'][0]} / "
+          f"B {summary['points_won'][1]}; rally shots mean {summary['mean_rally_shots']:.1f}, "
+          f"max {summary['max_rally_shots']}; serves returned {summary['serves_returned']:.0%}")
+    reasons = ", ".join(f"{k} {v}" for k, v in summary["point_reasons"].items())
+    print(f"points ended by: {reasons or '-'}")
+    factor = summary["realtime_factor"]
+    print(f"simulated {summary['sim_seconds']:.1f} s in {summary['wall_seconds']:.2f} s wall"
+          f" ({factor:.1f}x realtime)" if factor else "")
+    for kind, info in (summary.get("workers") or {}).items():
+        print(f"  worker {kind}: busy {info['busy_s']:.2f} s, restarts {info['restarts']}, late ticks {info['late_ticks']}")
+
+
+def match_command(args: argparse.Namespace) -> int:
+    try:
+        scene = _scene(args)
+        ticks = scene.ticks if args.ticks is None else args.ticks
+        if ticks < 0:
+            raise SceneError(f"--ticks must be >= 0, got {args.ticks}")
+        frame_every = FRAME_EVERY if args.replay else 0
+        if args.in_process:
+            match = Match(scene, seed=args.seed)
+            frames = []
+            from engine.dtypes import physics_snapshot_dtype
+
+            record = np.zeros(1, physics_snapshot_dtype(len(scene.bats)))
+            events = []
+
+            def keep(m, tick):
+                if frame_every and tick % frame_every == 0:
+                    m.save(record)
+                    frames.append(record[0].copy())
+
+            # A per-tick callback makes play() advance one tick a call (2x slower): only for frames.
+            result = match.play(max_ticks=ticks, on_tick=keep if frame_every else None, events_out=events)
+            summary = result.summary()
+            summary.update(mode="in-process", processes=False)
+            points = np.array([point_row(p, 0) for p in match.referee.points]) if match.referee.points else None
+            frame_array = np.array(frames) if frames else np.zeros(0, record.dtype)
+            event_array = np.array(events) if events else None
+        else:
+            from processes.supervisor import Supervisor
+
+            board = _Scoreboard(scene) if not args.json and sys.stdout.isatty() else None
+            supervisor = Supervisor(scene, ticks, args.mode, seed=args.seed, frame_every=frame_every)
+            if board is not None:
+                with board.live:
+                    result = supervisor.run(progress=board.update)
+            else:
+                result = supervisor.run()
+            summary = summary_from_processes(scene, args.seed, result)
+            points, frame_array, event_array = result.points, result.frames, result.events
+    except (SceneError, SimulationError) as exc:
+        print(f"pingpong: {exc}", file=sys.stderr)
+        return 2
+    if args.replay:
+        from engine.dtypes import CONTACT_DTYPE, POINT_DTYPE
+
+        replay_file.write(args.replay, scene_name=scene.name, scene_text=_scene_text(scene), seed=args.seed,
+                          dt=scene.dt, frame_every=frame_every, frames=frame_array,
+                          events=event_array if event_array is not None else np.zeros(0, CONTACT_DTYPE),
+                          points=points if points is not None else np.zeros(0, POINT_DTYPE), summary=summary)
+        summary["replay"] = str(args.replay)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        _print_summary(summary)
+        if args.replay:
+            print(f"replay written to {args.replay}")
+    return 0
+
+
+def _scene_text(scene) -> str:
+    path = Path(scene.source)
+    return path.read_text() if path.exists() else ""
+
+
+def replay_command(args: argparse.Namespace) -> int:
+    try:
+        data = replay_file.read(args.file)
+    except replay_file.ReplayError as exc:
+        print(f"pingpong: {exc}", file=sys.stderr)
+        return 2
+    h = data.header
+    points = data.points
+    decided = points[points["winner"] >= 0] if len(points) else points
+    reasons: dict[str, int] = {}
+    for row in decided:
+        name = REASONS[int(row["reason"])].value
+        reasons[name] = reasons.get(name, 0) + 1
+    contacts: dict[str, int] = {}
+    for ev in data.events:
+        name = Body(int(ev["body"])).name.lower()
+        contacts[name] = contacts.get(name, 0) + 1
+    last = data.frames[-1] if len(data.frames) else None
+    summary = {
+        "file": str(args.file),
+        "version": h["version"],
+        "scene": h["scene"],
+        "seed": h["seed"],
+        "frames": int(len(data.frames)),
+        "frame_every_ticks": h["frame_every"],
+        "sim_seconds": float(last["world"]["time"]) if last is not None else 0.0,
+        "points": int(len(decided)),
+        "lets": int(len(points) - len(decided)),
+        "points_won": [int((decided["winner"] == k).sum()) for k in (0, 1)] if len(decided) else [0, 0],
+        "point_reasons": dict(sorted(reasons.items(), key=lambda kv: -kv[1])),
+        "mean_rally_shots": float(decided["shots"].mean()) if len(decided) else 0.0,
+        "contacts": contacts,
+        "winner": h["summary"].get("winner"),
+        "games": h["summary"].get("games"),
+    }
+    title = f"{h['scene']}, seed {h['seed']}: winner {summary['winner'] or '-'}, games {summary['games']}"
+    if args.png or args.gif:
+        from processes.cli import render
+
+        if args.png:
+            render.png(data.frames, data.events, args.png, title)
+            summary["png"] = args.png
+        if args.gif:
+            render.gif(data.frames, args.gif, title)
+            summary["gif"] = args.gif
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print(f"{summary['file']}: scene {summary['scene']}, seed {summary['seed']}, "
+              f"{summary['sim_seconds']:.1f} s in {summary['frames']} frames")
+        print(f"winner {summary['winner'] or '-'}, games {summary['games']}, points {summary['points']} "
+              f"(A {summary['points_won'][0]}, B {summary['points_won'][1]}), lets {summary['lets']}, "
+              f"mean rally {summary['mean_rally_shots']:.1f} shots")
+        print("points ended by: " + ", ".join(f"{k} {v}" for k, v in summary["point_reasons"].items()))
+        print("contacts: " + ", ".join(f"{k} {v}" for k, v in summary["contacts"].items()))
+        for kind in ("png", "gif"):
+            if kind in summary:
+                print(f"{kind} written to {summary[kind]}")
+    return 0
+
+
+def bench_match_command(args: argparse.Namespace) -> int:
+    """`pingpong bench match`: a headless lockstep match, its realtime factor and time per worker,
+    against the in-process reference in the same run (same seed, so the same match)."""
+    from processes.supervisor import Supervisor
+
+    try:
+        scene = load_scene(args.scene)
+    except SceneError as exc:
+        print(f"pingpong bench match: {exc}", file=sys.stderr)
+        return 2
+    if scene.match is None:
+        print(f"pingpong bench match: scene {scene.name!r} has no [match] section (and no referee); "
+              "use a match scene such as 'match' or 'match_cloth'", file=sys.stderr)
+        return 2
+    scene = replace(scene, match=replace(scene.match, best_of=args.best_of if not args.quick else 1))
+    ticks = scene.ticks if not args.quick else 20_000
+    result = Supervisor(scene, ticks, "lockstep", seed=args.seed).run()
+    multi = summary_from_processes(scene, args.seed, result)
+    match = Match(scene, seed=args.seed)
+    reference = match.play(max_ticks=ticks).summary()
+    net = match.state.net_sim  # the cloth net's awake ticks: what it cost, to set beside the net worker's
+    report = {
+        "scene": scene.name,
+        "net": scene.net_kind,
+        "best_of": scene.match.best_of,
+        "seed": args.seed,
+        "same_match": multi["games"] == reference["games"] and multi["points"] == reference["points"],
+        "sim_seconds": multi["sim_seconds"],
+        "processes": {"wall_seconds": multi["wall_seconds"], "realtime_factor": multi["realtime_factor"],
+                      "startup_seconds": result.startup_seconds, "workers": result.workers,
+                      "us_per_tick": 1e6 * multi["wall_seconds"] / max(multi["ticks"], 1)},
+        "in_process": {"wall_seconds": reference["wall_seconds"], "realtime_factor": reference["realtime_factor"],
+                       "ai_seconds": reference["ai_seconds"],
+                       "us_per_tick": 1e6 * reference["wall_seconds"] / max(reference["ticks"], 1),
+                       **({"net_awake_ticks": net.awake_ticks} if net is not None else {})},
+        "target": "a best-of-5 match at >= 100x realtime, headless lockstep (issue 6)",
+    }
+    if args.json:
+        print(json.dumps(report))
+        return 0
+    p, r = report["processes"], report["in_process"]
+    print(f"match {report['scene']} ({report['net']} net), best of {report['best_of']}, seed {report['seed']}: "
+          f"{report['sim_seconds']:.1f} s simulated, "
+          f"same match in both runs: {report['same_match']}")
+    print(f"  worker processes (lockstep): {p['wall_seconds']:.2f} s wall, {p['realtime_factor']:.1f}x realtime, "
+          f"{p['us_per_tick']:.1f} us/tick, startup {p['startup_seconds']:.2f} s")
+    for kind, info in p["workers"].items():
+        awake = info.get("awake_ticks")
+        awake_text = f", {awake} ticks awake ({1e6 * info['busy_s'] / awake:.0f} us each)" if awake else ""
+        print(f"    {kind:<8} own work {info['busy_s']:.2f} s, hand-offs {info['handoff_s']:.2f} s{awake_text}")
+    print(f"  in-process reference:        {r['wall_seconds']:.2f} s wall, {r['realtime_factor']:.1f}x realtime, "
+          f"{r['us_per_tick']:.1f} us/tick (AI {r['ai_seconds']:.2f} s)")
+    return 0
+
+
+def add_commands(sub) -> None:
+    """`pingpong match` and `pingpong replay`."""
+    match = sub.add_parser("match", help="play a match (AI against AI by default) in worker processes",
+                           formatter_class=FORMATTER)
+    match.add_argument("--scene", default="match", help="scene TOML file or bundled scene name")
+    match.add_argument("--best-of", type=int, default=None, help="games in the match (default: the scene's)")
+    match.add_argument("--mode", choices=["lockstep", "realtime"], default="lockstep",
+                       help="lockstep (deterministic, flat out) or realtime (wall-clock paced)")
+    match.add_argument("--ticks", type=int, default=None, help="stop after this many ticks even if undecided")
+    match.add_argument("--replay", default=None, help="write a replay file here")
+    match.add_argument("--in-process", action="store_true", help="run the in-process reference instead of workers")
+    add_common(match)
+    match.set_defaults(func=match_command)
+
+    replay = sub.add_parser("replay", help="summarise a replay file", formatter_class=FORMATTER)
+    replay.add_argument("file", help="a file written by `pingpong match --replay`")
+    replay.add_argument("--json", action="store_true", help="print one JSON object")
+    replay.add_argument("--png", default=None, help="draw side and top views of the last rally to this PNG")
+    replay.add_argument("--gif", default=None, help="animate the last seconds to this GIF")
+    replay.set_defaults(func=replay_command)

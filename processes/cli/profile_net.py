@@ -1,0 +1,64 @@
+"""`pingpong profile-net`: the net kernel's cost against this machine's copy bandwidth."""
+import argparse
+import json
+import sys
+
+from net_kernel.profile import parse_knots, profile_net
+from processes.cli.common import FORMATTER
+
+
+def profile_net_command(args: argparse.Namespace) -> int:
+    """Run the profile for args.knots/steps/backend; print a table, or one JSON object with --json.
+
+    Returns:
+        0, or 2 when --knots or --steps is malformed or the net cannot be built.
+    """
+    try:
+        cols, rows = parse_knots(args.knots)
+        if args.steps is not None and args.steps < 1:
+            raise ValueError(f"--steps {args.steps}: must be >= 1")
+        backends = ("numba", "reference") if args.backend == "both" else (args.backend,)
+        path = args.path
+        paths = ("grid", "csr") if path == "both" else (path,)
+        report = profile_net(cols, rows, steps=args.steps, backends=backends, paths=paths)
+    except ValueError as exc:
+        print(f"pingpong profile-net: {exc}", file=sys.stderr)
+        return 2
+    if args.json:
+        print(json.dumps(report))
+        return 0
+    print(f"net {report['cols']} x {report['rows']}: {report['knots']} knots, {report['springs']} springs "
+          f"(structural + shear), h = {report['h_s']:.3g} s ({report['substeps_per_tick']} substeps a 1 ms tick)")
+    print(f"numba threads: {report['threads']} ({report['threading_layer']}); load average "
+          f"{report['load_avg'][0]:.2f} before, {report['load_avg'][1]:.2f} after (a shared machine slows everything)")
+    copy = report["copy"]
+    print(f"copy bandwidth (numpy copy of {copy['bytes'] / 2**21:.0f} MiB, read + write): "
+          f"{copy['gb_per_s']:.1f} GB/s (before {copy['before']:.1f}, after {copy['after']:.1f})")
+    print(f"byte model: {report['byte_model']}")
+    header = (f"  {'path':<5} {'backend':<18} {'compile s':>9} {'steps':>7} {'per call':>8} {'µs/step':>10} "
+              f"{'[min .. max]':>22} {'cpu µs/step':>11} {'Msprings/s':>11} {'GB/s':>7} {'of copy':>8}")
+    print(header)
+    for r in report["results"]:
+        name = r["backend"] + (" parallel" if r["parallel"] else " serial" if r["backend"] == "numba" else "")
+        spread = f"[{r['us_per_step_min']:.1f} .. {r['us_per_step_max']:.1f}]"
+        cpu = "-" if r["cpu_us_per_step"] is None else f"{r['cpu_us_per_step']:.1f}"
+        print(f"  {r['path']:<5} {name:<18} {r['compile_s']:>9.2f} {r['steps']:>7} {r['steps_per_call']:>8} "
+              f"{r['us_per_step']:>10.1f} {spread:>22} {cpu:>11} {r['msprings_per_s']:>11.1f} {r['gb_per_s']:>7.2f} "
+              f"{100 * r['copy_share']:>7.1f}%")
+    print(f"  median of {report['results'][0]['repeats']} timed runs each; cpu µs/step: the stepping thread's CPU "
+          "time (serial kernels; time waiting for a core left out); compile time is the first call's "
+          "excess over the second (0 when numba's cache is warm); grid: a tick's substeps per call, as NetSim "
+          "steps a net the ball is away from; csr: one step per call")
+    return 0
+
+
+def add_commands(sub) -> None:
+    """`pingpong profile-net`."""
+    profile = sub.add_parser("profile-net", help="profile the net kernel", formatter_class=FORMATTER)
+    profile.add_argument("--knots", default="184x16", help="knot grid, COLUMNSxROWS")
+    profile.add_argument("--steps", type=int, default=None, help="timed steps (default: sized to ~1 s per backend)")
+    profile.add_argument("--backend", choices=["numba", "reference", "both"], default="both")
+    profile.add_argument("--path", choices=["grid", "csr", "both"], default="both",
+                         help="kernel path: the grid kernel NetSim uses, the general CSR kernel, or both")
+    profile.add_argument("--json", action="store_true", help="print one JSON object")
+    profile.set_defaults(func=profile_net_command)

@@ -1,0 +1,682 @@
+"""The gateway: ZeroMQ sessions of remote players and spectators; their inputs in, snapshots out.
+
+Two sockets. The sessions live on a ROUTER: a client is a DEALER that sends one-frame wire
+messages (processes/wire.py); the gateway sees [identity, message]. What every spectator gets
+(snapshots, events) goes out once on a PUB socket, the feed, whose port the welcome announces
+(welcome.feed_port): the gateway encodes and sends a snapshot once per tick and libzmq's I/O
+thread copies it to each subscriber, where one send per spectator session cost ~25 us of the
+gateway's Python each (1000 spectators at 120 Hz were 3 s of CPU per second). Players keep
+theirs on the session (two sends, and a player's snapshots are counted per session). Sessions:
+
+- hello -> welcome (slot A/B with a fresh rejoin token, or spectator) or reject (full,
+  version, bad_request, bad_token, shutting_down), and the session is closed on a reject.
+- heartbeats both ways: the gateway sends one every `heartbeat_s` to each session; any valid
+  message from a peer counts as a sign of life; a peer silent for `timeout_s` is sent goodbye
+  (timeout) and dropped. A dropped player's seat is kept for `grace_s`: only its token may
+  reclaim it (rejoin); after the grace anyone may take it. A player who says goodbye frees its
+  seat at once. A hello with the token of a seat whose old connection is still open takes the
+  seat over (the old session is told goodbye, kicked).
+- input: decoded and validated, accepted only for the sender's own bat (another bat's input,
+  a spectator's input, target mode and stale sequence numbers are refused and counted), then
+  posted to the locked remote-input mailbox that the physics worker drains each tick.
+- snapshots at `snapshot_hz` from the physics snapshot block, plus point/game/match events
+  from the point log. Sends never block: ROUTER_MANDATORY with NOBLOCK raises when a peer's
+  pipe is at its high-water mark (SNDHWM), and that peer's snapshot is dropped and counted,
+  so a slow peer stalls nobody.
+- the feed's slow-subscriber policy: the PUB queues at most SNDHWM messages per subscriber
+  (plus what the kernel's socket buffers hold); beyond that libzmq drops that subscriber's
+  newest messages and nobody else's. The gateway cannot see those drops; the subscriber can:
+  the feed numbers its messages (header seq, one stream for all subscribers), so a gap is a
+  message lost at the mark. A spectator's session (heartbeats both ways, timeout, goodbye) is
+  what says it is alive: a spectator that vanishes is timed out there and counted, whatever
+  its feed connection does. The feed serves whoever connects to its port, as the session
+  port welcomes any spectator (max_spectators bounds sessions, not feed readers; with CURVE
+  the feed is encrypted and the server authenticated like the sessions, clients are not).
+- goodbye to every session on shutdown (shutdown) or at the end of the match (match_over).
+- a snapshot of tick T says in input_seq the inputs applied before the step into T (the
+  physics writes them per tick into the remote_acks ring before publishing T), so a client
+  rewinds to T and replays exactly its later inputs; an input holds input_hold_s at most, then
+  the idle arm (also that of a seat without a player) brakes its bat to rest (brake_force).
+- the seat table (tokens, names, grace) is saved to a SeatStore on every change: a gateway
+  restarted after a crash restores it and a player's token still reclaims its seat.
+- with a CURVE key pair (`pingpong keys`, `serve --curve-secret`) every session and the feed are
+  encrypted and only clients that know the server's public key can connect.
+
+Every message from outside that fails wire.decode, or arrives in more than one frame, or comes
+from a peer without a session, is dropped and counted by reason, never fatal. A session that
+sends MAX_BAD bad messages is kicked.
+
+`Gateway` is the socket logic alone (the tests drive it in-process);
+processes.workers.gateway runs it as the supervisor's worker, fed by the run's shared memory.
+"""
+from __future__ import annotations
+
+import os
+import secrets
+import struct
+import time
+from collections import Counter
+from dataclasses import dataclass
+
+import numpy as np
+import zmq
+
+from engine.arm import BRAKE_EVERY_S, BRAKE_MIN_SPEED, brake_force
+from processes.network import wire
+from processes.network.wire import GoodbyeReason, InputMode, Kind, RejectReason, Role, Slot
+
+# The seat table as it survives a gateway's restart (a SnapshotBlock the supervisor owns; the
+# gateway of the moment is its one writer): who holds each seat's token and its grace.
+SEAT_DTYPE = np.dtype([("slot", "u1"), ("taken", "u1"), ("token", "u1", (16,)), ("name", "u1", (32,)),
+                       ("grace_until", "<f8")])  # taken: a connection held it; grace_until: time.monotonic s
+# A remote arm's input holds at most this long: a client that stalls (or whose snapshots stop)
+# must not leave its bat pushed by a constant force (120 N on a 0.17 kg bat is 70 m/s in 0.1 s).
+# After it, the gateway posts a zero input (same seq) until the next input comes.
+INPUT_HOLD_S = 0.1
+MAX_BAD = 64  # bad messages one session may send before it is kicked
+MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messages
+MAX_FRAME_BYTES = 4096  # libzmq disconnects a peer sending a bigger frame (MAXMSGSIZE)
+SWEEPS_PER_HEARTBEAT = 10  # passes over every session (timeouts, heartbeats) per heartbeat period
+STATS_EVERY_S = 1.0  # the worker writes its counters to GatewayConfig.stats_path this often
+NO_TOKEN = bytes(wire.TOKEN_SIZE)
+# A session's heartbeat, the message a thousand spectators send twice a second: magic, version,
+# kind, flags 0 and the size say it all (its only body field, ack, is any u64), so it is taken by
+# this fixed prefix and the tick's sign, exactly what wire.decode would accept, without decoding.
+_HEARTBEAT_PREFIX = wire.MAGIC + struct.pack("<HBB", wire.PROTOCOL_VERSION, Kind.HEARTBEAT, 0)
+_HEARTBEAT_SIZE = wire.SIZES[Kind.HEARTBEAT]
+_SEQ_TICK = struct.Struct("<Qq")
+
+
+@dataclass(frozen=True)
+class GatewayConfig:
+    """How the gateway talks to its peers.
+
+    bind: ZeroMQ endpoint; port 0 or * picks a free port (see Gateway.endpoint).
+    snapshot_hz: snapshots per second to every session. heartbeat_s: a heartbeat at least this
+    often. timeout_s: a silent peer is dropped after this long. grace_s: a dropped player's
+    seat waits this long for its token. input_hold_s: a player's input is let go of (zero
+    force) this long after it arrived unless another came. sndhwm: messages queued per peer before its snapshots
+    are dropped. sndbuf: the kernel's send buffer per connection in bytes, 0: the OS default.
+    max_spectators: more are told "full". curve_secret_key, curve_public_key: Z85 keys of the
+    server (`pingpong keys DIR`): every session and the feed are then encrypted and a client
+    must know the public key to connect at all (libzmq accepts any client key pair: no ZAP
+    handler runs). feed: spectators take snapshots and events from the PUB feed (False: on
+    their sessions, one send each, as protocol version 1 did: the fan-out it replaces, kept to
+    measure against); it needs a tcp:// bind. feed_bind: the feed's endpoint; "": the session's
+    host on a free port. stats_path: a JSON file the gateway writes its counters to (atomically)
+    every second and when it ends, whether the match ended or it was stopped; "": none.
+    """
+
+    bind: str = "tcp://127.0.0.1:0"
+    snapshot_hz: int = 60
+    heartbeat_s: float = 0.5
+    timeout_s: float = 5.0
+    grace_s: float = 30.0
+    sndhwm: int = 32
+    sndbuf: int = 0
+    max_spectators: int = 64
+    input_hold_s: float = INPUT_HOLD_S
+    curve_secret_key: bytes = b""  # Z85; set: every session is CURVE-encrypted and the server authenticated
+    curve_public_key: bytes = b""  # Z85, the secret key's public half
+    feed: bool = True
+    feed_bind: str = ""
+    stats_path: str = ""
+
+
+@dataclass
+class _Session:
+    identity: bytes
+    role: Role
+    slot: Slot
+    name: str
+    last_seen: float
+    next_beat: float
+    seq_out: int = 0
+    seq_in: int = 0  # highest seq received
+    input_seq: int = 0  # seq of the last input accepted
+    input_at: float = 0.0  # when it arrived (clock s)
+    holding: bool = False  # it pushes (non-zero) and has not expired
+    bad: int = 0
+    snapshots_dropped: int = 0
+
+
+@dataclass
+class _Seat:
+    slot: Slot
+    remote: bool  # False: the AI plays this bat, no client may take it
+    token: bytes = NO_TOKEN
+    identity: bytes | None = None
+    name: str = ""
+    grace_until: float = 0.0  # while empty: only `token` may take it until then
+    last_seq: int = 0  # seq of the last input posted for this bat (what an idle arm's posts carry)
+    next_brake: float = 0.0
+
+
+class SeatStore:
+    """The seat table in a processes.runtime.shm.SnapshotBlock of SEAT_DTYPE records (one per seat): a
+    restarted gateway finds its seats' tokens there, so a rejoin token outlives the gateway.
+    Double-buffered, so a gateway killed mid-save leaves the previous table intact."""
+
+    def __init__(self, block):
+        self.block = block
+        self._table = np.zeros(block.count, SEAT_DTYPE)
+
+    def save(self, seats) -> None:
+        table = self._table
+        table[:] = 0
+        for i, seat in enumerate(seats):
+            raw = seat.name.encode("utf-8")[:32]
+            table[i]["slot"], table[i]["taken"] = int(seat.slot), seat.identity is not None
+            table[i]["token"] = np.frombuffer(seat.token, np.uint8)
+            table[i]["name"] = np.frombuffer(raw.ljust(32, b"\0"), np.uint8)
+            table[i]["grace_until"] = seat.grace_until
+        self.block.publish(table, 0)
+
+    def load(self) -> np.ndarray | None:
+        """The last table saved, None if no gateway saved one yet."""
+        if self.block.version < 2:
+            return None
+        out = np.zeros(self.block.count, SEAT_DTYPE)
+        self.block.snapshot(out)
+        return out
+
+
+def _zero_inputs():
+    return np.zeros(6)
+
+
+class Gateway:
+    """The gateway's sessions over one ROUTER socket.
+
+    Args:
+        zctx: a zmq.Context. config: GatewayConfig.
+        scene_name, best_of, dt: what a welcome tells the client.
+        remote_slots: the seats remote players may take (Slot.A and/or Slot.B).
+        post_input(bat, seq, tick, inputs6) -> bool: hand an accepted input to the physics
+            (False: it could not be queued; counted).
+        clock: seconds, monotonic (tests may pass their own).
+        seat_store: a SeatStore the seat table is saved to on every change and restored from at
+            start (a restarted gateway: seats held at its predecessor's death wait `grace_s`
+            for their tokens); None: seats live and die with this object.
+        bat_mass: kg per bat (A, B): an idle remote arm brakes its bat (brake_force, from the
+            served record's velocity); None: an idle arm only lets go (zero force).
+    """
+
+    def __init__(self, zctx, config: GatewayConfig, *, scene_name: str, best_of: int, dt: float,
+                 remote_slots, post_input, clock=time.monotonic, seat_store: SeatStore | None = None,
+                 bat_mass=None):
+        self.config = config
+        self.scene_name = scene_name
+        self.best_of = best_of
+        self.dt = dt
+        self.post_input = post_input
+        self.clock = clock
+        self.seats = {slot: _Seat(slot, slot in set(remote_slots)) for slot in (Slot.A, Slot.B)}
+        self.seat_store = seat_store
+        self.bat_mass = None if bat_mass is None else tuple(float(m) for m in bat_mass)
+        self._brake = np.zeros(6)
+        self.sessions: dict[bytes, _Session] = {}
+        self.counts: Counter[str] = Counter()
+        self.drops = wire.DropCounter()
+        self.tick = 0
+        self.shutting_down = False
+        self._next_snapshot = 0.0
+        self._next_sweep = 0.0
+        self._points_seen: int | None = None
+        self._games_seen = (0, 0)
+        self._match_sent = False
+        self.router = zctx.socket(zmq.ROUTER)
+        self.router.setsockopt(zmq.LINGER, 0)
+        self._two_io_threads = zctx.get(zmq.IO_THREADS) >= 2
+        if self._two_io_threads:  # sessions on libzmq's I/O thread 0, the feed's fan-out on thread 1
+            self.router.setsockopt(zmq.AFFINITY, 1 << 0)
+        self.router.setsockopt(zmq.ROUTER_MANDATORY, 1)
+        self.router.setsockopt(zmq.SNDHWM, config.sndhwm)
+        self.router.setsockopt(zmq.MAXMSGSIZE, MAX_FRAME_BYTES)
+        if config.sndbuf:
+            self.router.setsockopt(zmq.SNDBUF, config.sndbuf)
+        if config.curve_secret_key:  # before bind: the handshake is chosen per connection at accept
+            self.router.curve_server = True
+            self.router.curve_secretkey = config.curve_secret_key
+            if config.curve_public_key:
+                self.router.curve_publickey = config.curve_public_key
+        self.router.bind(_any_port(config.bind))
+        self.endpoint = self.router.getsockopt_string(zmq.LAST_ENDPOINT)
+        self.feed = None  # the PUB socket of spectators' snapshots and events
+        self.feed_endpoint = ""
+        self.feed_port = 0
+        self.feed_seq = 0
+        if config.feed and self.endpoint.startswith("tcp://"):
+            self.feed = self._feed_socket(zctx, config.feed_bind or self.endpoint.rsplit(":", 1)[0] + ":0")
+            self.feed_endpoint = self.feed.getsockopt_string(zmq.LAST_ENDPOINT)
+            self.feed_port = int(self.feed_endpoint.rsplit(":", 1)[1])
+        self._beat = bytearray(wire.encode(Kind.HEARTBEAT, tick=0, ack=0))
+        if seat_store is not None:
+            self._restore_seats(seat_store.load())
+
+    def _feed_socket(self, zctx, bind: str):
+        """The PUB socket: SNDHWM messages per subscriber at most (then that subscriber's newest
+        are dropped), never blocking; a CURVE server with the sessions' keys."""
+        config = self.config
+        feed = zctx.socket(zmq.PUB)
+        feed.setsockopt(zmq.LINGER, 0)
+        if self._two_io_threads:
+            # its own I/O thread: 120,000 copies a second to 1000 subscribers kept one thread
+            # busy, and the sessions' heartbeats on the same thread waited behind them for
+            # seconds (`pingpong stress`: every spectator timed out, its heartbeats unread)
+            feed.setsockopt(zmq.AFFINITY, 1 << 1)
+        feed.setsockopt(zmq.SNDHWM, config.sndhwm)
+        feed.setsockopt(zmq.MAXMSGSIZE, MAX_FRAME_BYTES)  # what a subscriber may send: subscriptions
+        if config.sndbuf:
+            feed.setsockopt(zmq.SNDBUF, config.sndbuf)
+        if config.curve_secret_key:
+            feed.curve_server = True
+            feed.curve_secretkey = config.curve_secret_key
+            if config.curve_public_key:
+                feed.curve_publickey = config.curve_public_key
+        feed.bind(_any_port(bind))
+        return feed
+
+    # --- state ---------------------------------------------------------------------------------
+    def _restore_seats(self, table) -> None:
+        """Seats from a predecessor's table: tokens kept; a seat whose connection was open then
+        waits grace_s from now for its token (that connection is gone with the old socket)."""
+        if table is None:
+            return
+        now = self.clock()
+        for row in table:
+            seat = self.seats.get(Slot(int(row["slot"]))) if int(row["slot"]) in (1, 2) else None
+            token = row["token"].tobytes()
+            if seat is None or not seat.remote or token == NO_TOKEN:
+                continue
+            seat.token = token
+            seat.name = row["name"].tobytes().rstrip(b"\0").decode("utf-8", errors="replace")
+            seat.grace_until = now + self.config.grace_s if row["taken"] else float(row["grace_until"])
+            self.counts["seats_restored"] += 1
+        self._save_seats()
+
+    def _save_seats(self) -> None:
+        if self.seat_store is not None:
+            self.seat_store.save(list(self.seats.values()))
+
+    @property
+    def seats_filled(self) -> bool:
+        """Every remote seat has a connected player."""
+        return all(seat.identity is not None for seat in self.seats.values() if seat.remote)
+
+    def stats(self) -> dict:
+        """Counters: sessions, inputs, refusals, drops by reason, snapshots sent and dropped."""
+        out = dict(sorted(self.counts.items()))
+        for reason, n in self.drops.by_reason.items():
+            out[f"dropped.{reason}"] = out.get(f"dropped.{reason}", 0) + n
+        out["dropped_total"] = sum(v for k, v in out.items() if k.startswith("dropped."))
+        out["sessions"] = len(self.sessions)
+        out["spectators"] = sum(1 for s in self.sessions.values() if s.role == Role.SPECTATOR)
+        out["feed_port"] = self.feed_port
+        return out
+
+    def write_stats(self, extra: dict | None = None) -> None:
+        """The counters (and `extra`) to config.stats_path, atomically (a reader never sees half)."""
+        path = self.config.stats_path
+        if not path:
+            return
+        import json
+
+        tmp = f"{path}.{os.getpid()}.tmp"
+        with open(tmp, "w") as f:
+            json.dump({**self.stats(), **(extra or {})}, f)
+        os.replace(tmp, path)
+
+    # --- sending -------------------------------------------------------------------------------
+    def _send(self, session: _Session, data: bytes, what: str) -> bool:
+        """One message to one peer, never blocking: a full pipe drops it (counted)."""
+        session.seq_out += 1
+        buf = bytearray(data)
+        buf[8:16] = session.seq_out.to_bytes(8, "little")
+        try:
+            self.router.send_multipart([session.identity, bytes(buf)], flags=zmq.NOBLOCK)
+        except zmq.Again:
+            self.counts[f"{what}_dropped"] += 1
+            session.snapshots_dropped += what == "snapshots"
+            return False
+        except zmq.ZMQError:  # EHOSTUNREACH: the peer's connection is gone
+            self.counts["unreachable"] += 1
+            return False
+        self.counts[f"{what}_sent"] += 1
+        return True
+
+    def _reply(self, identity: bytes, data: bytes) -> None:
+        """A message to a peer without a session (a reject)."""
+        try:
+            self.router.send_multipart([identity, data], flags=zmq.NOBLOCK)
+        except zmq.ZMQError:
+            self.counts["unreachable"] += 1
+
+    def _reject(self, identity: bytes, reason: RejectReason, detail: str) -> None:
+        self.counts[f"rejected.{reason.name.lower()}"] += 1
+        self._reply(identity, wire.encode(Kind.REJECT, tick=self.tick, reason=reason, detail=detail[:64]))
+
+    def _welcome(self, session: _Session, token: bytes) -> None:
+        config = self.config
+        heartbeat_ms = max(1, int(config.heartbeat_s * 1000))
+        self._send(session, wire.encode(
+            Kind.WELCOME, tick=self.tick, slot=session.slot, best_of=self.best_of, snapshot_hz=config.snapshot_hz,
+            heartbeat_ms=heartbeat_ms, timeout_ms=max(heartbeat_ms, int(config.timeout_s * 1000)), dt=self.dt,
+            token=token, scene=self.scene_name[:32], name_a=self.seats[Slot.A].name, name_b=self.seats[Slot.B].name,
+            feed_port=self.feed_port if session.role == Role.SPECTATOR else 0), "welcomes")
+
+    def _goodbye(self, session: _Session, reason: GoodbyeReason) -> None:
+        self._send(session, wire.encode(Kind.GOODBYE, tick=self.tick, reason=reason), "goodbyes")
+
+    # --- receiving -----------------------------------------------------------------------------
+    def poll(self, timeout_ms: int) -> int:
+        """Wait at most timeout_ms for messages, then handle those waiting (bounded); returns
+        how many were handled."""
+        if not self.router.poll(timeout_ms, zmq.POLLIN):
+            return 0
+        handled = 0
+        while handled < MAX_MESSAGES_PER_POLL:
+            try:
+                frames = self.router.recv_multipart(flags=zmq.NOBLOCK, copy=True)
+            except zmq.Again:
+                break
+            handled += 1
+            self.handle(frames)
+        return handled
+
+    def handle(self, frames: list) -> None:
+        """One incoming multipart: [identity, message]."""
+        now = self.clock()
+        identity = frames[0]
+        session = self.sessions.get(identity)
+        if len(frames) != 2:
+            self.counts["dropped.bad_framing"] += 1
+            self._bad(session)
+            return
+        data = frames[1]
+        if session is not None and len(data) == _HEARTBEAT_SIZE and data.startswith(_HEARTBEAT_PREFIX):
+            seq, tick = _SEQ_TICK.unpack_from(data, 8)
+            if tick >= 0:  # else: decode below names the fault
+                session.last_seen = now
+                session.seq_in = max(session.seq_in, seq)
+                self.counts["heartbeats_received"] += 1
+                return
+        try:
+            message = wire.decode(frames[1])
+        except wire.BadVersion as err:
+            self.drops.by_reason[err.reason] += 1
+            if session is None:
+                self._reject(identity, RejectReason.VERSION,
+                             f"server speaks protocol {wire.PROTOCOL_VERSION}, you {err.version}")
+            else:
+                self._bad(session)
+            return
+        except wire.WireError as err:
+            self.drops.by_reason[err.reason] += 1
+            self._bad(session)
+            return
+        if session is None:
+            if message.kind == Kind.HELLO:
+                self._hello(identity, message, now)
+            else:
+                self.counts["dropped.no_session"] += 1
+            return
+        session.last_seen = now
+        session.seq_in = max(session.seq_in, message.seq)
+        if message.kind == Kind.INPUT:
+            self._input(session, message)
+        elif message.kind == Kind.HEARTBEAT:
+            self.counts["heartbeats_received"] += 1
+        elif message.kind == Kind.GOODBYE:
+            self.counts["quits"] += 1
+            self._end(session, keep_seat=False)
+        elif message.kind == Kind.HELLO:
+            self.counts["dropped.hello_in_session"] += 1
+            self._bad(session)
+        else:  # welcome, reject, snapshot, event: only a server sends those
+            self.counts["dropped.server_message"] += 1
+            self._bad(session)
+
+    def _bad(self, session: _Session | None) -> None:
+        if session is None:
+            return
+        session.bad += 1
+        if session.bad >= MAX_BAD:
+            self.counts["kicked"] += 1
+            self._goodbye(session, GoodbyeReason.KICKED)
+            self._end(session, keep_seat=False)
+
+    def _hello(self, identity: bytes, message: wire.Message, now: float) -> None:
+        if self.shutting_down:
+            self._reject(identity, RejectReason.SHUTTING_DOWN, "the server is shutting down")
+            return
+        name = message["name"]
+        if message["role"] == Role.SPECTATOR:
+            spectators = sum(1 for s in self.sessions.values() if s.role == Role.SPECTATOR)
+            if spectators >= self.config.max_spectators:
+                self._reject(identity, RejectReason.FULL, f"{spectators} spectators already watch")
+                return
+            session = self._open(identity, Role.SPECTATOR, Slot.NONE, name, now, message.seq)
+            self.counts["spectators_joined"] += 1
+            self._welcome(session, NO_TOKEN)
+            return
+        token, wanted = message["token"], message["slot"]
+        if token != NO_TOKEN:
+            seat = next((s for s in self.seats.values() if s.remote and s.token == token), None)
+            if seat is None or (wanted != Slot.NONE and wanted != seat.slot):
+                self._reject(identity, RejectReason.BAD_TOKEN, "unknown or expired rejoin token")
+                return
+            if seat.identity is not None:  # the old connection is still open: the token wins
+                old = self.sessions.pop(seat.identity)
+                self._goodbye(old, GoodbyeReason.KICKED)
+            self.counts["rejoined"] += 1
+        else:
+            seat = self._free_seat(wanted, now)
+            if seat is None:
+                remote = [s.slot.name for s in self.seats.values() if s.remote]
+                detail = (f"seat {wanted.name} is played by the AI" if wanted != Slot.NONE and not self.seats[wanted].remote
+                          else f"remote seats {'/'.join(remote) or 'none'} are taken")
+                self._reject(identity, RejectReason.FULL, detail)
+                return
+            seat.token = secrets.token_bytes(wire.TOKEN_SIZE)
+            self.counts["players_joined"] += 1
+        seat.identity, seat.name, seat.grace_until = identity, name, 0.0
+        self._save_seats()
+        session = self._open(identity, Role.PLAYER, seat.slot, name, now, message.seq)
+        self._welcome(session, seat.token)
+
+    def _free_seat(self, wanted: Slot, now: float) -> _Seat | None:
+        candidates = [self.seats[wanted]] if wanted != Slot.NONE else list(self.seats.values())
+        for seat in candidates:
+            if seat.remote and seat.identity is None and now >= seat.grace_until:
+                return seat
+        return None
+
+    def _open(self, identity: bytes, role: Role, slot: Slot, name: str, now: float, seq: int) -> _Session:
+        session = _Session(identity, role, slot, name, last_seen=now, next_beat=now + self.config.heartbeat_s,
+                           seq_in=seq)
+        self.sessions[identity] = session
+        return session
+
+    def _end(self, session: _Session, keep_seat: bool) -> None:
+        """Close a session; a player's seat waits for its token (keep_seat) or is free at once."""
+        self.sessions.pop(session.identity, None)
+        if session.role != Role.PLAYER:
+            return
+        seat = self.seats[session.slot]
+        if seat.identity != session.identity:
+            return
+        seat.identity = None
+        bat = int(session.slot) - 1
+        if not self.post_input(bat, session.input_seq, self.tick, _zero_inputs()):  # an absent arm holds no force
+            self.counts["mailbox_full"] += 1
+        if keep_seat:
+            seat.grace_until = self.clock() + self.config.grace_s
+        else:
+            seat.token, seat.name, seat.grace_until = NO_TOKEN, "", 0.0
+        self._save_seats()
+
+    def _input(self, session: _Session, message: wire.Message) -> None:
+        if session.role != Role.PLAYER:
+            self.counts["refused.spectator_input"] += 1
+            self._bad(session)
+            return
+        if message["slot"] != session.slot:
+            self.counts["refused.other_bat"] += 1
+            self._bad(session)
+            return
+        if message["mode"] != InputMode.FORCE:
+            self.counts["refused.target_mode"] += 1  # the server-side arm controller comes later
+            return
+        if message.seq <= session.input_seq:
+            self.counts["refused.stale_input"] += 1  # reordered or replayed
+            return
+        session.input_seq = message.seq
+        inputs = np.concatenate([message["force"], message["torque"]])
+        session.input_at, session.holding = self.clock(), bool(inputs.any())
+        self.seats[session.slot].last_seq = message.seq
+        if self.post_input(int(session.slot) - 1, message.seq, message.tick, inputs):
+            self.counts["inputs_accepted"] += 1
+        else:
+            self.counts["mailbox_full"] += 1
+
+    # --- time ----------------------------------------------------------------------------------
+    def service(self, record=None, input_seq=(0, 0), points=None) -> None:
+        """Heartbeats, timeouts, and (when due) the snapshot of `record` and new events.
+
+        record: one physics_snapshot_dtype(2) record or None. input_seq: last applied input per
+        bat. points: the run's POINT_DTYPE log (events for the points `record` counts).
+        """
+        now = self.clock()
+        if now >= self._next_sweep:
+            # every session's timeout and heartbeat, a few times per heartbeat period, not every
+            # call: with 1000 spectators a pass is ~0.5 ms of Python and the worker calls this
+            # every few ms
+            self._next_sweep = now + self.config.heartbeat_s / SWEEPS_PER_HEARTBEAT
+            for session in list(self.sessions.values()):
+                if now - session.last_seen > self.config.timeout_s:
+                    self.counts["timeouts"] += 1
+                    self._goodbye(session, GoodbyeReason.TIMEOUT)
+                    self._end(session, keep_seat=True)
+                elif now >= session.next_beat:
+                    session.next_beat = now + self.config.heartbeat_s
+                    self._send(session, self._heartbeat(session.seq_in), "heartbeats")
+        for seat in self.seats.values():  # a player's input expires on time: two seats, every call
+            session = self.sessions.get(seat.identity) if seat.identity is not None else None
+            if session is not None and session.holding and now - session.input_at > self.config.input_hold_s:
+                session.holding = False  # the arm lets go: its last input expired
+                self.counts["inputs_expired"] += 1
+                if not self.post_input(int(session.slot) - 1, session.input_seq, self.tick, _zero_inputs()):
+                    self.counts["mailbox_full"] += 1
+        if record is None:
+            return
+        self.tick = int(record["world"]["tick"])
+        if self.bat_mass is not None:
+            self._brake_idle_arms(record, now)
+        if points is not None:
+            self._events(record, points)
+        if now < self._next_snapshot:
+            return
+        # on a fixed grid (no drift from the poll loop's latency); after a stall, restart from now
+        self._next_snapshot = max(self._next_snapshot + 1.0 / self.config.snapshot_hz, now)
+        self.broadcast_snapshot(record, input_seq)
+
+    def _heartbeat(self, ack: int) -> bytes:
+        """A heartbeat at the current tick acknowledging `ack` (seq set by _send): the fixed
+        layout patched in place, not encoded anew for each of a thousand sessions."""
+        beat = self._beat
+        beat[16:24] = self.tick.to_bytes(8, "little", signed=True)
+        beat[24:32] = ack.to_bytes(8, "little")
+        return beat
+
+    def _brake_idle_arms(self, record, now: float) -> None:
+        """Stop the bats of remote seats whose arm is idle: no player, or its input expired."""
+        for seat in self.seats.values():
+            if not seat.remote or now < seat.next_brake:
+                continue
+            session = self.sessions.get(seat.identity) if seat.identity is not None else None
+            if session is not None and now - session.input_at <= self.config.input_hold_s:
+                continue  # the player's own input holds
+            bat = int(seat.slot) - 1
+            vel = record["bats"]["vel"][bat]
+            speed = float(np.abs(vel).max())  # nan for a nan component
+            if speed < BRAKE_MIN_SPEED:
+                continue
+            if not np.isfinite(speed):  # no force to brake it with (nor would the physics take one)
+                self.counts["idle_arm.non_finite_bat"] += 1
+                continue
+            seat.next_brake = now + BRAKE_EVERY_S
+            self.counts["idle_arm_brakes"] += 1
+            if not self.post_input(bat, seat.last_seq, self.tick, brake_force(self.bat_mass[bat], vel, self._brake)):
+                self.counts["mailbox_full"] += 1
+
+    def broadcast_snapshot(self, record, input_seq=(0, 0)) -> None:
+        try:
+            data = wire.snapshot_from_physics(record, seq=0, input_seq=input_seq)
+        except wire.WireError as err:
+            self.counts["snapshots_unencodable"] += 1  # e.g. a bat beyond the wire's ranges
+            self.counts[f"snapshots_unencodable.{err.reason}"] += 1
+            return
+        self._broadcast(data, "snapshots")
+
+    def _broadcast(self, data: bytes, what: str) -> None:
+        """To every session, or with a feed: once on the feed (spectators) and to each player."""
+        feed = self.feed
+        if feed is not None:
+            self.feed_seq += 1
+            buf = bytearray(data)
+            buf[8:16] = self.feed_seq.to_bytes(8, "little")
+            feed.send(buf, flags=zmq.NOBLOCK)  # PUB never blocks: a full subscriber's copy is dropped
+            self.counts[f"{what}_published"] += 1
+        for session in list(self.sessions.values()):
+            if feed is None or session.role == Role.PLAYER:
+                self._send(session, data, what)
+
+    def _events(self, record, points) -> None:
+        rally = record["rally"]
+        total = int(rally["points_total"])
+        if self._points_seen is None:
+            self._points_seen = total  # a gateway (re)started mid-match announces only new points
+            self._games_seen = tuple(int(g) for g in rally["games_won"])
+        games = tuple(int(g) for g in rally["games_won"])
+        for i in range(self._points_seen, min(total, len(points))):
+            row = points[i]
+            self._event(wire.EventKind.POINT, row, games, rally)
+        if total > self._points_seen and games != self._games_seen and total <= len(points):
+            self._event(wire.EventKind.GAME, points[total - 1], games, rally)
+        self._points_seen, self._games_seen = total, games
+        if int(rally["winner"]) >= 0 and not self._match_sent and total >= 1 and total <= len(points):
+            self._match_sent = True
+            self._event(wire.EventKind.MATCH, points[total - 1], games, rally)
+
+    def _event(self, kind, row, games, rally) -> None:
+        try:
+            data = wire.encode(Kind.EVENT, tick=self.tick, event=kind, winner=int(row["winner"]),
+                               reason=int(row["reason"]), game=int(row["game"]), score=row["score_after"],
+                               games_won=games, shots=int(row["shots"]), rally=int(rally["rally"]))
+        except wire.WireError:
+            self.counts["events_unencodable"] += 1
+            return
+        self._broadcast(data, "events")
+
+    def shutdown(self, reason: GoodbyeReason = GoodbyeReason.SHUTDOWN) -> int:
+        """Goodbye to every session; returns how many were told."""
+        self.shutting_down = True
+        told = 0
+        for session in list(self.sessions.values()):
+            self._goodbye(session, reason)
+            told += 1
+            self.sessions.pop(session.identity, None)
+        return told
+
+    def close(self, linger_ms: int = 500) -> None:
+        """Close the sockets; what is still queued (the goodbyes of shutdown) gets up to linger_ms
+        to leave (linger 0 discarded them: `pingpong stress` saw bots miss their goodbye)."""
+        self.router.close(linger=linger_ms)
+        if self.feed is not None:
+            self.feed.close(linger=0)  # a snapshot nobody took yet is worth nothing after the end
+
+
+def _any_port(endpoint: str) -> str:
+    """tcp://host:0 means any free port, which libzmq spells tcp://host:*."""
+    return endpoint[:-2] + ":*" if endpoint.endswith(":0") else endpoint

@@ -1,0 +1,369 @@
+"""Every wire message's byte layout: the header, the enums, the limits and the eight message types."""
+from __future__ import annotations
+
+import enum
+
+import numpy as np
+
+from engine.rules import REASONS, Phase, Reason
+from processes.network.wire.checks import BadEnum, OutOfRange, _box, _norm_at_most, _unit, _within, _zero
+
+MAGIC = b"PPNG"
+PROTOCOL_VERSION = 2  # 2: welcome.feed_port (the spectator feed); see the module docstring
+
+# Ranges: generous for real play, tight enough that a corrupted or hostile value is refused.
+MAX_FORCE_N = 500.0  # |force| of an input; the AI arm's own limit is 50..120 N (engine/ai.py SKILLS)
+MAX_TORQUE_NM = 50.0  # |torque| of an input; the AI's limit is 2..4 N m
+MAX_POS_M = 8.0  # every position component: twice the distance at which the ball is out of play (4 m)
+MAX_SPEED_MS = 100.0  # |velocity| of ball or bat; the fastest recorded smash is ~31 m/s
+MAX_SPIN_RADS = 2000.0  # |spin| of the ball; top players reach ~150 rev/s = 940 rad/s
+MAX_BAT_ANG_VEL_RADS = 1000.0  # |angular velocity| of a bat
+MAX_GAMES_WON = 5  # best of 9 is the longest match a scene allows (engine/scene.py)
+MAX_BEST_OF = 9
+MAX_DT_S = 0.05  # the scene's own bound on a tick's length
+TOKEN_SIZE = 16  # bytes of a rejoin token; all zero = none
+NAME_SIZE = 32  # bytes of a UTF-8 name, NUL-padded
+DETAIL_SIZE = 64  # bytes of a UTF-8 human-readable detail, NUL-padded
+
+
+class Kind(enum.IntEnum):
+    HELLO = 1
+    WELCOME = 2
+    REJECT = 3
+    INPUT = 4
+    SNAPSHOT = 5
+    EVENT = 6
+    HEARTBEAT = 7
+    GOODBYE = 8
+
+
+class Role(enum.IntEnum):
+    PLAYER = 1
+    SPECTATOR = 2
+
+
+class Slot(enum.IntEnum):
+    """A seat at the table; 0 = none (a spectator, or no preference in a hello)."""
+
+    NONE = 0
+    A = 1  # engine player 0, x < 0
+    B = 2  # engine player 1, x > 0
+
+
+class InputMode(enum.IntEnum):
+    FORCE = 1  # force and torque held over the ticks until the next input
+    TARGET = 2  # a pose for the server's arm controller to reach (within the arm's limits)
+
+
+class RejectReason(enum.IntEnum):
+    FULL = 1  # both player slots taken
+    VERSION = 2  # the client speaks another protocol version
+    BAD_REQUEST = 3  # the hello was malformed or asked for something impossible
+    BAD_TOKEN = 4  # unknown or expired rejoin token
+    SHUTTING_DOWN = 5
+
+
+class EventKind(enum.IntEnum):
+    POINT = 1
+    GAME = 2
+    MATCH = 3  # the match is over
+
+
+class GoodbyeReason(enum.IntEnum):
+    QUIT = 1  # the client leaves
+    SHUTDOWN = 2  # the server stops
+    TIMEOUT = 3  # no heartbeat from the peer in time
+    MATCH_OVER = 4
+    KICKED = 5  # too many bad messages
+
+
+HEADER_FIELDS = [
+    ("magic", "S4"),
+    ("version", "<u2"),
+    ("kind", "u1"),
+    ("flags", "u1"),
+    ("seq", "<u8"),
+    ("tick", "<i8"),
+]
+HEADER_DTYPE = np.dtype(HEADER_FIELDS)
+HEADER_SIZE = HEADER_DTYPE.itemsize  # 24
+
+
+class _Spec:
+    """One message type: its kind, dtype and the meaning of its fields beyond numbers."""
+
+    kind: Kind
+    body: list  # numpy field list after the header
+    text: dict[str, bool] = {}  # text field -> may be empty
+    tokens: tuple[str, ...] = ()  # raw byte fields
+    enums: dict[str, type[enum.IntEnum]] = {}
+    dtype: np.dtype
+    names: tuple[str, ...]
+
+    def __init_subclass__(cls):
+        cls.dtype = np.dtype(HEADER_FIELDS + cls.body)
+        cls.names = tuple(name for name, *_ in cls.body)
+
+    @staticmethod
+    def check(rec) -> None:
+        """Ranges and cross-field rules beyond the generic checks (finite, enums, text)."""
+
+
+class Hello(_Spec):
+    """hello, client -> server: asks for a seat or to watch. Header tick: 0.
+
+    Layout, 74 bytes:
+        off  size  field  type      unit / meaning
+          0    24  header           HEADER_DTYPE
+         24     1  role   u1        Role: 1 player, 2 spectator
+         25     1  slot   u1        Slot wanted: 0 any free, 1 A, 2 B; 0 for a spectator
+         26    32  name   u1[32]    UTF-8, NUL-padded, 1..32 bytes, see text rules
+         58    16  token  u1[16]    rejoin token from an earlier welcome; all zero = a new session
+                                    (always, for a spectator)
+    """
+
+    kind = Kind.HELLO
+    body = [("role", "u1"), ("slot", "u1"), ("name", "u1", (NAME_SIZE,)), ("token", "u1", (TOKEN_SIZE,))]
+    text = {"name": False}
+    tokens = ("token",)
+    enums = {"role": Role, "slot": Slot}
+
+    @staticmethod
+    def check(rec):
+        if rec["role"] == Role.SPECTATOR and rec["slot"] != Slot.NONE:
+            raise OutOfRange(f"hello.slot: a spectator asks for no slot, got {int(rec['slot'])}")
+        if rec["role"] == Role.SPECTATOR and rec["token"].any():
+            raise OutOfRange("hello.token: a spectator has no rejoin token")
+
+
+class Welcome(_Spec):
+    """welcome, server -> client: the seat given and what the client needs to know of the scene.
+
+    Header tick: the server's current tick.
+
+    Layout, 158 bytes:
+        off  size  field         type    unit / meaning
+          0    24  header                HEADER_DTYPE
+         24     1  slot          u1      Slot given: 0 spectator, 1 A, 2 B
+         25     1  best_of       u1      games in the match, odd, 1..9
+         26     2  snapshot_hz   <u2     snapshots per second the server sends, 1..1000
+         28     4  heartbeat_ms  <u4     send a heartbeat at least this often, 1..60000 ms
+         32     4  timeout_ms    <u4     a peer silent this long is dropped, heartbeat_ms..600000 ms
+         36     8  dt            <f8     s, the physics tick, (0, 0.05]
+         44    16  token         u1[16]  rejoin token for this slot; all zero for a spectator only
+         60    32  scene         u1[32]  scene name, UTF-8, NUL-padded, non-empty
+         92    32  name_a        u1[32]  player A's name, UTF-8, empty while the seat is free
+        124    32  name_b        u1[32]  player B's name, UTF-8, empty while the seat is free
+        156     2  feed_port     <u2     a spectator's feed: the TCP port, on the host of the session's
+                                         endpoint, of the gateway's PUB socket that carries every
+                                         snapshot and event (subscribe to all; its own seq stream,
+                                         so a gap is a message dropped at the high-water mark), and
+                                         none come on the session; 0: none, they come on the
+                                         session (always for a player)
+    """
+
+    kind = Kind.WELCOME
+    body = [("slot", "u1"), ("best_of", "u1"), ("snapshot_hz", "<u2"), ("heartbeat_ms", "<u4"),
+            ("timeout_ms", "<u4"), ("dt", "<f8"), ("token", "u1", (TOKEN_SIZE,)), ("scene", "u1", (NAME_SIZE,)),
+            ("name_a", "u1", (NAME_SIZE,)), ("name_b", "u1", (NAME_SIZE,)), ("feed_port", "<u2")]
+    text = {"scene": False, "name_a": True, "name_b": True}
+    tokens = ("token",)
+    enums = {"slot": Slot}
+
+    @staticmethod
+    def check(rec):
+        best_of = int(rec["best_of"])
+        if not (1 <= best_of <= MAX_BEST_OF and best_of % 2 == 1):
+            raise OutOfRange(f"welcome.best_of: must be odd in 1..{MAX_BEST_OF}, got {best_of}")
+        _within("welcome.snapshot_hz", int(rec["snapshot_hz"]), 1, 1000)
+        _within("welcome.heartbeat_ms", int(rec["heartbeat_ms"]), 1, 60_000)
+        _within("welcome.timeout_ms", int(rec["timeout_ms"]), int(rec["heartbeat_ms"]), 600_000)
+        dt = float(rec["dt"])
+        if not 0.0 < dt <= MAX_DT_S:
+            raise OutOfRange(f"welcome.dt: must be in (0, {MAX_DT_S}] s, got {dt!r}")
+        if bool(rec["token"].any()) != (rec["slot"] != Slot.NONE):
+            raise OutOfRange("welcome.token: a player gets a non-zero token, a spectator none")
+        if rec["feed_port"] and rec["slot"] != Slot.NONE:
+            raise OutOfRange("welcome.feed_port: a player's snapshots come on its session, its feed_port is 0")
+
+
+class Reject(_Spec):
+    """reject, server -> client: the hello is turned away; the server closes the session.
+
+    Header tick: the server's current tick.
+
+    Layout, 89 bytes:
+        off  size  field   type    unit / meaning
+          0    24  header          HEADER_DTYPE
+         24     1  reason  u1      RejectReason: 1 full, 2 version, 3 bad_request, 4 bad_token,
+                                   5 shutting_down
+         25    64  detail  u1[64]  human-readable UTF-8, NUL-padded, may be empty
+    """
+
+    kind = Kind.REJECT
+    body = [("reason", "u1"), ("detail", "u1", (DETAIL_SIZE,))]
+    text = {"detail": True}
+    enums = {"reason": RejectReason}
+
+
+class Input(_Spec):
+    """input, player client -> server: what the player's arm does to its own bat.
+
+    Header tick: the tick from which the input holds (the client's predicted tick); header seq
+    is echoed back in snapshot.input_seq once the server applied it. The gateway refuses an
+    input whose slot is not the session's own, and lets go of it (zero force, same seq) if no
+    other input follows within its input_hold_s (0.1 s by default).
+
+    Layout, 130 bytes:
+        off  size  field        type      unit / meaning
+          0    24  header                 HEADER_DTYPE
+         24     1  slot         u1        Slot of the bat, 1 A or 2 B: the sender's own
+         25     1  mode         u1        InputMode: 1 force, 2 target
+         26    24  force        <f8[3]    N, world frame, |force| <= 500; zero in target mode
+         50    24  torque       <f8[3]    N m, world frame, |torque| <= 50; zero in target mode
+         74    24  target_pos   <f8[3]    m, world frame, |each| <= 8; zero in force mode
+         98    32  target_quat  <f8[4]    (w, x, y, z) unit within 1e-6; zero in force mode
+    """
+
+    kind = Kind.INPUT
+    body = [("slot", "u1"), ("mode", "u1"), ("force", "<f8", (3,)), ("torque", "<f8", (3,)),
+            ("target_pos", "<f8", (3,)), ("target_quat", "<f8", (4,))]
+    enums = {"slot": Slot, "mode": InputMode}
+
+    @staticmethod
+    def check(rec):
+        if rec["slot"] == Slot.NONE:
+            raise OutOfRange("input.slot: must be A or B, got 0 (none)")
+        if rec["mode"] == InputMode.FORCE:
+            _norm_at_most("input.force", rec["force"], MAX_FORCE_N, "N")
+            _norm_at_most("input.torque", rec["torque"], MAX_TORQUE_NM, "N m")
+            _zero("input.target_pos", rec["target_pos"], "force mode")
+            _zero("input.target_quat", rec["target_quat"], "force mode")
+        else:
+            _zero("input.force", rec["force"], "target mode")
+            _zero("input.torque", rec["torque"], "target mode")
+            _box("input.target_pos", rec["target_pos"], MAX_POS_M)
+            _unit("input.target_quat", rec["target_quat"])
+
+
+class Snapshot(_Spec):
+    """snapshot, server -> every client: the authoritative state at one tick (header tick).
+
+    A player gets it on its session; a spectator on the feed (welcome.feed_port), where header
+    seq is the feed's own: the same bytes go to every spectator.
+
+    Ball and bats as the physics worker has them (float64, lossless), the referee's score.
+
+    Layout, 334 bytes:
+        off  size  field        type       unit / meaning
+          0    24  header                  HEADER_DTYPE
+         24    24  ball_pos     <f8[3]     m, world frame, |each| <= 8
+         48    24  ball_vel     <f8[3]     m/s, |ball_vel| <= 100
+         72    24  ball_spin    <f8[3]     rad/s, angular velocity, |ball_spin| <= 2000
+         96    48  bat_pos      <f8[2,3]   m, bats A and B, |each| <= 8
+        144    64  bat_quat     <f8[2,4]   (w, x, y, z) bat -> world, unit within 1e-6
+        208    48  bat_vel      <f8[2,3]   m/s, |bat_vel[i]| <= 100
+        256    48  bat_ang_vel  <f8[2,3]   rad/s, world frame, |bat_ang_vel[i]| <= 1000
+        304    16  input_seq    <u8[2]     seq of the last input applied to bat A, B before the step
+                                           into this tick (0: none): the snapshot shows the effect
+                                           of exactly the inputs up to it (client reconciliation)
+        320     4  rally        <u4        rallies started since the match began
+        324     4  score        <u2[2]     points of A, B in the current game
+        328     2  games_won    u1[2]      games won by A, B, <= 5
+        330     1  phase        u1         engine.rules.Phase, 0..5
+        331     1  server       u1         player serving this rally: 0 A, 1 B
+        332     1  striker      u1         player who struck last (or must serve): 0 A, 1 B
+        333     1  winner       i1         -1 while the match is on, else 0 A or 1 B
+    """
+
+    kind = Kind.SNAPSHOT
+    body = [("ball_pos", "<f8", (3,)), ("ball_vel", "<f8", (3,)), ("ball_spin", "<f8", (3,)),
+            ("bat_pos", "<f8", (2, 3)), ("bat_quat", "<f8", (2, 4)), ("bat_vel", "<f8", (2, 3)),
+            ("bat_ang_vel", "<f8", (2, 3)), ("input_seq", "<u8", (2,)), ("rally", "<u4"), ("score", "<u2", (2,)),
+            ("games_won", "u1", (2,)), ("phase", "u1"), ("server", "u1"), ("striker", "u1"), ("winner", "i1")]
+    enums = {"phase": Phase}
+
+    @staticmethod
+    def check(rec):
+        _box("snapshot.ball_pos", rec["ball_pos"], MAX_POS_M)
+        _norm_at_most("snapshot.ball_vel", rec["ball_vel"], MAX_SPEED_MS, "m/s")
+        _norm_at_most("snapshot.ball_spin", rec["ball_spin"], MAX_SPIN_RADS, "rad/s")
+        for i, side in enumerate("ab"):
+            _box(f"snapshot.bat_pos[{side}]", rec["bat_pos"][i], MAX_POS_M)
+            _unit(f"snapshot.bat_quat[{side}]", rec["bat_quat"][i])
+            _norm_at_most(f"snapshot.bat_vel[{side}]", rec["bat_vel"][i], MAX_SPEED_MS, "m/s")
+            _norm_at_most(f"snapshot.bat_ang_vel[{side}]", rec["bat_ang_vel"][i], MAX_BAT_ANG_VEL_RADS, "rad/s")
+        _within("snapshot.games_won", int(rec["games_won"].max()), 0, MAX_GAMES_WON)
+        _within("snapshot.server", int(rec["server"]), 0, 1)
+        _within("snapshot.striker", int(rec["striker"]), 0, 1)
+        _within("snapshot.winner", int(rec["winner"]), -1, 1)
+
+
+class Event(_Spec):
+    """event, server -> every client: a rally, a game or the match was decided at header tick.
+
+    On a player's session; on the feed for spectators (as snapshots are).
+
+    Layout, 40 bytes:
+        off  size  field      type    unit / meaning
+          0    24  header             HEADER_DTYPE
+         24     1  event      u1      EventKind: 1 point, 2 game, 3 match
+         25     1  winner     i1      0 A, 1 B; -1 only for a let (a point event, reason let)
+         26     1  reason     u1      index into engine.rules.REASONS of the deciding rally
+         27     1  game       u1      game index, 0-based, < 9
+         28     4  score      <u2[2]  points of A, B after the rally (the game's final score)
+         32     2  games_won  u1[2]   games won by A, B after the rally, <= 5
+         34     2  shots      <u2     strikes in the deciding rally, the service included
+         36     4  rally      <u4     rallies started since the match began
+    """
+
+    kind = Kind.EVENT
+    body = [("event", "u1"), ("winner", "i1"), ("reason", "u1"), ("game", "u1"), ("score", "<u2", (2,)),
+            ("games_won", "u1", (2,)), ("shots", "<u2"), ("rally", "<u4")]
+    enums = {"event": EventKind}
+
+    @staticmethod
+    def check(rec):
+        reason = int(rec["reason"])
+        if reason >= len(REASONS):
+            raise BadEnum(f"event.reason: must index engine.rules.REASONS (0..{len(REASONS) - 1}), got {reason}")
+        let = REASONS[reason] is Reason.LET
+        winner = int(rec["winner"])
+        if let and not (winner == -1 and rec["event"] == EventKind.POINT):
+            raise OutOfRange(f"event.winner: a let is a point event without a winner, got winner {winner}")
+        if not let:
+            _within("event.winner", winner, 0, 1)
+        _within("event.game", int(rec["game"]), 0, MAX_BEST_OF - 1)
+        _within("event.games_won", int(rec["games_won"].max()), 0, MAX_GAMES_WON)
+
+
+class Heartbeat(_Spec):
+    """heartbeat, both ways: I am alive. Header tick: the sender's latest tick.
+
+    Layout, 32 bytes:
+        off  size  field   type  unit / meaning
+          0    24  header        HEADER_DTYPE
+         24     8  ack     <u8   highest seq received from the peer so far (0: none), for loss counts
+    """
+
+    kind = Kind.HEARTBEAT
+    body = [("ack", "<u8")]
+
+
+class Goodbye(_Spec):
+    """goodbye, both ways: the session ends. Header tick: the sender's latest tick.
+
+    Layout, 25 bytes:
+        off  size  field   type  unit / meaning
+          0    24  header        HEADER_DTYPE
+         24     1  reason  u1    GoodbyeReason: 1 quit, 2 shutdown, 3 timeout, 4 match_over, 5 kicked
+    """
+
+    kind = Kind.GOODBYE
+    body = [("reason", "u1")]
+    enums = {"reason": GoodbyeReason}
+
+
+SPECS: dict[Kind, type[_Spec]] = {spec.kind: spec for spec in (Hello, Welcome, Reject, Input, Snapshot, Event,
+                                                                 Heartbeat, Goodbye)}
+SIZES = {kind: spec.dtype.itemsize for kind, spec in SPECS.items()}

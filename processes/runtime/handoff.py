@@ -1,0 +1,144 @@
+"""Lockstep hand-offs: the hub worker (physics) gives another worker its turn for a tick and
+waits, bounded, until that worker is done.
+
+A Baton is a pair of POSIX semaphores (futex-backed, so a waiting worker sleeps in the kernel
+and costs no CPU) plus a shared tick slot; the data itself crosses through shared records that
+the turn orders (the AI's view and answer, the net's net_io) and SnapshotBlocks, never through
+the baton, so nothing is pickled per tick. The hub calls only the workers a tick needs (a
+sleeping net, an AI control tick that needs no decision, the ball in free flight wake nobody),
+always in the same order, which keeps lockstep deterministic.
+
+Both sides spin briefly (SPIN_S, polling the semaphore without blocking) before they sleep.
+glibc's sem_post makes the futex wake-up call only when a waiter is asleep, so when the other
+side answers within the spin nobody enters the kernel: no wake-up, and above all no wake-up
+preemption, where the woken worker takes the CPU from the one that woke it. `pingpong bench
+handoff` measures a hand-off against a plain semaphore ping-pong.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+
+class HandoffTimeout(TimeoutError):
+    """A worker did not take or finish its turn within the bound."""
+
+
+TICK_SLOT_DTYPE = np.dtype([("tick", "<i8"), ("command", "<i8"), ("done_tick", "<i8")])
+RUN, STOP = 1, 2
+NO_TURN = -1  # try_turn: no turn given (ticks are >= 0)
+# How long a side polls before it sleeps: about one AI turn or ten physics ticks, so a turn
+# answered in that time costs no system call; a longer wait sleeps and costs no CPU.
+SPIN_S = 100e-6
+
+
+def _acquire(semaphore, timeout: float) -> bool:
+    """Take the semaphore: spin up to SPIN_S, then sleep up to the rest of `timeout`."""
+    if semaphore.acquire(False):
+        return True
+    clock = time.perf_counter
+    start = clock()
+    while clock() - start < SPIN_S:
+        if semaphore.acquire(False):
+            return True
+    return semaphore.acquire(timeout=max(timeout - SPIN_S, 0.0))
+
+
+class Baton:
+    """One hub <-> worker hand-off channel.
+
+    Args:
+        name: for messages. ctx: the multiprocessing context the workers are started from.
+        slot: a (1,) TICK_SLOT_DTYPE shared array (processes.runtime.shm.SharedArray.array).
+    """
+
+    def __init__(self, name: str, ctx, slot: np.ndarray):
+        self.name = name
+        self._go = ctx.Semaphore(0)
+        self._done = ctx.Semaphore(0)
+        self.attach(slot)
+
+    def __getstate__(self):
+        # The shared slot is re-attached by the worker from the arena; semaphores pickle by handle.
+        return {"name": self.name, "_go": self._go, "_done": self._done, "_words": None}
+
+    def attach(self, slot: np.ndarray) -> "Baton":
+        """Point at the shared (1,) TICK_SLOT_DTYPE slot: words 0 tick, 1 command, 2 tick done."""
+        self._words = memoryview(slot.view("<i8")).cast("B").cast("q")
+        return self
+
+    # hub side
+    def call(self, tick: int, timeout: float) -> None:
+        """Give the worker its turn for `tick` and wait until it is done with that tick."""
+        self.give(tick)
+        self.wait_done(tick, timeout)
+
+    def give(self, tick: int) -> None:
+        """Give the worker its turn for `tick` and return at once (the hub works on meanwhile)."""
+        words = self._words
+        words[0] = tick
+        words[1] = RUN
+        self._go.release()
+
+    def wait_done(self, tick: int, timeout: float) -> None:
+        """Wait until the worker is done with `tick`; raises HandoffTimeout after `timeout` s.
+
+        A 'done' for another tick (a late answer to a turn that had timed out) is skipped.
+        """
+        words = self._words
+        deadline = time.monotonic() + timeout
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0 or not _acquire(self._done, left):
+                raise HandoffTimeout(f"{self.name}: worker did not finish tick {tick} within {timeout} s")
+            if words[2] == tick:
+                return
+
+    def wait_done_or_retry(self, tick: int, timeout: float, give_up: float, on_wait) -> None:
+        """wait_done, and while the worker may be restarting, give it the turn again.
+
+        Every `timeout` s without an answer: on_wait(tick) (a heartbeat), then the turn is given
+        again (its inputs are still in place, and the worker answers a repeated turn as the
+        first); raises HandoffTimeout after `give_up` s.
+        """
+        deadline = time.monotonic() + give_up
+        while True:
+            try:
+                self.wait_done(tick, timeout)
+                return
+            except HandoffTimeout:
+                on_wait(tick)
+                if time.monotonic() > deadline:
+                    raise
+                self.give(tick)
+
+    def nudge(self) -> None:
+        """Wake the worker without a turn: it rereads the shared state it works from."""
+        self._go.release()
+
+    def stop(self) -> None:
+        self._words[1] = STOP
+        self._go.release()
+
+    # worker side
+    def wait_turn(self, timeout: float) -> int | None:
+        """The tick to do, None when told to stop; raises HandoffTimeout after `timeout` s."""
+        if not _acquire(self._go, timeout):
+            raise HandoffTimeout(f"{self.name}: no turn given within {timeout} s")
+        if self._words[1] == STOP:
+            return None
+        return self._words[0]
+
+    def try_turn(self) -> int | None:
+        """wait_turn without waiting: the tick to do, None when told to stop, NO_TURN when no
+        turn was given (a worker with work of its own polls between its pieces of work)."""
+        if not self._go.acquire(False):
+            return NO_TURN
+        if self._words[1] == STOP:
+            return None
+        return self._words[0]
+
+    def done(self) -> None:
+        self._words[2] = self._words[0]
+        self._done.release()

@@ -1,0 +1,138 @@
+"""What `pingpong stress` reports: latency and tick jitter against the tick schedule, percentiles,
+and the table and lines a user reads."""
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+
+
+def percentiles_ms(values: np.ndarray) -> dict:
+    if len(values) == 0:
+        return {"p50": None, "p99": None, "max": None, "n": 0}
+    ms = values * 1000.0
+    return {"p50": round(float(np.percentile(ms, 50)), 3), "p99": round(float(np.percentile(ms, 99)), 3),
+            "max": round(float(ms.max()), 3), "n": int(len(ms))}
+
+
+def tick_schedule(clock: dict, dt: float):
+    """Per physics incarnation (pid): first time seen, and the schedule's base (lower envelope of
+    seen - tick*dt, the incarnation's first sample left out: it may predate the start)."""
+    ticks, times, pids = clock["ticks"], clock["times"], clock["pids"]
+    segments = []
+    for pid in dict.fromkeys(pids.tolist()):
+        idx = np.flatnonzero(pids == pid)
+        if len(idx) < 3:
+            continue
+        idx = idx[1:]
+        offsets = times[idx] - ticks[idx] * dt
+        segments.append((float(times[idx[0]]), float(offsets.min()), idx))
+    return segments
+
+
+def jitter(clock: dict | None, dt: float, t0: float, t1: float) -> dict:
+    """Lateness of each tick the clock saw inside [t0, t1] against its incarnation's schedule."""
+    if clock is None:
+        return {"p99": None, "max": None, "n": 0}
+    late = []
+    for _, base, idx in tick_schedule(clock, dt):
+        times, ticks = clock["times"][idx], clock["ticks"][idx]
+        keep = (times >= t0) & (times <= t1)
+        late.append(times[keep] - (base + ticks[keep] * dt))
+    values = np.concatenate(late) if late else np.zeros(0)
+    out = percentiles_ms(values)
+    duration = float(clock["times"][-1] - clock["times"][0]) if len(clock["times"]) > 1 else 0.0
+    out["resolution_ms"] = round(1000 * duration / max(int(clock["samples"]), 1), 3)
+    out["ticks_seen_pct"] = round(100.0 * len(values) / max((t1 - t0) / dt, 1), 1)
+    return out
+
+
+def latency(clock: dict | None, dt: float, records: list[str]) -> dict:
+    """Receipt time minus the scheduled publish time of the snapshot's tick, over every snapshot."""
+    if clock is None:
+        return percentiles_ms(np.zeros(0))
+    segments = tick_schedule(clock, dt)
+    if not segments:
+        return percentiles_ms(np.zeros(0))
+    starts = np.array([s[0] for s in segments])
+    bases = np.array([s[1] for s in segments])
+    values = []
+    for path in records:
+        if not os.path.exists(path):
+            continue
+        with np.load(path) as data:
+            ticks, times = data["ticks"], data["times"]
+        playing = times >= starts[0]  # snapshots of tick 0 while the match waited for its players: no schedule yet
+        ticks, times = ticks[playing], times[playing]
+        which = np.searchsorted(starts, times, side="right") - 1
+        values.append(times - (bases[which] + ticks * dt))
+    return percentiles_ms(np.concatenate(values) if values else np.zeros(0))
+
+
+
+def _fmt(value) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, dict):
+        return "/".join(_fmt(value.get(k)) for k in ("p50", "p99", "max") if k in value)
+    return str(value)
+
+
+def _summary(result: dict) -> str:
+    c = result["counts"]
+    name = result["scenario"]
+    if name == "load":
+        return (f"{c.get('welcomed')}/{c.get('spectators')} spectators at {c.get('snapshot_hz')} Hz "
+                f"({c.get('fanout')} fan-out, {c.get('on_feed')} on the feed), rate median "
+                f"{c.get('rate_median_hz')} min {c.get('rate_min_hz')} Hz, missed {c.get('snapshots_missed')} "
+                f"(feed gaps {c.get('feed_missed')}, gateway dropped {c.get('gateway_snapshots_dropped')}), "
+                f"{c.get('points')} points")
+    if name == "churn":
+        return (f"{c.get('cycles')} cycles in {c.get('seconds')} s ({c.get('cycles_per_s')}/s), "
+                f"{c.get('left_abrupt', 0)} without goodbye; fill after: {c.get('fill_welcomed')} welcomed, "
+                f"rejected {c.get('fill_rejected')}")
+    if name == "cable":
+        return (f"pulled {c.get('pulled_slot')}: grace newcomer {c.get('during_grace_newcomer')}, goodbye "
+                f"{c.get('pulled_goodbye')}, token -> {c.get('token_rejoin')}; silent: after grace -> "
+                f"{c.get('after_grace_newcomer')} in {c.get('freed_after_s')} s")
+    if name == "kill":
+        return (f"{c.get('client_processes_killed')} client processes, gateway restarted {c.get('gateway_restarted')},"
+                f" physics restarted {c.get('physics_restarted')}, rejoined {c.get('keep_rejoined')}; shutdown: "
+                f"{c.get('goodbye_shutdown')}/{c.get('clients_at_shutdown')} goodbyes")
+    if name == "malformed":
+        return (f"{c.get('sent')} sent, gateway dropped {c.get('gateway_dropped_total')} (expected "
+                f"{c.get('expected_dropped_total')}), {c.get('kicks')} kicks, legit {c.get('legit_goodbyes')}")
+    return json.dumps(c)[:120]
+
+
+def print_table(results: list[dict]) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title="pingpong stress")
+    for column in ("scenario", "ok", "crashes", "lost points", "leaked fds", "leaked shm", "RSS growth %"):
+        table.add_column(column, no_wrap=column == "scenario")
+    for r in results:
+        table.add_row(r["scenario"], "yes" if r["ok"] else "NO", str(r["crashes"]), str(r["lost_points"]),
+                      str(r["leaked_fds"]), str(r["leaked_shm"]), _fmt(r["rss_growth_pct"]))
+    console = Console()
+    console.print(table)
+    for r in results:
+        jit = r.get("tick_jitter_ms") or {}
+        timing = (f"; latency ms p50/p99/max {_fmt(r['latency_ms'])}, tick jitter ms p99/max "
+                  f"{_fmt(jit.get('p99'))}/{_fmt(jit.get('max'))}" if r.get("latency_ms") else "")
+        console.print(f"[bold]{r['scenario']}[/]: {_summary(r)}{timing}; load average before/after "
+                      f"{r.get('loadavg_before_after')}")
+    for r in results:
+        if r.get("cpu_pct"):
+            console.print(f"[bold]{r['scenario']}[/] CPU % of one core: " +
+                          ", ".join(f"{k} {v}" for k, v in r["cpu_pct"].items()))
+        if r.get("cpu_pct_by_side"):
+            console.print(f"[bold]{r['scenario']}[/] CPU % of one core by side: " +
+                          ", ".join(f"{k} {v}" for k, v in r["cpu_pct_by_side"].items()))
+        for problem in r["problems"]:
+            console.print(f"[red]{r['scenario']}: {problem}[/]")
+        for finding in r.get("findings", []):
+            console.print(f"[yellow]{r['scenario']}: finding: {finding}[/]")
+

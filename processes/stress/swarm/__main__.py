@@ -1,0 +1,24 @@
+"""`python -m processes.stress.swarm SPEC_JSON`: run one task, print its report as the last JSON line."""
+from __future__ import annotations
+
+import json
+import os
+import sys
+
+from processes.stress.swarm import emit
+from processes.stress.swarm.churn import churn
+from processes.stress.swarm.malformed import malformed
+from processes.stress.swarm.watch import watch
+
+TASKS = {"watch": watch, "churn": churn, "malformed": malformed}
+
+
+def main(argv: list[str]) -> int:
+    spec = json.loads(argv[0])
+    report = TASKS[spec["task"]](spec)
+    emit({"event": "report", "pid": os.getpid(), **report})
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,134 @@
+"""The AI worker: one controller per AI-driven bat. It only decides forces, never sets positions.
+
+At an AI control tick where the AIs must decide, the physics worker copies the state into the
+AI's view and gives it its turn, then steps on; the AI computes every AI's force and torque
+from the view with engine.match.ai_inputs (the very function the in-process match calls) and
+writes them, with what each AI's controller tracks (its ctl row: the planned path, the face
+normal, gains and limits), into the `ai_answer` record before it says the turn is done; the
+physics reads it after that, at the next control tick. The baton orders the two sides (as for
+`ai_view` and the net's `net_io`), so the answer needs no lock. Asked again for the tick it last
+did (the physics restarted, or timed out waiting), it answers with its last answer again rather
+than deciding twice: the AIs' plans and random draws move on once per decision, as in the
+reference.
+
+Most control ticks need no decision: while the rally key, the striker and the serve stay as they
+were and the world clock has not reached the AIs' wakes (BatAI.wakes: a stroke thought out is
+due, a plan runs out), BatAI.decide changes nothing and the force is bat_control of the bat's
+state and the published ctl rows alone. The physics worker then computes that force itself with
+the same numba function (control_bats) and gives no turn: the AI is asked only when a decision
+can change (a few times a rally instead of 100 times a simulated second). The force law stays
+the AI's, its plan crosses only from the AI to the physics, and the bats still get forces only.
+
+A stroke is thought out between the turns (BatAI.think_step) while the physics steps on: the AI
+polls for a turn between think steps (each mostly 10-50 us), so a turn waits at most for the step
+under way. A stroke starts when the ball changes hands and is played only after the reaction
+time, and what is not thought out by then is finished at that turn (BatAI.finish_thinking). The
+strokes are the same, bit for bit, however the thinking was spread.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+import numpy as np
+
+from engine.dtypes import physics_snapshot_dtype
+from engine.match import ai_inputs, make_ais
+from engine.world import build_model, copy_record
+from processes.runtime.handoff import NO_TURN, HandoffTimeout
+from processes.runtime.shm import Arena
+from processes.runtime.control import Control
+from processes.workers.layout import ANSWER_DTYPE, decision_key
+from processes.workers.options import RunOptions
+
+class Answerer:
+    """The AI side of a turn: the AIs' decision from one state, as an ANSWER_DTYPE record.
+
+    Args:
+        ais: engine.ai.AIPlayers. n_bats: the scene's bats.
+    """
+
+    def __init__(self, ais, n_bats: int):
+        self.ais = ais
+        self.snap = np.zeros(1, physics_snapshot_dtype(n_bats))
+        self.ball_y = self.snap["ball"].view("<f8")  # views into the snapshot copy: nothing else is copied
+        self.bats = self.snap["bats"][0]
+        self.rally = self.snap[0]["rally"]
+        self.world = self.snap[0]["world"]
+        self.record = np.zeros(1, ANSWER_DTYPE)
+        self.inputs = self.record["inputs"][0][:n_bats]
+        self.ctl = self.record["ctl"][0][:len(ais)]
+        self.record["mask"] = sum(1 << player for player in ais)
+
+    def answer(self, view: np.ndarray, tick: int) -> np.ndarray:
+        """Decide from view[0] (a physics snapshot record) for `tick`; returns self.record, (1,)."""
+        copy_record(view, self.snap)  # our own copy, byte for byte: the AIs keep views into it
+        rally = self.rally
+        phase, server, striker = int(rally["phase"]), int(rally["server"]), int(rally["striker"])
+        rally_key = (int(rally["rally"]), int(rally["shots"]))
+        ai_inputs(self.ais, float(self.world["time"]), self.ball_y, self.bats, rally_key, phase, server, striker,
+                  self.inputs)
+        record = self.record
+        record["key"] = decision_key(*rally_key, phase, server, striker)
+        record["due"], record["end"] = self.ais.wakes()
+        self.ctl[:] = self.ais.ctl
+        record["tick"] = tick
+        return record
+
+
+def ai_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
+    """options: seed, ai_baton; crash_at_tick (tests: SIGKILL this process
+    after its first turn at or after that tick)."""
+    model = build_model(scene)
+    ais = make_ais(scene, model, options.seed, eager=False)
+    thinkers = list(ais.values())
+    baton = options.ai_baton.attach(arena["ai_baton"].array)
+    answer = arena["ai_answer"].array
+    view = arena["ai_view"].array
+    answerer = Answerer(ais, len(scene.bats))
+    crash_at = options.crash_at_tick
+    ais.warm_up()
+    control.start(0)
+    busy = think = longest = 0.0
+    turns = 0
+    last_tick = None
+    try:
+        while True:
+            thinker = next((ai for ai in thinkers if ai.thinking), None)
+            if thinker is not None:  # think a step, unless a turn came meanwhile
+                tick = baton.try_turn()
+                if tick == NO_TURN:
+                    t1 = time.perf_counter()
+                    thinker.think_step()
+                    think += time.perf_counter() - t1
+                    control.beat(int(control.row["tick"]))
+                    continue
+            else:
+                try:
+                    tick = baton.wait_turn(Control.HEARTBEAT_S)
+                except HandoffTimeout:
+                    control.beat(int(control.row["tick"]))  # idle: still alive, still listening
+                    continue
+            if tick is None:
+                break
+            t0 = time.perf_counter()
+            if tick != last_tick:
+                answerer.answer(view, tick)
+                last_tick = tick
+            copy_record(answerer.record, answer)
+            took = time.perf_counter() - t0
+            busy += took
+            longest = max(longest, took)
+            turns += 1
+            baton.done()
+            if crash_at is not None and tick >= crash_at:
+                os.kill(os.getpid(), signal.SIGKILL)
+            control.beat(tick)
+        busy += think
+        control.finish(busy, 0.0, {"tick": int(control.row["tick"]), "busy_s": busy, "think_s": think,
+                                   "late_thoughts": sum(ai.late_thoughts for ai in thinkers),
+                                   "late_thinking_s": sum(ai.late_thinking_s for ai in thinkers),
+                                   "turns": turns, "longest_turn_s": longest})
+    finally:
+        del view, answer, baton, answerer

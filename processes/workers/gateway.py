@@ -1,0 +1,116 @@
+"""The gateway worker: the network.gateway.Gateway fed by the run's shared memory.
+
+It reads the physics snapshots and the point log, pairs each snapshot with the remote inputs it
+acknowledges (remote_acks), and posts the remote players' inputs to the locked remote-input
+mailbox that the physics drains before each tick.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+import numpy as np
+import zmq
+
+from engine.dtypes import physics_snapshot_dtype
+from processes.network.gateway import STATS_EVERY_S, Gateway, GatewayConfig, SeatStore
+from processes.network.wire import GoodbyeReason, Slot
+from processes.runtime.control import Control, StopRequested
+from processes.runtime.locks import LockTable
+from processes.runtime.mailbox import Mailbox
+from processes.runtime.shm import Arena
+from processes.workers.layout import REMOTE_INPUT_DTYPE, RUN_LOCK_NAMES, read_ack
+from processes.workers.options import RunOptions
+
+
+def _consistent_snapshot(snapshots, acks: np.ndarray, record: np.ndarray, tries: int = 3):
+    """The latest physics snapshot and the input seqs acknowledged at its very tick (None after
+    `tries` snapshots whose tick left the ring meanwhile)."""
+    for _ in range(tries):
+        snapshots.snapshot(record)
+        rec = record[0]
+        ack = read_ack(acks, int(rec["world"]["tick"]))
+        if ack is not None:
+            return rec, ack
+    return record[0], None
+
+
+def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
+    """Serve the run's match to network clients until the match ends or the supervisor stops it.
+
+    options: gateway (GatewayConfig), lock_path, ticks (the run's tick limit), start_event (set
+    once every remote seat is taken: the physics worker waits for it), crash_at_tick (fault
+    injection: SIGKILL this process once the physics reached that tick).
+
+    A restarted gateway binds the same endpoint and has lost its sessions, not its seats: the
+    seat table lives in the supervisor's "seats" block (SeatStore), so clients that hear nothing
+    more hello again, a player with its token gets its seat back. Its feed binds a free port
+    again (the supervisor passes on the session's endpoint only): the new welcome names it.
+    The "ready" report names both endpoints; the counters go to GatewayConfig.stats_path every
+    STATS_EVERY_S and at the end (the supervisor's "done" report carries them at a match's end
+    only: a stopped worker's last message is never read).
+    """
+    config: GatewayConfig = options.gateway
+    locks = LockTable(options.lock_path, RUN_LOCK_NAMES, arena["lock_holders"])
+    box = Mailbox("remote_inputs", arena["remote_header"], arena["remote_inputs"], locks)
+    acks = arena["remote_acks"].array
+    points = arena["points"].array
+    snapshots = arena["physics"]
+    record = np.zeros(1, physics_snapshot_dtype(len(scene.bats)))
+    post = np.zeros((), REMOTE_INPUT_DTYPE)
+
+    def post_input(bat: int, seq: int, tick: int, inputs) -> bool:
+        post["tick"], post["seq"], post["bat"], post["inputs"] = tick, seq, bat, inputs
+        return box.post(post)
+
+    remote = [Slot(i + 1) for i, bat in enumerate(scene.bats) if bat.remote]
+    zctx = zmq.Context(io_threads=2)  # sessions and the feed's fan-out each on their own (Gateway)
+    seat_store = SeatStore(arena["seats"]) if "seats" in arena.blocks else None
+    gateway = Gateway(zctx, config, scene_name=scene.name, best_of=scene.match.best_of, dt=scene.dt,
+                      remote_slots=remote, post_input=post_input, seat_store=seat_store,
+                      bat_mass=[bat.mass for bat in scene.bats])
+    start_event = options.start_event
+    n_ticks = options.ticks
+    crash_at_tick = options.crash_at_tick
+    for slot in remote:  # a restarted gateway has no sessions yet: no remote arm holds a force
+        post_input(int(slot) - 1, 0, 0, np.zeros(6))
+    reason = GoodbyeReason.SHUTDOWN
+    try:
+        control.start({"endpoint": gateway.endpoint, "feed": gateway.feed_endpoint})
+        poll_ms = max(1, int(500 / config.snapshot_hz))
+        next_stats = 0.0
+        while True:
+            gateway.poll(poll_ms)
+            if config.stats_path and time.monotonic() >= next_stats:
+                next_stats = time.monotonic() + STATS_EVERY_S
+                gateway.write_stats({"end": None, "tick": gateway.tick})
+            rec, ack = _consistent_snapshot(snapshots, acks, record)
+            if ack is None:
+                gateway.counts["snapshots_without_ack"] += 1  # the gateway fell a ring behind: skip one
+                gateway.service(None)
+                continue
+            gateway.service(rec, ack, points)
+            if start_event is not None and not start_event.is_set() and gateway.seats_filled:
+                start_event.set()
+            control.beat(gateway.tick)
+            if crash_at_tick is not None and gateway.tick >= crash_at_tick:
+                os.kill(os.getpid(), signal.SIGKILL)  # fault injection (tests)
+            if int(rec["rally"]["winner"]) >= 0 or gateway.tick >= n_ticks:
+                gateway.broadcast_snapshot(rec, ack)  # the final state
+                reason = GoodbyeReason.MATCH_OVER
+                break
+    except StopRequested:
+        reason = GoodbyeReason.SHUTDOWN
+        raise
+    finally:
+        told = gateway.shutdown(reason)
+        stats = gateway.stats()
+        stats["goodbyes_at_end"] = told
+        gateway.write_stats({"goodbyes_at_end": told, "end": reason.name.lower(), "tick": gateway.tick})
+        gateway.close()
+        zctx.term()
+        del record, acks, points, snapshots, box, seat_store
+        locks.close()
+        if reason == GoodbyeReason.MATCH_OVER:
+            control.send("done", {"tick": gateway.tick, "gateway": stats})

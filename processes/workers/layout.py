@@ -1,0 +1,197 @@
+"""The run's shared layout: every record and block a run shares, its dtype, and who writes it.
+
+One writer per block (DESIGN.md); the supervisor creates them all here, before any worker starts,
+and removes them at the end. The blocks of a run, by name:
+
+| name | dtype | writer | readers |
+|---|---|---|---|
+| physics | engine physics snapshot (SnapshotBlock) | physics | supervisor, gateway, a restarted physics |
+| events | CONTACT_DTYPE ring of EVENT_LOG_CAPACITY | physics | supervisor |
+| status | runtime.control.STATUS_DTYPE, a row per worker | each worker its row | supervisor |
+| trace | physics snapshot per tick (with trace) | physics | supervisor |
+| points | POINT_DTYPE log (a match) | physics | supervisor, gateway |
+| frames | physics snapshot every frame_every ticks (replays) | physics | supervisor |
+| net_even, net_odd | net snapshot (SnapshotBlock), by tick parity | net | physics, a restarted net |
+| net_io | NET_IO_DTYPE | physics and net, ordered by net_baton | both |
+| ai_view | physics snapshot | physics, ordered by ai_baton | ai |
+| ai_answer | ANSWER_DTYPE | ai, ordered by ai_baton | physics |
+| ai_local | LOCAL_DTYPE | physics | a restarted physics |
+| remote_header, remote_inputs | Mailbox of REMOTE_INPUT_DTYPE (locked) | gateway posts | physics drains |
+| remote_applied, remote_acks | seqs applied per bat, REMOTE_ACK_DTYPE ring | physics | gateway |
+| seats | network.gateway.SEAT_DTYPE (SnapshotBlock) | gateway | a restarted gateway |
+| lock_holders | runtime.locks.HOLDER_DTYPE | lock table | lock table |
+"""
+from __future__ import annotations
+
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from engine.dtypes import CONTACT_DTYPE, POINT_DTYPE, net_snapshot_dtype, physics_snapshot_dtype
+from engine.ai import CTL_SIZE
+from engine.rules import Phase, next_striker
+from engine.scene import Scene
+from processes.network.gateway import SEAT_DTYPE
+from processes.runtime.control import STATUS_DTYPE
+from processes.runtime.handoff import TICK_SLOT_DTYPE, Baton
+from processes.runtime.locks import HOLDER_DTYPE, LockTable
+from processes.runtime.mailbox import MAILBOX_HEADER
+from processes.runtime.shm import Arena
+
+EVENT_LOG_CAPACITY = 1 << 16
+POINT_LOG_CAPACITY = 1 << 12  # a best-of-9 match has at most a few hundred rallies
+
+MAX_BATS = 2
+# The AIs' answer to one turn: the tick it answers, a bit per AI bat, every AI bat's inputs, and
+# what the physics needs to compute the forces itself until the next decision: the decision key
+# it was made under (decision_key), the wakes (BatAI.wakes) and each AI's ctl row, in the order
+# of the scene's AI bats.
+ANSWER_DTYPE = np.dtype([("tick", "<i8"), ("mask", "<i8"), ("inputs", "<f8", (MAX_BATS, 6)), ("key", "<i8", (4,)),
+                         ("due", "<f8"), ("end", "<f8"), ("ctl", "<f8", (MAX_BATS, CTL_SIZE))])
+# The inputs the physics computed itself at its last control tick without a turn (a restarted
+# physics takes them up again): written only by the physics worker, read only by its successor.
+LOCAL_DTYPE = np.dtype([("tick", "<i8"), ("inputs", "<f8", (MAX_BATS, 6))])
+
+# The physics' hand-off of a ball tick to the net worker, and the net's answer (NetSim.step's).
+NET_IO_DTYPE = np.dtype([
+    ("tick", "<i8"),  # the tick to step (the physics' tick at its start)
+    ("ball", "<f8", (2, 3)),  # position m, velocity m/s at the tick's start
+    ("radius", "<f8"), ("inv_mass", "<f8"),  # m, 1/kg
+    ("toi", "<f8"), ("impulse", "<f8", 3), ("offset", "<f8", 3),  # NetSim.step's answer
+    ("sleeping", "<i8"),  # the net sleeps after this step
+    ("box", "<f8", (2, 3)),  # m, lo and hi corners of the knots' box after this step (NetSim.box)
+    ("granted", "<i8"),  # the physics: the net may step every tick below this without the ball
+    ("turn", "<i8"),  # the physics: counts its ball ticks (a repeated turn counts again)
+    ("served", "<i8"),  # the worker: the last turn it answered
+])
+NET_BLOCKS = ("net_even", "net_odd")  # by the parity of the tick a state holds
+
+# One remote input on its way to the physics worker (the remote-input mailbox's record).
+REMOTE_INPUT_DTYPE = np.dtype([("tick", "<i8"), ("seq", "<u8"), ("bat", "<i8"), ("inputs", "<f8", (6,))])
+REMOTE_CAPACITY = 64  # inputs queued between two physics ticks; more are dropped and counted
+# The acknowledged input seq per bat at each published tick, written by the physics worker just
+# before it publishes that tick's snapshot, in a ring indexed by tick: the gateway pairs a
+# snapshot of tick T with the entry of tick T, so snapshot.input_seq names exactly the inputs
+# whose effect the snapshot shows (the last input applied before the step T-1 -> T).
+REMOTE_ACK_DTYPE = np.dtype([("tick", "<i8"), ("input_seq", "<u8", (2,))])
+REMOTE_ACK_RING = 1024  # ticks (1 s at 1 kHz): a reader this late gets None, never a wrong pair
+# Every arbitrated lock of a run, in the one global order of acquisition.
+RUN_LOCK_NAMES = ("remote_inputs",)
+
+
+def decision_key(rally: int, shots: int, phase: int, server: int, striker: int) -> tuple[int, int, int, int]:
+    """What the AIs' decisions depend on besides the clock and the ball: (rally, shots) (the rally
+    key, which changes whenever the ball changes hands), the player to strike next and whether
+    that strike is a service (the arguments of engine.match.ai_inputs); ANSWER_DTYPE's "key"."""
+    return (rally, shots, next_striker(phase, server, striker), int(phase == Phase.WAITING_SERVE))
+
+
+def write_ack(ring: np.ndarray, tick: int, input_seq) -> None:
+    """Physics side: the acknowledged seqs of tick `tick`, written before that tick is published.
+
+    ring: (REMOTE_ACK_RING,) REMOTE_ACK_DTYPE in shared memory. The entry's tick is made invalid
+    (-1) while its seqs change and set last, so a reader never pairs a tick with a torn entry
+    (stores stay in order on x86-64, as processes/runtime/shm.py relies on too).
+    """
+    i = tick % len(ring)
+    ring["tick"][i] = -1
+    ring["input_seq"][i] = input_seq
+    ring["tick"][i] = tick
+
+
+def read_ack(ring: np.ndarray, tick: int) -> tuple[int, int] | None:
+    """Gateway side: the acknowledged seqs (bat A, bat B) of tick `tick`, or None if the ring no
+    longer (or not yet) holds that tick."""
+    i = tick % len(ring)
+    before = int(ring["tick"][i])
+    seqs = ring["input_seq"][i].copy()
+    after = int(ring["tick"][i])
+    if before != tick or after != tick:
+        return None
+    return int(seqs[0]), int(seqs[1])
+
+
+@dataclass
+class RunLayout:
+    """A run's shared memory and the synchronisation objects its workers are handed.
+
+    arena: every block of the table above that the run's workers need. ai_baton, net_baton:
+    the turns' batons (None without that worker). lock_path: the lock table's file (a run with a
+    gateway, else None). start_event: set once every remote seat is taken (a run with a gateway).
+    """
+
+    arena: Arena
+    ai_baton: Baton | None = None
+    net_baton: Baton | None = None
+    lock_path: str | None = None
+    start_event: object | None = None
+    _lock_dir: str | None = None
+
+    def stop_turns(self) -> None:
+        """Stop the batons: a worker waiting for its turn exits at once."""
+        for baton in (self.ai_baton, self.net_baton):
+            if baton is not None:
+                baton.stop()
+
+    def close(self) -> None:
+        """Remove every segment and the lock table's file (after the workers are gone)."""
+        self.arena.close()
+        if self._lock_dir is not None:
+            shutil.rmtree(self._lock_dir, ignore_errors=True)
+
+
+def build_layout(scene: Scene, kinds: list[str], ticks: int, trace: bool, frame_every: int, ctx) -> RunLayout:
+    """Create the run's blocks for the workers `kinds` (processes.workers.workers_for).
+
+    Args:
+        scene: the scene. kinds: the run's workers. ticks: the run's length (sizes trace and frames).
+        trace: keep every tick's snapshot. frame_every: a replay frame every this many ticks, 0: none.
+        ctx: the multiprocessing context the workers start from (batons and events belong to it).
+    """
+    arena = Arena()
+    snapshot = physics_snapshot_dtype(len(scene.bats))
+    layout = RunLayout(arena)
+    try:
+        arena.snapshot_block("physics", snapshot, 1)
+        arena.shared_array("events", CONTACT_DTYPE, EVENT_LOG_CAPACITY)
+        arena.shared_array("status", STATUS_DTYPE, len(kinds))
+        if trace:
+            arena.shared_array("trace", snapshot, ticks + 1)
+        if scene.match is not None:
+            arena.shared_array("points", POINT_DTYPE, POINT_LOG_CAPACITY)
+            if frame_every:
+                arena.shared_array("frames", snapshot, ticks // frame_every + 1)
+        if "net" in kinds:
+            from net_kernel import build_topology
+
+            knots = net_snapshot_dtype(build_topology(scene.cloth).n_knots)
+            for name in NET_BLOCKS:
+                arena.snapshot_block(name, knots, 1)
+            arena.shared_array("net_io", NET_IO_DTYPE, 1)
+            layout.net_baton = Baton("net", ctx, arena.shared_array("net_baton", TICK_SLOT_DTYPE, 1).array)
+        if "ai" in kinds:
+            # The view and the answer are ordered by the baton (its semaphores are full barriers),
+            # so neither needs a seqlock or a lock. Tick -1: none yet.
+            arena.shared_array("ai_view", snapshot, 1)
+            arena.shared_array("ai_answer", ANSWER_DTYPE, 1).array["tick"] = -1
+            arena.shared_array("ai_local", LOCAL_DTYPE, 1).array["tick"] = -1
+            layout.ai_baton = Baton("ai", ctx, arena.shared_array("ai_baton", TICK_SLOT_DTYPE, 1).array)
+        if "gateway" in kinds:
+            layout._lock_dir = tempfile.mkdtemp(prefix=f"pingpong-{arena.run_id}-")
+            layout.lock_path = str(Path(layout._lock_dir) / "locks")
+            holders = arena.shared_array("lock_holders", HOLDER_DTYPE, len(RUN_LOCK_NAMES))
+            LockTable.create(layout.lock_path, RUN_LOCK_NAMES, holders).close()
+            arena.shared_array("remote_header", MAILBOX_HEADER, 1)
+            arena.shared_array("remote_inputs", REMOTE_INPUT_DTYPE, REMOTE_CAPACITY)
+            arena.shared_array("remote_applied", np.dtype("<u8"), 2)  # seq of the last input applied per bat
+            arena.shared_array("remote_acks", REMOTE_ACK_DTYPE, REMOTE_ACK_RING)  # those seqs by published tick
+            arena.snapshot_block("seats", SEAT_DTYPE, 2)  # the seat table, so a restarted gateway keeps its tokens
+            layout.start_event = ctx.Event()
+    except BaseException:
+        layout.stop_turns()
+        layout.close()
+        raise
+    return layout

@@ -1,0 +1,166 @@
+"""The net worker: the cloth net (net_kernel.NetSim) in a process of its own.
+
+Two kinds of ticks reach it from the physics worker:
+- Ticks with the ball in the net's reach (engine.world: inside model.cloth_reach, the net awake
+  or the ball near its frozen shape): the physics gives it the baton and waits. The ball's state
+  at the tick's start crosses in the shared `net_io` record and the net's answer (time of impact,
+  impulse, offset, whether it now sleeps, its box) comes back in it; the baton orders the two
+  sides, so the record needs no lock. The physics applies the answer exactly as the in-process
+  engine applies NetSim.step's.
+- Ticks with the ball out of reach (NetSim.step_free): the physics only raises `granted`, the
+  tick the net may step to without the ball, nudges the worker and goes on at once. The net
+  steps them while the physics works: on two cores the ringing of a struck net then costs the
+  physics nothing until the ball comes back within reach, where its first hand-off waits until
+  the net has caught up. A sleeping net with the ball far away wakes nobody.
+Either way the net steps the same ticks with the same inputs as the in-process NetSim, which
+keeps lockstep runs bit for bit equal to the reference.
+
+The worker publishes its whole state (engine.dtypes.net_snapshot_dtype) before and after every
+tick stepped with the ball and after every run of free ticks, into one of two SnapshotBlocks by
+the parity of the tick it holds, so the state before the last ball tick is always kept too. That makes restarts
+exact: a restarted net worker resumes from its newest state (and steps the free ticks still
+granted); a restarted physics worker may ask again for the ball tick the net has just stepped,
+and the net then goes back to the state before it (in the other block). Free ticks never need
+going back: the physics grants a tick only after deciding it, and decides it the same way again.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+import numpy as np
+
+from engine.dtypes import net_snapshot_dtype
+from net_kernel import NetSim, build_topology
+from net_kernel.sim import compile_kernels, net_box
+from processes.runtime.handoff import HandoffTimeout
+from processes.runtime.shm import Arena
+from processes.runtime.control import Control
+from processes.workers.layout import NET_BLOCKS
+from processes.workers.options import RunOptions
+
+FREE_BEAT_TICKS = 256  # free ticks between two heartbeats: well inside the supervisor's stall timeout
+
+
+def net_blocks(arena: Arena) -> list:
+    return [arena[name] for name in NET_BLOCKS]
+
+
+def newest_state(blocks, out: np.ndarray, at_most: int | None = None) -> bool:
+    """Copy into out[0] the newest published net state whose tick is <= at_most (any if None).
+
+    Returns False when no block holds such a state (a fresh run: the net is as built).
+    """
+    best = None
+    for block in blocks:
+        if block.version < 2:  # never published
+            continue
+        tick = block.tick
+        if (at_most is None or tick <= at_most) and (best is None or tick > best.tick):
+            best = block
+    if best is None:
+        return False
+    best.snapshot(out)
+    return True
+
+
+def _load(sim: NetSim, state) -> None:
+    sim.knot_pos[:] = state["pos"]
+    sim.knot_vel[:] = state["vel"]
+    sim.sleeping = bool(state["sleeping"])
+    sim.quiet_ticks = int(state["quiet_ticks"])
+    net_box(sim.knot_pos, out=sim.box)
+
+
+def _publish(sim: NetSim, tick: int, state: np.ndarray, blocks) -> None:
+    """Publish the net's state at `tick` into the block of its parity (a ball tick's state before
+    and after it then sit in different blocks, and answering the same tick again, which goes
+    back to the state before it, overwrites only the state after it)."""
+    row = state[0]
+    row["tick"] = tick
+    row["sleeping"] = sim.sleeping
+    row["quiet_ticks"] = sim.quiet_ticks
+    row["pos"] = sim.knot_pos
+    row["vel"] = sim.knot_vel
+    blocks[tick % 2].publish(state, tick)
+
+
+def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
+    """options: net_baton (processes.runtime.handoff.Baton); crash_at_tick (tests: SIGKILL this process
+    after publishing that ball tick's state and before saying it is done, the hardest moment)."""
+    topo = build_topology(scene.cloth)
+    sim = NetSim(topo, scene.dt)
+    compile_kernels(topo, scene.dt)  # before "ready": nothing compiles mid-run
+    baton = options.net_baton.attach(arena["net_baton"].array)
+    row = arena["net_io"].array[0]
+    blocks = net_blocks(arena)
+    state = np.zeros(1, net_snapshot_dtype(topo.n_knots))
+    if newest_state(blocks, state):
+        _load(sim, state[0])  # restarted: resume from the newest state
+        net_tick = int(state[0]["tick"])
+    else:
+        net_tick = 0
+        _publish(sim, net_tick, state, blocks)
+    published = net_tick  # the tick of the newest published state
+    served = int(row["served"])
+    control.start(net_tick)
+    busy = 0.0
+    steps = 0
+    try:
+        while True:
+            try:
+                stop = baton.wait_turn(Control.HEARTBEAT_S) is None
+            except HandoffTimeout:
+                control.beat(net_tick)  # a sleeping net: still alive, still listening
+                continue
+            t0 = time.perf_counter()
+            # First the free ticks granted so far (a nudge, or the ones before a ball tick).
+            while net_tick < int(row["granted"]):
+                run = min(int(row["granted"]) - net_tick, FREE_BEAT_TICKS)
+                sim.step_free(run)
+                net_tick += run
+                steps += run
+                control.beat(net_tick)
+            if published != net_tick:
+                _publish(sim, net_tick, state, blocks)
+                published = net_tick
+            if stop:
+                busy += time.perf_counter() - t0
+                break
+            if int(row["turn"]) == served:  # a nudge, or a turn already answered
+                busy += time.perf_counter() - t0
+                continue
+            # A wake-up may be an earlier post than the turn's (a nudge): the turn's fields are read
+            # from net_io after its `turn`, which the physics writes after them. x86-64 keeps both
+            # orders (stores are seen in program order, loads are not passed by later loads).
+            served = int(row["turn"])
+            tick = int(row["tick"])
+            if net_tick > tick:
+                # The physics does this tick again (it was restarted): back to the state before it.
+                newest_state(blocks, state, at_most=tick)
+                _load(sim, state[0])
+            elif net_tick < tick:
+                # Ticks the physics skipped because it knew the net asleep: it stays as it is.
+                if not sim.sleeping:
+                    raise RuntimeError(f"net worker: asked for tick {tick} at tick {net_tick} while awake; the "
+                                       "ticks between were neither granted free nor given")
+            contact = sim.step(row["ball"][0], row["ball"][1], float(row["radius"]), float(row["inv_mass"]))
+            row["toi"] = contact.toi
+            row["impulse"] = contact.impulse
+            row["offset"] = contact.offset
+            row["sleeping"] = sim.sleeping
+            row["box"] = sim.box
+            net_tick = tick + 1
+            _publish(sim, net_tick, state, blocks)
+            published = net_tick
+            row["served"] = served
+            steps += 1
+            busy += time.perf_counter() - t0
+            if tick == options.crash_at_tick:
+                os.kill(os.getpid(), signal.SIGKILL)
+            baton.done()
+            control.beat(tick)
+        control.finish(busy, 0.0, {"tick": net_tick, "busy_s": busy, "steps": steps, "awake_ticks": sim.awake_ticks})
+    finally:
+        del row, blocks

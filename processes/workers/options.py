@@ -1,0 +1,43 @@
+"""RunOptions: what the supervisor tells every worker of a run, with each default stated once."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+# A served match waits this long for its remote players to take their seats, then starts.
+PLAYERS_TIMEOUT_S = 300.0
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """One worker's options (pickled to it once, at its start).
+
+    Attributes:
+        ticks: ticks the run reaches. mode: "lockstep" or "realtime".
+        trace: keep every tick's physics snapshot in the "trace" array.
+        crash_at_tick: fault injection for tests and `pingpong stress`: this worker SIGKILLs
+            itself at that tick (None: never). The supervisor sets it for one incarnation of one worker.
+        seed: the match's seed. frame_every: keep a snapshot every this many ticks (replays), 0: none.
+        players_timeout: s, a served match waits this long for its remote players, then starts.
+        gateway: processes.network.gateway.GatewayConfig of a scene with the effect "remote".
+        ai_baton, net_baton: the processes.runtime.handoff.Baton of the AI's and the net's turns
+            (None: no such worker). lock_path: the run's lock table (a run with a gateway).
+        start_event: set by the gateway once every remote seat is taken (a run with a gateway).
+    """
+
+    ticks: int
+    mode: str = "lockstep"
+    trace: bool = False
+    crash_at_tick: int | None = None
+    seed: int = 0
+    frame_every: int = 0
+    players_timeout: float = PLAYERS_TIMEOUT_S
+    gateway: Any = None
+    ai_baton: Any = None
+    net_baton: Any = None
+    lock_path: str | None = None
+    start_event: Any = None
+
+    def __post_init__(self):
+        if self.mode not in ("lockstep", "realtime"):
+            raise ValueError(f"mode must be lockstep or realtime, got {self.mode!r}")

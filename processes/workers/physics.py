@@ -1,0 +1,220 @@
+"""The physics worker: ball, bats, contacts and, in a match, the referee and the server's toss.
+
+It owns the physics snapshot (published every tick), the event log and the point log.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+import numpy as np
+
+from engine.dtypes import physics_snapshot_dtype
+from engine.match import Match, point_from_row, point_row
+from engine.world import build_model, copy_record, initial_state, new_events, step
+from processes.runtime.control import Control
+from processes.runtime.shm import Arena
+from processes.workers.hub import AIDriver, RemoteInputs, RemoteNet
+from processes.workers.options import RunOptions
+
+
+class _Pacer:
+    """Realtime mode: start each tick at its wall-clock time; count the late ones, drop none."""
+
+    def __init__(self, start_wall: float, dt: float, row):
+        self.start, self.dt, self.row = start_wall, dt, row
+
+    def wait(self, tick: int) -> None:
+        due = self.start + tick * self.dt
+        now = time.monotonic()
+        if now < due:
+            time.sleep(due - now)  # pacing to the wall clock, not synchronisation
+        elif now - due > self.dt:
+            self.row["late_ticks"] += 1
+            self.row["max_late_s"] = max(float(self.row["max_late_s"]), now - due)
+
+
+class _Publisher:
+    """What the physics writes after its ticks: the new events into the event log's ring, the
+    trace row, the snapshot (one copy: the state lives in `record`), and the fault injection.
+
+    Args:
+        arena: the run's. record: the state's snapshot record. options: the worker's.
+        total_events: events logged so far (after a restart, the snapshot's count).
+    """
+
+    def __init__(self, arena: Arena, record: np.ndarray, options: RunOptions, total_events: int):
+        self.snapshots = arena["physics"]
+        self.log = arena["events"].array
+        self.trace = arena["trace"].array if options.trace else None
+        self.record = record
+        self.total_events = total_events
+        self.crash_at_tick = options.crash_at_tick
+
+    def start(self, resumed: bool) -> None:
+        """A fresh run publishes tick 0 (a restarted one resumed from the published snapshot)."""
+        if not resumed:
+            if self.trace is not None:
+                copy_record(self.record, self.trace, 0)
+            self.snapshots.publish(self.record, 0)
+
+    def publish(self, tick: int, events: np.ndarray, n_events: int) -> None:
+        capacity = self.log.shape[0]
+        for k in range(n_events):
+            self.log[(self.total_events + k) % capacity] = events[k]
+        self.total_events += n_events
+        if self.trace is not None:
+            copy_record(self.record, self.trace, tick)
+        self.snapshots.publish(self.record, tick)
+        if tick == self.crash_at_tick:
+            os.kill(os.getpid(), signal.SIGKILL)
+
+
+def physics_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
+    """Run the physics ticks: lockstep (as fast as possible) or realtime (paced by the wall clock).
+
+    options: ticks (total to reach), mode ("lockstep" | "realtime"), trace (bool),
+        crash_at_tick (int or None: SIGKILL this process right after publishing that tick),
+        and for a match: seed, ai_baton (when the scene has AI bats), lock_path (when it has remote players).
+    """
+    if scene.match is not None:
+        return _match_worker(control, arena, scene, options)
+    model = build_model(scene)
+    state = initial_state(scene)
+    events = new_events()
+    snapshots = arena["physics"]
+    # Compile (or load from the cache) before reporting ready: a zero-length tick is an identity.
+    step(model, state, None, events, dt=0.0)
+    resumed = snapshots.version >= 2
+    if resumed:
+        snapshots.snapshot(state.record)  # restarted: resume from the last consistent snapshot
+    out = _Publisher(arena, state.record, options, int(state.world[0]["events_total"]))
+    out.start(resumed)
+    net = _remote_net(control, arena, options, state)
+    tick = int(state.world[0]["tick"])
+    start_wall = control.start(tick)
+    pacer = _Pacer(start_wall, model.dt, control.row) if options.mode == "realtime" else None
+    n_ticks = options.ticks
+    busy = 0.0
+    while tick < n_ticks:
+        if pacer is not None:
+            pacer.wait(tick)
+        t0 = time.perf_counter()
+        n = step(model, state, None, events)
+        tick += 1
+        out.publish(tick, events, n)
+        busy += time.perf_counter() - t0
+        control.beat(tick)
+    _finish(control, tick, busy, net, options)
+
+
+def _remote_net(control: Control, arena: Arena, options: RunOptions, state):
+    """With a net worker: the state's cloth net becomes its stand-in (after any resume)."""
+    if options.net_baton is None:
+        return None
+    state.net_sim = RemoteNet(control, arena, options, state.world[0], state.net_sim)
+    return state.net_sim
+
+
+def _stop_net(net, options: RunOptions) -> float:
+    """Tell the net worker the run is over; the wall time spent waiting for it."""
+    if net is None:
+        return 0.0
+    options.net_baton.stop()
+    return net.waits
+
+
+def _finish(control: Control, tick: int, busy: float, net, options: RunOptions, match: bool = False, driver=None,
+            remote=None) -> None:
+    """The physics' last words: stop the AI's and the net's turns, report the work and hand-offs.
+
+    busy_s counts the physics' own work; the hand-offs to the AI and the net (and their work
+    inside them, which they report themselves) are reported apart, as handoff_s. The report
+    also carries the AI control ticks (turns given to the AI worker, forces computed here on
+    the AIs' plans), the cloth net's ticks (handed to the net worker with the ball and waited
+    for, or granted without it) and the remote inputs refused by reason.
+    """
+    handoff = _stop_net(net, options)
+    report = {"tick": tick}
+    if net is not None:
+        report.update(net_ball_ticks=net.ball_ticks, net_free_ticks=net.free_ticks)
+    if driver is not None:
+        handoff += driver.waits
+        options.ai_baton.stop()
+        report.update(ai_turns=driver.turns, ai_local_ticks=driver.local)
+        driver.close()
+    if match:
+        report.update(remote_inputs_refused={} if remote is None else dict(remote.refused))
+    if remote is not None:
+        remote.close()
+    report.update(busy_s=busy - handoff, handoff_s=handoff)
+    control.finish(busy - handoff, handoff, report)
+
+
+def _await_players(control: Control, options: RunOptions, tick: int) -> None:
+    """A served match starts once the gateway says every remote seat is taken (bounded)."""
+    event = options.start_event
+    deadline = time.monotonic() + options.players_timeout
+    while not event.wait(0.2) and time.monotonic() < deadline:
+        control.beat(tick)
+
+
+def _match_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
+    n_bats = len(scene.bats)
+    has_ai = any(bat.skill is not None for bat in scene.bats)
+    driver = AIDriver(control, arena, options, scene) if has_ai else None
+    match = Match(scene, options.seed, ai_driver=driver)
+    snapshots = arena["physics"]
+    points_log = arena["points"].array
+    frames = arena["frames"].array if "frames" in arena.blocks else None
+    frame_every = options.frame_every
+    record = match.state.record  # the state lives in the snapshot record: publishing is one copy
+    step(match.model, match.state, None, match.events, dt=0.0)  # compile or load the kernels
+    resumed = snapshots.version >= 2
+    if resumed:
+        latest = np.zeros(1, physics_snapshot_dtype(n_bats))
+        snapshots.snapshot(latest)
+        total = int(latest[0]["rally"]["points_total"])
+        match.restore(latest[0], [point_from_row(points_log[i]) for i in range(total)])
+    world = match.state.world[0]
+    out = _Publisher(arena, record, options, int(world["events_total"]))
+    out.start(resumed)
+    net = _remote_net(control, arena, options, match.state)
+    tick = int(world["tick"])
+    points_logged = len(match.referee.points)
+    start_wall = control.start(tick)
+    remote = RemoteInputs(arena, options, match) if "remote" in scene.effects else None
+    if remote is not None:
+        _await_players(control, options, tick)
+        start_wall = time.monotonic() - tick * match.model.dt  # pace from when play starts
+    pacer = _Pacer(start_wall, match.model.dt, control.row) if options.mode == "realtime" else None
+    n_ticks = options.ticks
+    crash_at_tick = options.crash_at_tick
+    busy = 0.0
+    # pacing, traces and remote inputs (drained before every tick) want every tick
+    per_tick = pacer is not None or options.trace or remote is not None
+    while tick < n_ticks and not match.referee.match_over:
+        if pacer is not None:
+            pacer.wait(tick)
+        t0 = time.perf_counter()
+        if remote is not None:
+            remote.apply()
+        chunk = 1 if per_tick else n_ticks - tick
+        if frames is not None:
+            chunk = min(chunk, frame_every - tick % frame_every)
+        if crash_at_tick is not None and tick < crash_at_tick:
+            chunk = min(chunk, crash_at_tick - tick)
+        match.tick(chunk)
+        tick += match.ticks_done
+        while points_logged < len(match.referee.points):
+            points_log[points_logged] = point_row(match.referee.points[points_logged], tick)
+            points_logged += 1
+        if frames is not None and tick % frame_every == 0 and tick // frame_every < len(frames):
+            copy_record(record, frames, tick // frame_every)
+        if remote is not None:
+            remote.publish_ack(tick)
+        out.publish(tick, match.events, match.n_events)
+        busy += time.perf_counter() - t0
+        control.beat(tick)
+    _finish(control, tick, busy, net, options, True, driver, remote)

@@ -1,0 +1,859 @@
+"""The gateway: sessions, seats, refusals, drops, heartbeats and a served match, on real sockets.
+
+Sockets bind to 127.0.0.1 on random ports and close with linger 0; every receive is polled with
+a timeout and every loop is bounded in rounds; each test has its own alarm (pytest-timeout).
+The session tests drive a Gateway in this process with a clock they set, so a heartbeat timeout
+needs no sleep; the match tests run `pingpong serve` and `pingpong join --bot` as processes.
+"""
+import json
+import os
+import select
+import signal
+import subprocess
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+import zmq
+
+from engine.dtypes import physics_snapshot_dtype
+from engine.scene import SceneError, load_scene, parse_scene, with_remote_players
+from processes.network import wire
+from processes.runtime import shm
+from processes.network.client import Client, Rejected
+from processes.network.gateway import Gateway, GatewayConfig
+from processes.supervisor import workers_for
+from processes.network.wire import GoodbyeReason, Kind, RejectReason, Role, Slot
+from tests.processes.conftest import ctrl_c_able
+
+ROOT = Path(__file__).resolve().parents[3]
+ROUNDS = 400  # pump rounds at most (each polls for at most 10 ms)
+
+
+class Clock:
+    def __init__(self):
+        self.now = 1000.0
+
+    def __call__(self):
+        return self.now
+
+
+class Rig:
+    """A Gateway on a random port of 127.0.0.1, its clients, and a physics record to serve."""
+
+    def __init__(self, zctx, remote=(Slot.A, Slot.B), seat_store=None, bat_mass=None, **config):
+        self.zctx = zctx
+        self.clock = Clock()
+        self.posted = []
+        settings = dict(bind="tcp://127.0.0.1:0", snapshot_hz=1000, heartbeat_s=1.0, timeout_s=5.0, grace_s=30.0)
+        settings.update(config)
+        self.gateway = Gateway(zctx, GatewayConfig(**settings), scene_name="match", best_of=1, dt=0.001,
+                               remote_slots=remote, post_input=self._post, clock=self.clock, seat_store=seat_store,
+                               bat_mass=bat_mass)
+        self.record = np.zeros(1, physics_snapshot_dtype(2))[0]
+        self.record["bats"]["quat"] = (1.0, 0.0, 0.0, 0.0)
+        self.record["rally"]["winner"] = -1
+        self.clients = []
+
+    def _post(self, bat, seq, tick, inputs):
+        self.posted.append((bat, seq, tick, np.array(inputs)))
+        return True
+
+    def client(self, role="player", slot=Slot.NONE, token=bytes(16), name="p", socket_options=None) -> Client:
+        client = Client(self.gateway.endpoint, role, name, slot, token, zctx=self.zctx, socket_options=socket_options)
+        self.clients.append(client)
+        return client
+
+    def step(self, serve=False):
+        self.gateway.poll(2)
+        if serve:  # a snapshot per step: a feed subscriber that is still connecting misses the first ones
+            self.clock.now += 1.0 / self.gateway.config.snapshot_hz
+        self.gateway.service(self.record if serve else None)
+
+    def until(self, client, predicate, serve=False):
+        """Pump gateway and client until the client gets a message satisfying predicate (bounded)."""
+        for _ in range(ROUNDS):
+            self.step(serve)
+            message = client.recv(5)
+            if message is not None and predicate(message):
+                return message
+        raise AssertionError("no such message within the bound")
+
+    def settle(self, check):
+        """Pump the gateway until check() holds (bounded)."""
+        for _ in range(ROUNDS):
+            self.step()
+            if check():
+                return
+        raise AssertionError("the gateway never got there")
+
+    def join(self, client):
+        client.hello()
+        message = self.until(client, lambda m: m.kind in (Kind.WELCOME, Kind.REJECT))
+        client.accept(message)
+        return message
+
+    def close(self):
+        for client in self.clients:
+            client.close()
+        self.gateway.close()
+
+
+@pytest.fixture
+def rig(zctx):
+    made = []
+
+    def make(**kwargs):
+        made.append(Rig(zctx, **kwargs))
+        return made[-1]
+
+    yield make
+    for r in made:
+        r.close()
+
+
+@pytest.mark.timeout(30)
+def test_two_players_get_seats_a_third_is_told_full_and_spectators_watch(rig):
+    r = rig()
+    a, b, c = r.client(name="ann"), r.client(name="bob"), r.client(name="cy")
+    welcome_a, welcome_b = r.join(a), r.join(b)
+    assert (welcome_a["slot"], welcome_b["slot"]) == (Slot.A, Slot.B)
+    assert welcome_a["token"] != bytes(16) and welcome_a["token"] != welcome_b["token"]
+    assert welcome_b["name_a"] == "ann" and welcome_b["name_b"] == "bob"
+    with pytest.raises(Rejected) as refused:
+        r.join(c)
+    assert refused.value.reason == RejectReason.FULL
+    watcher = r.client(role="spectator")
+    welcome = r.join(watcher)
+    assert welcome["slot"] == Slot.NONE and welcome["token"] == bytes(16)
+    snapshot = r.until(watcher, lambda m: m.kind == Kind.SNAPSHOT, serve=True)
+    assert snapshot["winner"] == -1
+    assert r.gateway.stats()["rejected.full"] == 1 and r.gateway.seats_filled
+
+
+@pytest.mark.timeout(30)
+def test_a_seat_played_by_the_ai_is_not_given_away(rig):
+    r = rig(remote=(Slot.A,))
+    with pytest.raises(Rejected) as refused:
+        r.join(r.client(slot=Slot.B))
+    assert refused.value.reason == RejectReason.FULL and "AI" in refused.value.detail
+    assert r.join(r.client())["slot"] == Slot.A
+
+
+@pytest.mark.timeout(30)
+def test_a_player_moves_only_its_own_bat_and_the_refusals_are_counted(rig):
+    r = rig()
+    a, b = r.client(), r.client()
+    r.join(a)
+    r.join(b)
+    a.send_input([1.0, 2.0, 3.0, 0.1, 0.2, 0.3], tick=7)
+    a.send_input([5.0, 0, 0, 0, 0, 0], tick=8, slot=Slot.B)  # the other player's bat
+    a.send_input([6.0, 0, 0, 0, 0, 0], tick=9)
+    watcher = r.client(role="spectator")
+    r.join(watcher)
+    watcher.send_input([1.0, 0, 0, 0, 0, 0], tick=9, slot=Slot.A)  # a spectator controls nothing
+    r.settle(lambda: r.gateway.counts["inputs_accepted"] == 2 and r.gateway.counts["refused.spectator_input"] == 1)
+    assert r.gateway.counts["refused.other_bat"] == 1
+    assert [(bat, tick) for bat, _, tick, _ in r.posted] == [(0, 7), (0, 9)]  # bat 0 = A; nothing for B
+    np.testing.assert_array_equal(r.posted[0][3], [1.0, 2.0, 3.0, 0.1, 0.2, 0.3])
+    assert r.posted[1][1] > r.posted[0][1]  # the input's seq rides along, for the snapshot's echo
+
+
+@pytest.mark.timeout(30)
+def test_an_input_expires_after_the_hold_time_and_the_arm_lets_go(rig):
+    r = rig(remote=(Slot.A,), input_hold_s=0.1, timeout_s=5.0)
+    a = r.client()
+    r.join(a)
+    a.send_input([30.0, 0, 0, 0, 0, 0], tick=3)
+    r.settle(lambda: r.gateway.counts["inputs_accepted"] == 1)
+    r.clock.now += 0.09  # within the hold: nothing happens
+    r.step()
+    assert len(r.posted) == 1
+    r.clock.now += 0.02  # 0.11 s after it arrived: the gateway posts a zero input, same seq
+    r.step()
+    assert r.gateway.counts["inputs_expired"] == 1 and len(r.posted) == 2
+    (_, seq, _, first), (bat, seq_zero, _, zero) = r.posted
+    assert bat == 0 and seq_zero == seq and not zero.any() and first[0] == 30.0
+    r.clock.now += 1.0
+    r.step()
+    assert len(r.posted) == 2  # let go once; a zero input is not held again
+
+
+@pytest.mark.timeout(30)
+def test_an_idle_arm_brakes_its_bat_and_a_players_input_takes_over(rig):
+    from engine.arm import BRAKE_MAX_N, BRAKE_PER_S
+
+    mass = 0.17
+    r = rig(input_hold_s=0.1, bat_mass=(mass, mass))
+    r.record["bats"]["vel"][0] = (2.0, 0.0, 0.0)  # bat A moves; nobody holds seat A yet
+    r.record["bats"]["vel"][1] = (0.0, -3.0, 4.0)  # bat B too: 5 m/s, the brake is clipped
+    r.step(serve=True)
+    (bat_a, _, _, brake_a), (bat_b, _, _, brake_b) = r.posted
+    np.testing.assert_allclose(brake_a, [-mass * BRAKE_PER_S * 2.0, 0, 0, 0, 0, 0], rtol=1e-12)  # 20.4 N
+    np.testing.assert_allclose(brake_b, [0, 3.0 / 5.0 * BRAKE_MAX_N, -4.0 / 5.0 * BRAKE_MAX_N, 0, 0, 0], rtol=1e-12)
+    r.step(serve=True)
+    assert len(r.posted) == 2  # once per BRAKE_EVERY_S, not per round
+    a = r.client()
+    r.join(a)
+    a.send_input([30.0, 0, 0, 0, 0, 0], tick=3)
+    r.clock.now += 0.05
+    r.settle(lambda: r.gateway.counts["inputs_accepted"] == 1)
+    r.step(serve=True)
+    assert [bat for bat, *_ in r.posted[2:]].count(0) == 1  # A: its player's input only; B still braked
+    seq = next(seq for bat, seq, _, inputs in r.posted if inputs[0] == 30.0)  # the player's input
+    count = len(r.posted)
+    r.clock.now += 0.2  # the input expired: the arm lets go, then brakes (with the input's seq)
+    r.step(serve=True)
+    assert r.gateway.counts["inputs_expired"] == 1
+    new = [(bat, seq_, inputs[0]) for bat, seq_, _, inputs in r.posted[count:]]
+    assert new[0] == (0, seq, 0.0) and new[1][0:2] == (0, seq) and new[1][2] < 0.0 and new[2][0] == 1
+    r.record["bats"]["vel"][:] = 0.0  # at rest: nothing more to brake
+    r.clock.now += 1.0
+    count = len(r.posted)
+    r.step(serve=True)
+    assert len(r.posted) == count
+
+
+@pytest.mark.timeout(30)
+def test_a_silent_player_is_dropped_and_its_token_reclaims_the_seat(rig):
+    r = rig(remote=(Slot.A,), heartbeat_s=1.0, timeout_s=5.0, grace_s=30.0)
+    player = r.client(name="ann")
+    r.join(player)
+    token = player.token
+    r.clock.now += 6.0  # past the timeout without a word from the player
+    goodbye = r.until(player, lambda m: m.kind == Kind.GOODBYE)
+    assert goodbye["reason"] == GoodbyeReason.TIMEOUT
+    assert r.gateway.counts["timeouts"] == 1 and not r.gateway.seats_filled
+    assert r.posted[-1][0] == 0 and not r.posted[-1][3].any()  # the absent arm lets go of the bat
+    with pytest.raises(Rejected) as refused:  # within the grace only the token takes the seat
+        r.join(r.client(name="bob"))
+    assert refused.value.reason == RejectReason.FULL
+    with pytest.raises(Rejected) as refused:
+        r.join(r.client(token=bytes(range(16))))
+    assert refused.value.reason == RejectReason.BAD_TOKEN
+    back = r.client(name="ann", token=token)
+    welcome = r.join(back)
+    assert welcome["slot"] == Slot.A and welcome["token"] == token
+    assert r.gateway.counts["rejoined"] == 1 and r.gateway.seats_filled
+
+
+@pytest.mark.timeout(30)
+def test_the_token_takes_the_seat_over_from_a_connection_still_open(rig):
+    r = rig(remote=(Slot.A,))
+    first = r.client(name="ann")
+    r.join(first)
+    second = r.client(name="ann", token=first.token)
+    welcome = r.join(second)
+    assert welcome["slot"] == Slot.A and welcome["token"] == first.token
+    assert r.until(first, lambda m: m.kind == Kind.GOODBYE)["reason"] == GoodbyeReason.KICKED
+    first.send_input([1.0, 0, 0, 0, 0, 0], tick=1)  # the old connection has no say any more
+    second.send_input([2.0, 0, 0, 0, 0, 0], tick=2)
+    r.settle(lambda: r.gateway.counts["inputs_accepted"] == 1 and r.gateway.counts["dropped.no_session"] == 1)
+    assert r.posted[-1][3][0] == 2.0 and r.gateway.counts["rejoined"] == 1
+
+
+@pytest.mark.timeout(30)
+def test_a_player_who_says_goodbye_frees_the_seat_at_once(rig):
+    r = rig(remote=(Slot.A,))
+    leaving = r.client(name="ann")
+    r.join(leaving)
+    leaving.leave()
+    r.settle(lambda: r.gateway.counts["quits"] == 1)
+    assert r.join(r.client(name="bob"))["slot"] == Slot.A
+
+
+@pytest.mark.timeout(30)
+def test_heartbeats_keep_a_session_alive_both_ways(rig):
+    r = rig(heartbeat_s=1.0, timeout_s=5.0)
+    player = r.client()
+    r.join(player)
+    for _ in range(4):  # 12 s in all, never 5 s silent: heartbeats from the client keep it
+        r.clock.now += 3.0
+        beat = r.until(player, lambda m: m.kind == Kind.HEARTBEAT)  # the server's heartbeat
+        assert beat["ack"] >= 1
+        player.send(Kind.HEARTBEAT, ack=player.max_seq_in)
+        before = r.gateway.counts["heartbeats_received"]
+        r.settle(lambda: r.gateway.counts["heartbeats_received"] > before)
+    assert r.gateway.counts["timeouts"] == 0 and len(r.gateway.sessions) == 1
+
+
+def _good_input(seq=1):
+    return bytearray(wire.encode(Kind.INPUT, seq=seq, tick=1, slot=Slot.A, mode=wire.InputMode.FORCE,
+                                 force=[1.0, 0, 0], torque=[0, 0, 0], target_pos=[0, 0, 0],
+                                 target_quat=[0, 0, 0, 0]))
+
+
+def _malformed() -> dict:
+    good = _good_input()
+    wrong_version = bytearray(good)
+    wrong_version[4:6] = (9).to_bytes(2, "little")
+    wrong_type = bytearray(good)
+    wrong_type[6] = 99
+    nan = bytearray(good)
+    nan[26:34] = np.float64("nan").tobytes()
+    out_of_range = bytearray(good)
+    out_of_range[26:34] = np.float64(1e6).tobytes()
+    return {"too_short": bytes(good[:20]), "too_long": bytes(good) + b"\0", "bad_version": bytes(wrong_version),
+            "unknown_type": bytes(wrong_type), "non_finite": bytes(nan), "out_of_range": bytes(out_of_range),
+            "bad_magic": b"XXXX" + bytes(good[4:])}
+
+
+@pytest.mark.timeout(30)
+def test_malformed_messages_are_dropped_counted_and_never_fatal(rig):
+    r = rig()
+    player = r.client()
+    r.join(player)
+    bad = _malformed()
+    for data in bad.values():
+        player.send_raw(data)
+    player.sock.send_multipart([bytes(_good_input(50)), b"extra"])  # two frames: not one message
+    stranger = r.client()
+    stranger.send_raw(bytes(_good_input()))  # valid, but no session
+    r.settle(lambda: r.gateway.stats()["dropped_total"] == len(bad) + 2)
+    stats = r.gateway.stats()
+    for reason in bad:
+        assert stats[f"dropped.{reason}"] == 1, reason
+    assert stats["dropped.bad_framing"] == 1 and stats["dropped.no_session"] == 1
+    assert r.posted == [] and len(r.gateway.sessions) == 1  # nothing reached the bat; the player is still in
+    player.send_input([2.0, 0, 0, 0, 0, 0], tick=3)
+    r.settle(lambda: r.gateway.counts["inputs_accepted"] == 1)
+    version = r.client()
+    version.send_raw(bytes(bytearray(wire.encode(Kind.HELLO, role=Role.PLAYER, slot=Slot.NONE, name="old",
+                                                 token=bytes(16)))[:4]) + (1).to_bytes(2, "little")
+                     + wire.encode(Kind.HELLO, role=Role.PLAYER, slot=Slot.NONE, name="old", token=bytes(16))[6:])
+    reject = r.until(version, lambda m: m.kind == Kind.REJECT)
+    assert reject["reason"] == RejectReason.VERSION
+
+
+def _first_snapshot(r, client, tick):
+    """Serve ticks from `tick` on until `client` gets a snapshot (its feed subscription is live);
+    returns the next tick to serve."""
+    for _ in range(ROUNDS):
+        r.record["world"]["tick"] = tick
+        r.clock.now += 0.002
+        r.gateway.service(r.record)
+        tick += 1
+        message = client.recv(10)
+        if message is not None and message.kind == Kind.SNAPSHOT:
+            return tick
+    raise AssertionError("no snapshot on the feed within the bound")
+
+
+@pytest.mark.timeout(60)
+def test_a_slow_spectator_loses_feed_snapshots_countably_not_the_match(rig):
+    # The feed's policy: a subscriber whose queue holds SNDHWM messages (beyond the kernel's
+    # buffers) loses the newest ones, nobody else does; the gaps in the feed's seqs count them.
+    r = rig(sndhwm=64, sndbuf=4096, timeout_s=60.0)  # the clock runs 4 s with nobody heartbeating
+    fast = r.client(role="spectator")
+    slow = r.client(role="spectator", socket_options={zmq.RCVHWM: 1, zmq.RCVBUF: 4096})
+    for client in (fast, slow):
+        assert r.join(client)["feed_port"] == r.gateway.feed_port > 0
+        assert client.feed is not None
+    tick = _first_snapshot(r, slow, 1)
+    tick = _first_snapshot(r, fast, tick)
+    while fast.recv(50) is not None:  # what the fast one had queued so far
+        pass
+    first, received, seqs = tick, 0, []
+    for tick in range(first, first + 2000):  # the slow one does not read; the fast one keeps up
+        r.record["world"]["tick"] = tick
+        r.clock.now += 0.002
+        r.gateway.service(r.record)
+        for _ in range(50):
+            message = fast.recv(100)
+            if message is not None and message.kind == Kind.SNAPSHOT:
+                received += 1
+                if message.tick == tick:
+                    break
+    assert received == 2000 and fast.feed_missed == 0  # the fast one got every snapshot
+    for _ in range(2000):  # the slow one reads again: what was queued for it (bounded)
+        message = slow.recv(200)
+        if message is None:
+            break
+        if message.kind == Kind.SNAPSHOT:  # (its session's heartbeats are another stream)
+            seqs.append(message.seq)
+    r.record["world"]["tick"] = tick + 1  # one more snapshot: its seq shows the slow one the gap
+    r.clock.now += 0.002
+    r.gateway.service(r.record)
+    last = r.until(slow, lambda m: m.kind == Kind.SNAPSHOT and m.tick == tick + 1)
+    assert slow.feed_missed > 1000  # most of the 2000 were dropped for the slow one
+    assert len(seqs) + 1 + slow.feed_missed == last.seq - seqs[0] + 1  # each one received or counted missing
+    assert len(r.gateway.sessions) == 2 and r.gateway.counts["timeouts"] == 0  # nobody lost the match
+    assert r.gateway.counts["snapshots_sent"] == 0  # one publish a tick, no send per spectator
+
+
+@pytest.mark.timeout(30)
+def test_the_heartbeat_fast_path_takes_exactly_what_decode_accepts(rig):
+    r = rig()
+    watcher = r.client(role="spectator")
+    r.join(watcher)
+    (identity, session), = r.gateway.sessions.items()
+    rng = np.random.default_rng(8)
+    good = wire.encode(Kind.HEARTBEAT, seq=5, tick=7, ack=3)
+    cases = [good, good + b"\0", good[:-1], wire.encode(Kind.HEARTBEAT, seq=9, tick=0, ack=2**64 - 1)]
+    for _ in range(3000):  # one to three bytes of a heartbeat's header or body changed
+        data = bytearray(good)
+        for at in rng.integers(0, len(data), rng.integers(1, 4)):
+            data[at] = rng.integers(0, 256)
+        cases.append(bytes(data))
+    for data in cases:
+        try:
+            wire.decode(data)
+            valid = True
+        except wire.WireError:
+            valid = False
+        before = r.gateway.counts["heartbeats_received"]
+        session.bad = 0  # (a run of bad ones would get it kicked)
+        r.gateway.handle([identity, data])
+        assert (r.gateway.counts["heartbeats_received"] == before + 1) == valid, data.hex()
+    assert r.gateway.sessions == {identity: session}
+
+
+@pytest.mark.timeout(30)
+def test_a_vanished_feed_spectator_is_timed_out_on_its_session_and_counted(rig):
+    r = rig(heartbeat_s=1.0, timeout_s=5.0)
+    gone, stays = r.client(role="spectator", name="gone"), r.client(role="spectator", name="stays")
+    for client in (gone, stays):
+        r.join(client)
+        r.until(client, lambda m: m.kind == Kind.SNAPSHOT, serve=True)  # watching on the feed
+    gone.close()  # vanishes: no goodbye, its feed and session connections just go
+    for _ in range(6):  # 6 s of the gateway's clock: only the one that heartbeats stays
+        r.clock.now += 1.0
+        stays.send(Kind.HEARTBEAT, ack=stays.max_seq_in)
+        r.until(stays, lambda m: m.kind == Kind.HEARTBEAT)
+    stats = r.gateway.stats()
+    assert stats["timeouts"] == 1 and stats["spectators"] == 1 and stats["spectators_joined"] == 2
+    assert [s.name for s in r.gateway.sessions.values()] == ["stays"]
+    r.clients.remove(gone)
+
+
+@pytest.mark.timeout(30)
+def test_a_slow_spectator_loses_snapshots_not_the_match_without_a_feed(rig):
+    # The fan-out of protocol 1 (GatewayConfig.feed=False): one send per session, drops counted
+    # per session by the gateway.
+    # A pipe's writer learns of reads only in credit batches of about hwm/2 messages, sent by the
+    # reader's I/O thread; with hwm 4 a loaded machine let a fast reader look full for one tick
+    # (CI, 2026-11-23). At 64 the credit lag of a reader that keeps up is far below the mark,
+    # while the slow reader, which never reads again, still fills it within a few hundred ticks.
+    r = rig(sndhwm=64, sndbuf=4096, feed=False)
+    fast = r.client(role="spectator")
+    slow = r.client(role="spectator", socket_options={zmq.RCVHWM: 1, zmq.RCVBUF: 4096})
+    r.join(fast)
+    r.join(slow)
+    received = 0
+    for tick in range(1, 20_001):  # the slow one never reads again; the fast one keeps up
+        r.record["world"]["tick"] = tick
+        r.clock.now += 0.002
+        r.gateway.service(r.record)
+        for _ in range(50):  # the fast one reads this tick's snapshot before the next is sent
+            message = fast.recv(100)
+            if message is not None and message.kind == Kind.SNAPSHOT:
+                received += 1
+                if message.tick == tick:
+                    break
+        if r.gateway.counts["snapshots_dropped"] >= 100:
+            break
+    assert r.gateway.counts["snapshots_dropped"] >= 100
+    dropped = sorted(session.snapshots_dropped for session in r.gateway.sessions.values())
+    assert dropped[0] == 0 and dropped[1] >= 100  # only the slow one lost any
+    assert received == tick  # the fast one got every snapshot
+
+
+@pytest.mark.timeout(30)
+def test_shutdown_says_goodbye_to_everyone_and_refuses_newcomers(rig):
+    r = rig()
+    clients = [r.client(), r.client(), r.client(role="spectator")]
+    for client in clients:
+        r.join(client)
+    assert r.gateway.shutdown() == 3
+    for client in clients:
+        goodbye = r.until(client, lambda m: m.kind == Kind.GOODBYE)
+        assert goodbye["reason"] == GoodbyeReason.SHUTDOWN
+    with pytest.raises(Rejected) as refused:
+        r.join(r.client())
+    assert refused.value.reason == RejectReason.SHUTTING_DOWN
+
+
+def test_serving_a_scene_makes_its_bats_remote_and_starts_a_gateway():
+    scene = load_scene("match")
+    one, two = with_remote_players(scene, 1), with_remote_players(scene, 2)
+    assert [b.remote for b in one.bats] == [True, False] and one.bats[1].skill == "pro"
+    assert workers_for(one) == ["physics", "ai", "gateway"]
+    assert workers_for(two) == ["physics", "gateway"] and "ai" not in two.effects
+    assert workers_for(scene) == ["physics", "ai"]
+    with pytest.raises(SceneError):
+        with_remote_players(load_scene("rally"), 1)
+
+
+# --- served matches: pingpong serve and join as processes -------------------------------------
+def _pingpong(*args) -> subprocess.Popen:
+    """`pingpong ARGS` in a session of its own, with SIGINT's default handling (conftest.ctrl_c_able)."""
+    return subprocess.Popen(ctrl_c_able(*args), cwd=ROOT, stdin=subprocess.DEVNULL,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+
+
+def _line(proc: subprocess.Popen, timeout: float) -> str:
+    ready, _, _ = select.select([proc.stdout], [], [], timeout)
+    if not ready:
+        raise AssertionError(f"no line within {timeout} s")
+    return proc.stdout.readline()
+
+
+def _descendants(pid: int) -> set[int]:
+    found, todo = set(), [pid]
+    while todo:
+        parent = todo.pop()
+        for task in Path(f"/proc/{parent}/task").glob("*"):
+            try:
+                children = (task / "children").read_text().split()
+            except OSError:
+                continue
+            for child in map(int, children):
+                if child not in found:
+                    found.add(child)
+                    todo.append(child)
+    return found
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    try:
+        return "zombie" not in Path(f"/proc/{pid}/status").read_text().split("State:")[1].split("\n")[0]
+    except (OSError, IndexError):
+        return False
+
+
+@pytest.fixture
+def served():
+    """`pingpong` processes of a test: stopped and reaped at the end, whatever happened.
+
+    SIGTERM first, so a server's supervisor removes its shared memory (a SIGKILLed supervisor
+    cannot: a test that failed mid-match left its segments in /dev/shm); then SIGKILL to the
+    whole session for whatever is left."""
+    started = []
+    yield started
+    for proc in started:
+        if proc.poll() is None:
+            proc.terminate()
+            try:
+                proc.wait(10)
+            except subprocess.TimeoutExpired:
+                pass
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(10)
+        proc.stdout.close()
+        proc.stderr.close()
+
+
+def _await_gone(pids, seconds=15.0):
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline and any(_alive(p) for p in pids):
+        time.sleep(0.1)  # polling for exits of other processes, bounded
+    return [p for p in pids if _alive(p)]
+
+
+@pytest.mark.timeout(120)
+def test_two_bot_players_and_a_spectator_play_a_served_match(served):
+    server = _pingpong("serve", "--players", "2", "--best-of", "1", "--ticks", "2500", "--snapshot-hz", "100",
+                       "--json")
+    served.append(server)
+    hello = json.loads(_line(server, 60))
+    endpoint = hello["listening"]
+    assert endpoint.startswith("tcp://127.0.0.1:")
+    bots = [_pingpong("join", endpoint, "--as", "player", "--bot", "--json", "--seconds", "90") for _ in range(2)]
+    served.extend(bots)
+    spectator = _pingpong("join", endpoint, "--as", "spectator", "--json", "--seconds", "90")
+    served.append(spectator)
+    summary = json.loads(_line(server, 90))
+    assert server.wait(30) == 0
+    reports = [json.loads(_line(p, 30)) for p in (*bots, spectator)]
+    assert sorted(r["slot"] for r in reports) == ["a", "b", "none"]
+    for report in reports:
+        assert report["goodbye"] == "match_over", report
+        assert report["snapshots"] > 0 and report["dropped"] == {}
+    for bot in reports[:2]:  # the physics applied this bot's inputs: the snapshots echo their seq
+        assert bot["inputs_sent"] > 0 and bot["input_seq"]["ab".index(bot["slot"])] > 0
+        prediction = bot["prediction"]  # each bot predicted and scored its prediction on the snapshots
+        assert prediction["scored"] > 0 and prediction["ball"]["n"] == prediction["bat"]["n"] == prediction["scored"]
+        assert prediction["ball"]["max_mm"] >= prediction["ball"]["p99_mm"] >= prediction["ball"]["p50_mm"] >= 0.0
+    assert reports[2]["interpolation"]["samples"] > 0  # the spectator's view was interpolated
+    gateway = summary["gateway"]
+    assert summary["ticks"] == 2500 or summary["winner"] is not None
+    assert gateway["players_joined"] == 2 and gateway["spectators_joined"] == 1
+    assert gateway["inputs_accepted"] > 100 and gateway.get("refused.other_bat", 0) == 0
+    assert gateway["goodbyes_at_end"] == 3 and gateway["dropped_total"] == 0
+    assert not shm.leftover_segments(hello["run_id"])
+
+
+@pytest.mark.timeout(180)
+def test_serve_and_join_smoke_runs(served):
+    server = _pingpong("serve", "--players", "0", "--ticks", "2", "--json")
+    served.append(server)
+    # The first line comes once the workers are ready: on a cold numba cache (CI) they compile first.
+    assert json.loads(_line(server, 120))["players"] == 0
+    summary = json.loads(_line(server, 40))
+    assert summary["ticks"] == 2 and summary["gateway"]["goodbyes_at_end"] == 0
+    assert server.wait(20) == 0
+    lonely = _pingpong("join", "tcp://127.0.0.1:9", "--as", "spectator", "--join-timeout", "0.5")
+    served.append(lonely)
+    assert lonely.wait(20) == 4  # nobody there: no welcome in time
+    keyboard = _pingpong("join", "tcp://127.0.0.1:9", "--as", "player")
+    served.append(keyboard)
+    assert keyboard.wait(20) == 2 and "keyboard" in keyboard.stderr.read()
+
+
+@pytest.mark.timeout(120)
+def test_ctrl_c_on_the_server_says_goodbye_and_leaves_nothing_behind(served, zctx):
+    server = _pingpong("serve", "--players", "1", "--ticks", "600000", "--json")
+    served.append(server)
+    hello = json.loads(_line(server, 60))
+    client = Client(hello["listening"], "player", "ann", zctx=zctx)
+    try:
+        welcome = client.join(30)
+        assert welcome["slot"] == Slot.A
+        snapshots = 0
+        for _ in range(1000):  # the match has started: snapshots arrive
+            client.heartbeat_if_due()
+            message = client.recv(100)
+            snapshots += message is not None and message.kind == Kind.SNAPSHOT
+            if snapshots >= 5:
+                break
+        assert snapshots >= 5
+        workers = _descendants(server.pid)
+        assert len(workers) >= 3  # forkserver, physics, AI, gateway (and the resource tracker)
+        os.kill(server.pid, signal.SIGINT)
+        goodbye = None
+        for _ in range(300):
+            message = client.recv(100)
+            if message is not None and message.kind == Kind.GOODBYE:
+                goodbye = message
+                break
+        assert goodbye is not None and goodbye["reason"] == GoodbyeReason.SHUTDOWN
+    finally:
+        client.close()
+    assert server.wait(30) == 130
+    assert _await_gone(workers) == []
+    assert not shm.leftover_segments(hello["run_id"])
+
+
+def test_a_remote_bat_needs_the_effect_and_no_skill():
+    data = tomllib.loads((ROOT / "scenes" / "match.toml").read_text())
+    data["bats"]["a"]["remote"] = True
+    with pytest.raises(SceneError, match="either by the AI"):
+        parse_scene(data, "t.toml")
+    del data["bats"]["a"]["skill"]
+    with pytest.raises(SceneError, match="needs the effect 'remote'"):
+        parse_scene(data, "t.toml")
+    data["effects"].append("remote")
+    scene = parse_scene(data, "t.toml")
+    assert scene.bats[0].remote and workers_for(scene) == ["physics", "ai", "gateway"]
+
+
+@pytest.mark.timeout(120)
+def test_a_killed_gateway_is_restarted_on_the_same_endpoint_and_the_token_reclaims_the_seat(served, zctx):
+    server = _pingpong("serve", "--players", "1", "--ticks", "6000", "--crash-gateway-at-tick", "500", "--json")
+    served.append(server)
+    hello = json.loads(_line(server, 60))
+    player = Client(hello["listening"], "player", "ann", zctx=zctx)
+    thief = Client(hello["listening"], "player", "eve", Slot.A, zctx=zctx)
+    try:
+        first = player.join(30)
+        assert first["slot"] == Slot.A
+        ticks = []
+        for _ in range(3000):  # snapshots until the gateway falls silent (it dies at tick 500)
+            player.heartbeat_if_due()
+            message = player.recv(500)
+            if message is None:
+                break
+            ticks.append(message.tick)
+        assert ticks and max(ticks) < 6000
+        welcome = None
+        for _ in range(15):  # hello again, with the token, until the restarted gateway answers
+            player.hello()
+            for _ in range(20):
+                message = player.recv(100)
+                if message is not None and player.accept(message):
+                    welcome = message
+                    break
+            if welcome is not None:
+                break
+        # the seat table outlived the gateway: the token is still good and gives the same seat
+        assert welcome is not None and welcome.tick > 500
+        assert welcome["slot"] == Slot.A and welcome["token"] == first["token"] and welcome["name_a"] == "ann"
+        with pytest.raises(Rejected) as refused:  # and nobody else may take it
+            thief.join(10)
+        assert refused.value.reason == RejectReason.FULL
+        goodbye = None
+        for _ in range(3000):
+            player.heartbeat_if_due()
+            message = player.recv(100)
+            if message is not None and message.kind == Kind.GOODBYE:
+                goodbye = message
+                break
+        assert goodbye is not None and goodbye["reason"] == GoodbyeReason.MATCH_OVER
+    finally:
+        player.close()
+        thief.close()
+    summary = json.loads(_line(server, 60))
+    assert server.wait(30) == 0
+    assert summary["workers"]["gateway"]["restarts"] == 1 and summary["ticks"] == 6000
+    assert summary["gateway"]["seats_restored"] == 1 and summary["gateway"]["rejoined"] == 1
+    assert not shm.leftover_segments(hello["run_id"])
+
+
+# --- acknowledged input seqs: a snapshot names exactly the inputs it shows --------------------
+def test_a_snapshot_acknowledges_the_inputs_applied_before_its_tick_not_the_next_ones(tmp_path, no_leftovers):
+    """The physics applies an input after publishing tick T (for the step T -> T+1); a gateway
+    reading tick T's snapshot right then must still say the previous seq (the bug this replaced:
+    it read the live 'applied' seqs, one tick ahead of the snapshot)."""
+    from engine.match import Match
+    from processes.workers.gateway import _consistent_snapshot
+    from processes.workers.layout import (REMOTE_ACK_DTYPE, REMOTE_ACK_RING, REMOTE_CAPACITY, REMOTE_INPUT_DTYPE,
+                                          RUN_LOCK_NAMES, read_ack, write_ack)
+    from processes.runtime.locks import HOLDER_DTYPE, LockTable
+    from processes.runtime.mailbox import MAILBOX_HEADER, Mailbox
+    from processes.workers.hub import RemoteInputs
+    from processes.workers.options import RunOptions
+
+    scene = with_remote_players(load_scene("match"), 2)
+    arena = shm.Arena()
+    try:
+        snapshots = arena.snapshot_block("physics", physics_snapshot_dtype(2), 1)
+        lock_path = str(tmp_path / "locks")
+        LockTable.create(lock_path, RUN_LOCK_NAMES, arena.shared_array("lock_holders", HOLDER_DTYPE,
+                                                                       len(RUN_LOCK_NAMES))).close()
+        arena.shared_array("remote_header", MAILBOX_HEADER, 1)
+        arena.shared_array("remote_inputs", REMOTE_INPUT_DTYPE, REMOTE_CAPACITY)
+        applied = arena.shared_array("remote_applied", np.dtype("<u8"), 2).array
+        acks = arena.shared_array("remote_acks", REMOTE_ACK_DTYPE, REMOTE_ACK_RING).array
+        match = Match(scene, 0)
+        physics = RemoteInputs(arena, RunOptions(ticks=0, lock_path=lock_path), match)
+        gateway_locks = LockTable(lock_path, RUN_LOCK_NAMES, arena["lock_holders"])
+        box = Mailbox("remote_inputs", arena["remote_header"], arena["remote_inputs"], gateway_locks)
+        post = np.zeros((), REMOTE_INPUT_DTYPE)
+        record = np.zeros(1, physics_snapshot_dtype(2))
+
+        def send(seq, force_x):
+            post["seq"], post["bat"], post["inputs"] = seq, 0, (force_x, 0, 0, 0, 0, 0)
+            assert box.post(post)
+
+        def physics_tick(tick):  # the worker's order: apply, step (the tick advances), ack, publish
+            physics.apply()
+            match.state.world[0]["tick"] = tick
+            physics.publish_ack(tick)
+            snapshots.publish(match.state.record, tick)
+
+        send(4, 1.0)
+        physics_tick(1)
+        send(5, 2.0)
+        physics.apply()  # the next tick's input is applied right after tick 1 was published ...
+        assert int(applied[0]) == 5  # ... which the live seqs already show
+        rec, ack = _consistent_snapshot(snapshots, acks, record)
+        assert int(rec["world"]["tick"]) == 1 and ack == (4, 0)
+        assert float(rec["bats"]["force"][0][0]) == 1.0  # the snapshot holds seq 4's force, as acknowledged
+        match.state.world[0]["tick"] = 2
+        physics.publish_ack(2)
+        snapshots.publish(match.state.record, 2)
+        rec, ack = _consistent_snapshot(snapshots, acks, record)
+        assert int(rec["world"]["tick"]) == 2 and ack == (5, 0) and float(rec["bats"]["force"][0][0]) == 2.0
+        write_ack(acks, 2 + REMOTE_ACK_RING, (6, 0))  # a ring later the entry of tick 2 is gone
+        assert read_ack(acks, 2) is None and read_ack(acks, 2 + REMOTE_ACK_RING) == (6, 0)
+        physics.close()
+        gateway_locks.close()
+        del applied, acks, box, match, physics
+    finally:
+        arena.close()
+
+
+# --- CURVE ------------------------------------------------------------------------------------
+def _unanswered(r, client, rounds=40):
+    """True if the client hears nothing while the gateway is pumped `rounds` times (bounded)."""
+    client.hello()
+    for _ in range(rounds):
+        r.step(serve=True)
+        if client.recv(10) is not None:
+            return False
+    return True
+
+
+@pytest.mark.timeout(30)
+def test_a_curve_session_works_and_a_client_without_the_server_key_cannot_join(rig, zctx, tmp_path):
+    import zmq.auth
+
+    from processes.cli import main
+    from processes.network.client import curve_client_options, load_curve_key
+
+    assert main(["keys", str(tmp_path / "keys"), "--json"]) == 0  # `pingpong keys DIR`
+    public_file, secret_file = tmp_path / "keys" / "server.key", tmp_path / "keys" / "server.key_secret"
+    public, secret = load_curve_key(str(secret_file), secret=True)
+    r = rig(curve_secret_key=secret, curve_public_key=public)
+    good = r.client(name="ann", socket_options=curve_client_options(str(public_file)))
+    assert r.join(good)["slot"] == Slot.A
+    snapshot = r.until(good, lambda m: m.kind == Kind.SNAPSHOT, serve=True)
+    assert snapshot["winner"] == -1
+    (tmp_path / "other").mkdir()
+    other_public, _ = zmq.auth.create_certificates(str(tmp_path / "other"), "server")
+    wrong = r.client(name="eve", socket_options=curve_client_options(other_public))
+    assert _unanswered(r, wrong)  # its handshake fails: no message either way
+    plain = r.client(name="bob")  # no CURVE at all
+    assert _unanswered(r, plain)
+    assert len(r.gateway.sessions) == 1
+    assert r.gateway.stats()["players_joined"] == 1
+    # the feed is a CURVE server too: a spectator with the key watches there, a SUB without it gets nothing
+    watcher = r.client(role="spectator", name="sam", socket_options=curve_client_options(str(public_file)))
+    assert r.join(watcher)["feed_port"] == r.gateway.feed_port > 0
+    snapshot = r.until(watcher, lambda m: m.kind == Kind.SNAPSHOT, serve=True)
+    assert watcher.feed_seq == snapshot.seq > 0  # it came on the feed
+    eavesdropper = zctx.socket(zmq.SUB)
+    eavesdropper.setsockopt(zmq.SUBSCRIBE, b"")
+    eavesdropper.connect(r.gateway.feed_endpoint)
+    for _ in range(40):
+        r.step(serve=True)
+        assert not eavesdropper.poll(10, zmq.POLLIN)
+    assert r.until(watcher, lambda m: m.kind == Kind.SNAPSHOT, serve=True).seq > snapshot.seq  # still served
+    with pytest.raises(ValueError, match="no secret key"):
+        load_curve_key(str(public_file), secret=True)
+    with pytest.raises(ValueError, match="not a ZeroMQ certificate"):
+        load_curve_key(str(tmp_path / "missing.key"), secret=False)
+
+
+# --- seats outlive a gateway --------------------------------------------------------------------
+@pytest.mark.timeout(30)
+def test_a_restarted_gateway_finds_its_seats_and_the_token_reclaims_one(zctx, no_leftovers):
+    from processes.network.gateway import SEAT_DTYPE, SeatStore
+
+    arena = shm.Arena()
+    first = second = None
+    try:
+        store = SeatStore(arena.snapshot_block("seats", SEAT_DTYPE, 2))
+        first = Rig(zctx, seat_store=store)
+        ann = first.client(name="ann")
+        welcome = first.join(ann)
+        token = welcome["token"]
+        first.gateway.close()  # killed: no goodbye, no last save; only what it saved on the way
+        # (the worker's successor binds the same endpoint: the served test below; here any port)
+        second = Rig(zctx, seat_store=store)
+        assert second.gateway.counts["seats_restored"] == 1
+        thief = second.client(name="eve", slot=Slot.A)
+        with pytest.raises(Rejected) as refused:  # the seat waits for its token
+            second.join(thief)
+        assert refused.value.reason == RejectReason.FULL
+        back = second.client(name="ann", token=token)
+        again = second.join(back)
+        assert again["slot"] == Slot.A and again["token"] == token and again["name_a"] == "ann"
+        assert second.gateway.stats()["rejoined"] == 1
+        del store
+    finally:
+        for r in (first, second):
+            if r is not None:
+                for client in r.clients:
+                    client.close()
+        if second is not None:
+            second.gateway.close()
+        arena.close()

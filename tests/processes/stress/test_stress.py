@@ -1,0 +1,118 @@
+"""`pingpong stress`, scaled down: each scenario against a real served match and client processes.
+
+Counts and invariants only, never timings (the machine is a shared 2-core VM). Every scenario
+runs its own server and swarm processes on 127.0.0.1 random ports; stress.run_scenario kills
+and reaps all of them (whole process sessions) whatever happens, every wait inside is bounded,
+and each test has its own alarm.
+"""
+import argparse
+
+import pytest
+
+from processes.stress import scenarios as stress
+from processes.cli import main
+
+
+def _args(**overrides) -> argparse.Namespace:
+    settings = dict(spectators=50, players=2, hz=120, duration=2.0, churn=200, churn_places=16, churn_seconds=60.0,
+                    malformed=5000, malformed_rate=5000, kill=1, kill_spectators=20, seed=0)
+    settings.update(overrides)
+    return argparse.Namespace(**settings)
+
+
+def _clean(result: dict) -> None:
+    """The invariants every scenario shares."""
+    assert result["problems"] == [], "\n".join(result["problems"])
+    assert result["crashes"] == 0 and result["lost_points"] == 0
+    assert result["leaked_fds"] == 0 and result["leaked_shm"] == 0, result["fds"]
+    assert result["ok"]
+
+
+@pytest.mark.timeout(240)  # a cold numba cache: the bots compile the AI's kernels before they join
+def test_load_every_spectator_watches_the_whole_match_and_is_told_it_ended():
+    result = stress.run_scenario("load", _args())
+    _clean(result)
+    c = result["counts"]
+    assert c["welcomed"] == 50 and c["goodbye_match_over"] == 50
+    assert c["fanout"] == "pub" and c["on_feed"] == 50  # every spectator watched on the feed
+    assert c["gateway_snapshots_published"] > 0 and c["gateway_snapshots_sent"] < c["gateway_snapshots_published"] * 3
+    assert c["snapshots_received"] > 50 and c["invalid_snapshots"] == 0
+    assert c["score_regressions"] == 0 and c["tick_regressions"] == 0
+    # a bot reading behind may miss the goodbye (the gateway closes with linger 0; reported as a finding)
+    assert all(bot["inputs_sent"] > 0 and bot["goodbye"] in ("match_over", "server_lost") for bot in c["bots"])
+    assert sum(bot["goodbye"] == "server_lost" for bot in c["bots"]) == c["bots_without_goodbye"]
+    assert 0 < result["latency_ms"]["n"] <= c["snapshots_received"]  # those sent once the match had started
+    assert result["tick_jitter_ms"]["n"] > 0 and "gateway" in result["cpu_pct"]
+
+
+@pytest.mark.timeout(90)
+def test_churn_leaves_every_seat_and_spectator_place_free():
+    result = stress.run_scenario("churn", _args())
+    _clean(result)
+    c = result["counts"]
+    assert c["cycles"] == 200 and c.get("join_timeouts", 0) == 0
+    assert c["left_goodbye"] > 0 and c["left_abrupt"] > 0  # both ways of leaving happened
+    assert c.get("player_welcomed.A", 0) + c.get("player_welcomed.B", 0) > 0 and c["spectator_welcomed"] > 0
+    assert c["fill_welcomed"] == 16 + 2 and c["fill_rejected"] == {"full": 2}  # exactly the limits, no leak
+    assert c["gateway_fds_after"] <= c["gateway_fds_before"]
+    # the server was stopped, not at a match's end: the gateway's counters came anyway
+    assert result["gateway"]["spectators_joined"] >= c["spectator_welcomed"] and result["gateway"]["end"] == "shutdown"
+
+
+@pytest.mark.timeout(60)
+def test_cable_pull_is_detected_by_heartbeat_and_the_seat_is_reclaimable():
+    result = stress.run_scenario("cable", _args())
+    _clean(result)
+    c = result["counts"]
+    side = c["pulled_slot"]
+    assert c["during_grace_newcomer"] == "full"  # the seat waits for its token
+    assert c["pulled_goodbye"] == "TIMEOUT" and c["watcher_goodbye"] == "TIMEOUT"  # sent into the hole
+    assert c["token_rejoin"] == side and c["after_grace_newcomer"] == side
+    assert c["silent_goodbye"] == "TIMEOUT" and c["spectator_fill"] == {"NONE": 4, "full": 1}
+
+
+@pytest.mark.timeout(90)
+def test_kills_are_recovered_and_a_full_server_says_goodbye_to_everyone():
+    result = stress.run_scenario("kill", _args())
+    _clean(result)
+    c = result["counts"]
+    assert c["restarts"] == {"physics": 1, "gateway": 1}
+    assert c["ticks"][0] < c["ticks"][1] < c["ticks"][2]  # the match went on through both restarts
+    assert c["points_after_restart"] >= c["points_before_physics_kill"]
+    assert c["keep_rejoined"] == c["keep_welcomed"] == 10  # every watcher joined the new gateway
+    assert c["fill_welcomed"] == 12 and c["fill_rejected"] == {"full": 1}  # every place taken
+    assert c["goodbye_shutdown"] == c["clients_at_shutdown"] == 22
+
+
+# Was behind `make test-long`: on a loaded machine one of the nine sessionless sockets' closing
+# round trips came back unsynced ("8/9 sockets"). Two causes found in the code (not caught in the
+# act): a reject ("full") to one of the valid
+# player hellos in the flood, answered by a loaded gateway after the flood's last drain, ended the
+# wait for the sync hello's welcome; and the oversized frames' socket loses whatever follows an
+# oversized frame (libzmq drops that connection). The round trips now wait for the welcome only,
+# on a new connection after the oversized frames. Since: 13 runs passed (up to 3 at once, load
+# 5-6); 3 more, at once, hit the old 90 s alarm while engine/ had just changed (a cold numba
+# cache compiles for minutes), hence 240 s, as the load test.
+@pytest.mark.timeout(240)
+def test_malformed_messages_are_all_counted_by_the_gateway_and_the_match_goes_on():
+    result = stress.run_scenario("malformed", _args())
+    _clean(result)
+    c = result["counts"]
+    assert c["sent"] == 5000 and set(c["by_class"]) == set(stress_classes())
+    assert c["mismatched_counters"] == {} and c["unexpected_counters"] == {}
+    assert c["gateway_dropped_total"] == c["expected_dropped_total"] > 3000
+    assert c["kicks"] >= 2 and c["legit_goodbyes"] == {"match_over": 5}
+
+
+def stress_classes():
+    from processes.stress.swarm.malformed import CLASSES
+
+    return CLASSES
+
+
+def test_a_bad_scenario_name_is_refused_with_the_choices(capsys):
+    assert main(["stress", "--scenario", "load,flood"]) == 2
+    err = capsys.readouterr().err
+    assert "flood" in err and "load,churn,cable,kill,malformed" in err
+    assert main(["stress", "--spectators", "0"]) == 2
+    assert "--spectators must be at least 1" in capsys.readouterr().err

@@ -1,0 +1,63 @@
+"""The cloth net in its own worker: lockstep equals the in-process engine bit for bit, and a
+SIGKILLed net or physics worker is restarted with the run still exact."""
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from engine.geometry import Body
+from engine.run import run
+from engine.scene import load_scene, parse_scene
+from processes.supervisor import Supervisor, first_difference, workers_for
+
+ROOT = Path(__file__).resolve().parents[3]
+
+# scenes/net.toml with a coarse net (24 x 4 knots, heavier): the same couplings, a fraction of
+# the kernel work, so the test stays cheap. The ball hits the net within 0.1 s.
+COARSE = {"kind": "cloth", "cols": 24, "rows": 4, "knot_mass": 0.05 / 96}
+
+
+@pytest.fixture(scope="module")
+def net_scene():
+    with open(ROOT / "scenes" / "net.toml", "rb") as f:
+        data = tomllib.load(f)
+    data["net"] = COARSE
+    data["duration"] = 0.8
+    return parse_scene(data, "net-coarse")
+
+
+@pytest.fixture(scope="module")
+def reference(net_scene):
+    return run(net_scene, trace=True)
+
+
+def test_a_cloth_scene_starts_a_net_worker_and_a_rigid_one_does_not(net_scene):
+    assert workers_for(net_scene) == ["physics", "net"]
+    assert "net" not in workers_for(load_scene("serve"))
+
+
+def test_lockstep_with_the_net_worker_equals_the_in_process_engine(net_scene, reference, no_leftovers):
+    result = Supervisor(net_scene, net_scene.ticks, "lockstep", trace=True).run()
+    assert result.ticks == net_scene.ticks
+    assert any(int(e["body"]) == Body.NET for e in reference.events)  # the ball met the cloth
+    assert result.workers["net"]["busy_s"] > 0.0  # the net worker stepped it
+    physics = result.workers["physics"]
+    # The ball met the net (ticks handed over with it) and left its reach (ticks granted without it).
+    assert physics["net_ball_ticks"] > 0 and physics["net_free_ticks"] > 0
+    assert physics["net_ball_ticks"] + physics["net_free_ticks"] <= net_scene.ticks
+    # The net worker stepped the net awake exactly as often as the in-process net (its cost, the same ticks).
+    assert result.workers["net"]["awake_ticks"] == reference.state.net_sim.awake_ticks > 0
+    assert first_difference(result.trace, reference.trace) is None
+    assert result.events.tobytes() == reference.events.tobytes()
+
+
+@pytest.mark.parametrize("worker, at", [("net", "contact"), ("net", 150), ("physics", 150)])
+def test_a_killed_worker_is_restarted_and_the_cloth_run_stays_exact(worker, at, net_scene, reference, no_leftovers):
+    # Tick 150: the net is awake and the ball, thrown back, near it but not touching it; "contact":
+    # the ball's first tick in the net.
+    tick = int(next(e["tick"] for e in reference.events if int(e["body"]) == Body.NET)) if at == "contact" else at
+    result = Supervisor(net_scene, net_scene.ticks, "lockstep", trace=True, crash_at_tick=tick,
+                        crash_worker=worker).run()
+    assert result.workers[worker]["restarts"] == 1
+    assert result.ticks == net_scene.ticks
+    assert first_difference(result.trace, reference.trace) is None
