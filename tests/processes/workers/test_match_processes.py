@@ -1,8 +1,10 @@
-"""The multi-process match: physics and AI workers reproduce the in-process match bit for bit."""
+"""The multi-process match (the default scene: the cloth net in its worker): physics, net and AI workers
+reproduce the in-process match bit for bit."""
 import numpy as np
 import pytest
 
 from engine.dtypes import physics_snapshot_dtype
+from engine.geometry import Body
 from engine.match import Match, point_row
 from engine.replay import read, write
 from engine.scene import load_scene
@@ -22,8 +24,20 @@ def reference_trace(seed, ticks):
     return match, trace
 
 
+def _first_net_contact(seed, ticks):
+    """The tick of the in-process match's first contact between ball and net."""
+    match = Match(SCENE, seed=seed)
+    for _ in range(ticks):
+        match.tick()
+        for e in match.events[: match.n_events]:
+            if int(e["body"]) == Body.NET:
+                return int(e["tick"])
+    raise AssertionError(f"the ball never met the net in {ticks} ticks")
+
+
 def test_an_ai_scene_starts_an_ai_worker_and_a_plain_one_does_not():
-    assert workers_for(SCENE) == ["physics", "ai"]
+    assert workers_for(SCENE) == ["physics", "net", "ai"]
+    assert workers_for(load_scene("match_rigid")) == ["physics", "ai"]
     assert workers_for(load_scene("rally")) == ["physics"]
 
 
@@ -45,6 +59,16 @@ def test_physics_worker_killed_mid_match_resumes_and_stays_exact(no_leftovers, c
     result = Supervisor(SCENE, TICKS, "lockstep", trace=True, seed=5, crash_at_tick=crash_at).run()
     assert result.workers["physics"]["restarts"] == 1
     _, trace = reference_trace(5, TICKS)
+    assert first_difference(result.trace, trace) is None
+
+
+def test_net_worker_killed_mid_match_resumes_and_stays_exact(no_leftovers):
+    # SIGKILLed at the first tick the ball meets the net: the restarted worker resumes from the
+    # state it published and the match goes on as in process.
+    _, trace = reference_trace(5, TICKS)
+    first = _first_net_contact(5, TICKS)
+    result = Supervisor(SCENE, TICKS, "lockstep", trace=True, seed=5, crash_at_tick=first, crash_worker="net").run()
+    assert result.workers["net"]["restarts"] == 1
     assert first_difference(result.trace, trace) is None
 
 
