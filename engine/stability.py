@@ -583,9 +583,9 @@ CLOTH = {"kind": "cloth"}
 CLOTH_EFFECTS = ALL + ["table", "floor", "net", "bats"]
 _BAT_FAR = {"b": {"pos": [3.0, 0.0, 0.3]}}  # out of play: the cases without a bat still have the effect
 _SQUEEZE_UNDER_HEM = (
-    "the ball pushed along the table slips under the hem: the contact projects the hem's knots radially off the "
-    "ball's lower front, down onto the table, where they stay while the ball passes over them (ball 0.13 m past "
-    "the net at the end, knots up to 0.75 mm inside it)")
+    "judged tunnelled: the bat (which does not collide with the cloth) drives ball and hem 0.13 m past the net's "
+    "plane; the hem's knots ride up in front of the ball to its centre's height while the sheet's mean around the "
+    "ball (the rows within a cell of it) ends behind the ball's centre, and knots end up to 0.75 mm inside it")
 # m: the pinned ball's centre from the net's plane: just clear of the knots (radius 0.5 mm).
 _PIN_GAP = R + KNOT_RADIUS + 1e-4
 # A drive into the net from A's court; the net stops it, it falls back onto A's court and away.
