@@ -5,7 +5,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install match test test-long bench bench-accuracy lint clean
+.PHONY: install match test test-long bench bench-accuracy protocol browser lint clean
 
 install: $(STAMP)
 
@@ -26,8 +26,16 @@ lint: install
 # Two workers: CI has two cores and a cold run is mostly numba compiling, one specialisation
 # per effect combination. A test file stays on one worker (loadfile), so its specialisations
 # compile once; the other worker finds them in numba's on-disk cache.
-test: lint
-	$(BIN)/python -m pytest -q -n 2 --dist loadfile
+test: lint browser
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=25
+
+# The web page's tests run in the system's headless Chromium: installed here as root where it is
+# missing (CI); without root they are skipped, and say how to install.
+browser:
+	@if command -v chromium >/dev/null && command -v chromedriver >/dev/null; then :; \
+	elif [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+		apt-get update -q && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends chromium chromium-driver; \
+	else echo "no chromium: the browser tests will be skipped (apt-get install chromium chromium-driver)"; fi
 
 test-long: install
 	$(BIN)/python -m pytest -q -m long
@@ -39,6 +47,10 @@ bench: install bench-accuracy
 # The work-precision study: rewrites README.md's accuracy block and bench/accuracy.png (a few minutes).
 bench-accuracy: install
 	$(BIN)/python -m bench.accuracy --png bench/accuracy.png --readme README.md
+
+# The protocol document's generated tables (layouts, enums, limits), from the wire's code.
+protocol: install
+	$(BIN)/python -m processes.network.protocol docs/protocol.md
 
 clean:
 	rm -rf $(VENV) .pytest_cache .benchmarks

@@ -1,53 +1,39 @@
 """What bounds the grid net step on this machine: bare numba loops with the step's arithmetic and no more.
 
-Run: `.venv/bin/python bench/net_floor.py [--cols 184 --rows 16]`. Three floors, each in µs per
-net step (CPU time of this thread, best of 5), next to kernels.step_grid_serial timed the same way:
-- roots: a root and a division per spring (float64, exact), and nothing else;
-- springs: the grid kernel's spring arithmetic (_grid_line's: 12 loads, |L|, rate, scale, 3 stores)
-  per spring, in plain contiguous loops of one row's length;
+Run: `.venv/bin/python bench/net_floor.py [--cols 184 --rows 16] [--zmm]`. Each row is µs per net
+step (CPU time of this thread, best of 5), next to kernels.step_grid_serial timed the same way,
+with the register width its loop compiled to (net_kernel.assembly):
+- roots: a root and a division per spring (float64, exact), and nothing else: the divider;
+- springs: the grid kernel's spring arithmetic (_grid_line's: 12 loads, |L|, rate, scale, 3
+  stores) per spring, in plain contiguous loops of one row's length;
+- springs without the divider: the same with 1/|L| from a float32 root and division and one
+  float64 Newton step (what a divider-free spring would cost; no kernel rounds this way);
 - knots: the knot pass (_grid_update's: 8 spring terms, velocity and position update) per knot
   and axis.
 The step cannot be faster than springs + knots unless the loops overlap, which they do not (one
-writes what the other reads).
+writes what the other reads). --zmm compiles everything for 512-bit vectors (LLVM prefers 256
+bits on these CPUs: NUMBA_CPU_FEATURES with the host's features and -prefer-256-bit), to see
+whether the wider registers pay.
 """
 import argparse
 import math
+import os
+import sys
 import time
 
-import numpy as np
-from numba import njit
+if __name__ == "__main__" and "--zmm" in sys.argv:  # before numba reads its configuration
+    import llvmlite.binding as llvm
 
-from net_kernel import kernels
-from net_kernel.topology import build_topology, grid_spec
+    os.environ["NUMBA_CPU_FEATURES"] = llvm.get_host_cpu_features().flatten() + ",-prefer-256-bit"
 
+import numpy as np  # noqa: E402
+from numba import njit  # noqa: E402
 
-@njit(cache=True, error_model="numpy")
-def _roots(length2, out, reps):
-    for _ in range(reps):
-        for i in range(length2.shape[0]):
-            out[i] = 1.0 / math.sqrt(length2[i])
-
-
-@njit(cache=True, error_model="numpy")
-def _springs(x, v, out, lines, reps):
-    n = out.shape[1]
-    for _ in range(reps):
-        for _ in range(lines):
-            for q in range(n):
-                d0 = x[0, q + 1] - x[0, q]
-                d1 = x[1, q + 1] - x[1, q]
-                d2 = x[2, q + 1] - x[2, q]
-                e0 = v[0, q + 1] - v[0, q]
-                e1 = v[1, q + 1] - v[1, q]
-                e2 = v[2, q + 1] - v[2, q]
-                length2 = d0 * d0 + d1 * d1 + d2 * d2
-                rate = e0 * d0 + e1 * d1 + e2 * d2
-                length = math.sqrt(length2)
-                inv_len = 1.0 / length
-                scale = (200.0 * (length - 0.01) + 0.1 * rate * inv_len) * inv_len
-                out[0, q] = scale * d0
-                out[1, q] = scale * d1
-                out[2, q] = scale * d2
+from net_kernel import kernels  # noqa: E402
+from net_kernel import profile as net_profile  # noqa: E402
+from net_kernel.assembly import vector_report  # noqa: E402
+from net_kernel.kernels import grid  # noqa: E402
+from net_kernel.topology import build_topology, grid_spec  # noqa: E402
 
 
 @njit(cache=True, error_model="numpy")
@@ -89,6 +75,7 @@ def main() -> None:
     parser.add_argument("--cols", type=int, default=184)
     parser.add_argument("--rows", type=int, default=16)
     parser.add_argument("--reps", type=int, default=1000)
+    parser.add_argument("--zmm", action="store_true", help="compile for 512-bit vectors (read before numba loads)")
     args = parser.parse_args()
     topo = build_topology(grid_spec(args.cols, args.rows))
     cols, rows, n_springs = args.cols, args.rows, topo.n_springs
@@ -96,8 +83,10 @@ def main() -> None:
     length2 = 1e-4 * (1.0 + 0.01 * rng.random(n_springs))
     out = np.empty(n_springs)
     lines = math.ceil(n_springs / (cols - 1))
-    x = rng.random((3, cols + 1))
+    per_spring = n_springs / (lines * (cols - 1))
+    x = 0.01 * np.arange(cols + 1) + 1e-4 * rng.random((3, cols + 1))
     v = 1e-3 * rng.random((3, cols + 1))
+    line_out = np.empty((3, cols - 1))
     t = 1e-3 * rng.random((21, cols))
     xs, vs = rng.random((3, rows, cols)), 1e-3 * rng.random((3, rows, cols))
     w = np.full((rows, cols), 60.0)
@@ -106,18 +95,30 @@ def main() -> None:
     work = np.zeros((1, kernels.GRID_WORK_ROWS, cols))
     inv_mass = topo.knot_inv_mass.reshape(rows, cols)
     h = 0.5 * topo.h_max
-    results = {
-        "roots (1/sqrt per spring)": _best(lambda r: _roots(length2, out, r), args.reps),
-        "springs (the spring pass's loop)": _best(lambda r: _springs(x, v, np.empty((3, cols - 1)), lines, r),
-                                                  args.reps) * n_springs / (lines * (cols - 1)),
-        "knots (the knot pass's loop)": _best(lambda r: _knots(t, xs, vs, w, r), args.reps),
-        "step_grid_serial (the kernel)": _best(
-            lambda r: kernels.step_grid_serial(state, inv_mass, topo.grid_params, 9.81, 5.0, h, r, work), args.reps),
+    u = np.uint64
+    rows_out = {
+        "roots (1/sqrt per spring)": (
+            _best(lambda r: net_profile._divider_floor(length2, out, r), args.reps),  # noqa: SLF001
+            vector_report(net_profile._divider_floor, (length2, out, 1))),  # noqa: SLF001
+        "springs (the spring pass's loop)": (
+            per_spring * _best(lambda r: net_profile._spring_floor(x, v, line_out, lines, r), args.reps),  # noqa: SLF001
+            vector_report(net_profile._spring_floor, (x, v, line_out, lines, 1))),  # noqa: SLF001
+        "springs without the divider": (
+            per_spring * _best(lambda r: net_profile._spring_floor_no_divider(x, v, line_out, lines, r),  # noqa: SLF001
+                               args.reps),
+            vector_report(net_profile._spring_floor_no_divider, (x, v, line_out, lines, 1))),  # noqa: SLF001
+        "knots (the knot pass's loop)": (_best(lambda r: _knots(t, xs, vs, w, r), args.reps),
+                                         vector_report(_knots, (t, xs, vs, w, 1))),
+        "step_grid_serial (the kernel)": (
+            _best(lambda r: kernels.step_grid_serial(state, inv_mass, topo.grid_params, 9.81, 5.0, h, r, work),
+                  args.reps),
+            vector_report(grid._grid_line, (state[0], state[1], u(0), u(0), u(0), u(1), u(cols - 1), 1.0, 1.0,  # noqa: SLF001
+                                            1.0, work[0], 0))),
     }
     print(f"net {cols} x {rows}: {topo.n_knots} knots, {n_springs} springs; µs per step, this thread's CPU time, "
-          "best of 5")
-    for name, us in results.items():
-        print(f"  {name:<36} {us:8.1f}")
+          f"best of 5; {'512-bit vectors preferred' if args.zmm else 'the compiler default width'}")
+    for name, (us, vectors) in rows_out.items():
+        print(f"  {name:<36} {us:8.1f}   {vectors['width']} x{vectors['lanes']}")
 
 
 if __name__ == "__main__":

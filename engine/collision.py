@@ -16,7 +16,7 @@ from numba import njit
 from engine.contact import impact, supported_advance
 from engine.forces import ball_accel
 from engine.geometry import Body, box_sdf, disc_sdf
-from engine.integrators import WORK_SHAPE, advance
+from engine.integrators import advance
 
 CONTACT_TOL = 1e-6  # m: an impact is applied once the gap is below this
 MAX_IMPACTS_PER_TICK = 16

@@ -101,3 +101,22 @@ def net_snapshot_dtype(n_knots: int) -> np.dtype:
     """
     return np.dtype([("tick", "<i8"), ("sleeping", "<i8"), ("quiet_ticks", "<i8"),
                      ("pos", "<f8", (n_knots, 3)), ("vel", "<f8", (n_knots, 3))])
+
+
+def ai_answer_dtype(max_bats: int, ctl_size: int) -> np.dtype:
+    """The AIs' answer to one decision turn (the AI worker writes it, the physics reads it).
+
+    tick: the tick it answers; mask: a bit per AI bat; inputs: (max_bats, 6) force N and torque
+    N m of every AI bat; key: the decision key it was made under; due, end: s, the AIs' wakes
+    (engine.ai.BatAI.wakes); ctl: (max_bats, ctl_size) each AI's controller row (engine.arm's
+    CTL_* layout), in the order of the scene's AI bats, so the physics can evaluate the force
+    law itself until the next decision.
+    """
+    return np.dtype([("tick", "<i8"), ("mask", "<i8"), ("inputs", "<f8", (max_bats, 6)), ("key", "<i8", (4,)),
+                     ("due", "<f8"), ("end", "<f8"), ("ctl", "<f8", (max_bats, ctl_size))])
+
+
+def ai_local_dtype(max_bats: int) -> np.dtype:
+    """The bats' inputs the physics computed itself at its last control tick without a turn:
+    tick, and inputs (max_bats, 6) force N and torque N m (a restarted physics takes them up)."""
+    return np.dtype([("tick", "<i8"), ("inputs", "<f8", (max_bats, 6))])

@@ -37,10 +37,10 @@ class Reason(enum.Enum):
     SERVE_MISSED_OWN_COURT = "serve_missed_own_court"  # 2.6.3: first bounce not on the server's court
     SERVE_DOUBLE_BOUNCE = "serve_double_bounce"  # bounced twice on the server's court
     SERVE_WHIFF = "serve_whiff"  # the tossed ball fell without being struck
-    NET = "net"  # struck into the net: the ball never reached the opponent's court
+    NET = "net"  # struck into the net: it fell back on the striker's side or never crossed
     OUT_LONG = "out_long"  # passed the opponent's end line without touching the court
     OUT_SIDE = "out_side"  # passed a side line without touching the court
-    OWN_COURT = "own_court"  # a return that bounced on the striker's own court
+    OWN_COURT = "own_court"  # a return struck down onto the striker's own court, the net untouched
     DOUBLE_BOUNCE = "double_bounce"  # 2.10.1.3: bounced twice before being returned
     MISSED = "missed"  # bounced legally and was never returned
     DOUBLE_HIT = "double_hit"  # 2.10.1.6: struck twice in succession
@@ -179,14 +179,14 @@ class Referee:
             return None
         if self.phase == Phase.SERVE_BOUNCED:
             if court == striker:
-                return self._award(other, Reason.SERVE_DOUBLE_BOUNCE)
+                return self._award(other, Reason.NET if self.touched_net else Reason.SERVE_DOUBLE_BOUNCE)
             if self.touched_net:
                 return self._let()
             self.phase = Phase.BOUNCED
             return None
         if self.phase == Phase.STRUCK:
-            if court == striker:
-                return self._award(other, Reason.OWN_COURT)
+            if court == striker:  # a player would say "into the net" when it fell back off the net
+                return self._award(other, Reason.NET if self.touched_net else Reason.OWN_COURT)
             self.phase = Phase.BOUNCED
             return None
         # Phase.BOUNCED: a second bounce before the return, wherever it lands.

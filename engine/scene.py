@@ -1,9 +1,11 @@
 """Scenes: TOML files naming the bodies and effects to simulate, validated into a frozen Scene."""
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import tomllib
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +31,7 @@ CLOTH_RESOLUTION = "resolution"
 BAT_NAMES = ("a", "b")
 MATERIAL_BODIES = ("table", "floor", "net", "bat")
 # Explicit net substeps per tick beyond which a scene is refused: each is a full pass over the
-# net (~90 us for the default 184 x 16 net, which needs 25), so 1000 already makes a tick ~0.1 s.
+# net, and the default 184 x 16 net needs 25, so 1000 already makes a tick 40 times as costly.
 MAX_NET_SUBSTEPS = 1000
 
 
@@ -80,7 +82,7 @@ class MatchSpec:
 @dataclass(frozen=True)
 class Scene:
     """Static description of a run. Derived numbers (drag factor, inertia...) are computed in
-    engine.world.build, never here."""
+    engine.world.build_model, never here."""
 
     name: str
     source: str
@@ -400,8 +402,12 @@ def parse_scene(data: dict, source: str) -> Scene:
     return scene
 
 
-def load_scene(name_or_path: str | Path) -> Scene:
-    """Load a scene from a TOML path, or a bundled scene by name (`drop`, `serve`, `rally`)."""
+def load_scene(name_or_path: str | Path, overrides: dict[str, Any] | None = None) -> Scene:
+    """Load a scene from a TOML path, or a bundled scene by name (`drop`, `serve`, `rally`).
+
+    overrides: dotted keys set in the TOML document before it is validated, so they are checked
+    like the file's own keys: {"match.ai_hz": 50, "integrator": "rk4"} (`pingpong sweep --set`).
+    """
     path = Path(name_or_path)
     if not path.exists() and not path.suffix:
         bundled = SCENES_DIR / f"{path.name}.toml"
@@ -414,13 +420,44 @@ def load_scene(name_or_path: str | Path) -> Scene:
         data = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{path}: not valid TOML: {exc}") from exc
+    for key, value in (overrides or {}).items():
+        _set_key(data, key, value, str(path))
     return parse_scene(data, str(path))
+
+
+def _set_key(data: dict, key: str, value: Any, source: str) -> None:
+    """data[a][b][c] = value for key "a.b.c", making the tables a and a.b where they are missing."""
+    *tables, last = key.split(".")
+    node = data
+    for depth, name in enumerate(tables):
+        node = node.setdefault(name, {})
+        if not isinstance(node, dict):
+            raise SceneError(f"{source}: {'.'.join(tables[:depth + 1])}: is a value, not a table, so {key} "
+                             "cannot be set")
+    node[last] = value
+
+
+def scene_digest(scene: Scene) -> str:
+    """16 hex digits of sha256 over what a scene simulates (every field but the file it came from):
+    equal digests, equal matches for equal seeds and code."""
+    fields = asdict(replace(scene, source=""))
+    text = json.dumps(fields, sort_keys=True, default=sorted)  # default: the effects' frozenset, sorted
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def with_skills(scene: Scene, skill_a: str, skill_b: str) -> Scene:
+    """The scene with bat A played by the AI of skill_a and bat B by skill_b (SKILL_NAMES)."""
+    if len(scene.bats) != 2:
+        raise SceneError(f"{scene.source}: two AI players need both bats; the scene has {len(scene.bats)}")
+    for name, skill in zip(BAT_NAMES, (skill_a, skill_b)):
+        if skill not in SKILL_NAMES:
+            raise SceneError(f"bats.{name}.skill: must be one of {', '.join(SKILL_NAMES)}; got {skill!r}")
+    bats = tuple(replace(bat, skill=skill, remote=False) for bat, skill in zip(scene.bats, (skill_a, skill_b)))
+    return replace(scene, bats=bats, effects=(scene.effects - {"remote"}) | {"ai"})
 
 
 def with_overrides(scene: Scene, **changes: Any) -> Scene:
     """A copy of the scene with some fields changed and re-validated (CLI --dt, --integrator)."""
-    from dataclasses import replace
-
     if "integrator" in changes and changes["integrator"] not in METHODS:
         raise SceneError(f"{scene.source}: integrator: must be one of {', '.join(METHODS)}; got {changes['integrator']!r}")
     if "dt" in changes and not (math.isfinite(changes["dt"]) and 0.0 < changes["dt"] <= 0.05):
@@ -431,8 +468,6 @@ def with_overrides(scene: Scene, **changes: Any) -> Scene:
 def with_remote_players(scene: Scene, players: int) -> Scene:
     """The scene served to network clients (effect "remote"): bat A remote if players >= 1, bat B
     too if players == 2; the other bats keep their AI. `pingpong serve --players N`."""
-    from dataclasses import replace
-
     if players not in (0, 1, 2):
         raise SceneError(f"players: must be 0, 1 or 2, got {players}")
     if scene.match is None:

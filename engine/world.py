@@ -10,7 +10,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from engine import equipment
-from engine.bat import BAT_WIDTH, FORCE_AT, TORQUE_AT, disc_inertia
+from engine.bat import BAT_WIDTH, FORCE_AT, TORQUE_AT, disc_inertia, face_normal
 from engine.collision import (
     BAT_HALF_THICKNESS,
     BAT_RADIUS,
@@ -29,9 +29,9 @@ from engine.collision import (
 )
 from engine.dtypes import BAT_DTYPE, CONTACT_DTYPE, physics_snapshot_dtype
 from engine.forces import drag_factor, magnus_factor
-from engine.geometry import FLOOR_Z, NET_BOX, POST_BOXES, TABLE_BOX, Body
+from engine.geometry import FLOOR_Z, NET_BOX, POST_BOXES, TABLE_BOX, Body, box_sdf, disc_sdf
 from engine.integrators import METHODS, WORK_SHAPE
-from engine.scene import Scene
+from engine.scene import Scene, SceneError
 from engine.tick import ERR_BATS_AFTER, ERR_BATS_BEFORE, STOP_EVENT, STOP_LIMIT, STOP_NET, STOP_WATCH, advance_ticks
 from net_kernel import NO_CONTACT, NetSim, build_topology
 from net_kernel.sim import KNOT_RADIUS, NET_REACH, WAKE_MARGIN
@@ -126,10 +126,6 @@ def _cloth_reach(scene: Scene, radius: float) -> np.ndarray:
 
 def _check_start(model: Model) -> None:
     """Refuse a ball that starts inside a body: no physics can say which way it should leave."""
-    from engine.bat import face_normal
-    from engine.geometry import box_sdf, disc_sdf
-    from engine.scene import SceneError
-
     scene = model.scene
     p = np.array(scene.ball.pos, dtype=float)
     radius = float(model.ball_params[P_RADIUS])
@@ -212,7 +208,7 @@ def initial_state(scene: Scene) -> State:
 
 def copy_record(src: np.ndarray, dst: np.ndarray, index: int = 0) -> None:
     """dst[index] = src[0], byte for byte (numpy copies nested structured records field by field,
-    ~10x slower)."""
+    which is far slower)."""
     dst.view(np.uint8).reshape(len(dst), -1)[index] = src.view(np.uint8)
 
 

@@ -1,5 +1,9 @@
 """Profile of the net step: compile time, time per step, springs per second, bandwidth share.
 
+Beside the kernels: the textbook per-spring scatter loop timed on the same net in the same run
+(the ratios), the grid kernel's passes timed apart (grid_passes), and the vector width of each
+kernel's loops (kernel_vectors, from numba's assembly).
+
 Plain dicts out (stdlib + numpy + numba only); processes/cli/profile_net.py formats them.
 
 Two kernel paths (both give the same bits): "csr", the general per-knot gather over the CSR
@@ -20,6 +24,10 @@ Byte model of one step (the compulsory memory traffic, neighbours from cache):
             them back in place (48 B)                                         -> 104 B
   grid, per spring: nothing (class parameters; a row's spring forces stay in a scratch
             of a few rows, in cache)                                            -> 0 B
+  textbook scatter, per knot: the force zeroed (24 B), read and written by the spring
+            loop (48 B), read by the knot loop (24 B); pos, vel read by both loops (96 B);
+            knot_inv_mass (8 B); out_pos, out_vel written (48 B)               -> 248 B
+  textbook scatter, per spring: spring_ij (8 B), rest, k, c (24 B)            -> 32 B
 Write-allocate traffic is not counted, as it is not in the copy measurement
 (bytes = 2 x size: one read, one write).
 """
@@ -30,8 +38,11 @@ import time
 
 import numba
 import numpy as np
+from numba import njit
 
 from net_kernel import kernels, reference
+from net_kernel.assembly import vector_report
+from net_kernel.kernels import grid as grid_kernels
 from net_kernel.sim import SAFETY, NetSim
 from net_kernel.topology import NetSpec, build_topology, grid_spec
 
@@ -39,7 +50,12 @@ BYTES_PER_KNOT = 160
 BYTES_PER_SPRING = 104
 GRID_BYTES_PER_KNOT = 104
 GRID_BYTES_PER_SPRING = 0
+TEXTBOOK_BYTES_PER_KNOT = 248
+TEXTBOOK_BYTES_PER_SPRING = 32
 PATHS = ("grid", "csr")
+# The textbook kernel (kernels.step_knots_scatter) is timed as a path of its own, serial, one
+# step a call, on the same net in the same run: the baseline of the ratios.
+TEXTBOOK = "scatter"
 # The tick whose substeps the grid path takes in one call (the engine's match tick).
 TICK_S = 1e-3
 # The copy that sets this machine's bandwidth: large enough to leave every cache (256 MiB).
@@ -98,8 +114,8 @@ def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True
         steps_per_call: grid: steps per kernel call (None: a TICK_S tick's substeps, as
             NetSim calls it, or fewer if a call would outlast one timed run); csr: always 1.
     """
-    if path not in PATHS:
-        raise ValueError(f"path {path!r} is not one of {', '.join(PATHS)}")
+    if path not in PATHS + (TEXTBOOK,):
+        raise ValueError(f"path {path!r} is not one of {', '.join(PATHS + (TEXTBOOK,))}")
     mod = kernels if backend == "numba" else reference
     pos, vel, out_pos, out_vel = _state(topo)
     h = 0.5 * topo.h_max
@@ -115,6 +131,18 @@ def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True
 
         def call(n):
             step(state, inv_mass, topo.grid_params, topo.spec.gravity, topo.spec.air_damping, h, n, work)
+    elif path == TEXTBOOK:
+        step = mod.step_knots_scatter  # serial only: a scatter is a race under threads
+        parallel = False
+        args = (topo.knot_inv_mass, topo.spring_ij, topo.spring_rest, topo.spring_k, topo.spring_c, topo.spec.gravity,
+                topo.spec.air_damping, h, np.zeros_like(pos))
+        buffers = [pos, vel, out_pos, out_vel]
+
+        def call(n):  # one step a call, as the CSR kernel
+            for _ in range(n):
+                p, v, po, vo = buffers
+                step(p, v, *args, po, vo)
+                buffers[:] = po, vo, p, v
     else:
         step = mod.step_knots if parallel else mod.step_knots_serial
         args = (topo.knot_inv_mass, topo.adj_start, topo.adj_knot, topo.adj_spring, topo.spring_ij, topo.spring_rest,
@@ -139,7 +167,7 @@ def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True
     per_call = 1
     if path == "grid":
         # A tick's substeps (NetSim's call), fewer where that would not fit one timed run
-        # (1000 x 1000: ~650 substeps of ~30 ms).
+        # (a large net: hundreds of substeps a tick, each of them long).
         per_call = steps_per_call or max(1, min(_substeps_per_tick(topo), int(budget / max(one, 1e-7))))
         if steps is not None:
             per_call = min(per_call, steps)
@@ -160,8 +188,9 @@ def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True
     # One thread's CPU time: a serial kernel's cost on its core, steadier than wall time on a shared
     # machine (time spent waiting for a core is left out); not defined for the parallel kernel.
     cpu_per_step = statistics.median(cpu_runs) if not (parallel and backend == "numba") else None
-    per_knot, per_spring = (GRID_BYTES_PER_KNOT, GRID_BYTES_PER_SPRING) if path == "grid" else (BYTES_PER_KNOT,
-                                                                                                  BYTES_PER_SPRING)
+    per_knot, per_spring = {"grid": (GRID_BYTES_PER_KNOT, GRID_BYTES_PER_SPRING),
+                            TEXTBOOK: (TEXTBOOK_BYTES_PER_KNOT, TEXTBOOK_BYTES_PER_SPRING)}.get(
+                                path, (BYTES_PER_KNOT, BYTES_PER_SPRING))
     n_bytes = per_knot * topo.n_knots + per_spring * topo.n_springs
     return {
         "backend": backend,
@@ -186,9 +215,11 @@ def profile_net(cols: int, rows: int, steps: int | None = None, backends=("numba
     """The whole profile: net size, copy bandwidth, and one entry per path and backend (numba: parallel and serial).
 
     Returns:
-        {"knots", "springs", "cols", "rows", "h_s", "byte_model", "copy": {...}, "results": [...]}
-        where each result carries "copy_share" = its gb_per_s / the copy's gb_per_s. A net
-        whose arrays fit in cache can exceed 100 %: the copy is sized to leave the caches.
+        {"cols", "rows", "knots", "springs", "h_s", "substeps_per_tick", "byte_model", "copy": {...},
+        "threads", "threading_layer", "load_avg", "results": [...], "passes" (grid_passes, or None),
+        "vectors" (kernel_vectors, or None)} where each result carries "copy_share" = its gb_per_s /
+        the copy's gb_per_s (a net whose arrays fit in cache can exceed 100 %: the copy is sized to
+        leave the caches) and, when numba is profiled, "textbook_ratio".
     """
     topo = build_topology(grid_spec(cols, rows))
     load_before = os.getloadavg()[0]
@@ -200,6 +231,15 @@ def profile_net(cols: int, rows: int, steps: int | None = None, backends=("numba
             variants = (True, False) if backend == "numba" else (False,)
             for parallel in variants:
                 results.append(profile_backend(topo, backend, steps, parallel=parallel, target_s=target_s, path=path))
+    textbook = None
+    if "numba" in backends:
+        textbook = profile_backend(topo, "numba", steps, parallel=False, target_s=target_s, path=TEXTBOOK)
+        results.append(textbook)
+        for r in results:
+            # How many times faster than the textbook loop, by the stepping thread's CPU time
+            # (wall time for the parallel kernels: their CPU time is spread over threads).
+            mine = r["cpu_us_per_step"] if r["cpu_us_per_step"] is not None else r["us_per_step"]
+            r["textbook_ratio"] = textbook["cpu_us_per_step"] / mine
     copy_again = copy_bandwidth(n_bytes=copy["bytes"] // 2)
     # Bandwidth is measured before and after the kernels; the share uses the better of the
     # two medians, since the machine is shared and the slower one saw more interference.
@@ -225,6 +265,8 @@ def profile_net(cols: int, rows: int, steps: int | None = None, backends=("numba
         # The machine may be shared: 1-minute load average before and after the kernels.
         "load_avg": [load_before, os.getloadavg()[0]],
         "results": results,
+        "passes": grid_passes(topo, target_s=target_s) if "numba" in backends and "grid" in paths else None,
+        "vectors": kernel_vectors(topo) if "numba" in backends else None,
     }
 
 
@@ -344,3 +386,197 @@ def tick_costs(sizes=((184, 16), (92, 8), (70, 7)), ticks: int = 200, repeats: i
         rows_out.append(entry)
     return {"tick_s": TICK_S, "ticks": ticks, "repeats": repeats, "clock": clock, "load_avg": os.getloadavg()[0],
             "rows": rows_out}
+
+
+# ---------------------------------------------------------------------------------------------
+# The grid kernel taken apart: each of step_grid_serial's passes over a whole step, timed alone
+# (the same private loops the kernel calls, on the same state), beside the floor of the
+# divider (a square root and a division per spring, float64, the springs' only long-latency
+# operations) and the same passes on a net of as many knots in rows 8 times longer.
+
+
+@njit(cache=True, error_model="numpy")
+def _pass_bands(state, params, work, reps):
+    for _ in range(reps):
+        for r in range(state.shape[2] - 1):
+            grid_kernels._grid_band(state[0], state[1], r, params, work, grid_kernels._BAND)  # noqa: SLF001
+
+
+@njit(cache=True, error_model="numpy")
+def _pass_rows(state, params, work, reps):
+    for _ in range(reps):
+        for r in range(state.shape[2]):
+            grid_kernels._grid_row(state[0], state[1], r, params, work)  # noqa: SLF001
+
+
+@njit(cache=True, error_model="numpy")
+def _pass_knots(state, inv_mass, work, h, reps):
+    band = grid_kernels._BAND  # noqa: SLF001
+    for _ in range(reps):
+        for r in range(state.shape[2]):
+            grid_kernels._grid_update(state, inv_mass, r, band, band + 9, work, 9.81, 5.0, h)  # noqa: SLF001
+
+
+@njit(cache=True, error_model="numpy")
+def _pass_borders(state, inv_mass, work, h, reps):
+    band = grid_kernels._BAND  # noqa: SLF001
+    last = state.shape[3] - 1
+    for _ in range(reps):
+        for r in range(state.shape[2]):
+            grid_kernels._grid_border(state, inv_mass, r, 0, last, band, band + 9, work, 9.81, 5.0, h)  # noqa: SLF001
+            grid_kernels._grid_border(state, inv_mass, r, last, last - 1, band, band + 9, work, 9.81, 5.0, h)  # noqa: SLF001
+
+
+@njit(cache=True, error_model="numpy")
+def _divider_floor(length2, out, reps):
+    for _ in range(reps):
+        for s in range(length2.shape[0]):
+            out[s] = 1.0 / math.sqrt(length2[s])
+
+
+@njit(inline="always")
+def _spring_t(d0, d1, d2, e0, e1, e2, length, inv_len, out, q):
+    rate = e0 * d0 + e1 * d1 + e2 * d2
+    scale = (200.0 * (length - 0.01) + 0.1 * rate * inv_len) * inv_len
+    out[0, q] = scale * d0
+    out[1, q] = scale * d1
+    out[2, q] = scale * d2
+
+
+@njit(cache=True, error_model="numpy")
+def _spring_floor(x, v, out, lines, reps):
+    """The grid's spring arithmetic (_grid_line's) over `lines` rows of out.shape[1] springs, nothing else."""
+    n = out.shape[1]
+    for _ in range(reps):
+        for _ in range(lines):
+            for q in range(n):
+                d0, d1, d2 = x[0, q + 1] - x[0, q], x[1, q + 1] - x[1, q], x[2, q + 1] - x[2, q]
+                length = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+                _spring_t(d0, d1, d2, v[0, q + 1] - v[0, q], v[1, q + 1] - v[1, q], v[2, q + 1] - v[2, q], length,
+                          1.0 / length, out, q)
+
+
+@njit(cache=True, error_model="numpy")
+def _spring_floor_no_divider(x, v, out, lines, reps):
+    """_spring_floor with 1/|L| from a float32 root and division refined by one float64 Newton step.
+
+    Relative error ~1e-14: what a spring would cost without the float64 divider; for the floor
+    only, no kernel rounds this way.
+    """
+    n = out.shape[1]
+    for _ in range(reps):
+        for _ in range(lines):
+            for q in range(n):
+                d0, d1, d2 = x[0, q + 1] - x[0, q], x[1, q + 1] - x[1, q], x[2, q + 1] - x[2, q]
+                length2 = d0 * d0 + d1 * d1 + d2 * d2
+                y = np.float64(np.float32(1.0) / np.sqrt(np.float32(length2)))
+                inv_len = y * (1.5 - 0.5 * length2 * y * y)
+                _spring_t(d0, d1, d2, v[0, q + 1] - v[0, q], v[1, q + 1] - v[1, q], v[2, q + 1] - v[2, q],
+                          length2 * inv_len, inv_len, out, q)
+
+
+def _best_us(call, target_s: float) -> float:
+    """µs per call of call(reps), this thread's CPU time, the best of REPEATS runs sized to target_s."""
+    call(1)  # compile or load
+    t0 = time.thread_time()
+    call(1)
+    one = max(time.thread_time() - t0, 1e-7)
+    reps = max(1, int(target_s / REPEATS / one))
+    best = math.inf
+    for _ in range(REPEATS):
+        t0 = time.thread_time()
+        call(reps)
+        best = min(best, (time.thread_time() - t0) / reps)
+    return best * 1e6
+
+
+def _grid_case(topo, rows: int, cols: int):
+    """A moving grid state of rows x cols knots with topo's spring classes, its masses and scratch."""
+    rng = np.random.default_rng(0)
+    state = np.zeros((2, 3, rows, cols))
+    spacing = 0.01
+    state[0, 1] = spacing * np.arange(cols)[None, :]
+    state[0, 2] = spacing * np.arange(rows)[:, None]
+    state[0] += rng.normal(0.0, 1e-4, state[0].shape)
+    state[1] = rng.normal(0.0, 1e-3, state[1].shape)
+    inv_mass = np.full((rows, cols), float(np.max(topo.knot_inv_mass)))
+    inv_mass[0] = 0.0  # the table's row stays fixed, as in a built net
+    return state, inv_mass, np.zeros((grid_kernels.GRID_WORK_ROWS, cols))
+
+
+def grid_passes(topo, target_s: float = 1.0) -> dict:
+    """µs per step of each pass of step_grid_serial on `topo`'s grid, and of the divider's floor.
+
+    Returns:
+        {"rows", "cols", "passes": {name: (µs, springs or knots, unit)}, "long_rows": the same
+        on rows 8 times longer and 8 times fewer (per spring or knot against "passes": what the
+        short rows' per-loop overhead costs; None below 16 rows), "divider_floor_us" (a root and
+        a division for each of the net's springs), "spring_floor_us" and
+        "spring_floor_no_divider_us" (_spring_floor, _spring_floor_no_divider for as many springs),
+        "step_us", "rest_us" (the step minus its passes: block set-up, band copies, calls)}.
+    """
+    rows, cols = topo.spec.rows, topo.spec.cols
+    budget = target_s / 8
+
+    def passes(n_rows, n_cols):
+        state, inv_mass, work = _grid_case(topo, n_rows, n_cols)
+        params, h = topo.grid_params, 0.5 * topo.h_max
+        # name: (µs per step, how many springs or knots the pass handles, "spring" or "knot")
+        return {
+            "springs: vertical and shear bands": (_best_us(lambda r: _pass_bands(state, params, work, r), budget),
+                                                  (n_rows - 1) * (3 * n_cols - 2), "spring"),
+            "springs: horizontal rows": (_best_us(lambda r: _pass_rows(state, params, work, r), budget),
+                                         n_rows * (n_cols - 1), "spring"),
+            "knots: update (with borders)": (_best_us(lambda r: _pass_knots(state, inv_mass, work, h, r), budget),
+                                             n_rows * n_cols, "knot"),
+            "knots: the border columns alone": (_best_us(lambda r: _pass_borders(state, inv_mass, work, h, r),
+                                                         budget), 2 * n_rows, "knot"),
+        }
+
+    short = passes(rows, cols)
+    long_rows = passes(max(2, rows // 8), cols * 8) if rows >= 16 else None
+    state = np.zeros((2, 3, rows, cols))
+    state[0] = topo.knot_pos.T.reshape(3, rows, cols)
+    work = np.zeros((1, grid_kernels.GRID_WORK_ROWS, cols))
+    inv_mass = topo.knot_inv_mass.reshape(rows, cols)
+    step_us = _best_us(lambda r: kernels.step_grid_serial(state, inv_mass, topo.grid_params, topo.spec.gravity,
+                                                          topo.spec.air_damping, 0.5 * topo.h_max, r, work), budget)
+    rng = np.random.default_rng(1)
+    length2 = 1e-4 * (1.0 + 0.01 * rng.random(topo.n_springs))
+    floor = _best_us(lambda r: _divider_floor(length2, np.empty_like(length2), r), budget)
+    # The spring arithmetic alone on contiguous rows of the net's row length, scaled to its springs.
+    x = 0.01 * np.arange(cols + 1) + 1e-4 * rng.random((3, cols + 1))
+    v = 1e-3 * rng.random((3, cols + 1))
+    lines = math.ceil(topo.n_springs / (cols - 1))
+    per_spring = topo.n_springs / (lines * (cols - 1))
+    springs = [per_spring * _best_us(lambda r, f=f: f(x, v, np.empty((3, cols - 1)), lines, r), budget)
+               for f in (_spring_floor, _spring_floor_no_divider)]
+    spent = sum(us for name, (us, _, _) in short.items() if name != "knots: the border columns alone")
+    return {"rows": rows, "cols": cols, "passes": short, "long_rows": long_rows, "divider_floor_us": floor,
+            "spring_floor_us": springs[0], "spring_floor_no_divider_us": springs[1], "step_us": step_us,
+            "rest_us": step_us - spent}
+
+
+def kernel_vectors(topo) -> dict:
+    """vector_report of each kernel's loops for `topo`'s arrays: the grid's spring and knot passes, csr, textbook."""
+    rows, cols = topo.spec.rows, topo.spec.cols
+    state = np.zeros((2, 3, rows, cols))
+    work = np.zeros((grid_kernels.GRID_WORK_ROWS, cols))
+    inv_mass = topo.knot_inv_mass.reshape(rows, cols)
+    u = np.uint64
+    pos, vel = topo.knot_pos.copy(), np.zeros_like(topo.knot_pos)
+    h = 0.5 * topo.h_max
+    csr = (pos, vel, topo.knot_inv_mass, topo.adj_start, topo.adj_knot, topo.adj_spring, topo.spring_ij,
+           topo.spring_rest, topo.spring_k, topo.spring_c, 9.81, 5.0, h, np.zeros((kernels.STEP_WORK_ROWS,
+                                                                                  topo.n_springs)),
+           pos.copy(), vel.copy())
+    textbook = (pos, vel, topo.knot_inv_mass, topo.spring_ij, topo.spring_rest, topo.spring_k, topo.spring_c, 9.81, 5.0,
+                h, pos.copy(), pos.copy(), vel.copy())
+    return {
+        "grid springs (_grid_line)": vector_report(grid_kernels._grid_line, (  # noqa: SLF001
+            state[0], state[1], u(0), u(0), u(0), u(1), u(cols - 1), 1.0, 1.0, 1.0, work, 0)),
+        "grid knots (_grid_update)": vector_report(grid_kernels._grid_update, (  # noqa: SLF001
+            state, inv_mass, 0, 3, 12, work, 9.81, 5.0, h)),
+        "csr (step_knots_serial)": vector_report(kernels.step_knots_serial, csr),
+        "textbook scatter (step_knots_scatter)": vector_report(kernels.step_knots_scatter, textbook),
+    }

@@ -78,6 +78,26 @@ def step_knots(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_sprin
 step_knots_serial = step_knots
 
 
+def step_knots_scatter(knot_pos, knot_vel, knot_inv_mass, spring_ij, spring_rest, spring_k, spring_c, gravity, drag, h,
+                       knot_force, out_pos, out_vel):
+    """Numpy twin of kernels.step_knots_scatter, bit for bit: np.add.at adds in the kernel's order."""
+    i, j = spring_ij[:, 0], spring_ij[:, 1]
+    d = knot_pos[j] - knot_pos[i]
+    length = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2])
+    n = d * (1.0 / length)[:, None]
+    e = knot_vel[j] - knot_vel[i]
+    rate = e[:, 0] * n[:, 0] + e[:, 1] * n[:, 1] + e[:, 2] * n[:, 2]
+    f = (spring_k * (length - spring_rest) + spring_c * rate)[:, None] * n
+    knot_force[:] = 0.0
+    # Spring s adds +f to knot i, then -f to knot j (x - f is x + (-f) exactly), in spring order.
+    np.add.at(knot_force, np.stack([i, j], axis=1).ravel(), np.stack([f, -f], axis=1).reshape(-1, 3))
+    g = np.array([0.0, 0.0, gravity])
+    free = (knot_inv_mass != 0.0)[:, None]
+    nv = knot_vel + h * (knot_inv_mass[:, None] * knot_force - drag * knot_vel - g)
+    out_vel[:] = np.where(free, nv, knot_vel)
+    out_pos[:] = np.where(free, knot_pos + h * nv, knot_pos)
+
+
 def _grid_t(xi, xj, vi, vj, k, c, rest):
     """(3, ...) t = scale (x_j - x_i) per spring, kernels.grid._grid_line's operations in its order."""
     d0, d1, d2 = xj[0] - xi[0], xj[1] - xi[1], xj[2] - xi[2]

@@ -19,6 +19,7 @@ import numpy as np
 
 from engine.dtypes import CONTACT_DTYPE, physics_snapshot_dtype
 from engine.scene import Scene
+from processes.network.gateway import GatewayConfig
 from processes.runtime.control import READY_TIMEOUT_S, STARTUP_LIMIT_S, WorkerState, worker_main
 from processes.runtime.shm import Arena
 from processes.workers import PLAYERS_TIMEOUT_S, WORKERS, RunLayout, RunOptions, build_layout, workers_for
@@ -88,8 +89,6 @@ class Supervisor:
         self.frame_every = frame_every
         self.kinds = workers_for(scene)
         if "gateway" in self.kinds and gateway is None:
-            from processes.network.gateway import GatewayConfig
-
             gateway = GatewayConfig()
         self.options = RunOptions(ticks=ticks, mode=mode, trace=trace, seed=seed, frame_every=frame_every,
                                   players_timeout=players_timeout, gateway=gateway)

@@ -2,7 +2,8 @@
 
 One module per layout or concern: csr (knot steps over the CSR adjacency, any topology), grid
 (the same step on a regular grid, fused row by row), implicit (backward Euler by conjugate
-gradients), contact (the ball against the knots). Numba only; the numpy twins are in
+gradients), contact (the ball against the knots), scatter (the textbook per-spring scatter
+loop, a baseline for the profile, not used by NetSim). Numba only; the numpy twins are in
 net_kernel/reference.py.
 
 Model (issue 4, after Provot, "Deformation constraints in a mass-spring model", Graphics
@@ -47,6 +48,7 @@ from net_kernel.kernels.grid import (
     step_grid_serial,
 )
 from net_kernel.kernels.implicit import KNOT_WORK_ROWS, SPRING_WORK_COLS, step_knots_implicit
+from net_kernel.kernels.scatter import step_knots_scatter
 from net_kernel.kernels.table import TABLE_Z
 
 __all__ = [
@@ -76,5 +78,6 @@ __all__ = [
     "step_grid_serial",
     "step_knots",
     "step_knots_implicit",
+    "step_knots_scatter",
     "step_knots_serial",
 ]

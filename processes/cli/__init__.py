@@ -3,14 +3,15 @@
 Physics, the cloth net and the bat AI run as separate OS processes sharing numpy arrays in
 shared memory; a ZeroMQ gateway lets remote people play a bat or watch. Play a match (AI
 against AI), replay it, serve it to remote players and spectators, measure what accuracy costs,
-profile the net kernel, and stress-test the connections.
+profile the net kernel, stress-test the connections, and play tournaments and sweeps of many
+matches on a local process pool or a Ray cluster.
 """
 from __future__ import annotations
 
 import argparse
 import sys
 
-from processes.cli import bench, match, profile_net, remote, run, stress
+from processes.cli import bench, match, profile_net, remote, run, stress, sweep, tournament
 
 EPILOG = """examples:
   pingpong match                          a best-of-5 AI match in worker processes, live score
@@ -19,9 +20,11 @@ EPILOG = """examples:
   pingpong bench accuracy                 what accuracy costs in time (work-precision study)
   pingpong profile-net                    springs per second, share of the memory bandwidth
   pingpong stress --scenario load         1000 spectators against the gateway
+  pingpong tournament --seeds 50          every pair of AI profiles, 50 seeds, on all cores (--cluster ray)
+  pingpong sweep match --set match.ai_hz=100,250   one scene key's values, each cell's matches as tasks
 `pingpong COMMAND --help` describes each command."""
 
-FAMILIES = (run, match, bench, profile_net, remote, stress)
+FAMILIES = (run, match, bench, profile_net, remote, stress, tournament, sweep)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -109,7 +109,7 @@ def match_command(args: argparse.Namespace) -> int:
                     m.save(record)
                     frames.append(record[0].copy())
 
-            # A per-tick callback makes play() advance one tick a call (2x slower): only for frames.
+            # A per-tick callback makes play() advance one tick a call, not in chunks: only for frames.
             result = match.play(max_ticks=ticks, on_tick=keep if frame_every else None, events_out=events)
             summary = result.summary()
             summary.update(mode="in-process", processes=False)
@@ -146,6 +146,19 @@ def match_command(args: argparse.Namespace) -> int:
         if args.replay:
             print(f"replay written to {args.replay}")
     return 0
+
+
+def _best_of(header: dict) -> int:
+    """The recorded match's best_of, from the scene text the replay carries."""
+    import tomllib
+
+    from engine.scene import parse_scene
+
+    try:
+        scene = parse_scene(tomllib.loads(header.get("scene_toml", "")), header["scene"])
+    except (SceneError, tomllib.TOMLDecodeError, KeyError):
+        return 5
+    return scene.match.best_of if scene.match is not None else 5
 
 
 def _scene_text(scene) -> str:
@@ -198,6 +211,12 @@ def replay_command(args: argparse.Namespace) -> int:
         if args.gif:
             render.gif(data.frames, args.gif, title)
             summary["gif"] = args.gif
+    if args.html:
+        from processes.network.web import replay_messages, replay_page
+
+        messages = replay_messages(data, _best_of(h))
+        Path(args.html).write_text(replay_page(messages, title), encoding="utf-8")
+        summary["html"] = args.html
     if args.json:
         print(json.dumps(summary))
     else:
@@ -208,7 +227,7 @@ def replay_command(args: argparse.Namespace) -> int:
               f"mean rally {summary['mean_rally_shots']:.1f} shots")
         print("points ended by: " + ", ".join(f"{k} {v}" for k, v in summary["point_reasons"].items()))
         print("contacts: " + ", ".join(f"{k} {v}" for k, v in summary["contacts"].items()))
-        for kind in ("png", "gif"):
+        for kind in ("png", "gif", "html"):
             if kind in summary:
                 print(f"{kind} written to {summary[kind]}")
     return 0
@@ -288,4 +307,6 @@ def add_commands(sub) -> None:
     replay.add_argument("--json", action="store_true", help="print one JSON object")
     replay.add_argument("--png", default=None, help="draw side and top views of the last rally to this PNG")
     replay.add_argument("--gif", default=None, help="animate the last seconds to this GIF")
+    replay.add_argument("--html", default=None,
+                        help="write one self-contained HTML page that plays the match in 3D, offline")
     replay.set_defaults(func=replay_command)

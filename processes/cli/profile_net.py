@@ -35,20 +35,23 @@ def profile_net_command(args: argparse.Namespace) -> int:
     print(f"copy bandwidth (numpy copy of {copy['bytes'] / 2**21:.0f} MiB, read + write): "
           f"{copy['gb_per_s']:.1f} GB/s (before {copy['before']:.1f}, after {copy['after']:.1f})")
     print(f"byte model: {report['byte_model']}")
-    header = (f"  {'path':<5} {'backend':<18} {'compile s':>9} {'steps':>7} {'per call':>8} {'µs/step':>10} "
-              f"{'[min .. max]':>22} {'cpu µs/step':>11} {'Msprings/s':>11} {'GB/s':>7} {'of copy':>8}")
+    header = (f"  {'path':<7} {'backend':<18} {'compile s':>9} {'steps':>7} {'per call':>8} {'µs/step':>10} "
+              f"{'[min .. max]':>22} {'cpu µs/step':>11} {'Msprings/s':>11} {'GB/s':>7} {'of copy':>8} {'x textbook':>10}")
     print(header)
     for r in report["results"]:
         name = r["backend"] + (" parallel" if r["parallel"] else " serial" if r["backend"] == "numba" else "")
         spread = f"[{r['us_per_step_min']:.1f} .. {r['us_per_step_max']:.1f}]"
         cpu = "-" if r["cpu_us_per_step"] is None else f"{r['cpu_us_per_step']:.1f}"
-        print(f"  {r['path']:<5} {name:<18} {r['compile_s']:>9.2f} {r['steps']:>7} {r['steps_per_call']:>8} "
+        print(f"  {r['path']:<7} {name:<18} {r['compile_s']:>9.2f} {r['steps']:>7} {r['steps_per_call']:>8} "
               f"{r['us_per_step']:>10.1f} {spread:>22} {cpu:>11} {r['msprings_per_s']:>11.1f} {r['gb_per_s']:>7.2f} "
-              f"{100 * r['copy_share']:>7.1f}%")
+              f"{100 * r['copy_share']:>7.1f}% {_ratio(r):>10}")
     print(f"  median of {report['results'][0]['repeats']} timed runs each; cpu µs/step: the stepping thread's CPU "
           "time (serial kernels; time waiting for a core left out); compile time is the first call's "
           "excess over the second (0 when numba's cache is warm); grid: a tick's substeps per call, as NetSim "
-          "steps a net the ball is away from; csr: one step per call")
+          "steps a net the ball is away from; csr: one step per call; scatter: the textbook per-spring scatter "
+          "loop (kernels.step_knots_scatter), serial, one step per call; x textbook: its cpu µs/step over the "
+          "row's (µs/step for parallel rows), same net, same run")
+    _print_anatomy(report)
     return 0
 
 
@@ -62,3 +65,31 @@ def add_commands(sub) -> None:
                          help="kernel path: the grid kernel NetSim uses, the general CSR kernel, or both")
     profile.add_argument("--json", action="store_true", help="print one JSON object")
     profile.set_defaults(func=profile_net_command)
+
+
+def _ratio(r: dict) -> str:
+    return "-" if r.get("textbook_ratio") is None else f"{r['textbook_ratio']:.1f}x"
+
+
+def _print_anatomy(report: dict) -> None:
+    """The grid kernel's passes timed apart, and each kernel's loops' vector width."""
+    passes = report.get("passes")
+    if passes:
+        print(f"grid kernel's passes (step_grid_serial's loops alone, this thread's CPU time, best of 5), "
+              f"{passes['rows']} x {passes['cols']}: µs per step, ns per spring or knot, and ns on rows 8x longer")
+        for name, (us, count, unit) in passes["passes"].items():
+            long_rows = passes["long_rows"][name] if passes["long_rows"] else None
+            longer = "-" if long_rows is None else f"{1e3 * long_rows[0] / long_rows[1]:.2f}"
+            print(f"  {name:<36} {us:>8.2f} µs {1e3 * us / count:>7.2f} ns/{unit:<6} {longer:>7} on long rows")
+        print(f"  {'step_grid_serial':<36} {passes['step_us']:>8.2f} µs; outside the passes "
+              f"{passes['rest_us']:.2f} µs; the divider's floor (a root and a division per spring, float64) "
+              f"{passes['divider_floor_us']:.2f} µs")
+        print(f"  floors: the springs' arithmetic alone (contiguous rows, as many springs) "
+              f"{passes['spring_floor_us']:.2f} µs; the same without the divider (float32 root and division, one "
+              f"float64 Newton step) {passes['spring_floor_no_divider_us']:.2f} µs")
+    vectors = report.get("vectors")
+    if vectors:
+        print("vectorised? each kernel's widest loop, from numba's assembly (float64 lanes: xmm 2, ymm 4, zmm 8)")
+        for name, v in vectors.items():
+            packed = "scalar only" if v["lanes"] == 1 else f"packed {v['width']} x{v['lanes']}, {v['packed_ops']} ops"
+            print(f"  {name:<40} {packed:<28} {v['scalar_loops']} of {v['loops']} loops scalar only")

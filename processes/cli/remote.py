@@ -1,11 +1,12 @@
-"""`pingpong serve`, `join`, `keys` and `decode`: a match that remote players and spectators join,
-its CURVE keys, and a captured wire message pretty-printed."""
+"""`pingpong serve`, `join`, `relay`, `keys` and `decode`: a match that remote players and spectators
+join, a relay of its spectator feed, its CURVE keys, and a captured wire message pretty-printed."""
 from __future__ import annotations
 
 import argparse
 import json
 import os
 import sys
+import tempfile
 from dataclasses import replace
 from pathlib import Path
 
@@ -181,26 +182,34 @@ def serve_command(args: argparse.Namespace) -> int:
         if getattr(args, "curve_secret", None):
             public, secret = load_curve_key(args.curve_secret, secret=True)
             curve = {"curve_public_key": public, "curve_secret_key": secret}
-        config = GatewayConfig(bind=args.bind, snapshot_hz=args.snapshot_hz, timeout_s=args.timeout,
-                               grace_s=args.grace, **curve)
-        crash = getattr(args, "crash_gateway_at_tick", None)
-        supervisor = Supervisor(scene, ticks, "realtime", seed=args.seed, gateway=config,
-                                players_timeout=args.wait, crash_at_tick=crash, crash_worker="gateway")
+        with tempfile.TemporaryDirectory(prefix="pingpong-serve-") as tmp:
+            stats_path = os.path.join(tmp, "gateway.json")  # the counters of a gateway stopped by Ctrl-C
+            config = GatewayConfig(bind=args.bind, snapshot_hz=args.snapshot_hz, timeout_s=args.timeout,
+                                   grace_s=args.grace, stats_path=stats_path, **curve)
+            crash = getattr(args, "crash_gateway_at_tick", None)
+            supervisor = Supervisor(scene, ticks, "realtime", seed=args.seed, gateway=config,
+                                    players_timeout=args.wait, crash_at_tick=crash, crash_worker="gateway")
 
-        def ready(reports: dict) -> None:
-            endpoint = reports["gateway"]["endpoint"]
-            if args.json:
-                print(json.dumps({"listening": endpoint, "run_id": supervisor.arena.run_id,
-                                  "players": args.players}), flush=True)
-            else:
-                print(f"serving {scene.name} on {endpoint}: {args.players} remote player(s), "
-                      f"{2 - args.players} AI; join with `pingpong join {endpoint} --as player --bot`", flush=True)
+            bridges: list = []
 
-        try:
-            result = supervisor.run(on_ready=ready)
-        except KeyboardInterrupt:
-            print("pingpong serve: interrupted; every client was told goodbye", file=sys.stderr)
-            return 130
+            def ready(reports: dict) -> None:
+                endpoint = reports["gateway"]["endpoint"]
+                if args.json:
+                    print(json.dumps({"listening": endpoint, "feed": reports["gateway"]["feed"],
+                                      "run_id": supervisor.arena.run_id, "players": args.players}), flush=True)
+                else:
+                    print(_serving_line(scene.name, endpoint, args.players), flush=True)
+                if args.web:
+                    bridges.append(_web_bridge(endpoint, args))
+
+            try:
+                result = supervisor.run(on_ready=ready)
+            except KeyboardInterrupt:
+                _interrupted(args, stats_path)
+                return 130
+            finally:
+                for bridge in bridges:
+                    _stop_process(bridge)
     except (SceneError, SimulationError, ValueError) as exc:
         print(f"pingpong: {exc}", file=sys.stderr)
         return 2
@@ -213,6 +222,151 @@ def serve_command(args: argparse.Namespace) -> int:
         winner = summary["winner"]
         print(f"{'winner: ' + winner.upper() if winner else 'no winner'}  games: {games}  ticks {summary['ticks']}")
         print("gateway: " + ", ".join(f"{k} {v}" for k, v in summary["gateway"].items()))
+    return 0
+
+
+def _web_bridge(endpoint: str, args: argparse.Namespace):
+    """`pingpong watch ENDPOINT --web HOST:PORT` as a process of its own beside the served match:
+    a gateway client like any other. Its stderr is ours; its first line (the URL) is printed."""
+    import subprocess
+    import threading
+
+    command = [sys.executable, "-m", "processes.cli", "watch", endpoint, "--web", args.web, "--json",
+               "--join-timeout", "60"]  # the gateway answers once the run is under way, on a busy machine later
+    if getattr(args, "curve_secret", None):
+        command += ["--curve-server-key", _public_key_file(args.curve_secret)]
+    bridge = subprocess.Popen(command, stdout=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True)
+
+    def announce() -> None:  # not in on_ready: the gateway answers the bridge only once it runs
+        line = bridge.stdout.readline()  # bounded by the bridge's own join timeout
+        try:
+            url = json.loads(line)["url"]
+        except (ValueError, KeyError, TypeError):
+            return
+        print(json.dumps({"web": url}) if args.json else f"watch in a browser: {url}", flush=True)
+
+    threading.Thread(target=announce, name="web-bridge-url", daemon=True).start()
+    return bridge
+
+
+def _public_key_file(secret_file: str) -> str:
+    """The public key file beside a `pingpong keys` secret one (NAME.key_secret -> NAME.key)."""
+    return secret_file[:-len("_secret")] if secret_file.endswith(".key_secret") else secret_file
+
+
+def _stop_process(process) -> None:
+    """End a child we started (SIGINT, so it says goodbye; then SIGKILL), bounded."""
+    import signal
+    import subprocess
+
+    if process.poll() is None:
+        process.send_signal(signal.SIGINT)
+        try:
+            process.wait(10)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait(10)
+    if process.stdout is not None:
+        process.stdout.close()
+
+
+def _serving_line(scene_name: str, endpoint: str, players: int) -> str:
+    """What `pingpong serve` prints once it listens: who plays, and how to join."""
+    if players == 0:
+        return (f"serving {scene_name} on {endpoint}: the AI plays both bats; "
+                f"watch with `pingpong join {endpoint} --as spectator`")
+    return (f"serving {scene_name} on {endpoint}: {players} remote player(s), {2 - players} AI; "
+            f"join with `pingpong join {endpoint} --as player --bot` (or --as spectator); the match "
+            f"starts once every remote seat is taken")
+
+
+def _interrupted(args: argparse.Namespace, stats_path: str) -> None:
+    """Ctrl-C on `pingpong serve`: the gateway's last counters (it wrote them as it stopped)."""
+    try:
+        with open(stats_path) as f:
+            stats = json.load(f)
+    except (OSError, ValueError):
+        stats = {}
+    if args.json:
+        print(json.dumps({"interrupted": True, "gateway": stats}), flush=True)
+    elif stats:
+        print("gateway: " + ", ".join(f"{k} {v}" for k, v in stats.items()))
+    print("pingpong serve: interrupted; every client was told goodbye", file=sys.stderr)
+
+
+def watch_command(args: argparse.Namespace) -> int:
+    """`pingpong watch ADDRESS --web HOST:PORT`: the match in the browser (processes.network.web)."""
+    import threading
+
+    from processes.network.web import WebBridge
+
+    try:
+        socket_options = curve_client_options(getattr(args, "curve_server_key", None))
+        bridge = WebBridge(args.address, args.web, socket_options=socket_options)
+    except (ValueError, OSError) as err:
+        print(f"pingpong watch: {err}", file=sys.stderr)
+        return 2
+    try:
+        try:
+            url = bridge.start(args.join_timeout)
+        except Rejected as err:
+            print(f"pingpong watch: {err}", file=sys.stderr)
+            return 3
+        except TimeoutError as err:
+            print(f"pingpong watch: {err}", file=sys.stderr)
+            return 4
+        except OSError as err:
+            print(f"pingpong watch: {args.web}: {err}", file=sys.stderr)
+            return 2
+        if args.json:
+            print(json.dumps({"url": url, "watching": args.address}), flush=True)
+        else:
+            print(f"open {url} in a browser to watch {bridge.counts['scene']} (Ctrl-C stops)", flush=True)
+        try:
+            bridge.ended.wait(args.seconds)  # the session thread sets it when the match or the server ends
+            if bridge.ended.is_set():
+                threading.Event().wait(args.linger)  # the page keeps showing the end a little longer
+        except KeyboardInterrupt:
+            pass
+    finally:
+        bridge.stop()
+    summary = {"url": bridge.url, "end": bridge.end_reason or "stopped", **bridge.counts}
+    print(json.dumps(summary) if args.json else f"session ended: {summary['end']}; "
+          f"{summary['snapshots']} snapshots, {summary['browsers']} browser(s)")
+    return 0
+
+
+def relay_command(args: argparse.Namespace) -> int:
+    """`pingpong relay UPSTREAM --bind ENDPOINT`: re-publish a gateway's feed (processes.network.relay)."""
+    import threading
+
+    import zmq
+
+    from processes.network.relay import Relay
+
+    try:
+        socket_options = curve_client_options(getattr(args, "curve_server_key", None))
+    except (ValueError, OSError) as err:
+        print(f"pingpong relay: {err}", file=sys.stderr)
+        return 2
+    relay = Relay(args.upstream, args.bind, socket_options=socket_options)
+    try:
+        try:
+            endpoint = relay.start()
+        except zmq.ZMQError as err:
+            print(f"pingpong relay: {err}", file=sys.stderr)
+            return 2
+        if args.json:
+            print(json.dumps({"relaying": args.upstream, "listening": endpoint}), flush=True)
+        else:
+            print(f"relaying the feed {args.upstream} on {endpoint}; subscribers connect a SUB socket there",
+                  flush=True)
+        try:
+            threading.Event().wait(args.seconds)  # the proxy runs in its thread; Ctrl-C ends the wait
+        except KeyboardInterrupt:
+            pass
+    finally:
+        relay.stop()
     return 0
 
 
@@ -268,7 +422,7 @@ def decode_command(args: argparse.Namespace) -> int:
 
 
 def add_commands(sub) -> None:
-    """`pingpong serve`, `join`, `keys` and `decode`."""
+    """`pingpong serve`, `join`, `relay`, `keys` and `decode`."""
     serve = sub.add_parser("serve", help="serve a realtime match that remote players and spectators join",
                            formatter_class=FORMATTER)
     serve.add_argument("--scene", default="match", help="scene TOML file or bundled scene name (needs a referee)")
@@ -280,8 +434,11 @@ def add_commands(sub) -> None:
     serve.add_argument("--snapshot-hz", type=int, default=100, help="snapshots per second to every client")
     serve.add_argument("--timeout", type=float, default=5.0, help="s, a silent client is dropped after this")
     serve.add_argument("--grace", type=float, default=30.0, help="s, a dropped player's seat waits for its token")
-    serve.add_argument("--wait", type=float, default=PLAYERS_TIMEOUT_S, help="s, wait for the remote players, then start")
+    serve.add_argument("--wait", type=float, default=PLAYERS_TIMEOUT_S, help="s, wait this long for every remote player before the first serve, then start anyway "
+                            "(and play on when a seat empties)")
     serve.add_argument("--crash-gateway-at-tick", type=int, default=None, help=argparse.SUPPRESS)
+    serve.add_argument("--web", default=None, metavar="HOST:PORT",
+                       help="also show the match in the browser: a web bridge (`pingpong watch`) serves it there")
     serve.add_argument("--curve-secret", default=None, metavar="FILE",
                        help="CURVE-encrypt every session with this server secret key file (`pingpong keys DIR`)")
     add_common(serve)
@@ -302,6 +459,29 @@ def add_commands(sub) -> None:
                       help="the server's public key file: connect CURVE-encrypted (`pingpong keys DIR`)")
     add_common(join)
     join.set_defaults(func=join_command)
+
+    watch = sub.add_parser("watch", help="watch a served match in the browser, in 3D (a web bridge)",
+                           formatter_class=FORMATTER)
+    watch.add_argument("address", help="the server's endpoint, e.g. tcp://127.0.0.1:5555")
+    watch.add_argument("--web", default="127.0.0.1:8080", metavar="HOST:PORT",
+                       help="where the page is served; port 0 picks a free one")
+    watch.add_argument("--seconds", type=float, default=24 * 3600.0, help="stop after this long at most")
+    watch.add_argument("--linger", type=float, default=5.0, help="s the page stays up after the match ends")
+    watch.add_argument("--join-timeout", type=float, default=10.0, help="s to wait for the welcome")
+    watch.add_argument("--curve-server-key", default=None, metavar="FILE",
+                       help="the server's public key file: connect CURVE-encrypted (`pingpong keys DIR`)")
+    watch.add_argument("--json", action="store_true", help="print JSON: the URL, then the summary")
+    watch.set_defaults(func=watch_command)
+
+    relay = sub.add_parser("relay", help="re-publish a served match's spectator feed (a ZeroMQ XSUB/XPUB proxy)",
+                           formatter_class=FORMATTER)
+    relay.add_argument("upstream", help="the gateway's feed endpoint (the 'feed' of `pingpong serve --json`)")
+    relay.add_argument("--bind", default="tcp://127.0.0.1:0", help="where subscribers connect; port 0 picks one")
+    relay.add_argument("--seconds", type=float, default=24 * 3600.0, help="stop after this long at most")
+    relay.add_argument("--curve-server-key", default=None, metavar="FILE",
+                       help="the upstream server's public key file, if its feed is CURVE-encrypted")
+    relay.add_argument("--json", action="store_true", help="print one JSON object when listening")
+    relay.set_defaults(func=relay_command)
 
     keys = sub.add_parser("keys", help="make a CURVE key pair for `serve --curve-secret` / `join --curve-server-key`",
                           formatter_class=FORMATTER)

@@ -7,7 +7,9 @@ bounded and a server silent past the welcome's timeout ends the session. A spect
 welcome names a feed (welcome.feed_port) subscribes to it (a SUB socket, CURVE like the
 session) and takes its snapshots and events there; the session still carries heartbeats and
 goodbye, and only the session says whether the server is alive. Gaps in the feed's sequence
-numbers are the messages the gateway dropped at the high-water mark (`feed_missed`).
+numbers are the messages the gateway dropped at the high-water mark (`feed_missed`). Told
+goodbye unknown_session (a restarted gateway lost the session), a client says hello again at
+once, a player with its token; the welcome that answers goes on with the session.
 
 CURVE keys (`pingpong keys DIR`) make the session encrypted and the server authenticated.
 """
@@ -114,6 +116,9 @@ class Client:
         self.drops = wire.DropCounter()
         self.received = 0
         self.goodbye: GoodbyeReason | None = None
+        self.last_data = b""  # the bytes of the last valid message received
+        self.rejoins = 0  # hellos again after a goodbye unknown_session (a restarted gateway)
+        self.rejected = None  # the RejectReason that ended a rejoin, if one did
         self.last_seen = time.monotonic()
         self._next_beat = 0.0
         self.heartbeat_s = 0.5
@@ -142,6 +147,7 @@ class Client:
         if message.kind != Kind.WELCOME:
             return False
         self.welcome = message
+        self.goodbye = self.rejected = None  # a new session (a rejoin's welcome)
         self.slot = message["slot"]
         self.token = message["token"]
         self.heartbeat_s = message["heartbeat_ms"] / 1000.0
@@ -205,6 +211,7 @@ class Client:
         message = self.drops.decode(data)
         if message is None:
             return None
+        self.last_data = data  # the message's own bytes (the web bridge forwards them unchanged)
         self.received += 1
         self.tick = max(self.tick, message.tick)
         if sock is self.feed:
@@ -217,8 +224,16 @@ class Client:
             return message
         self.last_seen = time.monotonic()  # only the session says the server is alive
         self.max_seq_in = max(self.max_seq_in, message.seq)
-        if message.kind == Kind.GOODBYE:
+        if message.kind == Kind.GOODBYE and message["reason"] == GoodbyeReason.UNKNOWN_SESSION and self.welcome:
+            self.rejoins += 1
+            self.hello()  # a restarted gateway lost our session: hello again (a player with its token)
+        elif message.kind == Kind.GOODBYE:
             self.goodbye = message["reason"]
+        elif message.kind == Kind.WELCOME and self.welcome is not None:
+            self.accept(message)  # the answer to the hello of a rejoin
+        elif message.kind == Kind.REJECT and self.welcome is not None:
+            self.rejected = message["reason"]  # a rejoin turned away (the token expired, or the seat
+            self.goodbye = GoodbyeReason.UNKNOWN_SESSION  # is gone): the session is over
         return message
 
     def recv_batch(self, timeout_ms: int, limit: int = 256) -> list[wire.Message]:

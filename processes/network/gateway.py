@@ -4,21 +4,25 @@ Two sockets. The sessions live on a ROUTER: a client is a DEALER that sends one-
 messages (processes/wire.py); the gateway sees [identity, message]. What every spectator gets
 (snapshots, events) goes out once on a PUB socket, the feed, whose port the welcome announces
 (welcome.feed_port): the gateway encodes and sends a snapshot once per tick and libzmq's I/O
-thread copies it to each subscriber, where one send per spectator session cost ~25 us of the
-gateway's Python each (1000 spectators at 120 Hz were 3 s of CPU per second). Players keep
+thread copies it to each subscriber, where one send per spectator session would cost the
+gateway's Python a send each, times the spectators, times the snapshot rate. Players keep
 theirs on the session (two sends, and a player's snapshots are counted per session). Sessions:
 
 - hello -> welcome (slot A/B with a fresh rejoin token, or spectator) or reject (full,
-  version, bad_request, bad_token, shutting_down), and the session is closed on a reject.
+  version, bad_request, bad_token, shutting_down), and the session is closed on a reject. A
+  frame that claims to be a hello (magic, version, kind) but fails to decode is rejected
+  bad_request, with the decoder's reason in the detail.
 - heartbeats both ways: the gateway sends one every `heartbeat_s` to each session; any valid
   message from a peer counts as a sign of life; a peer silent for `timeout_s` is sent goodbye
   (timeout) and dropped. A dropped player's seat is kept for `grace_s`: only its token may
-  reclaim it (rejoin); after the grace anyone may take it. A player who says goodbye frees its
-  seat at once. A hello with the token of a seat whose old connection is still open takes the
-  seat over (the old session is told goodbye, kicked).
+  reclaim it (rejoin); after the grace the token expires (bad_token) and anyone may take the
+  seat. A player who says goodbye frees its seat at once. A hello with the token of a seat
+  whose old connection is still open takes the seat over (the old session is told goodbye,
+  kicked).
 - input: decoded and validated, accepted only for the sender's own bat (another bat's input,
-  a spectator's input, target mode and stale sequence numbers are refused and counted), then
-  posted to the locked remote-input mailbox that the physics worker drains each tick.
+  a spectator's input, target mode and stale sequence numbers are refused and counted; all but
+  stale ones count towards MAX_BAD: target mode is reserved in protocol 2), then posted to
+  the locked remote-input mailbox that the physics worker drains each tick.
 - snapshots at `snapshot_hz` from the physics snapshot block, plus point/game/match events
   from the point log. Sends never block: ROUTER_MANDATORY with NOBLOCK raises when a peer's
   pipe is at its high-water mark (SNDHWM), and that peer's snapshot is dropped and counted,
@@ -32,7 +36,10 @@ theirs on the session (two sends, and a player's snapshots are counted per sessi
   its feed connection does. The feed serves whoever connects to its port, as the session
   port welcomes any spectator (max_spectators bounds sessions, not feed readers; with CURVE
   the feed is encrypted and the server authenticated like the sessions, clients are not).
-- goodbye to every session on shutdown (shutdown) or at the end of the match (match_over).
+- goodbye to every session on shutdown (shutdown) or at the end of the match (match_over); a
+  peer without a session that sends anything but a hello (a session of the gateway this one
+  replaced after a crash) is told goodbye (unknown_session), once per connection, and may
+  hello again (a player with its token, within the grace).
 - a snapshot of tick T says in input_seq the inputs applied before the step into T (the
   physics writes them per tick into the remote_acks ring before publishing T), so a client
   rewinds to T and replays exactly its later inputs; an input holds input_hold_s at most, then
@@ -63,17 +70,15 @@ import zmq
 
 from engine.arm import BRAKE_EVERY_S, BRAKE_MIN_SPEED, brake_force
 from processes.network import wire
+from processes.network.seats import SeatStore
 from processes.network.wire import GoodbyeReason, InputMode, Kind, RejectReason, Role, Slot
 
-# The seat table as it survives a gateway's restart (a SnapshotBlock the supervisor owns; the
-# gateway of the moment is its one writer): who holds each seat's token and its grace.
-SEAT_DTYPE = np.dtype([("slot", "u1"), ("taken", "u1"), ("token", "u1", (16,)), ("name", "u1", (32,)),
-                       ("grace_until", "<f8")])  # taken: a connection held it; grace_until: time.monotonic s
 # A remote arm's input holds at most this long: a client that stalls (or whose snapshots stop)
 # must not leave its bat pushed by a constant force (120 N on a 0.17 kg bat is 70 m/s in 0.1 s).
 # After it, the gateway posts a zero input (same seq) until the next input comes.
-INPUT_HOLD_S = 0.1
+INPUT_HOLD_S = 0.1  # a player's input is let go of (zero force) this long after it arrived
 MAX_BAD = 64  # bad messages one session may send before it is kicked
+MAX_STRANGERS_TOLD = 4096  # connections without a session told goodbye, remembered so each is told once
 MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messages
 MAX_FRAME_BYTES = 4096  # libzmq disconnects a peer sending a bigger frame (MAXMSGSIZE)
 SWEEPS_PER_HEARTBEAT = 10  # passes over every session (timeouts, heartbeats) per heartbeat period
@@ -84,6 +89,7 @@ NO_TOKEN = bytes(wire.TOKEN_SIZE)
 # this fixed prefix and the tick's sign, exactly what wire.decode would accept, without decoding.
 _HEARTBEAT_PREFIX = wire.MAGIC + struct.pack("<HBB", wire.PROTOCOL_VERSION, Kind.HEARTBEAT, 0)
 _HEARTBEAT_SIZE = wire.SIZES[Kind.HEARTBEAT]
+_HELLO_PREFIX = wire.MAGIC + struct.pack("<HB", wire.PROTOCOL_VERSION, Kind.HELLO)
 _SEQ_TICK = struct.Struct("<Qq")
 
 
@@ -105,6 +111,8 @@ class GatewayConfig:
     measure against); it needs a tcp:// bind. feed_bind: the feed's endpoint; "": the session's
     host on a free port. stats_path: a JSON file the gateway writes its counters to (atomically)
     every second and when it ends, whether the match ended or it was stopped; "": none.
+    pause_for_players: the served match (its physics worker) pauses while a remote seat is
+    empty once every seat was held (False: it plays on against the empty seat's idle arm).
     """
 
     bind: str = "tcp://127.0.0.1:0"
@@ -121,6 +129,7 @@ class GatewayConfig:
     feed: bool = True
     feed_bind: str = ""
     stats_path: str = ""
+    pause_for_players: bool = True
 
 
 @dataclass
@@ -150,35 +159,6 @@ class _Seat:
     grace_until: float = 0.0  # while empty: only `token` may take it until then
     last_seq: int = 0  # seq of the last input posted for this bat (what an idle arm's posts carry)
     next_brake: float = 0.0
-
-
-class SeatStore:
-    """The seat table in a processes.runtime.shm.SnapshotBlock of SEAT_DTYPE records (one per seat): a
-    restarted gateway finds its seats' tokens there, so a rejoin token outlives the gateway.
-    Double-buffered, so a gateway killed mid-save leaves the previous table intact."""
-
-    def __init__(self, block):
-        self.block = block
-        self._table = np.zeros(block.count, SEAT_DTYPE)
-
-    def save(self, seats) -> None:
-        table = self._table
-        table[:] = 0
-        for i, seat in enumerate(seats):
-            raw = seat.name.encode("utf-8")[:32]
-            table[i]["slot"], table[i]["taken"] = int(seat.slot), seat.identity is not None
-            table[i]["token"] = np.frombuffer(seat.token, np.uint8)
-            table[i]["name"] = np.frombuffer(raw.ljust(32, b"\0"), np.uint8)
-            table[i]["grace_until"] = seat.grace_until
-        self.block.publish(table, 0)
-
-    def load(self) -> np.ndarray | None:
-        """The last table saved, None if no gateway saved one yet."""
-        if self.block.version < 2:
-            return None
-        out = np.zeros(self.block.count, SEAT_DTYPE)
-        self.block.snapshot(out)
-        return out
 
 
 def _zero_inputs():
@@ -225,6 +205,7 @@ class Gateway:
         self._points_seen: int | None = None
         self._games_seen = (0, 0)
         self._match_sent = False
+        self._strangers_told: set[bytes] = set()
         self.router = zctx.socket(zmq.ROUTER)
         self.router.setsockopt(zmq.LINGER, 0)
         self._two_io_threads = zctx.get(zmq.IO_THREADS) >= 2
@@ -354,7 +335,12 @@ class Gateway:
 
     def _reject(self, identity: bytes, reason: RejectReason, detail: str) -> None:
         self.counts[f"rejected.{reason.name.lower()}"] += 1
-        self._reply(identity, wire.encode(Kind.REJECT, tick=self.tick, reason=reason, detail=detail[:64]))
+        detail = detail.encode("utf-8")[:wire.DETAIL_SIZE].decode("utf-8", errors="ignore").strip()
+        try:
+            data = wire.encode(Kind.REJECT, tick=self.tick, reason=reason, detail=detail)
+        except wire.WireError:  # a detail quoting what the peer sent may hold text the wire refuses
+            data = wire.encode(Kind.REJECT, tick=self.tick, reason=reason, detail="")
+        self._reply(identity, data)
 
     def _welcome(self, session: _Session, token: bytes) -> None:
         config = self.config
@@ -413,6 +399,8 @@ class Gateway:
             return
         except wire.WireError as err:
             self.drops.by_reason[err.reason] += 1
+            if session is None and data[:len(_HELLO_PREFIX)] == _HELLO_PREFIX:  # a hello of ours, malformed
+                self._reject(identity, RejectReason.BAD_REQUEST, str(err))
             self._bad(session)
             return
         if session is None:
@@ -420,6 +408,7 @@ class Gateway:
                 self._hello(identity, message, now)
             else:
                 self.counts["dropped.no_session"] += 1
+                self._goodbye_stranger(identity)
             return
         session.last_seen = now
         session.seq_in = max(session.seq_in, message.seq)
@@ -436,6 +425,18 @@ class Gateway:
         else:  # welcome, reject, snapshot, event: only a server sends those
             self.counts["dropped.server_message"] += 1
             self._bad(session)
+
+    def _goodbye_stranger(self, identity: bytes) -> None:
+        """Goodbye (unknown_session), once per connection, to a peer that talks as if it had a
+        session: a session of a gateway this one replaced (restarted after a crash), or one
+        already closed. It may hello again (with its token, within the grace)."""
+        if identity in self._strangers_told:
+            return
+        if len(self._strangers_told) >= MAX_STRANGERS_TOLD:
+            self._strangers_told.clear()
+        self._strangers_told.add(identity)
+        self.counts["goodbyes_to_strangers"] += 1
+        self._reply(identity, wire.encode(Kind.GOODBYE, tick=self.tick, reason=GoodbyeReason.UNKNOWN_SESSION))
 
     def _bad(self, session: _Session | None) -> None:
         if session is None:
@@ -461,6 +462,7 @@ class Gateway:
             self._welcome(session, NO_TOKEN)
             return
         token, wanted = message["token"], message["slot"]
+        self._expire_tokens(now)
         if token != NO_TOKEN:
             seat = next((s for s in self.seats.values() if s.remote and s.token == token), None)
             if seat is None or (wanted != Slot.NONE and wanted != seat.slot):
@@ -484,6 +486,16 @@ class Gateway:
         self._save_seats()
         session = self._open(identity, Role.PLAYER, seat.slot, name, now, message.seq)
         self._welcome(session, seat.token)
+
+    def _expire_tokens(self, now: float) -> None:
+        """A seat left empty past its grace loses its token (and name): it is free for anyone."""
+        expired = [seat for seat in self.seats.values()
+                   if seat.identity is None and seat.token != NO_TOKEN and now >= seat.grace_until]
+        for seat in expired:
+            seat.token, seat.name, seat.grace_until = NO_TOKEN, "", 0.0
+        if expired:
+            self.counts["tokens_expired"] += len(expired)
+            self._save_seats()
 
     def _free_seat(self, wanted: Slot, now: float) -> _Seat | None:
         candidates = [self.seats[wanted]] if wanted != Slot.NONE else list(self.seats.values())
@@ -526,7 +538,8 @@ class Gateway:
             self._bad(session)
             return
         if message["mode"] != InputMode.FORCE:
-            self.counts["refused.target_mode"] += 1  # the server-side arm controller comes later
+            self.counts["refused.target_mode"] += 1  # reserved in protocol 2: no server-side arm controller
+            self._bad(session)
             return
         if message.seq <= session.input_seq:
             self.counts["refused.stale_input"] += 1  # reordered or replayed
@@ -553,6 +566,7 @@ class Gateway:
             # call: with 1000 spectators a pass is ~0.5 ms of Python and the worker calls this
             # every few ms
             self._next_sweep = now + self.config.heartbeat_s / SWEEPS_PER_HEARTBEAT
+            self._expire_tokens(now)
             for session in list(self.sessions.values()):
                 if now - session.last_seen > self.config.timeout_s:
                     self.counts["timeouts"] += 1

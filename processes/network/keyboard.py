@@ -8,7 +8,7 @@ Keys (from the player's own end, looking at the net):
     q / Ctrl-C        leave
 
 The client never moves its bat: it turns the target into force and torque with the engine's own
-arm controller (engine.ai.bat_control, the PD law with the arm's limits that the AI drives its
+arm controller (engine.arm.bat_control, the PD law with the arm's limits that the AI drives its
 bat with), from the bat's predicted state, and sends those as inputs. A key source is either
 the terminal (`TerminalKeys`, cbreak mode, restored on exit) or any iterable of key batches
 (`IterableKeys`, what tests feed), so the same loop runs with and without a TTY.
@@ -22,6 +22,9 @@ import tty
 
 import numpy as np
 
+from engine.ai import HALF_LENGTH, HALF_WIDTH, SKILLS, BatAI
+from engine.arm import (CTL_D_ANGLE, CTL_HOLD, CTL_INERTIA, CTL_K_ANGLE, CTL_KD, CTL_KP, CTL_MASS, CTL_MAX_FORCE,
+                        CTL_MAX_SPEED, CTL_MAX_TORQUE, CTL_N_SEGMENTS, CTL_NORMAL, CTL_SIZE, bat_control)
 from processes.network.wire import Slot
 
 STEP_M = 0.05  # target move per key press
@@ -122,8 +125,6 @@ class KeyboardPilot:
     """
 
     def __init__(self, model, slot: Slot, skill: str = "pro"):
-        from engine.ai import SKILLS, BatAI
-
         if slot not in (Slot.A, Slot.B):
             raise ValueError(f"keyboard play drives a player's bat: slot must be A or B, got {slot!r}")
         self.player = int(slot) - 1
@@ -131,17 +132,12 @@ class KeyboardPilot:
         # The AI's own arm: bat_control (PD with feed-forward, the skill's force, torque and speed
         # limits) holding the pose in its control array; the pose is the keys' aim, so the
         # keyboard drives the bat exactly as the AI's arm drives its bat between strokes.
-        from engine.ai import (CTL_D_ANGLE, CTL_INERTIA, CTL_K_ANGLE, CTL_KD, CTL_KP, CTL_MASS, CTL_MAX_FORCE,
-                               CTL_MAX_SPEED, CTL_MAX_TORQUE, CTL_SIZE)
-
         skill = SKILLS[skill]
         self.ctl = np.zeros(CTL_SIZE)
         self.ctl[[CTL_MASS, CTL_INERTIA, CTL_KP, CTL_KD, CTL_K_ANGLE, CTL_D_ANGLE]] = (
             float(model.bat_mass[self.player]), float(model.bat_inertia[self.player][0]), BatAI.KP, BatAI.KD,
             BatAI.K_ANGLE, BatAI.D_ANGLE)
         self.ctl[[CTL_MAX_FORCE, CTL_MAX_TORQUE, CTL_MAX_SPEED]] = skill.max_force_n, skill.max_torque_nm, skill.max_speed
-        from engine.ai import HALF_LENGTH
-
         # start where the AI waits (BatAI.ready_pose): 40 cm behind the end line, face to the net
         self.target = np.array([self.end_sign * (HALF_LENGTH + 0.4), 0.0, 0.15])
         self.normal = np.array([-self.end_sign, 0.0, 0.0])
@@ -164,9 +160,12 @@ class KeyboardPilot:
             return
         self.presses += 1
 
-    def _clamp(self, target: np.ndarray) -> np.ndarray:
-        from engine.ai import HALF_LENGTH
+    def aim_at(self, pos) -> None:
+        """Move the target to `pos` (m, world frame; a pointer's point), kept in the reach box."""
+        self.target = self._clamp(np.asarray(pos, dtype=np.float64))
+        self.presses += 1
 
+    def _clamp(self, target: np.ndarray) -> np.ndarray:
         depth = min(max(self.end_sign * target[0], HALF_LENGTH - REACH_IN_M), HALF_LENGTH + REACH_OUT_M)
         return np.array([self.end_sign * depth, min(max(target[1], -REACH_Y_M), REACH_Y_M),
                          min(max(target[2], REACH_Z_M[0]), REACH_Z_M[1])])
@@ -179,8 +178,6 @@ class KeyboardPilot:
 
     def control(self, now: float, bat) -> np.ndarray:
         """(6,) force N and torque N m for our bat (one BAT_DTYPE record) towards the aim."""
-        from engine.ai import CTL_HOLD, CTL_N_SEGMENTS, CTL_NORMAL, bat_control
-
         self.ctl[CTL_HOLD:CTL_HOLD + 3] = self.aim(now)
         self.ctl[CTL_NORMAL:CTL_NORMAL + 3] = self.normal
         self.ctl[CTL_N_SEGMENTS] = 0  # no path: hold the pose
@@ -196,8 +193,6 @@ BOARD_X_M, BOARD_Y_M = 3.2, 1.5  # half extents shown
 
 def top_view(ball_pos, bat_pos, target=None) -> list[str]:
     """A top view of the table as text rows: table '.', net '|', ball 'o', bats 'A' 'B', target '+'."""
-    from engine.ai import HALF_LENGTH, HALF_WIDTH
-
     grid = [[" "] * BOARD_COLUMNS for _ in range(BOARD_ROWS)]
 
     def cell(x, y):

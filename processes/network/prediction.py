@@ -13,7 +13,7 @@ What the client cannot know, it predicts as follows, and the statistics measure 
 - an input holds from the tick it was stamped with (the server applies it on arrival, about a
   one-way trip later), and an input not yet acknowledged at T holds from T at the earliest;
   it holds for the gateway's INPUT_HOLD_S at most (then the server's idle arm brakes the bat,
-  processes.network.gateway.brake_force), counted in ticks from its stamp (the gateway counts from its
+  engine.arm.brake_force), counted in ticks from its stamp (the gateway counts from its
   arrival, and brakes every 10 ms where the prediction brakes every tick);
 - the ball at a snapshot is in flight (the wire has no support flag: a resting ball settles
   again within a tick);
@@ -27,6 +27,8 @@ from collections import deque
 import numpy as np
 
 from engine.arm import brake_force
+from engine.world import SimulationError, build_model, initial_state, new_events, step
+from processes.network.gateway import INPUT_HOLD_S
 from processes.network.wire import Slot
 
 MAX_AHEAD_TICKS = 500  # a prediction runs at most this far past the last snapshot (0.5 s at 1 kHz)
@@ -122,9 +124,6 @@ class Predictor:
     """
 
     def __init__(self, scene, slot: Slot, history: int = 2048, input_hold_s: float | None = None):
-        from engine.world import build_model, initial_state, new_events
-        from processes.network.gateway import INPUT_HOLD_S
-
         if slot not in (Slot.A, Slot.B):
             raise ValueError(f"a predictor drives a player's bat: slot must be A or B, got {slot!r}")
         self.model = build_model(scene)
@@ -159,8 +158,6 @@ class Predictor:
 
     def step(self, dt: float | None = None) -> None:
         """One engine tick of the predicted state (dt=0: no change, loads the kernels)."""
-        from engine.world import step
-
         step(self.model, self.state, None, self.events, dt=dt)
 
     # --- inputs -----------------------------------------------------------------------------
@@ -243,8 +240,6 @@ class Predictor:
     # --- prediction -------------------------------------------------------------------------
     def advance_to(self, tick: int) -> int:
         """Predict up to `tick` (at most MAX_AHEAD_TICKS past the base); returns ticks stepped."""
-        from engine.world import SimulationError
-
         if self.tick is None:
             return 0
         tick = min(int(tick), self._base_tick + MAX_AHEAD_TICKS)

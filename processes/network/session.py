@@ -77,7 +77,8 @@ def run_session(client: Client, welcome: wire.Message, *, brain=None, pilot=None
                     newest = message
             elif message.kind == Kind.EVENT:
                 event = message.to_dict()
-                summary["events"].append({k: event[k] for k in ("event", "winner", "score", "games_won")})
+                keep = ("event", "winner", "reason_name", "score", "games_won")
+                summary["events"].append({k: event[k] for k in keep})
         now = clock()
         if newest is not None:
             summary["snapshots_acted_on"] = summary.get("snapshots_acted_on", 0) + 1

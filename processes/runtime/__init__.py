@@ -1,1 +1,1 @@
-"""runtime"""
+"""The runtime layer: shared memory, locks, mailboxes, hand-off batons and worker control (no sockets)."""

@@ -27,6 +27,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--malformed-rate", type=int, default=10_000, help="malformed: messages per second at most")
     parser.add_argument("--kill", type=int, default=2, help="kill: client processes SIGKILLed (then gateway, physics)")
     parser.add_argument("--kill-spectators", type=int, default=100, help="kill: spectator places, all full at shutdown")
+    parser.add_argument("--plots", metavar="DIR", default=None,
+                        help="load: write the latency CDF and the per-second rate (PNG) into DIR")
+    parser.add_argument("--server-only", action="store_true",
+                        help="load: only the server and its players; it prints its address and waits for the "
+                             "spectators of a --swarm-only run")
+    parser.add_argument("--bind", default="tcp://127.0.0.1:0",
+                        help="--server-only: the gateway's endpoint (tcp://0.0.0.0:PORT for other hosts)")
+    parser.add_argument("--swarm-only", action="store_true",
+                        help="load: only the spectators, against the --server-only server at --target")
+    parser.add_argument("--target", metavar="ADDRESS", default=None,
+                        help="--swarm-only: the server's endpoint, e.g. tcp://HOST:PORT")
     parser.add_argument("--seed", type=int, default=0, help="seed of the churn mix and of the bad messages")
     parser.add_argument("--json", action="store_true", help="one JSON object per scenario, one per line")
 
@@ -44,6 +55,14 @@ def stress_command(args: argparse.Namespace) -> int:
         return 2
     if args.players != 2:
         print("pingpong stress: --players must be 2 (the served match waits for both seats)", file=sys.stderr)
+        return 2
+    if args.swarm_only != bool(args.target):
+        print("pingpong stress: --swarm-only needs --target ADDRESS, and --target goes with --swarm-only",
+              file=sys.stderr)
+        return 2
+    if (args.swarm_only or args.server_only) and (names != ["load"] or args.swarm_only == args.server_only):
+        print("pingpong stress: --swarm-only or --server-only (one of them) run the load scenario alone: "
+              "add --scenario load", file=sys.stderr)
         return 2
     for flag in ("spectators", "churn", "malformed", "kill", "hz"):
         if getattr(args, flag) < 1:

@@ -119,7 +119,6 @@ class Child:
                 pass
 
 
-
 def bot(endpoint: str, seconds: float, seed: int) -> Child:
     return Child(["-m", "processes.cli", "join", endpoint, "--as", "player", "--bot", "--json", "--seconds",
                   str(seconds), "--seed", str(seed)], f"bot{seed}")
@@ -133,7 +132,6 @@ def until(predicate, timeout: float, poll_s: float = 0.1) -> bool:
             return True
         time.sleep(poll_s)  # polling the state of other processes, bounded
     return predicate()
-
 
 
 # --- the cable: a TCP proxy that can black-hole its traffic ---------------------------------------

@@ -46,15 +46,19 @@ def loadavg() -> list[float]:
     return [float(x) for x in Path("/proc/loadavg").read_text().split()[:3]]
 
 
-def thread_cpu_seconds(pid: int) -> dict[str, float]:
+def _thread_ids(pid: int | str) -> list[str]:
+    """The thread ids of a process (/proc/PID/task), [] once it is gone."""
+    try:
+        return os.listdir(f"/proc/{pid}/task")
+    except OSError:
+        return []
+
+
+def thread_cpu_seconds(pid: int | str = "self") -> dict[str, float]:
     """CPU seconds of each thread of a process, summed by thread name (/proc/PID/task/TID/stat:
     the Python thread is named like its program, libzmq's are ZMQbg/IO/0, ZMQbg/Reaper)."""
     out: dict[str, float] = {}
-    try:
-        tids = os.listdir(f"/proc/{pid}/task")
-    except OSError:
-        return out
-    for tid in tids:
+    for tid in _thread_ids(pid):
         try:
             text = Path(f"/proc/{pid}/task/{tid}/stat").read_text()
         except OSError:
@@ -62,6 +66,23 @@ def thread_cpu_seconds(pid: int) -> dict[str, float]:
         name = text[text.index("(") + 1:text.rindex(")")]
         fields = text.rsplit(")", 1)[1].split()
         out[name] = out.get(name, 0.0) + (int(fields[11]) + int(fields[12])) / CLK_TCK
+    return out
+
+
+def thread_sched_seconds(pid: int | str = "self") -> dict[str, tuple[float, float]]:
+    """Per thread name (summed as in thread_cpu_seconds): (seconds on a CPU, seconds runnable but
+    waiting for one), from /proc/PID/task/TID/schedstat (nanoseconds; sched-stats.rst of the Linux
+    documentation); {} without schedstats. Their sum over a wall time says how much a thread wanted
+    to run: near all of it, it always had work left, whatever share of a CPU it was given."""
+    out: dict[str, tuple[float, float]] = {}
+    for tid in _thread_ids(pid):
+        try:
+            name = Path(f"/proc/{pid}/task/{tid}/comm").read_text().strip()
+            on_cpu, waiting = Path(f"/proc/{pid}/task/{tid}/schedstat").read_text().split()[:2]
+        except (OSError, ValueError):
+            continue
+        before = out.get(name, (0.0, 0.0))
+        out[name] = (before[0] + int(on_cpu) / 1e9, before[1] + int(waiting) / 1e9)
     return out
 
 

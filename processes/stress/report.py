@@ -48,13 +48,16 @@ def jitter(clock: dict | None, dt: float, t0: float, t1: float) -> dict:
     return out
 
 
-def latency(clock: dict | None, dt: float, records: list[str]) -> dict:
-    """Receipt time minus the scheduled publish time of the snapshot's tick, over every snapshot."""
+def latency_values(clock: dict | None, dt: float, records: list[str]) -> np.ndarray:
+    """s, receipt time minus the scheduled publish time of the snapshot's tick, every snapshot of
+    the records (.npz of ticks and times) since the match started. The schedule, not the time the
+    server actually sent, so a client (or server) that fell behind is charged for every snapshot
+    it delayed: no coordinated omission."""
     if clock is None:
-        return percentiles_ms(np.zeros(0))
+        return np.zeros(0)
     segments = tick_schedule(clock, dt)
     if not segments:
-        return percentiles_ms(np.zeros(0))
+        return np.zeros(0)
     starts = np.array([s[0] for s in segments])
     bases = np.array([s[1] for s in segments])
     values = []
@@ -67,8 +70,56 @@ def latency(clock: dict | None, dt: float, records: list[str]) -> dict:
         ticks, times = ticks[playing], times[playing]
         which = np.searchsorted(starts, times, side="right") - 1
         values.append(times - (bases[which] + ticks * dt))
-    return percentiles_ms(np.concatenate(values) if values else np.zeros(0))
+    return np.concatenate(values) if values else np.zeros(0)
 
+
+def latency(values_s: np.ndarray) -> dict:
+    """Percentiles of latency_values, in ms."""
+    return percentiles_ms(values_s)
+
+
+def plot_load(directory: str, values_s: np.ndarray, records: list[str], hz: int, spectators: int,
+              timed: int) -> dict:
+    """Two PNGs of a load run in `directory`: the latency CDF (log time axis) and the snapshot rate
+    per spectator, second by second (the timed spectators' receipts in each second over their
+    number: the records hold theirs), against the target rate. Returns their paths."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    os.makedirs(directory, exist_ok=True)
+    paths = {"latency_cdf": os.path.join(directory, "load-latency-cdf.png"),
+             "rate": os.path.join(directory, "load-rate.png")}
+    fig, ax = plt.subplots(figsize=(6, 4))
+    if len(values_s):
+        ms = np.sort(np.maximum(values_s * 1000.0, 1e-3))
+        ax.plot(ms, np.arange(1, len(ms) + 1) / len(ms))
+        ax.set_xscale("log")
+    ax.axvline(5.0, color="grey", linestyle="--", label="5 ms")
+    ax.set_xlabel("latency from the tick's scheduled time (ms)")
+    ax.set_ylabel("fraction of snapshots")
+    ax.set_title(f"latency CDF, {spectators} spectators at {hz} Hz ({len(values_s)} snapshots)")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(paths["latency_cdf"], dpi=100)
+    plt.close(fig)
+    times = [np.load(p)["times"] for p in records if os.path.exists(p)]
+    times = np.concatenate(times) if times else np.zeros(0)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    if len(times):
+        t = times - times.min()
+        counts, edges = np.histogram(t, bins=np.arange(0.0, np.ceil(t.max()) + 1.0))
+        ax.step(edges[:-1], counts / max(timed, 1), where="post", label=f"received, mean of {timed} timed spectators")
+    ax.axhline(hz, color="grey", linestyle="--", label=f"{hz} Hz")
+    ax.set_xlabel("s since the first snapshot")
+    ax.set_ylabel("snapshots per second per spectator")
+    ax.set_title("snapshot rate, second by second")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(paths["rate"], dpi=100)
+    plt.close(fig)
+    return paths
 
 
 def _fmt(value) -> str:
@@ -131,6 +182,18 @@ def print_table(results: list[dict]) -> None:
         if r.get("cpu_pct_by_side"):
             console.print(f"[bold]{r['scenario']}[/] CPU % of one core by side: " +
                           ", ".join(f"{k} {v}" for k, v in r["cpu_pct_by_side"].items()))
+        swarm = r.get("swarm")
+        if swarm:
+            console.print(f"[bold]{r['scenario']}[/] swarm: {swarm['cpu_us_per_message']} us CPU per message "
+                          f"received (by thread {swarm['cpu_us_per_message_by_thread']}), receive loops busy up "
+                          f"to {swarm['busy_pct_max']} %, wanting a CPU up to {swarm['demand_pct_max']} % "
+                          f"({swarm['runqueue_wait_pct_max']} % waiting for one), backlog p99 {swarm['backlog_p99_max']} (max "
+                          f"{swarm['backlog_max']}), bulk reads late p50 up to {swarm['bulk_lag_p50_ms_max']} ms, "
+                          f"longest turn {swarm['turn_max_ms']} ms; CPU % of one core {swarm['cpu_pct']}")
+            if r.get("limited_by_load_generator"):
+                console.print(f"[yellow]{r['scenario']}: limited by the load generator[/]")
+        for path in (r.get("plots") or {}).values():
+            console.print(f"[bold]{r['scenario']}[/] plot: {path}")
         for problem in r["problems"]:
             console.print(f"[red]{r['scenario']}: {problem}[/]")
         for finding in r.get("findings", []):

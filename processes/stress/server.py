@@ -32,6 +32,8 @@ from collections import Counter
 
 import numpy as np
 
+from processes.network import wire
+from processes.runtime.shm import Arena
 from processes.stress.harness import Child, StressError
 
 SAMPLE_PERIOD_S = 0.0002
@@ -49,8 +51,6 @@ class TickClock(threading.Thread):
 
     def __init__(self, layout: dict, kinds: list[str]):
         super().__init__(name="tick-clock", daemon=True)
-        from processes.runtime.shm import Arena
-
         self.arena = Arena.attach(layout)  # our own mapping: the supervisor unlinks, we close
         self.kinds = kinds
         self.stop_flag = threading.Event()
@@ -101,8 +101,6 @@ class TickClock(threading.Thread):
 
     def _encodable(self, block, record) -> None:
         """Can this state go on the wire? (The gateway skips, and only counts, a state it cannot encode.)"""
-        from processes.network import wire
-
         block.snapshot(record)
         self.encode_checked += 1
         try:
@@ -138,13 +136,14 @@ class Server(Child):
 
     def __init__(self, tmp: str, players: int = 2, snapshot_hz: int = 120, heartbeat_s: float = 0.5,
                  timeout_s: float = 5.0, grace_s: float = 30.0, max_spectators: int = 64, seconds: float = 3600.0,
-                 best_of: int = 9, feed: bool = True):
+                 best_of: int = 9, feed: bool = True, bind: str = "tcp://127.0.0.1:0", players_timeout: float = 300.0):
         stamp = time.monotonic_ns()
         self.tick_log = os.path.join(tmp, f"ticks-{stamp}.npz")
         self.spec = {"players": players, "snapshot_hz": snapshot_hz, "heartbeat_s": heartbeat_s,
                      "timeout_s": timeout_s, "grace_s": grace_s, "max_spectators": max_spectators,
                      "ticks": int(seconds * 1000), "best_of": best_of, "tick_log": self.tick_log, "feed": feed,
-                     "gateway_stats": os.path.join(tmp, f"gateway-{stamp}.json")}
+                     "gateway_stats": os.path.join(tmp, f"gateway-{stamp}.json"), "bind": bind,
+                     "players_timeout": players_timeout}
         super().__init__(["-m", "processes.stress.server", json.dumps(self.spec)], "server")
         hello = self.expect(lambda o: "listening" in o, 120, "listening line")
         self.endpoint, self.run_id, self.pids, self.dt = hello["listening"], hello["run_id"], hello["pids"], hello["dt"]
@@ -189,7 +188,6 @@ class Server(Child):
         with np.load(self.tick_log) as data:
             return {k: data[k] for k in data.files}
 
-
     def gateway_stats(self) -> dict:
         """The gateway's counters as it last wrote them (every second), {} before the first."""
         try:
@@ -214,10 +212,11 @@ def main(argv: list[str]) -> int:
     scene = with_remote_players(load_scene(spec.get("scene", "match")), spec["players"])
     if spec.get("best_of"):
         scene = replace(scene, match=replace(scene.match, best_of=spec["best_of"]))
-    config = GatewayConfig(bind="tcp://127.0.0.1:0", snapshot_hz=spec["snapshot_hz"], heartbeat_s=spec["heartbeat_s"],
+    config = GatewayConfig(bind=spec.get("bind", "tcp://127.0.0.1:0"), snapshot_hz=spec["snapshot_hz"], heartbeat_s=spec["heartbeat_s"],
                            timeout_s=spec["timeout_s"], grace_s=spec["grace_s"], max_spectators=spec["max_spectators"],
                            sndhwm=spec.get("sndhwm", GatewayConfig.sndhwm), feed=spec.get("feed", True),
-                           stats_path=spec.get("gateway_stats", ""))
+                           stats_path=spec.get("gateway_stats", ""),
+                           pause_for_players=False)  # players are killed on purpose: the match goes on
     supervisor = Supervisor(scene, spec["ticks"], "realtime", seed=spec.get("seed", 0), gateway=config,
                             players_timeout=spec.get("players_timeout", 300.0))
     clock: list[TickClock] = []

@@ -14,7 +14,8 @@ import numpy as np
 import zmq
 
 from engine.dtypes import physics_snapshot_dtype
-from processes.network.gateway import STATS_EVERY_S, Gateway, GatewayConfig, SeatStore
+from processes.network.gateway import STATS_EVERY_S, Gateway, GatewayConfig
+from processes.network.seats import SeatStore
 from processes.network.wire import GoodbyeReason, Slot
 from processes.runtime.control import Control, StopRequested
 from processes.runtime.locks import LockTable
@@ -40,8 +41,9 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
     """Serve the run's match to network clients until the match ends or the supervisor stops it.
 
     options: gateway (GatewayConfig), lock_path, ticks (the run's tick limit), start_event (set
-    once every remote seat is taken: the physics worker waits for it), crash_at_tick (fault
-    injection: SIGKILL this process once the physics reached that tick).
+    while every remote seat is held, clear while one is empty: the physics worker waits for it
+    before the first serve and pauses while it is clear), crash_at_tick (fault injection:
+    SIGKILL this process once the physics reached that tick).
 
     A restarted gateway binds the same endpoint and has lost its sessions, not its seats: the
     seat table lives in the supervisor's "seats" block (SeatStore), so clients that hear nothing
@@ -91,8 +93,11 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
                 gateway.service(None)
                 continue
             gateway.service(rec, ack, points)
-            if start_event is not None and not start_event.is_set() and gateway.seats_filled:
-                start_event.set()
+            if start_event is not None and gateway.seats_filled != start_event.is_set():
+                if gateway.seats_filled:
+                    start_event.set()  # the physics plays
+                elif config.pause_for_players:
+                    start_event.clear()  # the physics pauses (and a restarted one waits)
             control.beat(gateway.tick)
             if crash_at_tick is not None and gateway.tick >= crash_at_tick:
                 os.kill(os.getpid(), signal.SIGKILL)  # fault injection (tests)

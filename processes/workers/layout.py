@@ -18,7 +18,7 @@ and removes them at the end. The blocks of a run, by name:
 | ai_local | LOCAL_DTYPE | physics | a restarted physics |
 | remote_header, remote_inputs | Mailbox of REMOTE_INPUT_DTYPE (locked) | gateway posts | physics drains |
 | remote_applied, remote_acks | seqs applied per bat, REMOTE_ACK_DTYPE ring | physics | gateway |
-| seats | network.gateway.SEAT_DTYPE (SnapshotBlock) | gateway | a restarted gateway |
+| seats | network.seats.SEAT_DTYPE (SnapshotBlock) | gateway | a restarted gateway |
 | lock_holders | runtime.locks.HOLDER_DTYPE | lock table | lock table |
 """
 from __future__ import annotations
@@ -30,11 +30,13 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.dtypes import CONTACT_DTYPE, POINT_DTYPE, net_snapshot_dtype, physics_snapshot_dtype
-from engine.ai import CTL_SIZE
+from engine.arm import CTL_SIZE
+from engine.dtypes import (CONTACT_DTYPE, POINT_DTYPE, ai_answer_dtype, ai_local_dtype, net_snapshot_dtype,
+                           physics_snapshot_dtype)
 from engine.rules import Phase, next_striker
 from engine.scene import Scene
-from processes.network.gateway import SEAT_DTYPE
+from net_kernel import build_topology
+from processes.network.seats import SEAT_DTYPE
 from processes.runtime.control import STATUS_DTYPE
 from processes.runtime.handoff import TICK_SLOT_DTYPE, Baton
 from processes.runtime.locks import HOLDER_DTYPE, LockTable
@@ -45,15 +47,8 @@ EVENT_LOG_CAPACITY = 1 << 16
 POINT_LOG_CAPACITY = 1 << 12  # a best-of-9 match has at most a few hundred rallies
 
 MAX_BATS = 2
-# The AIs' answer to one turn: the tick it answers, a bit per AI bat, every AI bat's inputs, and
-# what the physics needs to compute the forces itself until the next decision: the decision key
-# it was made under (decision_key), the wakes (BatAI.wakes) and each AI's ctl row, in the order
-# of the scene's AI bats.
-ANSWER_DTYPE = np.dtype([("tick", "<i8"), ("mask", "<i8"), ("inputs", "<f8", (MAX_BATS, 6)), ("key", "<i8", (4,)),
-                         ("due", "<f8"), ("end", "<f8"), ("ctl", "<f8", (MAX_BATS, CTL_SIZE))])
-# The inputs the physics computed itself at its last control tick without a turn (a restarted
-# physics takes them up again): written only by the physics worker, read only by its successor.
-LOCAL_DTYPE = np.dtype([("tick", "<i8"), ("inputs", "<f8", (MAX_BATS, 6))])
+ANSWER_DTYPE = ai_answer_dtype(MAX_BATS, CTL_SIZE)
+LOCAL_DTYPE = ai_local_dtype(MAX_BATS)
 
 # The physics' hand-off of a ball tick to the net worker, and the net's answer (NetSim.step's).
 NET_IO_DTYPE = np.dtype([
@@ -120,7 +115,7 @@ class RunLayout:
 
     arena: every block of the table above that the run's workers need. ai_baton, net_baton:
     the turns' batons (None without that worker). lock_path: the lock table's file (a run with a
-    gateway, else None). start_event: set once every remote seat is taken (a run with a gateway).
+    gateway, else None). start_event: set while every remote seat is held (a run with a gateway).
     """
 
     arena: Arena
@@ -165,8 +160,6 @@ def build_layout(scene: Scene, kinds: list[str], ticks: int, trace: bool, frame_
             if frame_every:
                 arena.shared_array("frames", snapshot, ticks // frame_every + 1)
         if "net" in kinds:
-            from net_kernel import build_topology
-
             knots = net_snapshot_dtype(build_topology(scene.cloth).n_knots)
             for name in NET_BLOCKS:
                 arena.snapshot_block(name, knots, 1)

@@ -22,7 +22,7 @@ class RunOptions:
         gateway: processes.network.gateway.GatewayConfig of a scene with the effect "remote".
         ai_baton, net_baton: the processes.runtime.handoff.Baton of the AI's and the net's turns
             (None: no such worker). lock_path: the run's lock table (a run with a gateway).
-        start_event: set by the gateway once every remote seat is taken (a run with a gateway).
+        start_event: set by the gateway while every remote seat is held (a run with a gateway).
     """
 
     ticks: int

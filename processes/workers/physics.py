@@ -152,12 +152,15 @@ def _finish(control: Control, tick: int, busy: float, net, options: RunOptions, 
     control.finish(busy - handoff, handoff, report)
 
 
-def _await_players(control: Control, options: RunOptions, tick: int) -> None:
-    """A served match starts once the gateway says every remote seat is taken (bounded)."""
+def _await_players(control: Control, options: RunOptions, tick: int, timeout_s: float | None) -> float:
+    """Wait while the gateway says a remote seat is empty (options.start_event clear): at most
+    timeout_s (None: until the seats are held or a stop command comes); the wall time waited."""
     event = options.start_event
-    deadline = time.monotonic() + options.players_timeout
+    start = time.monotonic()
+    deadline = start + (float("inf") if timeout_s is None else timeout_s)
     while not event.wait(0.2) and time.monotonic() < deadline:
-        control.beat(tick)
+        control.beat(tick)  # raises StopRequested on the supervisor's stop
+    return time.monotonic() - start
 
 
 def _match_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
@@ -185,8 +188,13 @@ def _match_worker(control: Control, arena: Arena, scene, options: RunOptions) ->
     points_logged = len(match.referee.points)
     start_wall = control.start(tick)
     remote = RemoteInputs(arena, options, match) if "remote" in scene.effects else None
-    if remote is not None:
-        _await_players(control, options, tick)
+    # A served match waits for its remote players before the first serve, then pauses while a
+    # seat is empty (a dropped player's grace), unless the first wait ran out (then it plays on)
+    # or the gateway's config says not to (GatewayConfig.pause_for_players).
+    pause_when_empty = False
+    if remote is not None and options.start_event is not None:
+        _await_players(control, options, tick, options.players_timeout)
+        pause_when_empty = options.start_event.is_set() and options.gateway.pause_for_players
         start_wall = time.monotonic() - tick * match.model.dt  # pace from when play starts
     pacer = _Pacer(start_wall, match.model.dt, control.row) if options.mode == "realtime" else None
     n_ticks = options.ticks
@@ -195,6 +203,10 @@ def _match_worker(control: Control, arena: Arena, scene, options: RunOptions) ->
     # pacing, traces and remote inputs (drained before every tick) want every tick
     per_tick = pacer is not None or options.trace or remote is not None
     while tick < n_ticks and not match.referee.match_over:
+        if pause_when_empty and not options.start_event.is_set():
+            paused = _await_players(control, options, tick, None)
+            if pacer is not None:
+                pacer.start += paused  # the clock resumes where it stopped: no rush to catch up
         if pacer is not None:
             pacer.wait(tick)
         t0 = time.perf_counter()

@@ -114,6 +114,25 @@ def test_return_onto_own_court_and_out_side():
     assert (point.winner, point.reason) == (s, Reason.OUT_SIDE)
 
 
+def test_return_into_the_net_falling_back_is_net():
+    ref = Referee()
+    s, r = serve_legal(ref)
+    ref.on_contact(BAT[r], (ref.end_sign(r) * 1.6, 0, 0.2))
+    assert ref.on_contact(Body.NET, (0.0, 0.0, 0.1)) is None
+    point = ref.on_contact(Body.TABLE, court(ref, r))  # fell back off the net onto the striker's court
+    assert (point.winner, point.reason) == (s, Reason.NET)
+
+
+def test_service_into_the_net_falling_back_is_net():
+    ref = Referee()
+    s, r = ref.server, ref.receiver
+    ref.on_contact(BAT[s], (ref.end_sign(s) * 1.5, 0, 0.2))
+    ref.on_contact(Body.TABLE, court(ref, s))
+    ref.on_contact(Body.NET, (0.0, 0.0, 0.1))
+    point = ref.on_contact(Body.TABLE, court(ref, s, 0.2))
+    assert (point.winner, point.reason) == (r, Reason.NET)
+
+
 def play_point(ref, winner):
     """Script a rally that `winner` wins (the loser misses a legal return)."""
     s, r = serve_legal(ref)

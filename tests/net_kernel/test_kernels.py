@@ -86,3 +86,33 @@ def test_speed_max_equals_reference_and_flags_nan(small_topo):
     assert kernels.knot_speed_max(pos, vel) == pytest.approx(reference.knot_speed_max(pos, vel), rel=1e-15)
     vel[3, 1] = np.nan
     assert kernels.knot_speed_max(pos, vel) == np.inf == reference.knot_speed_max(pos, vel)
+
+
+def _scatter(mod, topo, pos, vel, steps):
+    for _ in range(steps):
+        op, ov = np.empty_like(pos), np.empty_like(vel)
+        mod.step_knots_scatter(pos, vel, topo.knot_inv_mass, topo.spring_ij, topo.spring_rest, topo.spring_k,
+                               topo.spring_c, 9.81, 5.0, 0.5 * topo.h_max, np.empty_like(pos), op, ov)
+        pos, vel = op, ov
+    return pos, vel
+
+
+def test_textbook_scatter_equals_its_twin_bit_for_bit(small_topo):
+    pos, vel = perturbed(small_topo, seed=5)
+    kernel, twin = _scatter(kernels, small_topo, pos, vel, 20), _scatter(reference, small_topo, pos, vel, 20)
+    assert np.array_equal(kernel[0], twin[0]) and np.array_equal(kernel[1], twin[1])  # np.add.at: the loop's order
+
+
+def test_textbook_scatter_steps_as_step_knots(small_topo):
+    topo = small_topo
+    pos, vel = perturbed(topo, seed=6)
+    scatter = _scatter(kernels, topo, pos, vel, 20)
+    p, v = pos, vel
+    for _ in range(20):
+        op, ov = np.empty_like(p), np.empty_like(v)
+        kernels.step_knots_serial(p, v, *_step_args(topo, 0.5 * topo.h_max), op, ov)
+        p, v = op, ov
+    # The same model; only the order of each knot's sum (spring order against slot order) and
+    # n = L/|L| against scale L round apart: the tolerances of test_step_equals_reference.
+    np.testing.assert_allclose(scatter[0], p, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(scatter[1], v, rtol=0, atol=1e-9)

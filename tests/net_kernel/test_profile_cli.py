@@ -15,20 +15,28 @@ def test_profile_net_smoke():
     report = json.loads(done.stdout)
     assert report["knots"] == 160
     assert {(r["path"], r["backend"]) for r in report["results"]} == {
-        (path, backend) for path in ("grid", "csr") for backend in ("numba", "reference")}
+        (path, backend) for path in ("grid", "csr") for backend in ("numba", "reference")} | {("scatter", "numba")}
     for r in report["results"]:
         assert r["us_per_step"] > 0 and r["msprings_per_s"] > 0 and 0 < r["copy_share"]
         assert r["steps"] == 2 and r["steps_per_call"] == (2 if r["path"] == "grid" else 1)
         parallel = r["backend"] == "numba" and r["parallel"]
         assert (r["cpu_us_per_step"] is None) if parallel else r["cpu_us_per_step"] > 0  # serial kernels only
+        assert (r["backend"] == "reference") or r["textbook_ratio"] > 0  # the numba rows against the textbook loop
     assert report["copy"]["gb_per_s"] > 0
+    passes = report["passes"]
+    assert set(passes["passes"]) >= {"springs: vertical and shear bands", "knots: update (with borders)"}
+    assert passes["step_us"] > 0 and passes["divider_floor_us"] > 0 and passes["long_rows"] is None  # 8 rows < 16
+    assert passes["spring_floor_us"] > 0 and passes["spring_floor_no_divider_us"] > 0
+    assert set(report["vectors"]) == {"grid springs (_grid_line)", "grid knots (_grid_update)",
+                                      "csr (step_knots_serial)", "textbook scatter (step_knots_scatter)"}
 
 
 def test_profile_net_text_and_bad_knots():
     done = subprocess.run([sys.executable, "-m", "processes", "profile-net", "--knots", "12x4", "--steps", "1",
                            "--backend", "numba"], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
-    assert "Msprings/s" in done.stdout and "of copy" in done.stdout
+    assert "Msprings/s" in done.stdout and "of copy" in done.stdout and "x textbook" in done.stdout
+    assert "vectorised?" in done.stdout and "the divider's floor" in done.stdout
     bad = subprocess.run([sys.executable, "-m", "processes", "profile-net", "--knots", "12by4"],
                          capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2 and "COLSxROWS" in bad.stderr

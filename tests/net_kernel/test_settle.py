@@ -1,5 +1,4 @@
 """A net hanging on its two cords settles to rest with the cables' sag, W L / (8 (T_top + T_bottom))."""
-import numpy as np
 import pytest
 
 from net_kernel import NetSim, build_topology, grid_spec

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from engine.rules import REASONS
 from processes.network.wire.checks import (BadEnum, BadFlags, BadMagic, BadText, BadVersion, NonFinite, OutOfRange,
                                            TooLong, TooShort, UnknownType, WireError, _text)
 from processes.network.wire.messages import (HEADER_DTYPE, HEADER_SIZE, MAGIC, PROTOCOL_VERSION, SPECS, Kind,
@@ -32,7 +33,8 @@ class Message:
         return self.fields[name]
 
     def to_dict(self) -> dict:
-        """Plain JSON-able values: enums by name, tokens in hex, arrays as lists."""
+        """Plain JSON-able values: enums by name, tokens in hex, arrays as lists; an event's
+        reason also by name (reason_name, engine.rules.REASONS)."""
         out: dict[str, Any] = {"kind": self.kind.name.lower(), "seq": self.seq, "tick": self.tick, "flags": self.flags}
         for name, value in self.fields.items():
             if isinstance(value, enum.IntEnum):
@@ -42,6 +44,8 @@ class Message:
             elif isinstance(value, np.ndarray):
                 value = value.tolist()
             out[name] = value
+        if self.kind == Kind.EVENT:
+            out["reason_name"] = REASONS[self.fields["reason"]].value
         return out
 
 

@@ -19,7 +19,7 @@ MAX_SPEED_MS = 100.0  # |velocity| of ball or bat; the fastest recorded smash is
 MAX_SPIN_RADS = 2000.0  # |spin| of the ball; top players reach ~150 rev/s = 940 rad/s
 MAX_BAT_ANG_VEL_RADS = 1000.0  # |angular velocity| of a bat
 MAX_GAMES_WON = 5  # best of 9 is the longest match a scene allows (engine/scene.py)
-MAX_BEST_OF = 9
+MAX_BEST_OF = 9  # games of the longest match a scene allows
 MAX_DT_S = 0.05  # the scene's own bound on a tick's length
 TOKEN_SIZE = 16  # bytes of a rejoin token; all zero = none
 NAME_SIZE = 32  # bytes of a UTF-8 name, NUL-padded
@@ -27,32 +27,32 @@ DETAIL_SIZE = 64  # bytes of a UTF-8 human-readable detail, NUL-padded
 
 
 class Kind(enum.IntEnum):
-    HELLO = 1
-    WELCOME = 2
-    REJECT = 3
-    INPUT = 4
-    SNAPSHOT = 5
-    EVENT = 6
-    HEARTBEAT = 7
-    GOODBYE = 8
+    HELLO = 1  # client asks for a seat or to watch
+    WELCOME = 2  # the seat given, the session's parameters
+    REJECT = 3  # the hello turned away
+    INPUT = 4  # a player's force and torque on its own bat
+    SNAPSHOT = 5  # the authoritative state at one tick
+    EVENT = 6  # a point, a game or the match decided
+    HEARTBEAT = 7  # alive, and the highest seq received
+    GOODBYE = 8  # the session ends
 
 
 class Role(enum.IntEnum):
-    PLAYER = 1
-    SPECTATOR = 2
+    PLAYER = 1  # plays a bat: inputs in, snapshots and events on its session
+    SPECTATOR = 2  # watches: controls nothing, snapshots and events on the feed
 
 
 class Slot(enum.IntEnum):
     """A seat at the table; 0 = none (a spectator, or no preference in a hello)."""
 
-    NONE = 0
+    NONE = 0  # a spectator, or any free seat in a hello
     A = 1  # engine player 0, x < 0
     B = 2  # engine player 1, x > 0
 
 
 class InputMode(enum.IntEnum):
     FORCE = 1  # force and torque held over the ticks until the next input
-    TARGET = 2  # a pose for the server's arm controller to reach (within the arm's limits)
+    TARGET = 2  # reserved: a pose for a server-side arm controller; protocol 2 gateways refuse it
 
 
 class RejectReason(enum.IntEnum):
@@ -60,21 +60,22 @@ class RejectReason(enum.IntEnum):
     VERSION = 2  # the client speaks another protocol version
     BAD_REQUEST = 3  # the hello was malformed or asked for something impossible
     BAD_TOKEN = 4  # unknown or expired rejoin token
-    SHUTTING_DOWN = 5
+    SHUTTING_DOWN = 5  # the server is stopping
 
 
 class EventKind(enum.IntEnum):
-    POINT = 1
-    GAME = 2
-    MATCH = 3  # the match is over
+    POINT = 1  # a rally is decided (or a let is replayed)
+    GAME = 2  # the rally decided a game too (sent after its point)
+    MATCH = 3  # the rally decided the match (sent after its point and game)
 
 
 class GoodbyeReason(enum.IntEnum):
     QUIT = 1  # the client leaves
     SHUTDOWN = 2  # the server stops
     TIMEOUT = 3  # no heartbeat from the peer in time
-    MATCH_OVER = 4
-    KICKED = 5  # too many bad messages
+    MATCH_OVER = 4  # the match is decided or reached its tick limit
+    KICKED = 5  # too many bad messages, or the seat's token was used by a new connection
+    UNKNOWN_SESSION = 6  # the server has no session for this connection (it restarted): hello again
 
 
 HEADER_FIELDS = [
@@ -209,10 +210,13 @@ class Reject(_Spec):
 class Input(_Spec):
     """input, player client -> server: what the player's arm does to its own bat.
 
-    Header tick: the tick from which the input holds (the client's predicted tick); header seq
-    is echoed back in snapshot.input_seq once the server applied it. The gateway refuses an
+    Header tick: the client's estimate of the server tick at which the input takes effect (its
+    predicted present); the server does not schedule by it: an input holds from the first tick
+    the physics steps after it arrived, until the next input, and snapshot.input_seq says from
+    which tick (header seq is echoed there once the server applied it). The gateway refuses an
     input whose slot is not the session's own, and lets go of it (zero force, same seq) if no
-    other input follows within its input_hold_s (0.1 s by default).
+    other input follows within its input_hold_s (0.1 s by default). Mode 2 (target) is
+    reserved: valid on the wire, refused by a protocol-2 gateway like another bat's input.
 
     Layout, 130 bytes:
         off  size  field        type      unit / meaning
@@ -356,7 +360,8 @@ class Goodbye(_Spec):
     Layout, 25 bytes:
         off  size  field   type  unit / meaning
           0    24  header        HEADER_DTYPE
-         24     1  reason  u1    GoodbyeReason: 1 quit, 2 shutdown, 3 timeout, 4 match_over, 5 kicked
+         24     1  reason  u1    GoodbyeReason: 1 quit, 2 shutdown, 3 timeout, 4 match_over, 5 kicked,
+                                 6 unknown_session
     """
 
     kind = Kind.GOODBYE

@@ -99,7 +99,7 @@ def scenario(args, run: Run) -> dict:
         proxy.close()
     settled = until(lambda: fd_count(gateway) is not None and fd_count(gateway) <= fds0, 10)
     fds1 = fd_count(gateway)
-    end = server.stop()
+    server.stop()
     result["counts"] = counts
     side = counts["pulled_slot"]
     check(result, side in ("A", "B") and counts["direct_slot"] in ("A", "B"), f"players not seated: {counts}")

@@ -11,7 +11,7 @@ import time
 
 from processes.stress.harness import Run, StressError, until
 from processes.stress.probes import CpuMeter, shm_names
-from processes.stress.report import jitter, latency
+from processes.stress.report import jitter, latency, latency_values
 from processes.stress.result import base, check, finish
 from processes.stress.server import Server
 from processes.stress.swarm import launch, watch_spec
@@ -67,7 +67,7 @@ def scenario(args, run: Run) -> dict:
     keep_report = keep.expect(lambda o: o.get("event") == "report", 30, "report")
     fill_report = fill.expect(lambda o: o.get("event") == "report", 30, "report")
     clock = server.tick_clock()
-    result["latency_ms"] = latency(clock, server.dt, records[:2])
+    result["latency_ms"] = latency(latency_values(clock, server.dt, records[:2]))
     result["tick_jitter_ms"] = jitter(clock, server.dt, t0, t1)
     told = keep_report["goodbyes"].get("shutdown", 0) + fill_report["goodbyes"].get("shutdown", 0)
     present = (keep_report["welcomed"] - keep_report["no_goodbye"] + fill_report["welcomed"])

@@ -55,6 +55,25 @@ def test_replay_two_ticks(tmp_path):
     assert json.loads(done.stdout)["frames"] == 5  # ticks 0, 10, 20, 30, 40
 
 
+def test_replay_html_is_one_page_with_the_wire_messages_of_the_frames(tmp_path):
+    import base64
+    import re
+
+    from processes.network import wire
+
+    path, page = tmp_path / "short.replay", tmp_path / "short.html"
+    assert pingpong("match", "--ticks", "200", "--replay", str(path), "--json").returncode == 0
+    done = pingpong("replay", str(path), "--html", str(page), "--json")
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["html"] == str(page)
+    text = page.read_text()
+    messages = json.loads(re.search(r'<script type="application/json" id="messages">(.*?)</script>', text).group(1))
+    decoded = [wire.decode(base64.b64decode(m)) for m in messages]
+    assert decoded[0].kind == wire.Kind.WELCOME and decoded[0]["dt"] > 0
+    ticks = [m.tick for m in decoded if m.kind == wire.Kind.SNAPSHOT]
+    assert ticks == sorted(ticks) and ticks[-1] == 200 and len(ticks) >= 20  # a frame every 10 ticks
+
+
 def test_replay_of_a_file_that_is_not_one(tmp_path):
     bad = tmp_path / "bad.replay"
     bad.write_bytes(b"not a zip")

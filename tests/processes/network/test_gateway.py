@@ -476,6 +476,195 @@ def test_shutdown_says_goodbye_to_everyone_and_refuses_newcomers(rig):
     assert refused.value.reason == RejectReason.SHUTTING_DOWN
 
 
+@pytest.mark.timeout(30)
+def test_a_malformed_hello_is_rejected_bad_request_with_the_decoders_reason(rig):
+    r = rig()
+    hello = wire.encode(Kind.HELLO, role=Role.PLAYER, slot=Slot.NONE, name="ann", token=bytes(16))
+    bad_name = bytearray(hello)
+    bad_name[26:30] = b"\x1b[2J"[:4]  # a terminal escape in the name
+    watcher_with_slot = bytearray(wire.encode(Kind.HELLO, role=Role.SPECTATOR, slot=Slot.NONE, name="sp",
+                                              token=bytes(16)))
+    watcher_with_slot[25] = int(Slot.A)
+    cases = {"too_short": hello[:40], "too_long": hello + b"\0", "bad_text": bytes(bad_name),
+             "out_of_range": bytes(watcher_with_slot)}
+    for reason, data in cases.items():
+        client = r.client()
+        client.send_raw(data)
+        reject = r.until(client, lambda m: m.kind == Kind.REJECT)
+        assert reject["reason"] == RejectReason.BAD_REQUEST and reject["detail"], reason
+        assert r.gateway.stats()[f"dropped.{reason}"] == 1
+    assert "hello.slot" in reject["detail"]  # the decoder's own words: what was wrong
+    assert r.gateway.counts["rejected.bad_request"] == len(cases) and r.gateway.sessions == {}
+    stranger = r.client()
+    stranger.send_raw(bytes(_good_input()))  # not a hello: no reject (a goodbye, see below)
+    assert r.until(stranger, lambda m: True).kind == Kind.GOODBYE
+
+
+@pytest.mark.timeout(30)
+def test_target_mode_is_refused_counted_and_kicks_like_any_bad_message(rig):
+    from processes.network.gateway import MAX_BAD
+
+    r = rig()
+    player = r.client()
+    r.join(player)
+    for _ in range(MAX_BAD):
+        player.send(Kind.INPUT, slot=Slot.A, mode=wire.InputMode.TARGET, force=[0, 0, 0], torque=[0, 0, 0],
+                    target_pos=[-1.6, 0.0, 0.15], target_quat=[1.0, 0, 0, 0])
+    goodbye = r.until(player, lambda m: m.kind == Kind.GOODBYE)
+    assert goodbye["reason"] == GoodbyeReason.KICKED
+    assert r.gateway.counts["refused.target_mode"] == MAX_BAD and r.gateway.counts["kicked"] == 1
+    assert all(not inputs.any() for *_, inputs in r.posted)  # the kicked arm let go; no target reached it
+
+
+@pytest.mark.timeout(30)
+def test_a_token_expires_with_the_grace_and_the_seat_is_anyones(rig):
+    r = rig(remote=(Slot.A,), heartbeat_s=1.0, timeout_s=5.0, grace_s=30.0)
+    ann = r.client(name="ann")
+    token = r.join(ann)["token"]
+    r.clock.now += 6.0
+    assert r.until(ann, lambda m: m.kind == Kind.GOODBYE)["reason"] == GoodbyeReason.TIMEOUT
+    r.clock.now += 30.0  # the grace is over
+    with pytest.raises(Rejected) as refused:
+        r.join(r.client(name="ann", token=token))
+    assert refused.value.reason == RejectReason.BAD_TOKEN and r.gateway.counts["tokens_expired"] == 1
+    bob = r.join(r.client(name="bob"))
+    assert bob["slot"] == Slot.A and bob["token"] != token and bob["name_a"] == "bob"
+    with pytest.raises(Rejected) as refused:  # and the old token is no key to the new player's seat
+        r.join(r.client(name="ann", token=token))
+    assert refused.value.reason == RejectReason.BAD_TOKEN
+
+
+@pytest.mark.timeout(30)
+def test_a_session_of_a_replaced_gateway_is_told_goodbye_once_and_rejoins(zctx, no_leftovers):
+    from processes.network.seats import SEAT_DTYPE, SeatStore
+
+    arena = shm.Arena()
+    store = SeatStore(arena.snapshot_block("seats", SEAT_DTYPE, 2))
+    old_context = zmq.Context()  # the first gateway's own: terminating it frees the port at once
+    first = Rig(old_context, remote=(Slot.A,), seat_store=store)
+    endpoint = first.gateway.endpoint
+    ann = Client(endpoint, "player", "ann", zctx=zctx)
+    first.clients.append(ann)
+    token = first.join(ann)["token"]
+    first.gateway.close(linger_ms=0)  # gone without a word, as a killed gateway
+    old_context.term()
+    second = Rig(zctx, remote=(Slot.A,), bind=endpoint, seat_store=store)  # its successor, same endpoint
+    try:
+        goodbye = None
+        for _ in range(ROUNDS):  # the client's heartbeats reach the new gateway once it reconnects
+            ann.send(Kind.HEARTBEAT, ack=0)
+            second.step()
+            goodbye = ann.recv(5)
+            if goodbye is not None:
+                break
+        assert goodbye is not None and goodbye.kind == Kind.GOODBYE
+        assert goodbye["reason"] == GoodbyeReason.UNKNOWN_SESSION
+        ann.send(Kind.HEARTBEAT, ack=0)
+        second.settle(lambda: second.gateway.counts["dropped.no_session"] >= 2)
+        assert second.gateway.counts["goodbyes_to_strangers"] == 1  # told once per connection
+        welcome = second.join(ann)  # hello again: the token (kept by the client) reclaims the seat
+        assert welcome["slot"] == Slot.A and welcome["token"] == token and second.gateway.counts["rejoined"] == 1
+    finally:
+        ann.close()
+        second.close()
+        del store
+        arena.close()
+
+
+@pytest.mark.timeout(30)
+def test_a_relay_republishes_the_feed_byte_for_byte_to_its_subscribers(rig, zctx):
+    from processes.network.relay import Relay
+
+    r = rig()
+    watcher = r.client(role="spectator")
+    r.join(watcher)  # a spectator of the gateway itself, to compare with
+    relay = Relay(r.gateway.feed_endpoint, "tcp://127.0.0.1:0")
+    endpoint = relay.start()
+    subscribers = []
+    try:
+        for _ in range(2):
+            sub = zctx.socket(zmq.SUB)
+            sub.setsockopt(zmq.LINGER, 0)
+            sub.setsockopt(zmq.SUBSCRIBE, b"")
+            sub.connect(endpoint)
+            subscribers.append(sub)
+        tick = 0
+        got = [None, None]
+        for _ in range(ROUNDS):  # serve ticks until both relayed subscriptions are live
+            tick += 1
+            r.record["world"]["tick"] = tick
+            r.clock.now += 0.002
+            r.gateway.service(r.record)
+            for i, sub in enumerate(subscribers):
+                if got[i] is None and sub.poll(5, zmq.POLLIN):
+                    got[i] = sub.recv()
+            if all(got):
+                break
+        assert all(got), "the relay forwarded nothing"
+        later = tick + 1  # one more snapshot: every subscriber gets exactly the feed's bytes
+        r.record["world"]["tick"] = later
+        r.clock.now += 0.002
+        r.gateway.service(r.record)
+        relayed = []
+        for sub in subscribers:
+            for _ in range(ROUNDS):
+                assert sub.poll(50, zmq.POLLIN), "the relay lost a snapshot"
+                data = sub.recv()
+                if wire.decode(data).tick == later:
+                    relayed.append(data)
+                    break
+        direct = _first_tick(watcher, later)
+        direct_bytes = wire.encode(direct.kind, seq=direct.seq, tick=direct.tick, flags=direct.flags, **direct.fields)
+        assert relayed[0] == relayed[1] == direct_bytes  # the feed's own bytes, its seq included
+    finally:
+        for sub in subscribers:
+            sub.close(linger=0)
+        relay.stop()
+
+
+def _first_tick(client, tick):
+    for _ in range(ROUNDS):
+        message = client.recv(10)
+        if message is not None and message.kind == Kind.SNAPSHOT and message.tick == tick:
+            return message
+    raise AssertionError(f"no snapshot of tick {tick}")
+
+
+@pytest.mark.timeout(120)
+def test_serve_web_shows_the_page_beside_the_match(served):
+    import urllib.request
+
+    server = _pingpong("serve", "--players", "0", "--ticks", "600000", "--web", "127.0.0.1:0", "--json")
+    served.append(server)
+    assert "listening" in json.loads(_line(server, 60))
+    url = json.loads(_line(server, 90))["web"]  # the bridge joined as a spectator and serves the page
+    with urllib.request.urlopen(url, timeout=10) as reply:
+        assert reply.status == 200 and b"app.js" in reply.read()
+    os.kill(server.pid, signal.SIGINT)
+    assert server.wait(30) == 130
+    interrupted = json.loads(server.stdout.read().strip().splitlines()[-1])
+    assert interrupted["gateway"]["spectators_joined"] == 1  # the bridge, a gateway client like any other
+
+
+@pytest.mark.timeout(60)
+def test_watch_smoke_runs(served):
+    lonely = _pingpong("watch", "tcp://127.0.0.1:9", "--web", "127.0.0.1:0", "--join-timeout", "0.5")
+    served.append(lonely)
+    assert lonely.wait(30) == 4 and "no welcome" in lonely.stderr.read()  # nobody there: no welcome in time
+    bad = _pingpong("watch", "tcp://127.0.0.1:9", "--web", "8080")
+    served.append(bad)
+    assert bad.wait(30) == 2 and "HOST:PORT" in bad.stderr.read()
+
+
+@pytest.mark.timeout(60)
+def test_relay_smoke_runs(served):
+    relay = _pingpong("relay", "tcp://127.0.0.1:9", "--bind", "tcp://127.0.0.1:0", "--seconds", "0.2", "--json")
+    served.append(relay)
+    line = json.loads(_line(relay, 30))
+    assert line["relaying"] == "tcp://127.0.0.1:9" and line["listening"].startswith("tcp://127.0.0.1:")
+    assert relay.wait(20) == 0
+
+
 def test_serving_a_scene_makes_its_bats_remote_and_starts_a_gateway():
     scene = load_scene("match_rigid")
     one, two = with_remote_players(scene, 1), with_remote_players(scene, 2)
@@ -638,8 +827,79 @@ def test_ctrl_c_on_the_server_says_goodbye_and_leaves_nothing_behind(served, zct
     finally:
         client.close()
     assert server.wait(30) == 130
+    interrupted = json.loads(server.stdout.read().strip().splitlines()[-1])  # the counters, also on Ctrl-C
+    assert interrupted["interrupted"] and interrupted["gateway"]["players_joined"] == 1
+    assert interrupted["gateway"]["goodbyes_at_end"] == 1 and interrupted["gateway"]["end"] == "shutdown"
     assert _await_gone(workers) == []
     assert not shm.leftover_segments(hello["run_id"])
+
+
+def test_serve_tells_how_to_join_what_it_serves():
+    from processes.cli.remote import _serving_line
+
+    assert "--as player" not in _serving_line("match", "tcp://127.0.0.1:1", 0)  # nobody to play: watch
+    assert "--as spectator" in _serving_line("match", "tcp://127.0.0.1:1", 0)
+    assert "--as player" in _serving_line("match", "tcp://127.0.0.1:1", 1)
+
+
+def _ticks_seen(client, count, rounds=3000):
+    """The ticks of the next `count` snapshots `client` gets (heartbeating; bounded)."""
+    ticks = []
+    for _ in range(rounds):
+        client.heartbeat_if_due()
+        message = client.recv(100)
+        if message is not None and message.kind == Kind.SNAPSHOT:
+            ticks.append(message.tick)
+            if len(ticks) == count:
+                return ticks
+    raise AssertionError(f"{len(ticks)} snapshots of {count} within the bound")
+
+
+@pytest.mark.timeout(150)
+def test_a_served_match_waits_for_its_player_and_pauses_while_the_seat_is_in_its_grace(served, zctx):
+    server = _pingpong("serve", "--players", "1", "--ticks", "600000", "--timeout", "1", "--grace", "60", "--json")
+    served.append(server)
+    endpoint = json.loads(_line(server, 60))["listening"]
+    watcher = Client(endpoint, "spectator", "sp", zctx=zctx)
+    player = Client(endpoint, "player", "ann", zctx=zctx)
+    try:
+        watcher.join(30)
+        assert set(_ticks_seen(watcher, 30)) == {0}  # nobody on seat A: no serve, the clock stands
+        token = player.join(30)["token"]
+        for _ in range(3000):  # the match starts: the ticks move
+            player.heartbeat_if_due()
+            player.recv(0)
+            if _ticks_seen(watcher, 1)[0] > 0:
+                break
+        else:
+            raise AssertionError("the match never started")
+        # the player falls silent: dropped after the 1 s timeout, its seat in its grace, the match paused
+        for _ in range(100):
+            window = _ticks_seen(watcher, 30)
+            if len(set(window)) == 1:
+                break
+        else:
+            raise AssertionError("the match never paused")
+        paused_at = window[0]
+        assert paused_at > 0
+        player.token = token
+        player.hello()  # back with the token: the match goes on from where it stood
+        for _ in range(300):
+            message = player.recv(100)
+            if message is not None and player.accept(message):
+                break
+        else:
+            raise AssertionError("no welcome back")
+        for _ in range(3000):
+            player.heartbeat_if_due()
+            player.recv(0)
+            tick = _ticks_seen(watcher, 1)[0]
+            if tick > paused_at:
+                break
+        assert tick > paused_at
+    finally:
+        watcher.close()
+        player.close()
 
 
 def test_a_remote_bat_needs_the_effect_and_no_skill():
@@ -826,7 +1086,7 @@ def test_a_curve_session_works_and_a_client_without_the_server_key_cannot_join(r
 # --- seats outlive a gateway --------------------------------------------------------------------
 @pytest.mark.timeout(30)
 def test_a_restarted_gateway_finds_its_seats_and_the_token_reclaims_one(zctx, no_leftovers):
-    from processes.network.gateway import SEAT_DTYPE, SeatStore
+    from processes.network.seats import SEAT_DTYPE, SeatStore
 
     arena = shm.Arena()
     first = second = None

@@ -14,7 +14,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import zmq
 
 from engine.scene import load_scene
 from engine.world import build_model, initial_state
@@ -128,12 +127,14 @@ class GatewayThread:
 @pytest.mark.timeout(60)
 def test_a_keyboard_session_sends_the_arms_forces_towards_the_target(zctx):
     scene = load_scene("match_rigid")
+    # Built before joining: on a cold numba cache its kernels compile for longer than the welcome's
+    # timeout, and a client silent meanwhile takes the server for lost.
+    predictor = Predictor(scene, Slot.A)
     served = GatewayThread(zctx, scene)
     client = Client(served.gateway.endpoint, "player", "keys", zctx=zctx)
     try:
         welcome = client.join(10)
         assert client.slot == Slot.A
-        predictor = Predictor(scene, client.slot)
         pilot = KeyboardPilot(predictor.model, client.slot)
         keys = IterableKeys([["up"] * 4] + [[]] * 150 + ["quit"])
         summary = run_session(client, welcome, pilot=pilot, keys=keys, predictor=predictor, seconds=30.0)

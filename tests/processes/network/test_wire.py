@@ -188,6 +188,12 @@ def test_golden_message_round_trip(name):
     assert json.loads(json.dumps(message.to_dict(), ensure_ascii=False))["kind"] == name.split("_")[0]
 
 
+def test_an_events_reason_and_a_snapshots_phase_are_named_in_its_dict():
+    event = decode(GOLDEN["event_point"]).to_dict()
+    assert event["reason"] == REASONS.index(Reason.OUT_LONG) and event["reason_name"] == "out_long"
+    assert decode(GOLDEN["snapshot"]).to_dict()["phase"] == "struck"
+
+
 def test_spectator_welcome_and_match_event_round_trip():
     _, welcome = GOLDEN_FIELDS["welcome_a"]
     spectator = {**welcome, "slot": Slot.NONE, "token": bytes(16), "name_b": ""}

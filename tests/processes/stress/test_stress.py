@@ -6,10 +6,12 @@ and reaps all of them (whole process sessions) whatever happens, every wait insi
 and each test has its own alarm.
 """
 import argparse
+import os
 
 import pytest
 
 from processes.stress import scenarios as stress
+from processes.stress.harness import Child
 from processes.cli import main
 
 
@@ -43,6 +45,10 @@ def test_load_every_spectator_watches_the_whole_match_and_is_told_it_ended():
     assert sum(bot["goodbye"] == "server_lost" for bot in c["bots"]) == c["bots_without_goodbye"]
     assert 0 < result["latency_ms"]["n"] <= c["snapshots_received"]  # those sent once the match had started
     assert result["tick_jitter_ms"]["n"] > 0 and "gateway" in result["cpu_pct"]
+    # 50 spectators are a light load for one swarm process: it waited for messages most of the time
+    swarm = result["swarm"]
+    assert result["limited_by_load_generator"] is False and swarm["saturated"] == []
+    assert swarm["received"] >= c["snapshots_received"] // 2 and swarm["cpu_us_per_message"] > 0
 
 
 @pytest.mark.timeout(90)
@@ -116,3 +122,46 @@ def test_a_bad_scenario_name_is_refused_with_the_choices(capsys):
     assert "flood" in err and "load,churn,cable,kill,malformed" in err
     assert main(["stress", "--spectators", "0"]) == 2
     assert "--spectators must be at least 1" in capsys.readouterr().err
+    assert main(["stress", "--scenario", "load", "--swarm-only"]) == 2  # no --target
+    assert "--swarm-only needs --target" in capsys.readouterr().err
+    assert main(["stress", "--swarm-only", "--target", "tcp://127.0.0.1:1"]) == 2  # every scenario
+    assert "run the load scenario alone" in capsys.readouterr().err
+
+
+@pytest.mark.timeout(240)
+def test_load_says_it_was_limited_by_a_starved_load_generator():
+    """The swarm pinned to one CPU with a busy competitor there, at nice 19 (its session's autogroup
+    too): about 1.5 % of that CPU (sched(7): weight 15 against 1024), less than 50 spectators at
+    120 Hz need; its receive loop never catches up, and the result says so."""
+    cpu = min(os.sched_getaffinity(0))
+    busy = Child(["-c", f"import os; os.sched_setaffinity(0, {{{cpu}}}); print('{{}}', flush=True)\nwhile True: pass"],
+                 "competitor")
+    try:
+        busy.expect(lambda o: o == {}, 30, "the competitor's start")
+        result = stress.run_scenario("load", _args(duration=3.0, still_players=True,
+                                                   swarm_schedule={"pin_cpu": cpu, "nice": 19}))
+    finally:
+        busy.close()
+    assert result["limited_by_load_generator"] is True, result.get("swarm")
+    assert result["swarm"]["saturated"] == ["swarm0"] and result["swarm"]["demand_pct_max"] >= 50.0
+    assert any("limited by the load generator" in f for f in result["findings"])
+
+
+@pytest.mark.timeout(240)
+def test_swarm_only_watches_a_server_started_apart():
+    server = Child(["-m", "processes.cli", "stress", "--scenario", "load", "--server-only", "--spectators", "20",
+                    "--duration", "2", "--still-players", "--json"], "server_only")
+    try:
+        endpoint = server.expect(lambda o: "listening" in o, 120, "listening line")["listening"]
+        result = stress.run_scenario("load", _args(spectators=20, duration=2.0, target=endpoint))
+        served = server.expect(lambda o: o.get("scenario") == "load", 120, "the server side's result")
+        assert server.wait(30) == 0
+    finally:
+        server.close()
+    _clean(result)
+    c = result["counts"]
+    assert c["target"] == endpoint and c["welcomed"] == 20 and c["goodbye_match_over"] == 20
+    assert c["snapshots_received"] > 20 and c["invalid_snapshots"] == 0
+    assert result["latency_reference"] == "fastest snapshot" and result["latency_ms"]["n"] > 0
+    assert served["ok"], served["problems"]
+    assert served["counts"]["spectators_joined"] >= 20 and served["counts"]["gateway_snapshots_published"] > 0

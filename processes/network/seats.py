@@ -1,0 +1,41 @@
+"""The seat table as it outlives a gateway: each seat's token, name and grace in shared memory.
+
+A SnapshotBlock the supervisor owns holds one SEAT_DTYPE record per seat; the gateway of the
+moment is its one writer (it saves on every change), and a gateway restarted after a crash loads
+it, so a player's rejoin token still reclaims its seat.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+SEAT_DTYPE = np.dtype([("slot", "u1"), ("taken", "u1"), ("token", "u1", (16,)), ("name", "u1", (32,)),
+                       ("grace_until", "<f8")])  # taken: a connection held it; grace_until: time.monotonic s
+
+
+class SeatStore:
+    """The seat table in a processes.runtime.shm.SnapshotBlock of SEAT_DTYPE records (one per seat): a
+    restarted gateway finds its seats' tokens there, so a rejoin token outlives the gateway.
+    Double-buffered, so a gateway killed mid-save leaves the previous table intact."""
+
+    def __init__(self, block):
+        self.block = block
+        self._table = np.zeros(block.count, SEAT_DTYPE)
+
+    def save(self, seats) -> None:
+        table = self._table
+        table[:] = 0
+        for i, seat in enumerate(seats):
+            raw = seat.name.encode("utf-8")[:32]
+            table[i]["slot"], table[i]["taken"] = int(seat.slot), seat.identity is not None
+            table[i]["token"] = np.frombuffer(seat.token, np.uint8)
+            table[i]["name"] = np.frombuffer(raw.ljust(32, b"\0"), np.uint8)
+            table[i]["grace_until"] = seat.grace_until
+        self.block.publish(table, 0)
+
+    def load(self) -> np.ndarray | None:
+        """The last table saved, None if no gateway saved one yet."""
+        if self.block.version < 2:
+            return None
+        out = np.zeros(self.block.count, SEAT_DTYPE)
+        self.block.snapshot(out)
+        return out

@@ -1,0 +1,410 @@
+"""The web bridge: a gateway client that shows a served match in the browser, in 3D.
+
+A spectator session with the gateway (processes.network.client.Client: hello, heartbeats, the
+feed) in a thread of its own, and an HTTP + WebSocket server (the `websockets` asyncio library)
+in another. The page and its scripts, three.js among them (vendored, see web_static/vendor),
+load from this server only, so it works offline. Every wire message the session takes (the
+welcome, snapshots, events, the goodbye) goes unchanged, binary, to every browser on /ws; a
+browser that connects late first gets the welcome and the latest snapshot. The page decodes the
+wire itself (web_static/decoder.js), with the layouts of /protocol.json (protocol.layout_json).
+
+A browser may also play: it asks for a seat ({"play": "a"|"b"|"any"}, a JSON text message) and
+the bridge opens a player session for it, a client like `pingpong join --as player` (run_session
+with a KeyboardPilot and a Predictor). The browser sends key names ({"key": "up"}: the keys
+`join` uses) and pointer aims ({"aim": [x, y, z]}: a point the bat is driven to, kept in the
+pilot's reach box); the pilot turns them into force and torque for that seat's bat only, and
+the bridge sends the browser its predicted bat ({"predicted": {...}}, about 60 times a second)
+beside the wire messages. The gateway decides as for any player: the other bat is out of reach,
+a spectator's page can never move one.
+
+Sends to browsers never wait: websockets' broadcast skips a browser whose buffer is full (it
+misses that message, the others do not), so a slow browser stalls nobody.
+"""
+from __future__ import annotations
+
+import asyncio
+import base64
+import html
+import json
+import mimetypes
+import queue
+import threading
+from pathlib import Path
+
+import numpy as np
+
+from processes.network import protocol, wire
+from processes.network.client import Client
+from processes.network.keyboard import KEYS
+from processes.network.wire import Kind
+
+STATIC = Path(__file__).with_name("web_static")
+PAGES = {"/": "index.html", "/index.html": "index.html", "/app.js": "app.js", "/decoder.js": "decoder.js",
+         "/vendor/three.module.min.js": "vendor/three.module.min.js", "/vendor/three.LICENSE": "vendor/three.LICENSE"}
+JOIN_TIMEOUT_S = 10.0
+_START_TIMEOUT_S = 10.0
+_WRITE_LIMIT = 1 << 20  # bytes buffered per browser before broadcast skips it (about 3000 snapshots)
+
+
+def parse_host_port(text: str) -> tuple[str, int]:
+    """'HOST:PORT' (port 0: any free one) -> (host, port)."""
+    host, sep, port = text.rpartition(":")
+    if not sep or not host or not port.isdigit():
+        raise ValueError(f"expected HOST:PORT, got {text!r}")
+    return host, int(port)
+
+
+class WebBridge:
+    """The bridge of one gateway's match to any number of browsers.
+
+    Args:
+        address: the gateway's session endpoint. web: 'HOST:PORT' of the page and its WebSocket.
+        socket_options: for the session and the feed (CURVE keys). name: the spectator's name.
+    """
+
+    def __init__(self, address: str, web: str, *, socket_options: dict | None = None, name: str = "web"):
+        self.address = address
+        self.host, self.port = parse_host_port(web)
+        self.socket_options = dict(socket_options or {})
+        self.client = Client(address, "spectator", name, socket_options=socket_options)
+        self.url = ""
+        self.counts = {"forwarded": 0, "browsers": 0, "browsers_now": 0, "snapshots": 0, "events": 0}
+        self.ended = threading.Event()  # the session is over (goodbye, server lost, or stop())
+        self.end_reason = ""
+        self._welcome: bytes | None = None
+        self._latest: bytes | None = None
+        self._browsers: set = set()
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._server = None
+        self._stop = threading.Event()
+        self._ready = threading.Event()
+        self._error: BaseException | None = None
+        self._protocol_json = json.dumps(protocol.layout_json()).encode()
+        self._web_thread = threading.Thread(target=self._serve_web, name="web-bridge-http", daemon=True)
+        self._session_thread = threading.Thread(target=self._session, name="web-bridge-session", daemon=True)
+
+    # --- lifecycle ---------------------------------------------------------------------------
+    def start(self, join_timeout_s: float = JOIN_TIMEOUT_S) -> str:
+        """Join the gateway as a spectator (bounded), start the web server; returns its URL.
+
+        Raises:
+            Rejected, TimeoutError: the gateway did not take the session. OSError: the web
+            address could not be bound.
+        """
+        welcome = self.client.join(join_timeout_s)
+        self._welcome = self.client.last_data
+        self.counts["scene"] = welcome["scene"]
+        self._web_thread.start()
+        if not self._ready.wait(_START_TIMEOUT_S):
+            raise TimeoutError("the web server did not start")
+        if self._error is not None:
+            raise self._error
+        self._session_thread.start()
+        return self.url
+
+    def stop(self, timeout_s: float = 5.0) -> None:
+        """Leave the gateway (goodbye), close every browser's connection, stop both threads."""
+        self._stop.set()
+        if self._session_thread.is_alive():
+            self._session_thread.join(timeout_s)
+        elif not self.ended.is_set():
+            self.client.leave()
+        loop = self._loop
+        if loop is not None and self._web_thread.is_alive():
+            loop.call_soon_threadsafe(self._close_server)
+            self._web_thread.join(timeout_s)
+        self.client.close()
+        self.ended.set()
+
+    # --- the gateway side ----------------------------------------------------------------------
+    def _session(self) -> None:
+        client = self.client
+        try:
+            while not self._stop.is_set() and client.goodbye is None and not client.server_lost:
+                client.heartbeat_if_due()
+                message = client.recv(20)
+                if message is None:
+                    continue
+                if message.kind == Kind.SNAPSHOT:
+                    self._latest = client.last_data
+                    self.counts["snapshots"] += 1
+                elif message.kind == Kind.EVENT:
+                    self.counts["events"] += 1
+                elif message.kind == Kind.WELCOME:  # a rejoin's welcome (a restarted gateway)
+                    self._welcome = client.last_data
+                elif message.kind not in (Kind.GOODBYE,):
+                    continue  # heartbeats are the session's, not the page's
+                self._forward(client.last_data)
+            if client.goodbye is None:
+                client.leave()
+            self.end_reason = client.goodbye.name.lower() if client.goodbye else (
+                "server_lost" if client.server_lost else "stopped")
+        finally:
+            self.ended.set()
+
+    def _forward(self, data: bytes) -> None:
+        loop = self._loop
+        if loop is not None:
+            loop.call_soon_threadsafe(self._broadcast, bytes(data))
+
+    def _broadcast(self, data: bytes) -> None:
+        from websockets.asyncio.server import broadcast
+
+        if self._browsers:
+            broadcast(self._browsers, data)
+            self.counts["forwarded"] += len(self._browsers)
+
+    # --- the browser side ----------------------------------------------------------------------
+    def _serve_web(self) -> None:
+        try:
+            asyncio.run(self._main())
+        except BaseException as err:  # reported to start(); the thread ends
+            self._error = err
+            self._ready.set()
+
+    async def _main(self) -> None:
+        from websockets.asyncio.server import serve
+
+        self._loop = asyncio.get_running_loop()
+        self._closed = asyncio.Event()
+        async with serve(self._browser, self.host, self.port, process_request=self._http,
+                         write_limit=_WRITE_LIMIT, max_size=4096) as server:
+            self._server = server
+            host, port = next(iter(server.sockets)).getsockname()[:2]
+            self.url = f"http://{host}:{port}/"
+            self._ready.set()
+            await self._closed.wait()
+
+    def _close_server(self) -> None:
+        self._closed.set()
+
+    def _http(self, connection, request):
+        """Static files and /protocol.json over plain HTTP; /ws goes on to the WebSocket."""
+        from websockets.datastructures import Headers
+        from websockets.http11 import Response
+
+        path = request.path.split("?", 1)[0]
+        if path == "/ws":
+            return None
+        if path == "/protocol.json":
+            body, kind = self._protocol_json, "application/json"
+        elif path in PAGES:
+            file = STATIC / PAGES[path]
+            body = file.read_bytes()
+            kind = mimetypes.guess_type(file.name)[0] or "text/plain"
+            if file.suffix == ".js":
+                kind = "text/javascript"  # module scripts need a JavaScript type
+        else:
+            return connection.respond(404, f"no such page: {path}\n")
+        headers = Headers([("Content-Type", f"{kind}; charset=utf-8"), ("Content-Length", str(len(body))),
+                           ("Cache-Control", "no-cache")])
+        return Response(200, "OK", headers, body)
+
+    async def _browser(self, websocket) -> None:
+        """One browser: the welcome and the latest snapshot, then whatever the session brings;
+        its requests to play, keys and aims go to its player session (BrowserPlayer)."""
+        from websockets.exceptions import ConnectionClosed
+
+        self.counts["browsers"] += 1
+        self.counts["browsers_now"] += 1
+        player: BrowserPlayer | None = None
+        try:
+            for data in (self._welcome, self._latest):
+                if data is not None:
+                    await websocket.send(data)
+            self._browsers.add(websocket)
+            async for text in websocket:
+                request = _request(text)
+                if request is None:
+                    self.counts["ignored_from_browser"] = self.counts.get("ignored_from_browser", 0) + 1
+                elif "play" in request and player is None:
+                    player = BrowserPlayer(self, websocket, request["play"])
+                    player.start()
+                elif player is not None:
+                    player.take(request)
+                else:  # keys or aims from a browser that plays no seat: it controls nothing
+                    self.counts["ignored_from_browser"] = self.counts.get("ignored_from_browser", 0) + 1
+        except ConnectionClosed:  # a browser that went away: its connection is over, nothing more
+            pass
+        finally:
+            self._browsers.discard(websocket)
+            self.counts["browsers_now"] -= 1
+            if player is not None:
+                player.stop()
+
+    def send_text(self, websocket, payload: dict) -> None:
+        """A JSON text message to one browser, from any thread (dropped once the bridge stops)."""
+        loop = self._loop
+        if loop is None or loop.is_closed():
+            return
+        text = json.dumps(payload)
+
+        def send() -> None:
+            from websockets.asyncio.server import broadcast
+
+            broadcast([websocket], text)  # never waits: a full browser misses it
+
+        try:
+            loop.call_soon_threadsafe(send)
+        except RuntimeError:  # the loop closed meanwhile
+            pass
+
+
+def _request(text) -> dict | None:
+    """A browser's JSON request, or None for anything else (binary, not JSON, unknown)."""
+    if not isinstance(text, str) or len(text) > 512:
+        return None
+    try:
+        request = json.loads(text)
+    except ValueError:
+        return None
+    if not isinstance(request, dict) or len(request) != 1:
+        return None
+    (name, value), = request.items()
+    if name == "play" and value in ("a", "b", "any"):
+        return request
+    if name == "key" and value in KEYS and value != "quit":
+        return request
+    if name == "aim" and isinstance(value, list) and len(value) == 3 and all(
+            isinstance(v, (int, float)) and abs(v) <= wire.MAX_POS_M for v in value):
+        return request
+    return None
+
+
+class BrowserPlayer:
+    """A browser's player session: `pingpong join --as player` driven by the browser's keys
+    and pointer, in a thread of its own (run_session with a KeyboardPilot and a Predictor)."""
+
+    SHOW_EVERY_S = 1.0 / 60.0
+
+    def __init__(self, bridge: WebBridge, websocket, seat: str):
+        self.bridge, self.websocket = bridge, websocket
+        self.wanted = {"a": wire.Slot.A, "b": wire.Slot.B, "any": wire.Slot.NONE}[seat]
+        self.requests: queue.SimpleQueue = queue.SimpleQueue()
+        self.pilot = None
+        self._thread = threading.Thread(target=self._run, name="web-bridge-player", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def take(self, request: dict) -> None:
+        self.requests.put(request)
+
+    def stop(self, timeout_s: float = 5.0) -> None:
+        self.requests.put({"key": "quit"})
+        self._thread.join(timeout_s)
+
+    def poll(self, timeout_s: float = 0.0) -> list[str]:
+        """run_session's key source: the browser's keys; its aims move the pilot's target here,
+        in the session's thread."""
+        keys = []
+        while True:
+            try:
+                request = self.requests.get_nowait()
+            except queue.Empty:
+                return keys
+            if "aim" in request and self.pilot is not None:
+                self.pilot.aim_at(request["aim"])
+            elif "key" in request:
+                keys.append(request["key"])
+
+    def _run(self) -> None:
+        from engine.scene import load_scene
+        from processes.network.client import Rejected
+        from processes.network.keyboard import KeyboardPilot
+        from processes.network.prediction import Predictor
+        from processes.network.session import run_session
+
+        bridge = self.bridge
+        client = Client(bridge.address, "player", "browser", self.wanted, socket_options=bridge.socket_options)
+        try:
+            try:
+                welcome = client.join(JOIN_TIMEOUT_S)
+            except (Rejected, TimeoutError) as err:
+                reason = err.reason.name.lower() if isinstance(err, Rejected) else "timeout"
+                bridge.send_text(self.websocket, {"rejected": reason, "detail": str(err)})
+                return
+            bridge.counts["players"] = bridge.counts.get("players", 0) + 1
+            predictor = Predictor(load_scene(welcome["scene"]), client.slot)
+            self.pilot = KeyboardPilot(predictor.model, client.slot)
+            bridge.send_text(self.websocket, {"seat": client.slot.name.lower(), "token": client.token.hex()})
+
+            def show(summary, frame) -> None:
+                if predictor.tick is None:
+                    return
+                bat = predictor.bat
+                bridge.send_text(self.websocket, {"predicted": {
+                    "tick": int(predictor.tick), "bat_pos": np.asarray(bat["pos"]).tolist(),
+                    "bat_quat": np.asarray(bat["quat"]).tolist(), "aim": np.asarray(frame["target"]).tolist(),
+                    "inputs_sent": summary["inputs_sent"]}})
+
+            summary = run_session(client, welcome, pilot=self.pilot, keys=self, predictor=predictor, show=show,
+                                  show_every_s=self.SHOW_EVERY_S)
+            bridge.send_text(self.websocket, {"ended": summary["goodbye"], "inputs_sent": summary["inputs_sent"]})
+        finally:
+            client.close()
+
+
+# --- a recorded match as one offline page ------------------------------------------------------
+def replay_messages(replay, best_of: int) -> list[bytes]:
+    """The wire messages a spectator would have got of a recorded match (engine.replay.Replay):
+    a welcome, a snapshot per frame, a point event per decided rally (and a game and a match
+    event where it decided one), in tick order."""
+    header, frames = replay.header, replay.frames
+    out = [wire.encode(Kind.WELCOME, tick=0, slot=wire.Slot.NONE, best_of=best_of, snapshot_hz=max(1, min(1000, round(
+        1.0 / (header["dt"] * max(1, header["frame_every"]))))), heartbeat_ms=500, timeout_ms=5000, dt=header["dt"],
+        token=bytes(wire.TOKEN_SIZE), scene=header["scene"][:32], name_a="A", name_b="B", feed_port=0)]
+    timed = []
+    for frame in frames:
+        try:
+            timed.append((int(frame["world"]["tick"]), 0, wire.snapshot_from_physics(frame, seq=len(timed) + 1)))
+        except wire.WireError:  # a frame the wire cannot carry (never written, or beyond its ranges)
+            continue
+    ticks = frames["world"]["tick"] if len(frames) else np.zeros(0, np.int64)
+    games = np.zeros(2, np.int64)
+    for k, row in enumerate(replay.points):
+        tick = int(row["tick"])
+        after = int(np.searchsorted(ticks, tick + 1))  # the first frame after the rally: its games_won
+        frame = frames[min(after, len(frames) - 1)] if len(frames) else None
+        won = frame["rally"]["games_won"] if frame is not None else games
+        rally = int(frame["rally"]["rally"]) if frame is not None else k + 1
+        fields = dict(winner=int(row["winner"]), reason=int(row["reason"]), game=int(row["game"]),
+                      score=row["score_after"], games_won=won, shots=int(row["shots"]), rally=rally)
+        timed.append((tick, 1, wire.encode(Kind.EVENT, tick=tick, event=wire.EventKind.POINT, **fields)))
+        if tuple(won) != tuple(games):
+            timed.append((tick, 2, wire.encode(Kind.EVENT, tick=tick, event=wire.EventKind.GAME, **fields)))
+            games = np.array(won)
+        if k == len(replay.points) - 1 and header.get("summary", {}).get("winner"):
+            timed.append((tick, 3, wire.encode(Kind.EVENT, tick=tick, event=wire.EventKind.MATCH, **fields)))
+    timed.sort(key=lambda item: item[:2])
+    return out + [data for *_, data in timed]
+
+
+def replay_page(messages: list[bytes], title: str) -> str:
+    """One self-contained HTML page that plays `messages` (a welcome, snapshots, events) in 3D:
+    three.js, the decoder, the app and the protocol's layouts inlined (base64), nothing fetched."""
+    def b64(data: bytes) -> str:
+        return base64.b64encode(data).decode("ascii")
+
+    page = (STATIC / "index.html").read_text()
+    loader = f"""<script type="text/plain" id="three-src">{b64((STATIC / 'vendor/three.module.min.js').read_bytes())}</script>
+<script type="text/plain" id="decoder-src">{b64((STATIC / 'decoder.js').read_bytes())}</script>
+<script type="text/plain" id="app-src">{b64((STATIC / 'app.js').read_bytes())}</script>
+<script type="application/json" id="protocol">{json.dumps(protocol.layout_json())}</script>
+<script type="application/json" id="messages">{json.dumps([b64(m) for m in messages])}</script>
+<script type="module">
+  const bytes = (id) => Uint8Array.from(atob(document.getElementById(id).textContent), (c) => c.charCodeAt(0));
+  const url = (data) => URL.createObjectURL(new Blob([data], {{ type: "text/javascript" }}));
+  const three = url(bytes("three-src")), decoder = url(bytes("decoder-src"));
+  const app = new TextDecoder().decode(bytes("app-src"))
+    .replace('"./vendor/three.module.min.js"', JSON.stringify(three)).replace('"./decoder.js"', JSON.stringify(decoder));
+  const {{ startReplay }} = await import(url(app));
+  startReplay(JSON.parse(document.getElementById("protocol").textContent),
+              JSON.parse(document.getElementById("messages").textContent));
+</script>"""
+    live = page[page.index('<script type="module">'):page.index("</script>", page.index('<script type="module">')) + 9]
+    page = page.replace(live, loader).replace("<title>pingpong</title>", f"<title>{html.escape(title)}</title>")
+    return page.replace('<div id="status">connecting ...</div>', '<div id="status">replay</div>')
+
+
+__all__ = ["PAGES", "STATIC", "WebBridge", "parse_host_port", "replay_messages", "replay_page"]
