@@ -96,6 +96,7 @@ def step_knots_scatter(knot_pos, knot_vel, knot_inv_mass, spring_ij, spring_rest
     nv = knot_vel + h * (knot_inv_mass[:, None] * knot_force - drag * knot_vel - g)
     out_vel[:] = np.where(free, nv, knot_vel)
     out_pos[:] = np.where(free, knot_pos + h * nv, knot_pos)
+    _on_table(free[:, 0], out_pos[:, 2], out_vel[:, 2])
 
 
 def _grid_t(xi, xj, vi, vj, k, c, rest):

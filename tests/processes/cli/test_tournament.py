@@ -34,8 +34,8 @@ def local_ray():
 def tasks():
     """The small tournament; its kernels compiled here first, so the pool's processes and Ray's
     workers load them from numba's cache instead of each compiling them at once."""
-    match_record(load_scene("match"), 0, "pro", "novice", best_of=1, max_ticks=2)
-    return plan(load_scene("match"), pairs_of(["pro", "novice"]), SEEDS, best_of=1, max_ticks=TICKS)
+    match_record(load_scene("match_rigid"), 0, "pro", "novice", best_of=1, max_ticks=2)
+    return plan(load_scene("match_rigid"), pairs_of(["pro", "novice"]), SEEDS, best_of=1, max_ticks=TICKS)
 
 
 def _lines(path):
