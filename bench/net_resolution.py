@@ -33,7 +33,7 @@ from net_kernel import NO_CONTACT, NetSim, NetSpec, build_topology
 from net_kernel.sim import BALL_MASS, BALL_RADIUS, KNOT_RADIUS
 from net_kernel.topology import net_continuum, resolution_spec
 
-DT = 1e-3  # s, the engine's tick (scenes/match_cloth.toml)
+DT = 1e-3  # s, the engine's tick (scenes/match.toml)
 SIZES = [(46, 4), (70, 7), (85, 8), (92, 8), (128, 11), (184, 16), (368, 32)]  # the last is the reference; 85 x 8 has square cells
 QUICK_SIZES = [(46, 4), (70, 7), (92, 8)]
 IMPACTS = 24  # 8 per height band

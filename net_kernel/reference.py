@@ -14,6 +14,7 @@ from net_kernel.kernels import (  # noqa: F401  (shared)
     FREE_NOT_FINITE,
     FREE_OUT_OF_REACH,
     GRID_CORD,
+    GRID_HEM,
     GRID_MESH,
     GRID_SHEAR,
     GRID_VERTICAL,
@@ -22,6 +23,7 @@ from net_kernel.kernels import (  # noqa: F401  (shared)
     NO_CONTACT,
     SPRING_WORK_COLS,
     STEP_WORK_ROWS,
+    TABLE_Z,
 )
 
 
@@ -53,6 +55,13 @@ def spring_forces(knot_pos, knot_vel, adj_start, adj_knot, adj_spring, spring_ij
     return _gather(scale[adj_spring][:, None] * (knot_pos[adj_knot] - knot_pos[owner]), adj_start)
 
 
+def _on_table(free, pos_z, vel_z):
+    """The kernels' knot-table contact, in place: free knots below TABLE_Z put on it, their downward speed removed."""
+    below = free & (pos_z < TABLE_Z)
+    pos_z[below] = TABLE_Z
+    vel_z[below] = np.maximum(vel_z[below], 0.0)
+
+
 def step_knots(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_spring, spring_ij, spring_rest, spring_k,
                spring_c, gravity, drag, h, spring_work, out_pos, out_vel):
     """Numpy twin of kernels.step_knots (args and meaning identical; spring_work is unused)."""
@@ -63,6 +72,7 @@ def step_knots(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_sprin
     free = knot_inv_mass > 0
     out_vel[:] = np.where(free[:, None], knot_vel + h * accel, knot_vel)
     out_pos[:] = np.where(free[:, None], knot_pos + h * out_vel, knot_pos)
+    _on_table(free, out_pos[:, 2], out_vel[:, 2])
 
 
 step_knots_serial = step_knots
@@ -86,6 +96,7 @@ def step_knots_scatter(knot_pos, knot_vel, knot_inv_mass, spring_ij, spring_rest
     nv = knot_vel + h * (knot_inv_mass[:, None] * knot_force - drag * knot_vel - g)
     out_vel[:] = np.where(free, nv, knot_vel)
     out_pos[:] = np.where(free, knot_pos + h * nv, knot_pos)
+    _on_table(free[:, 0], out_pos[:, 2], out_vel[:, 2])
 
 
 def _grid_t(xi, xj, vi, vj, k, c, rest):
@@ -123,7 +134,9 @@ def step_grid(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps,
     w = knot_inv_mass
     fixed = w == 0.0
     top = (np.arange(rows) == rows - 1)[:, None]
-    h_kind = np.where(top, GRID_CORD, GRID_MESH)  # (rows, 1): the top row's horizontals are the cord
+    bottom = (np.arange(rows) == 0)[:, None]
+    # (rows, 1): the top row's horizontals are the top cord, the bottom row's the bottom cord.
+    h_kind = np.where(top, GRID_CORD, np.where(bottom, GRID_HEM, GRID_MESH))
     for _ in range(n_steps):
         x, v = knot_state[0].copy(), knot_state[1].copy()  # the step's start: every spring reads it
         t_h = np.zeros((3, rows, cols))
@@ -143,6 +156,7 @@ def step_grid(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps,
             nv = v[k] + h * (w * f[k] - drag * v[k] - g)
             knot_state[1, k] = np.where(fixed, v[k], nv)
             knot_state[0, k] = np.where(fixed, x[k], x[k] + h * nv)
+        _on_table(~fixed, knot_state[0, 2], knot_state[1, 2])
 
 
 step_grid_serial = step_grid
@@ -232,6 +246,7 @@ def step_knots_implicit(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, 
         it += 1
     out_vel[:] = knot_vel + dv
     out_pos[:] = knot_pos + h * out_vel
+    _on_table(~fixed, out_pos[:, 2], out_vel[:, 2])
     return it
 
 

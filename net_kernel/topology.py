@@ -1,18 +1,27 @@
 """The net's topology: knots, springs and the CSR adjacency, built once from a NetSpec.
 
 Frame (DESIGN.md): the net hangs in the plane x = 0 and spans y in [-width/2, width/2],
-z in [0, height]. Knots sit on a regular grid of `cols` columns (along y) by `rows` rows
-(along z), numbered row-major from the bottom row: knot = row * cols + col. Springs are
-structural (horizontal, vertical) and shear (both diagonals) spring-dampers; the top row's
-horizontal springs are the tensioned top cord. Springs between two fixed knots are left out
-(they could never move anything).
+z in [hem_gap, height] (z in [0, height] when its bottom row is tied to the table). Knots sit
+on a regular grid of `cols` columns (along y) by `rows` rows (along z), numbered row-major from
+the bottom row: knot = row * cols + col. Springs are structural (horizontal, vertical) and
+shear (both diagonals) spring-dampers; the top row's horizontal springs are the tensioned top
+cord, the bottom row's the bottom cord. Springs between two fixed knots are left out (they
+could never move anything).
+
+The net is hung as ITTF Laws 2.2.2-2.2.4 and Technical Leaflet T2 describe a real one: the
+mesh hangs from a cord tied to the two posts; its bottom band carries a second cord, tied to
+the posts too, that keeps the bottom edge taut just above the playing surface; nothing holds
+it from below, so a struck net settles back onto one rest shape (the net tied to the table,
+fix_table, buckles into several). The springs still bear compression as well as tension (a
+real net's threads go slack): at rest a third of the 85 x 8 net's shear and vertical springs
+carry up to 0.07 N in compression against the 0.49 N the whole net weighs.
 """
 import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from net_kernel.kernels import GRID_CLASSES, GRID_CORD, GRID_MESH, GRID_SHEAR, GRID_VERTICAL
+from net_kernel.kernels import GRID_CLASSES, GRID_CORD, GRID_HEM, GRID_MESH, GRID_SHEAR, GRID_VERTICAL, step_knots_implicit
 
 # ITTF Laws of Table Tennis 2.2.2-2.2.3: the net's top is 15.25 cm above the playing surface
 # and its ends are 15.25 cm outside the side lines of the 1.525 m wide table: 1.83 m overall.
@@ -48,10 +57,15 @@ class NetSpec:
             hold it; vertical springs get none, else they would pull the top cord down).
         cord_k: N/m, stiffness of each top-cord segment.
         cord_tension: N, tension of the top cord at the built shape.
+        hem_tension: N, tension of the bottom cord at the built shape (its stiffness is cord_k:
+            the same cord).
+        hem_gap: m, height of the bottom cord above the playing surface as built (a hanging
+            net's bottom row; it sags from there under the net's weight).
         air_damping: 1/s, linear air drag per unit mass on every free knot (damps the sway
             that axial dashpots cannot reach).
         fix_posts: the first and last columns are tied to the posts.
-        fix_table: the bottom row is tied to the table's edge.
+        fix_table: the bottom row is tied to the table (at z = 0) instead of hanging on the
+            bottom cord: a net held up by its columns in compression, which buckles.
         solver: "semi_implicit" (substepped symplectic Euler) or "implicit" (backward Euler, CG).
         gravity: m/s^2, along -z.
     """
@@ -66,14 +80,30 @@ class NetSpec:
     spring_k: float = 2000.0
     spring_c: float = 2e-3
     mesh_tension: float = 0.5
-    # Chosen: the top cord sags a few mm under the net's weight (W L / (8 T) = 5.6 mm for a
-    # free cable) while its stability bound still allows ~60 us substeps.
+    # Chosen: the top cord sags a few mm under the net's weight (2.5 mm on 85 x 8, sharing it with
+    # the bottom cord and the mesh) while its stability bound still allows ~60 us substeps. Not
+    # yet the net gauge's (tests/net_kernel/test_ittf.py: the model's columns carry a point load
+    # in compression, which a real net's threads cannot).
     cord_k: float = 5000.0
     cord_tension: float = 20.0
-    # Chosen: a hanging net's slowest sway (~5 Hz) loses most of its amplitude within a second.
+    # Chosen: a tenth of the top cord's, enough to keep the hem from swinging like a curtain
+    # (the ITTF asks only that the bottom be as close to the surface as possible).
+    hem_tension: float = 2.0
+    # Chosen: the hem sags ~2.5 mm under the net's weight at mid-span, so it rests ~1.5 mm above
+    # the playing surface (ITTF 2.2.4: "as close as possible").
+    hem_gap: float = 0.004
+    # Chosen, not measured: a hanging net's slowest sway (~5 Hz) loses most of its amplitude within
+    # a second. The mesh modes a ball excites (60-97 Hz at the struck point) then ring with damping
+    # ratio 0.004-0.006, and a struck 85 x 8 net falls asleep 3.1-3.7 s after the touch (`pingpong
+    # bench ringdown`). The air's own drag on the threads is far smaller: Lamb's low-Reynolds drag
+    # on a cylinder (Lamb, Hydrodynamics, 6th ed., 1932, art. 343), F / L = 4 pi mu U /
+    # (1/2 - gamma - ln(Re / 8)), on 0.5 mm threads at 0.01-0.1 m/s (Re 0.3-3, the upper end an
+    # extrapolation), ~200 m of thread per m^2 of a 1 cm mesh and 0.18 kg/m^2, gives 0.08-0.3 /s.
+    # A real net loses its energy to friction in its yarns and knots (Miguel et al., "Modeling and
+    # Estimation of Internal Friction in Cloth", SIGGRAPH Asia 2013), which the model lacks.
     air_damping: float = 5.0
     fix_posts: bool = True
-    fix_table: bool = True
+    fix_table: bool = False
     solver: str = SEMI_IMPLICIT
     gravity: float = 9.81
 
@@ -100,6 +130,9 @@ class NetTopology:
         adj_knot: (2 n_springs,) uint32, the other knot of each slot.
         adj_spring: (2 n_springs,) uint32, the spring of each slot; slots of a knot in increasing spring order.
         h_max: s, the semi-implicit Euler stability bound (see stability_bound).
+        rest_pos: (n_knots, 3) m, the shape the net hangs in at rest under gravity (hanging_shape),
+            where a NetSim starts; knot_pos for a net tied to the table, whose built shape is its
+            rest shape, and for nets built from raw arrays.
         grid_params: (GRID_CLASSES, 3) k N/m, c N s/m, rest length m of each spring class
             (kernels.GRID_MESH, GRID_VERTICAL, GRID_SHEAR, GRID_CORD) when the net is
             build_topology's regular spec.rows x spec.cols grid, whose every spring takes its
@@ -118,6 +151,7 @@ class NetTopology:
     adj_knot: np.ndarray
     adj_spring: np.ndarray
     h_max: float = field(default=math.inf)
+    rest_pos: np.ndarray | None = None
     grid_params: np.ndarray | None = None
 
     @property
@@ -139,7 +173,7 @@ def validate_spec(spec: NetSpec) -> None:
         value = getattr(spec, name)
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
             raise _fail(name, value, "a finite number > 0")
-    for name in ("spring_c", "mesh_tension", "cord_tension", "air_damping", "gravity"):
+    for name in ("spring_c", "mesh_tension", "cord_tension", "hem_tension", "hem_gap", "air_damping", "gravity"):
         value = getattr(spec, name)
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
             raise _fail(name, value, "a finite number >= 0")
@@ -151,8 +185,9 @@ def validate_spec(spec: NetSpec) -> None:
             raise _fail(name, value, f"an integer in [{_MIN_KNOTS}, {_MAX_KNOTS}]")
     if spec.solver not in SOLVERS:
         raise _fail("solver", spec.solver, f"one of {', '.join(SOLVERS)}")
-    col_spacing = spec.width / (spec.cols - 1)
-    row_spacing = spec.height / (spec.rows - 1)
+    if not spec.fix_table and spec.hem_gap >= spec.height:
+        raise _fail("hem_gap", spec.hem_gap, f"< height = {spec.height} (the bottom cord below the top cord)")
+    col_spacing, row_spacing = grid_spacings(spec)
     if min(col_spacing, row_spacing) < MIN_SPRING_LENGTH:
         raise _fail("cols" if col_spacing < row_spacing else "rows", spec.cols if col_spacing < row_spacing else spec.rows,
                     f"knot spacing {min(col_spacing, row_spacing):.3g} m is below the {MIN_SPRING_LENGTH} m minimum spring length")
@@ -160,6 +195,9 @@ def validate_spec(spec: NetSpec) -> None:
     if spec.cord_tension >= spec.cord_k * col_spacing:
         raise _fail("cord_tension", spec.cord_tension,
                     f"< cord_k * column spacing = {spec.cord_k * col_spacing:.4g} N (else the cord's rest length is <= 0)")
+    if spec.hem_tension >= spec.cord_k * col_spacing:
+        raise _fail("hem_tension", spec.hem_tension,
+                    f"< cord_k * column spacing = {spec.cord_k * col_spacing:.4g} N (else the bottom cord's rest length is <= 0)")
     if spec.mesh_tension >= spec.spring_k * col_spacing:
         raise _fail("mesh_tension", spec.mesh_tension,
                     f"< spring_k * column spacing = {spec.spring_k * col_spacing:.4g} N "
@@ -179,9 +217,10 @@ def build_topology(spec: NetSpec) -> NetTopology:
     cols, rows = spec.cols, spec.rows
     col = np.tile(np.arange(cols), rows)
     row = np.repeat(np.arange(rows), cols)
+    col_spacing, row_spacing = grid_spacings(spec)
     knot_pos = np.zeros((cols * rows, 3))
-    knot_pos[:, 1] = -spec.width / 2 + col * (spec.width / (cols - 1))
-    knot_pos[:, 2] = row * (spec.height / (rows - 1))
+    knot_pos[:, 1] = -spec.width / 2 + col * col_spacing
+    knot_pos[:, 2] = _bottom(spec) + row * row_spacing
     fixed = np.zeros(cols * rows, dtype=bool)
     if spec.fix_posts:
         fixed |= (col == 0) | (col == cols - 1)
@@ -200,15 +239,15 @@ def build_topology(spec: NetSpec) -> NetTopology:
     kind = np.concatenate([np.full(a.size, k) for a, _, k in pairs])
     kind = np.array([GRID_MESH, GRID_VERTICAL, GRID_SHEAR])[kind]
     kind[(kind == GRID_MESH) & (row[spring_ij[:, 0]] == rows - 1)] = GRID_CORD  # the top row's horizontals
+    kind[(kind == GRID_MESH) & (row[spring_ij[:, 0]] == 0)] = GRID_HEM  # the bottom row's
     # One value per spring class, so the grid kernels need no per-spring arrays: the rest
     # length is the built length less the pretension's stretch T / k.
-    col_spacing = spec.width / (cols - 1)
-    row_spacing = spec.height / (rows - 1)
     grid_params = np.zeros((GRID_CLASSES, 3))
     grid_params[GRID_MESH] = spec.spring_k, spec.spring_c, col_spacing - spec.mesh_tension / spec.spring_k
     grid_params[GRID_VERTICAL] = spec.spring_k, spec.spring_c, row_spacing
     grid_params[GRID_SHEAR] = spec.spring_k, spec.spring_c, math.hypot(col_spacing, row_spacing)
     grid_params[GRID_CORD] = spec.cord_k, spec.spring_c, col_spacing - spec.cord_tension / spec.cord_k
+    grid_params[GRID_HEM] = spec.cord_k, spec.spring_c, col_spacing - spec.hem_tension / spec.cord_k
     spring_k = grid_params[kind, 0]
     spring_c = grid_params[kind, 1]
     spring_rest = grid_params[kind, 2]
@@ -220,7 +259,88 @@ def build_topology(spec: NetSpec) -> NetTopology:
     topo = make_topology(knot_pos, knot_mass, fixed, spring_ij[order], spring_rest[order], spring_k[order],
                          spring_c[order], spec=spec)
     object.__setattr__(topo, "grid_params", grid_params)
+    if not spec.fix_table:
+        rest = _REST_SHAPES.get(spec)
+        if rest is None:
+            rest = _REST_SHAPES[spec] = hanging_shape(topo)
+        object.__setattr__(topo, "rest_pos", rest)
     return topo
+
+
+# Rest shapes already settled, by spec (a frozen dataclass): the same spec builds the same net, and
+# settling the default 184 x 16 net takes seconds. Read-only arrays, shared by the topologies.
+_REST_SHAPES: dict[NetSpec, np.ndarray] = {}
+
+
+def _bottom(spec: NetSpec) -> float:
+    """m, the height of the net's bottom row as built: on the table when tied to it, else the hem's gap."""
+    return 0.0 if spec.fix_table else spec.hem_gap
+
+
+def grid_spacings(spec: NetSpec) -> tuple[float, float]:
+    """(a, b) m: column spacing along y and row spacing along z of `spec`'s grid as built."""
+    return spec.width / (spec.cols - 1), (spec.height - _bottom(spec)) / (spec.rows - 1)
+
+
+# Static equilibrium by backward Euler at long steps: for h -> inf a step is one Newton step on
+# f(x) = 0 (Baraff & Witkin 1998 with M/h^2 a regularising term), so a few dozen steps reach the
+# rest shape where explicit steps would need seconds of simulated sway. Above _LANCZOS_MAX_KNOTS
+# (the million-knot profiling nets) the built shape stands in: there it would take minutes.
+_SETTLE_STEP = 1.0  # s
+_SETTLE_STEPS = 100
+_SETTLE_SPEED = 1e-10  # m/s: a knot slower than this over a step of _SETTLE_STEP moves < 0.1 nm
+_SETTLE_CG_TOL = 1e-10
+
+
+# kg: the net gauge's load, hung at the middle of the top (ITTF Technical Leaflet T5 describes the
+# gauge; the figure as umpires apply it: 100 g may depress the top by 1 cm,
+# forum.tt-news.de/showpost.php?p=2170681).
+GAUGE_LOAD = 0.1
+
+
+def gauge_depression(spec: NetSpec, load: float = GAUGE_LOAD) -> float:
+    """m: how far `load` kg hung on the top cord's middle knot depresses it below the net's rest shape.
+
+    The net gauge's static test: the loaded net's static equilibrium (hanging_shape, the load as
+    extra mass under gravity) against the unloaded one.
+
+    Raises:
+        RuntimeError: the loaded net found no equilibrium (hanging_shape).
+    """
+    topo = build_topology(spec)
+    top = (spec.rows - 1) * spec.cols + spec.cols // 2
+    mass = topo.knot_mass.copy()
+    mass[top] += load
+    loaded = make_topology(topo.knot_pos, mass, topo.knot_inv_mass == 0, topo.spring_ij, topo.spring_rest,
+                           topo.spring_k, topo.spring_c, spec=spec)
+    return float(topo.rest_pos[top, 2] - hanging_shape(loaded)[top, 2])
+
+
+def hanging_shape(topo: NetTopology) -> np.ndarray:
+    """(n_knots, 3) m, the static equilibrium of `topo`'s net under gravity (spec.gravity), read-only.
+
+    Backward Euler steps of _SETTLE_STEP from the built shape until every knot is slower than
+    _SETTLE_SPEED; the built shape for nets above _LANCZOS_MAX_KNOTS knots or without a spec.
+
+    Raises:
+        RuntimeError: the net did not settle in _SETTLE_STEPS steps.
+    """
+    if topo.spec is None or topo.n_knots > _LANCZOS_MAX_KNOTS:
+        return topo.knot_pos
+    n, m = topo.n_knots, topo.n_springs
+    pos, vel = topo.knot_pos.copy(), np.zeros((n, 3))
+    out_pos, out_vel = np.zeros((n, 3)), np.zeros((n, 3))
+    knot_work, spring_work = np.zeros((4, n, 3)), np.zeros((m, 7))
+    for _ in range(_SETTLE_STEPS):
+        step_knots_implicit(pos, vel, topo.knot_inv_mass, topo.adj_start, topo.adj_knot, topo.adj_spring,
+                            topo.spring_ij, topo.spring_rest, topo.spring_k, topo.spring_c, topo.spec.gravity,
+                            topo.spec.air_damping, _SETTLE_STEP, _SETTLE_CG_TOL, 10 * n, knot_work, spring_work,
+                            out_pos, out_vel)
+        pos, out_pos, vel, out_vel = out_pos, pos, out_vel, vel
+        if np.abs(vel).max() < _SETTLE_SPEED:
+            pos.flags.writeable = False
+            return pos
+    raise RuntimeError(f"the net {topo.spec} did not settle in {_SETTLE_STEPS} backward Euler steps")
 
 
 def make_topology(knot_pos, knot_mass, knot_fixed, spring_ij, spring_rest, spring_k, spring_c,
@@ -296,6 +416,7 @@ def make_topology(knot_pos, knot_mass, knot_fixed, spring_ij, spring_rest, sprin
                        np.ascontiguousarray(other[order], dtype=np.uint32),
                        np.ascontiguousarray(spring[order], dtype=np.uint32))
     object.__setattr__(topo, "h_max", stability_bound(topo))
+    object.__setattr__(topo, "rest_pos", knot_pos)
     return topo
 
 
@@ -388,12 +509,8 @@ def grid_spec(cols: int, rows: int, **fields) -> NetSpec:
     # Fine grids have short springs: keep the pretensions below k * spacing (half of it at most).
     fields.setdefault("mesh_tension", min(base.mesh_tension, 0.5 * fields.get("spring_k", base.spring_k) * spacing))
     fields.setdefault("cord_tension", min(base.cord_tension, 0.5 * fields.get("cord_k", base.cord_k) * spacing))
+    fields.setdefault("hem_tension", min(base.hem_tension, 0.5 * fields.get("cord_k", base.cord_k) * spacing))
     return NetSpec(cols=cols, rows=rows, **fields)
-
-
-def _spacings(spec: NetSpec) -> tuple[float, float]:
-    """(a, b) m: column spacing along y and row spacing along z of `spec`'s grid."""
-    return spec.width / (spec.cols - 1), spec.height / (spec.rows - 1)
 
 
 def net_continuum(spec: NetSpec) -> dict:
@@ -411,7 +528,7 @@ def net_continuum(spec: NetSpec) -> dict:
         wave_speed: m/s, sqrt(N_yy / areal_density), the speed of transverse waves along y.
         h_max_scale: s, sqrt(knot_mass / spring_k), the mesh's part of the stability bound.
     """
-    a, b = _spacings(spec)
+    a, b = grid_spacings(spec)
     d2 = a * a + b * b
     k = spec.spring_k
     rho = spec.knot_mass / (a * b)
@@ -468,7 +585,8 @@ def resolution_spec(cols: int, rows: int, base: NetSpec | None = None) -> NetSpe
       damps the top cord, whose line dashpot (c a) then grows as a; it acts along the cord
       only, on its axial waves, which the ball hardly excites.
     - Top cord, a 1-D line of segments of length a: the segment's stiffness is EA / a:
-      cord_k ~ 1 / a (cord_k a = EA fixed); its tension is a force: cord_tension fixed.
+      cord_k ~ 1 / a (cord_k a = EA fixed); its tension is a force: cord_tension fixed. The
+      bottom cord likewise (hem_tension fixed).
       The top row's knots carry the mesh's mass per unit length rho b (NetSpec has one knot
       mass), a lumped edge mass that shrinks with b: a discretisation error of order b / height.
     - Air damping is per unit mass (the kernels apply -air_damping v to every free knot): fixed.
@@ -495,8 +613,8 @@ def resolution_spec(cols: int, rows: int, base: NetSpec | None = None) -> NetSpe
     for name, value in (("cols", cols), ("rows", rows)):
         if isinstance(value, bool) or not isinstance(value, int) or not _MIN_KNOTS <= value <= _MAX_KNOTS:
             raise _fail(name, value, f"an integer in [{_MIN_KNOTS}, {_MAX_KNOTS}]")
-    a0, b0 = _spacings(base)
-    a, b = base.width / (cols - 1), base.height / (rows - 1)
+    a0, b0 = grid_spacings(base)
+    a, b = grid_spacings(replace(base, cols=cols, rows=rows))
     sheet = (a0 / b0 + b0 / a0) / (a / b + b / a)
     spec = replace(base, cols=cols, rows=rows,
                    knot_mass=base.knot_mass * (a * b) / (a0 * b0),

@@ -24,6 +24,9 @@ refuses zero-length springs, and a collapse would surface as a non-finite knot, 
 checks after every tick). With python's error model that test keeps the root/division loops
 scalar.
 
+Knot-table contact (table): after every step a free knot below the playing surface is put back
+on it with its downward velocity removed.
+
 Every kernel has a numpy twin with the same signature in net_kernel/reference.py.
 """
 from net_kernel.kernels.contact import NEAR_SLACK, NO_CONTACT, collide_ball, collide_ball_near, step_grid_ball
@@ -35,6 +38,7 @@ from net_kernel.kernels.grid import (
     FREE_OUT_OF_REACH,
     GRID_CLASSES,
     GRID_CORD,
+    GRID_HEM,
     GRID_MESH,
     GRID_SHEAR,
     GRID_VERTICAL,
@@ -45,6 +49,7 @@ from net_kernel.kernels.grid import (
 )
 from net_kernel.kernels.implicit import KNOT_WORK_ROWS, SPRING_WORK_COLS, step_knots_implicit
 from net_kernel.kernels.scatter import step_knots_scatter
+from net_kernel.kernels.table import TABLE_Z
 
 __all__ = [
     "FREE_ASLEEP",
@@ -53,6 +58,7 @@ __all__ = [
     "FREE_OUT_OF_REACH",
     "GRID_CLASSES",
     "GRID_CORD",
+    "GRID_HEM",
     "GRID_MESH",
     "GRID_SHEAR",
     "GRID_VERTICAL",
@@ -62,6 +68,7 @@ __all__ = [
     "NO_CONTACT",
     "SPRING_WORK_COLS",
     "STEP_WORK_ROWS",
+    "TABLE_Z",
     "collide_ball",
     "collide_ball_near",
     "knot_speed_max",

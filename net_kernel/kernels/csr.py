@@ -8,6 +8,8 @@ import math
 
 from numba import njit, prange
 
+from net_kernel.kernels.table import TABLE_Z
+
 STEP_WORK_ROWS = 3  # spring_work rows of step_knots: |L|^2, (v_j - v_i) . L, f / |L|
 
 
@@ -94,12 +96,16 @@ def step_knots(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_sprin
         nv0 = vi0 + h * (w * f0 - drag * vi0)
         nv1 = vi1 + h * (w * f1 - drag * vi1)
         nv2 = vi2 + h * (w * f2 - drag * vi2 - gravity)
+        z = xi2 + h * nv2
+        if z < TABLE_Z:  # the playing surface stops the knot (net_kernel/kernels/table.py)
+            z = TABLE_Z
+            nv2 = max(nv2, 0.0)
         out_vel[i, 0] = nv0
         out_vel[i, 1] = nv1
         out_vel[i, 2] = nv2
         out_pos[i, 0] = xi0 + h * nv0
         out_pos[i, 1] = xi1 + h * nv1
-        out_pos[i, 2] = xi2 + h * nv2
+        out_pos[i, 2] = z
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
@@ -158,12 +164,16 @@ def step_knots_serial(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, ad
         nv0 = vi0 + h * (w * f0 - drag * vi0)
         nv1 = vi1 + h * (w * f1 - drag * vi1)
         nv2 = vi2 + h * (w * f2 - drag * vi2 - gravity)
+        z = xi2 + h * nv2
+        if z < TABLE_Z:  # the playing surface stops the knot (net_kernel/kernels/table.py)
+            z = TABLE_Z
+            nv2 = max(nv2, 0.0)
         out_vel[i, 0] = nv0
         out_vel[i, 1] = nv1
         out_vel[i, 2] = nv2
         out_pos[i, 0] = xi0 + h * nv0
         out_pos[i, 1] = xi1 + h * nv1
-        out_pos[i, 2] = xi2 + h * nv2
+        out_pos[i, 2] = z
 
 
 @njit(cache=True, fastmath=False)

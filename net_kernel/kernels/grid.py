@@ -4,6 +4,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from net_kernel.kernels.table import TABLE_Z
+
 # Structured grid: the same model and the same arithmetic as step_knots, for nets built on a
 # regular grid (NetTopology.grid). Knot (r, c) finds its 8 springs by index arithmetic instead
 # of the CSR lists, spring parameters come per class (GRID_CLASSES) instead of per spring, and
@@ -33,8 +35,8 @@ from numba import njit, prange
 # one loop stays scalar.
 
 # Spring classes of a grid net: rows of NetTopology.grid_params (k N/m, c N s/m, rest m).
-GRID_MESH, GRID_VERTICAL, GRID_SHEAR, GRID_CORD = 0, 1, 2, 3
-GRID_CLASSES = 4
+GRID_MESH, GRID_VERTICAL, GRID_SHEAR, GRID_CORD, GRID_HEM = 0, 1, 2, 3, 4
+GRID_CLASSES = 5
 # Scratch rows of one row block (grid_work[block]), each (cols,): the row's horizontal
 # springs' t (3 rows), two rolling bands of the springs between a row and the next
 # (vertical, shear / and shear \ t: 9 rows each), and the band below the block's first row.
@@ -91,7 +93,7 @@ def _grid_band(x, v, r, params, work, band):
 def _grid_row(x, v, r, params, work):
     """t of row r's horizontal springs (the top cord on the last row) into work[_H : _H + 3]."""
     cols = x.shape[2]
-    kind = GRID_CORD if r == x.shape[1] - 1 else GRID_MESH
+    kind = GRID_CORD if r == x.shape[1] - 1 else (GRID_HEM if r == 0 else GRID_MESH)
     u = np.uint64
     _grid_line(x, v, u(r), u(r), u(0), u(1), u(cols - 1), params[kind, 0], params[kind, 1], params[kind, 2], work, _H)
     for row in range(_H, _H + 3):
@@ -116,8 +118,12 @@ def _grid_border(state, knot_inv_mass, r, q, ql, down, up, work, gravity, drag, 
         xi = state[0, k, r, q]
         vi = state[1, k, r, q]
         nv = vi + h * (w * f - drag * vi - g)
+        z = xi + h * nv
+        if k == 2 and w != 0.0 and z < TABLE_Z:  # the playing surface (net_kernel/kernels/table.py)
+            z = TABLE_Z
+            nv = max(nv, 0.0)
         state[1, k, r, q] = vi if w == 0.0 else nv
-        state[0, k, r, q] = xi if w == 0.0 else xi + h * nv
+        state[0, k, r, q] = xi if w == 0.0 else z
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
@@ -158,6 +164,14 @@ def _grid_update(state, knot_inv_mass, r, down, up, work, gravity, drag, h):
             nv = vi + free * (h * (w * f - drag * vi - g))
             v_row[q] = nv
             x_row[q] = xi + free * (h * nv)
+        if k == 2:
+            # The playing surface (net_kernel/kernels/table.py): fixed knots never start below it,
+            # so only free ones are moved; a pass of its own keeps the force loop free of branches.
+            for q in range(1, last):
+                z = x_row[q]
+                below = z < TABLE_Z
+                x_row[q] = TABLE_Z if below else z
+                v_row[q] = max(v_row[q], 0.0) if below else v_row[q]
     # Border columns: the springs missing to the left sit in the zeroed last column.
     _grid_border(state, knot_inv_mass, r, 0, last, down, up, work, gravity, drag, h)
     _grid_border(state, knot_inv_mass, r, last, last - 1, down, up, work, gravity, drag, h)

@@ -3,6 +3,8 @@ import math
 
 from numba import njit
 
+from net_kernel.kernels.table import TABLE_Z
+
 # Implicit Euler: Baraff & Witkin, "Large steps in cloth simulation", SIGGRAPH 1998, one Newton
 # step of backward Euler, (M - h D - h^2 K) dv = h (f0 + h K v0), solved matrix-free by
 # conjugate gradients (Shewchuk, "An introduction to the conjugate gradient method without
@@ -204,4 +206,7 @@ def step_knots_implicit(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, 
         for c in range(3):
             out_vel[i, c] = knot_vel[i, c] + dv[i, c]
             out_pos[i, c] = knot_pos[i, c] + h * out_vel[i, c]
+        if knot_inv_mass[i] != 0.0 and out_pos[i, 2] < TABLE_Z:  # the playing surface (kernels/table.py)
+            out_pos[i, 2] = TABLE_Z
+            out_vel[i, 2] = max(out_vel[i, 2], 0.0)
     return it

@@ -11,6 +11,8 @@ import math
 
 from numba import njit
 
+from net_kernel.kernels.table import TABLE_Z
+
 
 @njit(cache=True, fastmath=False, error_model="numpy")
 def step_knots_scatter(knot_pos, knot_vel, knot_inv_mass, spring_ij, spring_rest, spring_k, spring_c, gravity, drag, h,
@@ -52,5 +54,9 @@ def step_knots_scatter(knot_pos, knot_vel, knot_inv_mass, spring_ij, spring_rest
             else:
                 g = gravity if c == 2 else 0.0
                 nv = knot_vel[i, c] + h * (w * knot_force[i, c] - drag * knot_vel[i, c] - g)
+                x = knot_pos[i, c] + h * nv
+                if c == 2 and x < TABLE_Z:  # the playing surface (net_kernel/kernels/table.py)
+                    x = TABLE_Z
+                    nv = max(nv, 0.0)
                 out_vel[i, c] = nv
-                out_pos[i, c] = knot_pos[i, c] + h * nv
+                out_pos[i, c] = x

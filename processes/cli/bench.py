@@ -1,8 +1,8 @@
 """`pingpong bench STUDY`: thin front end to the studies in bench/ (parse, call, format), and to
 the hand-off and match benchmarks (processes.cli.handoff, processes.cli.match).
 
-The studies live in bench/accuracy.py, bench/effects.py and bench/net_resolution.py, next to the pytest-benchmark suite,
-and need a source checkout (bench/ is not an installed package) and the dev extras (scipy).
+The studies live in bench/accuracy.py, bench/effects.py, bench/net_resolution.py and bench/ringdown.py,
+next to the pytest-benchmark suite, and need a source checkout (bench/ is not an installed package) and the dev extras (scipy).
 """
 from __future__ import annotations
 
@@ -147,7 +147,7 @@ def bench_command(args) -> int:
 
 
 def _study_command(args) -> int:
-    """Run `pingpong bench accuracy`, `effects` or `net-resolution`; returns the exit status."""
+    """Run `pingpong bench accuracy`, `effects`, `net-resolution` or `ringdown`; returns the exit status."""
     quick = bool(getattr(args, "quick", False))
     as_json = bool(getattr(args, "json", False))
     if args.what == "accuracy":
@@ -186,17 +186,42 @@ def _study_command(args) -> int:
         else:
             _print_net_resolution(study, result)
         return 0
+    if args.what == "ringdown":
+        study = load_study("ringdown")
+        result = study.study(quick=quick, progress=_progress(as_json))
+        if as_json:
+            print(json.dumps(finite_json(result)))
+        else:
+            _print_ringdown(study, result)
+        return 0
     raise SystemExit(f"pingpong bench: unknown study {args.what!r}")
+
+
+def _print_ringdown(study, result: dict) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    table = Table("net", "point", "m/s", "asleep s", "peak mm", "absorbed mJ", "ring Hz", "zeta", "zeta model")
+    for name, net in result["nets"].items():
+        for shot in net["shots"]:
+            table.add_row(name, shot["point"], f"{shot['speed_m_s']:g}", f"{shot['sleep_s']:.2f}",
+                          f"{shot['peak_deflection_m'] * 1e3:.1f}", f"{shot['energy_absorbed_J'] * 1e3:.1f}",
+                          f"{shot['ring_frequency_hz']:.1f}", f"{shot['damping_ratio']:.4f}",
+                          f"{shot['damping_ratio_model']:.4f}")
+    console.print(table)
+    for line in study.summary_lines(result):
+        console.print(f"- {line}")
 
 
 def add_commands(sub) -> None:
     """`pingpong bench STUDY`."""
     bench = sub.add_parser("bench", help="measured answers to 'what does it cost'", formatter_class=FORMATTER)
-    bench.add_argument("what", choices=["accuracy", "effects", "handoff", "match", "net-resolution"],
+    bench.add_argument("what", choices=["accuracy", "effects", "handoff", "match", "net-resolution", "ringdown"],
                        help="which study to run")
     bench.add_argument("--best-of", type=int, default=5, help="match: games in the benchmarked match")
     bench.add_argument("--scene", default="match",
-                       help="match: scene TOML file or bundled scene name (match_cloth: the cloth net)")
+                       help="match: scene TOML file or bundled scene name (match: the cloth net, match_rigid: the rigid one)")
     bench.add_argument("--seed", type=int, default=0, help="match: the match's seed")
     bench.add_argument("--json", action="store_true", help="print one JSON object")
     bench.add_argument("--png", default=None, help="accuracy: write the work-precision plot to this PNG file")

@@ -245,7 +245,7 @@ def bench_match_command(args: argparse.Namespace) -> int:
         return 2
     if scene.match is None:
         print(f"pingpong bench match: scene {scene.name!r} has no [match] section (and no referee); "
-              "use a match scene such as 'match' or 'match_cloth'", file=sys.stderr)
+              "use a match scene such as 'match' or 'match_rigid'", file=sys.stderr)
         return 2
     scene = replace(scene, match=replace(scene.match, best_of=args.best_of if not args.quick else 1))
     ticks = scene.ticks if not args.quick else 20_000

@@ -209,7 +209,9 @@ def main(argv: list[str]) -> int:
     from processes.network.gateway import GatewayConfig
     from processes.supervisor import Supervisor
 
-    scene = with_remote_players(load_scene(spec.get("scene", "match")), spec["players"])
+    # The rigid-net match by default: the stress tool loads the gateway, and a cloth net's worker
+    # would only share its cores.
+    scene = with_remote_players(load_scene(spec.get("scene", "match_rigid")), spec["players"])
     if spec.get("best_of"):
         scene = replace(scene, match=replace(scene.match, best_of=spec["best_of"]))
     config = GatewayConfig(bind=spec.get("bind", "tcp://127.0.0.1:0"), snapshot_hz=spec["snapshot_hz"], heartbeat_s=spec["heartbeat_s"],

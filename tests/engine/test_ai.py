@@ -12,7 +12,7 @@ from engine.match import LocalAI, Match, make_ais
 from engine.scene import load_scene
 from engine.world import build_model
 
-SCENE = load_scene("match")
+SCENE = load_scene("match_rigid")
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,7 @@ import pytest
 from engine.match import Match
 from engine.scene import SceneError, load_scene, parse_scene
 
-SCENE = load_scene("match")
+SCENE = load_scene("match_rigid")
 
 
 def play(seed, ticks):

@@ -11,7 +11,6 @@ from engine.stability import (
     CLOTH_EFFECTS,
     FIXED,
     IMPLICIT_MODE,
-    REST_DRIFT_TOL,
     Case,
     SUBSTEPPED,
     NetCase,
@@ -82,14 +81,13 @@ def test_a_ball_through_a_net_too_coarse_to_hold_it_is_caught_tunnelling():
     assert out.tunnelled and "tunnelled" in out.result
 
 
-@pytest.mark.xfail(strict=True, reason="the cloth net has buckled rest shapes besides the flat one: its columns' "
-                                       "springs take the net's weight in compression near the table, and a hit leaves "
-                                       "the lowest rows zig-zagged by about 3 mm (net_kernel.topology.build_topology)")
-def test_the_cloth_net_returns_to_its_flat_rest_shape_after_a_smash():
+def test_the_cloth_net_returns_to_its_rest_shape_after_a_smash():
+    # The hanging net has one rest shape (net_kernel.topology): after a 34 m/s smash it settles
+    # back onto it; 0.1 mm is the issue's bound, far below the 3 mm of a tied net's buckled shapes.
     case = next(c for c in SUITE if c.name.startswith("34 m/s smash") and "64x8" in c.name)
     out = run_case(case)
     assert out.result == "stable", out.result
-    assert out.rest_offset_m <= REST_DRIFT_TOL
+    assert out.rest_offset_m <= 1e-4, out.rest_offset_m
 
 
 @pytest.mark.long

@@ -80,7 +80,7 @@ def test_net_comes_back_to_rest(rested):
 
 @pytest.fixture(scope="module")
 def match_net():
-    """The match scene's net (scenes/match_cloth.toml: the default net on 85 x 8 knots), as built."""
+    """The match scene's net (scenes/match.toml: the default net on 85 x 8 knots), as built."""
     from net_kernel.topology import resolution_spec
 
     return build_topology(resolution_spec(85, 8))

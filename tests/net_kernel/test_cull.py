@@ -99,7 +99,7 @@ def _fused_run(topo, ticks, speed, mod=kernels):
     rows, cols = spec.rows, spec.cols
     sim = NetSim(topo, dt=DT)  # for its substeps, h and far test only
     state = np.zeros((2, 3, rows, cols))
-    state[0] = topo.knot_pos.T.reshape(3, rows, cols)
+    state[0] = topo.rest_pos.T.reshape(3, rows, cols)
     work = np.zeros((1, kernels.GRID_WORK_ROWS, cols))
     ball = np.zeros((4, 3))
     near = np.zeros(topo.n_knots, dtype=np.int64)
@@ -134,7 +134,7 @@ def _loop_run(topo, ticks, speed, collide):
     rows, cols = spec.rows, spec.cols
     sim = NetSim(topo, dt=DT)  # for its substeps, h and far test only
     state = np.zeros((2, 3, rows, cols))
-    state[0] = topo.knot_pos.T.reshape(3, rows, cols)
+    state[0] = topo.rest_pos.T.reshape(3, rows, cols)
     knot_pos, knot_vel = state[0].reshape(3, -1).T, state[1].reshape(3, -1).T
     work = np.zeros((1, kernels.GRID_WORK_ROWS, cols))
     inv_mass = topo.knot_inv_mass.reshape(rows, cols)

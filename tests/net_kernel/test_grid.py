@@ -38,10 +38,10 @@ def _csr_steps(topo, pos, vel, steps):
 
 
 # The default fixing, free posts (border columns step), free table row (bottom row steps).
-NETS = [grid_spec(24, 8), grid_spec(24, 8, fix_posts=False), grid_spec(9, 5, fix_table=False)]
+NETS = [grid_spec(24, 8), grid_spec(24, 8, fix_posts=False, fix_table=True), grid_spec(9, 5, fix_table=True)]
 
 
-@pytest.mark.parametrize("spec", NETS, ids=["fixed", "free_posts", "free_table"])
+@pytest.mark.parametrize("spec", NETS, ids=["hanging", "free_posts", "tied"])
 def test_grid_equals_csr_bit_for_bit(spec):
     topo = build_topology(spec)
     state, pos, vel = _state(topo, seed=11)
@@ -53,7 +53,7 @@ def test_grid_equals_csr_bit_for_bit(spec):
     assert np.array_equal(state[1].reshape(3, -1).T, csr_vel)
 
 
-@pytest.mark.parametrize("spec", NETS[:2], ids=["fixed", "free_posts"])
+@pytest.mark.parametrize("spec", NETS[:2], ids=["hanging", "free_posts"])
 def test_grid_equals_reference(spec):
     topo = build_topology(spec)
     state, _, _ = _state(topo, seed=12)

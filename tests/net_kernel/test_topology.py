@@ -13,10 +13,30 @@ def test_default_net_geometry():
     assert topo.knot_pos[:, 2].max() == pytest.approx(0.1525, abs=1e-12)
     assert np.all(topo.knot_pos[:, 0] == 0.0)
     assert topo.n_knots == 184 * 16
+    # ITTF 2.2.4: the bottom "as close as possible to the playing surface": the hem's cord hem_gap above it.
+    assert topo.knot_pos[:, 2].min() == pytest.approx(NetSpec().hem_gap, abs=1e-12)
     fixed = topo.knot_inv_mass == 0
-    # Fixed: both post columns and the table row: 2 * 16 + 184 - 2 knots.
+    # Fixed: both post columns (the net hangs on its cords; nothing ties it to the table): 2 * 16 knots.
+    assert fixed.sum() == 2 * 16
+    assert np.all(fixed[::184]) and np.all(fixed[183::184])
+
+
+def test_a_tied_net_is_fixed_along_the_table():
+    topo = build_topology(NetSpec(fix_table=True))
+    fixed = topo.knot_inv_mass == 0
+    # Both post columns and the table row at z = 0: 2 * 16 + 184 - 2 knots.
     assert fixed.sum() == 2 * 16 + 184 - 2
-    assert np.all(fixed[:184]) and np.all(fixed[::184]) and np.all(fixed[183::184])
+    assert np.all(fixed[:184]) and np.all(topo.knot_pos[:184, 2] == 0.0)
+
+
+def test_bottom_cord_carries_its_tension():
+    spec = NetSpec()
+    topo = build_topology(spec)
+    i, j = topo.spring_ij[:, 0], topo.spring_ij[:, 1]
+    cord = (topo.knot_pos[i, 2] == spec.hem_gap) & (topo.knot_pos[j, 2] == spec.hem_gap)
+    length = np.linalg.norm(topo.knot_pos[j[cord]] - topo.knot_pos[i[cord]], axis=1)
+    tension = topo.spring_k[cord] * (length - topo.spring_rest[cord])
+    np.testing.assert_allclose(tension, spec.hem_tension, rtol=1e-9)  # T = k (L - L_rest), rounding only
 
 
 def test_csr_lists_every_spring_twice_in_spring_order():

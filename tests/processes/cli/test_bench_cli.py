@@ -1,4 +1,4 @@
-"""`pingpong bench accuracy|effects --quick`, smoke-run as subprocesses (STYLE.md); no timing asserts."""
+"""`pingpong bench accuracy|effects|ringdown --quick`, smoke-run as subprocesses (STYLE.md); no timing asserts."""
 import json
 import math
 import subprocess
@@ -58,3 +58,15 @@ def test_bench_effects_human_output():
     done = pingpong("effects", "--quick")
     assert done.returncode == 0, done.stderr
     assert "absent costs nothing" in done.stdout
+
+
+def test_bench_ringdown_quick_json():
+    done = pingpong("ringdown", "--quick", "--json")
+    assert done.returncode == 0, done.stderr
+    result = json.loads(done.stdout)
+    assert set(result["nets"]) == {"hanging", "tied"}
+    for net in result["nets"].values():
+        for shot in net["shots"]:
+            assert shot["sleep_s"] is not None and shot["sleep_s"] > 0.0  # every struck net fell asleep
+            assert 0.0 < shot["energy_absorbed_J"] <= shot["energy_in_J"]  # the net takes energy, never gives
+            assert shot["peak_deflection_m"] > 0.0

@@ -43,7 +43,7 @@ def test_match_two_ticks():
     assert done.returncode == 0, done.stderr
     summary = json.loads(done.stdout)
     assert summary["scene"] == "match" and summary["ticks"] == 2 and summary["winner"] is None
-    assert set(summary["workers"]) == {"physics", "ai"}
+    assert set(summary["workers"]) == {"physics", "net", "ai"}  # the default match plays the cloth net
 
 
 def test_replay_two_ticks(tmp_path):
@@ -100,7 +100,7 @@ def test_bench_match_quick_json():
     assert done.returncode == 0, done.stderr
     report = json.loads(done.stdout)
     assert report["same_match"] is True  # the lockstep match and the in-process one agree
-    assert set(report["processes"]["workers"]) == {"physics", "ai"}
+    assert set(report["processes"]["workers"]) == {"physics", "net", "ai"}  # the default match: the cloth net
 
 
 def test_bench_match_refuses_a_scene_without_a_match():

@@ -34,8 +34,8 @@ def local_ray():
 def tasks():
     """The small tournament; its kernels compiled here first, so the pool's processes and Ray's
     workers load them from numba's cache instead of each compiling them at once."""
-    match_record(load_scene("match"), 0, "pro", "novice", best_of=1, max_ticks=2)
-    return plan(load_scene("match"), pairs_of(["pro", "novice"]), SEEDS, best_of=1, max_ticks=TICKS)
+    match_record(load_scene("match_rigid"), 0, "pro", "novice", best_of=1, max_ticks=2)
+    return plan(load_scene("match_rigid"), pairs_of(["pro", "novice"]), SEEDS, best_of=1, max_ticks=TICKS)
 
 
 def _lines(path):
@@ -109,8 +109,8 @@ def test_bad_set_keys_and_values_are_refused_with_the_validators_message(tmp_pat
 
 
 def _tournament_args(out, seeds: int) -> list[str]:
-    return ["tournament", "--skills", "pro,novice", "--seeds", str(seeds), "--best-of", "1", "--ticks", str(TICKS),
-            "--workers", "1", "--out", str(out)]
+    return ["tournament", "--scene", "match_rigid", "--skills", "pro,novice", "--seeds", str(seeds), "--best-of", "1",
+            "--ticks", str(TICKS), "--workers", "1", "--out", str(out)]
 
 
 def test_tournament_cli_on_the_local_pool_and_ctrl_c_keeps_the_finished(tmp_path):
@@ -151,7 +151,7 @@ def test_set_values_read_as_toml_or_bare_words(text, values):
 
 
 def test_a_swept_net_resolution_is_validated_as_the_files_own_key():
-    scene = load_scene("match_cloth", overrides={"net.resolution": [92, 8]})
+    scene = load_scene("match", overrides={"net.resolution": [92, 8]})
     assert (scene.cloth.cols, scene.cloth.rows) == (92, 8)
 
 

@@ -50,7 +50,7 @@ class Rig:
         self.posted = []
         settings = dict(bind="tcp://127.0.0.1:0", snapshot_hz=1000, heartbeat_s=1.0, timeout_s=5.0, grace_s=30.0)
         settings.update(config)
-        self.gateway = Gateway(zctx, GatewayConfig(**settings), scene_name="match", best_of=1, dt=0.001,
+        self.gateway = Gateway(zctx, GatewayConfig(**settings), scene_name="match_rigid", best_of=1, dt=0.001,
                                remote_slots=remote, post_input=self._post, clock=self.clock, seat_store=seat_store,
                                bat_mass=bat_mass)
         self.record = np.zeros(1, physics_snapshot_dtype(2))[0]
@@ -666,7 +666,7 @@ def test_relay_smoke_runs(served):
 
 
 def test_serving_a_scene_makes_its_bats_remote_and_starts_a_gateway():
-    scene = load_scene("match")
+    scene = load_scene("match_rigid")
     one, two = with_remote_players(scene, 1), with_remote_players(scene, 2)
     assert [b.remote for b in one.bats] == [True, False] and one.bats[1].skill == "pro"
     assert workers_for(one) == ["physics", "ai", "gateway"]
@@ -903,7 +903,7 @@ def test_a_served_match_waits_for_its_player_and_pauses_while_the_seat_is_in_its
 
 
 def test_a_remote_bat_needs_the_effect_and_no_skill():
-    data = tomllib.loads((ROOT / "scenes" / "match.toml").read_text())
+    data = tomllib.loads((ROOT / "scenes" / "match_rigid.toml").read_text())
     data["bats"]["a"]["remote"] = True
     with pytest.raises(SceneError, match="either by the AI"):
         parse_scene(data, "t.toml")
@@ -981,7 +981,7 @@ def test_a_snapshot_acknowledges_the_inputs_applied_before_its_tick_not_the_next
     from processes.workers.hub import RemoteInputs
     from processes.workers.options import RunOptions
 
-    scene = with_remote_players(load_scene("match"), 2)
+    scene = with_remote_players(load_scene("match_rigid"), 2)
     arena = shm.Arena()
     try:
         snapshots = arena.snapshot_block("physics", physics_snapshot_dtype(2), 1)

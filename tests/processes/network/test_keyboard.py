@@ -51,7 +51,7 @@ def test_terminal_keys_from_a_pseudo_terminal_in_cbreak_mode():
 
 
 def test_keys_move_the_target_in_the_players_own_frame_within_reach():
-    model = build_model(load_scene("match"))
+    model = build_model(load_scene("match_rigid"))
     a, b = KeyboardPilot(model, Slot.A), KeyboardPilot(model, Slot.B)
     start_a, start_b = a.target.copy(), b.target.copy()
     for key in ("up", "left", "raise"):
@@ -70,7 +70,7 @@ def test_keys_move_the_target_in_the_players_own_frame_within_reach():
     with pytest.raises(ValueError, match="unknown keys"):
         IterableKeys([["jump"]]).poll()
     # the force follows the target at every call (not only the first): PD towards the aim
-    bat = initial_state(load_scene("match")).bats[0]
+    bat = initial_state(load_scene("match_rigid")).bats[0]
     a.target = np.array([-1.77, 0.0, 0.15])
     assert np.abs(a.control(5.0, bat)[0:3]).max() < 1e-9  # the bat rests where it should: no force
     a.press("up", 5.0)
@@ -90,7 +90,7 @@ class GatewayThread:
     def __init__(self, zctx, scene):
         self.posted = []
         self.gateway = Gateway(zctx, GatewayConfig(bind="tcp://127.0.0.1:0", snapshot_hz=100, heartbeat_s=0.2,
-                                                   timeout_s=5.0), scene_name="match", best_of=1, dt=scene.dt,
+                                                   timeout_s=5.0), scene_name="match_rigid", best_of=1, dt=scene.dt,
                                remote_slots=(Slot.A,), post_input=self._post)
         self.record = initial_state(scene).record[0].copy()
         self.record["rally"]["winner"] = -1
@@ -126,7 +126,7 @@ class GatewayThread:
 
 @pytest.mark.timeout(60)
 def test_a_keyboard_session_sends_the_arms_forces_towards_the_target(zctx):
-    scene = load_scene("match")
+    scene = load_scene("match_rigid")
     # Built before joining: on a cold numba cache its kernels compile for longer than the welcome's
     # timeout, and a client silent meanwhile takes the server for lost.
     predictor = Predictor(scene, Slot.A)
@@ -156,7 +156,7 @@ def test_a_keyboard_session_sends_the_arms_forces_towards_the_target(zctx):
 @pytest.mark.timeout(90)
 def test_pingpong_join_plays_from_the_keyboard_on_a_terminal(zctx):
     """The real command on a pseudo-terminal: it draws the table, takes keys, leaves on q."""
-    served = GatewayThread(zctx, load_scene("match"))
+    served = GatewayThread(zctx, load_scene("match_rigid"))
     master, slave = os.openpty()
     proc = subprocess.Popen([sys.executable, "-m", "processes.cli", "join", served.gateway.endpoint, "--as",
                              "player", "--seconds", "60"], cwd=ROOT, stdin=slave, stdout=slave, stderr=slave,

@@ -18,7 +18,7 @@ SNAPSHOT_EVERY = 10  # ticks between snapshots: 100 Hz at the match scene's 1 ms
 
 def _scene():
     """The match scene with the ball struck towards B: it bounces on B's court within 0.3 s."""
-    scene = load_scene("match")
+    scene = load_scene("match_rigid")
     return replace(scene, ball=replace(scene.ball, pos=(-1.2, 0.0, 0.25), vel=(6.0, 0.3, 0.5), spin=(0.0, 40.0, 0.0)))
 
 

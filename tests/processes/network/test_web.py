@@ -81,7 +81,7 @@ def test_a_browser_gets_the_welcome_then_the_feeds_own_snapshot_bytes(bridged):
     rig.join(watcher)
     with connect(url.replace("http://", "ws://") + "ws", open_timeout=10) as browser:
         first = wire.decode(browser.recv(timeout=10))
-        assert first.kind == Kind.WELCOME and first["scene"] == "match"
+        assert first.kind == Kind.WELCOME and first["scene"] == "match_rigid"
         forwarded = None
         tick = 0
         for _ in range(ROUNDS):  # serve ticks until a snapshot reaches the browser

@@ -508,7 +508,7 @@ def test_snapshots_of_a_real_match_pass_the_decoder():
     from engine.match import Match
     from engine.scene import load_scene
 
-    match = Match(load_scene("match"), seed=3)
+    match = Match(load_scene("match_rigid"), seed=3)
     record = np.zeros(1, physics_snapshot_dtype(2))
     checked = []
 

@@ -11,7 +11,7 @@ from processes.workers.ai import Answerer
 from processes.workers.hub import PlanFollower
 from processes.workers.layout import decision_key
 
-SCENE = load_scene("match")
+SCENE = load_scene("match_rigid")
 
 
 class _Follow:

@@ -1,4 +1,5 @@
-"""The multi-process match: physics and AI workers reproduce the in-process match bit for bit."""
+"""The multi-process match (the default scene: the cloth net in its worker): physics, net and AI workers
+reproduce the in-process match bit for bit."""
 import numpy as np
 import pytest
 
@@ -23,7 +24,8 @@ def reference_trace(seed, ticks):
 
 
 def test_an_ai_scene_starts_an_ai_worker_and_a_plain_one_does_not():
-    assert workers_for(SCENE) == ["physics", "ai"]
+    assert workers_for(SCENE) == ["physics", "net", "ai"]
+    assert workers_for(load_scene("match_rigid")) == ["physics", "ai"]
     assert workers_for(load_scene("rally")) == ["physics"]
 
 
@@ -45,6 +47,22 @@ def test_physics_worker_killed_mid_match_resumes_and_stays_exact(no_leftovers, c
     result = Supervisor(SCENE, TICKS, "lockstep", trace=True, seed=5, crash_at_tick=crash_at).run()
     assert result.workers["physics"]["restarts"] == 1
     _, trace = reference_trace(5, TICKS)
+    assert first_difference(result.trace, trace) is None
+
+
+# Seed 5's match first touches the net at tick 15781: the net worker is handed the ticks the
+# ball may touch the net, and before that the net sleeps.
+NET_TOUCH = 15_781
+
+
+def test_net_worker_killed_mid_match_resumes_and_stays_exact(no_leftovers):
+    # SIGKILLed as the ball meets the net: the restarted worker resumes from the state it published
+    # and the match goes on as in process.
+    ticks = NET_TOUCH + 500
+    _, trace = reference_trace(5, ticks)
+    result = Supervisor(SCENE, ticks, "lockstep", trace=True, seed=5, crash_at_tick=NET_TOUCH,
+                        crash_worker="net").run()
+    assert result.workers["net"]["restarts"] == 1
     assert first_difference(result.trace, trace) is None
 
 

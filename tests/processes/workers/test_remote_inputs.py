@@ -41,7 +41,7 @@ def test_remote_input_refusal(bat, values, reason):
 
 def test_only_an_ai_bat_is_not_remote():
     """With one remote player, bat b is the AI's: a remote input for it is refused."""
-    scene = with_remote_players(load_scene("match"), 1)
+    scene = with_remote_players(load_scene("match_rigid"), 1)
     remote = frozenset(i for i, bat in enumerate(scene.bats) if bat.remote)
     assert remote == {0}
     assert remote_input_refusal(1, np.zeros(6), remote) == "not_remote_bat"
@@ -58,7 +58,7 @@ def served(tmp_path, no_leftovers):
     from processes.workers.hub import RemoteInputs
     from processes.workers.options import RunOptions
 
-    scene = with_remote_players(load_scene("match"), 2)
+    scene = with_remote_players(load_scene("match_rigid"), 2)
     arena = shm.Arena()
     physics = gateway_locks = None
     try:

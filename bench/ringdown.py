@@ -1,0 +1,115 @@
+"""`pingpong bench ringdown`: how a struck cloth net rings down, the hanging net beside the tied one.
+
+Balls at 5, 10, 20 and 40 m/s into the middle of the default match's net (85 x 8 knots, scenes/
+match.toml) and near a post. For each: the ticks until the net falls asleep (NetSim's sleep rule),
+the peak deflection of any knot out of the net's plane, the energy the net took from the ball
+(its kinetic energy in less out), and the ring's damping ratio: measured from the decay of the
+struck point's out-of-plane motion (successive peaks of x after the ball has left) against the
+model's, zeta = air_damping / (2 w) for the mass-proportional air damping at the measured
+frequency w (the axial dashpots add little to the slow sway). The same shots into the net tied
+to the table (NetSpec.fix_table, the net before it was hung on two cords) in the same run.
+
+The ball is the net harness's: a straight path bent by the net's impulses and by gravity, no
+table, no drag (net_kernel.NetSim's contract); the engine is not in the loop.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from net_kernel import NetSim, build_topology
+from net_kernel.sim import BALL_MASS
+from net_kernel.topology import resolution_spec
+
+DT = 1e-3  # s, the engine's tick (scenes/match.toml)
+SPEEDS = (5.0, 10.0, 20.0, 40.0)  # m/s
+POINTS = {"middle": (0.0, 0.10), "near a post": (0.80, 0.10)}  # (y, z) m of the ball's aim
+MAX_TICKS = 8000  # 8 s: longer than any net here takes to fall asleep
+GRAVITY = 9.81
+
+
+def _peaks(signal: np.ndarray) -> np.ndarray:
+    """Indices of the local maxima of |signal| (successive half-periods' amplitudes)."""
+    a = np.abs(signal)
+    return np.flatnonzero((a[1:-1] > a[:-2]) & (a[1:-1] >= a[2:])) + 1
+
+
+def _damping(trace: np.ndarray, rest: float) -> tuple[float, float]:
+    """(zeta, frequency Hz) of the decay of trace - rest: log decrement over its peaks."""
+    x = trace - rest
+    peaks = _peaks(x)
+    peaks = peaks[np.abs(x[peaks]) > 1e-6]  # above the sleep rule's noise floor
+    if peaks.size < 4:
+        return math.nan, math.nan
+    # Peaks of |x| come every half period; the decay per half period is the log decrement / 2.
+    half_period = float(np.mean(np.diff(peaks))) * DT
+    slope = np.polyfit(peaks * DT, np.log(np.abs(x[peaks])), 1)[0]  # -sigma, 1/s
+    w = math.pi / half_period
+    sigma = -slope
+    return sigma / math.hypot(sigma, w), w / (2 * math.pi)
+
+
+def _shot(topo, speed: float, y: float, z: float) -> dict:
+    spec = topo.spec
+    sim = NetSim(topo, DT)
+    pos, vel = np.array([-0.05, y, z]), np.array([speed, 0.0, 0.0])
+    energy_in = 0.5 * BALL_MASS * speed * speed
+    aim = int(np.argmin(np.hypot(topo.rest_pos[:, 1] - y, topo.rest_pos[:, 2] - z)))
+    rest_x = float(topo.rest_pos[aim, 0])
+    trace = np.zeros(MAX_TICKS)
+    peak = 0.0
+    left = None
+    ticks = MAX_TICKS
+    for t in range(MAX_TICKS):
+        contact = sim.step(pos, vel)
+        pos = pos + vel * DT + contact.offset
+        vel = vel + contact.impulse / BALL_MASS
+        vel[2] -= GRAVITY * DT
+        trace[t] = sim.knot_pos[aim, 0]
+        peak = max(peak, float(np.abs(sim.knot_pos[:, 0] - topo.rest_pos[:, 0]).max()))
+        if left is None and contact.toi < 0 and abs(pos[0]) > 0.1:
+            left = t  # the ball is gone: from here the net rings on its own
+        if sim.sleeping:
+            ticks = t + 1
+            break
+    energy_out = 0.5 * BALL_MASS * float(vel @ vel) + BALL_MASS * GRAVITY * (pos[2] - z)  # kinetic + potential
+    zeta, freq = _damping(trace[left:ticks], rest_x) if left is not None else (math.nan, math.nan)
+    model = spec.air_damping / (4 * math.pi * freq) if math.isfinite(freq) else math.nan
+    return {"speed_m_s": speed, "sleep_s": ticks * DT if sim.sleeping else math.inf, "peak_deflection_m": peak,
+            "energy_absorbed_J": energy_in - energy_out, "energy_in_J": energy_in, "ring_frequency_hz": freq,
+            "damping_ratio": zeta, "damping_ratio_model": model, "thrown_back": bool(vel[0] < 0)}
+
+
+def study(quick: bool = False, progress=None) -> dict:
+    """The ring-downs of the hanging net and of the tied one; quick: 10 and 40 m/s into the middle."""
+    hanging = resolution_spec(85, 8)
+    nets = {"hanging": hanging, "tied": replace(hanging, fix_table=True)}  # the default net; tied to the table
+    speeds = (10.0, 40.0) if quick else SPEEDS
+    points = {"middle": POINTS["middle"]} if quick else POINTS
+    result = {"dt_s": DT, "nets": {}}
+    for name, spec in nets.items():
+        topo = build_topology(spec)
+        shots = []
+        for where, (y, z) in points.items():
+            for speed in speeds:
+                if progress:
+                    progress(f"{name}: {speed:g} m/s, {where}")
+                shots.append({"point": where, **_shot(topo, speed, y, z)})
+        result["nets"][name] = {"air_damping_per_s": spec.air_damping, "shots": shots}
+    return result
+
+
+def summary_lines(result: dict) -> list[str]:
+    """One line per net: the mean time to sleep and the measured against the model's damping ratio."""
+    lines = []
+    for name, net in result["nets"].items():
+        shots = net["shots"]
+        sleep = [s["sleep_s"] for s in shots if math.isfinite(s["sleep_s"])]
+        zeta = [s["damping_ratio"] for s in shots if math.isfinite(s["damping_ratio"])]
+        model = [s["damping_ratio_model"] for s in shots if math.isfinite(s["damping_ratio_model"])]
+        lines.append(f"{name}: asleep after {np.mean(sleep):.2f} s on average ({len(sleep)} of {len(shots)} shots), "
+                     f"damping ratio {np.mean(zeta):.4f} measured, {np.mean(model):.4f} from air damping "
+                     f"{net['air_damping_per_s']:g}/s")
+    return lines
