@@ -564,7 +564,7 @@ def test_decode_command_neither_file_nor_hex_exits_2():
 
 # --- the cloth net's knots -----------------------------------------------------------------------------------
 def test_a_nets_knots_round_trip_within_half_a_step():
-    """Knots 85 x 8 (scenes/match_cloth.toml's grid) moved up to 5 cm: two messages, and every
+    """Knots 85 x 8 (scenes/match.toml's grid) moved up to 5 cm: two messages, and every
     coordinate back within NET_STEP_M / 2 (round to nearest) of what was sent."""
     cols, rows, width, height = 85, 8, 1.83, 0.1525
     rest = wire.net_rest(cols, rows, width, height)
