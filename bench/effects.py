@@ -99,7 +99,7 @@ class _PhysicsRun:
         self.n_ticks = n_ticks
         has_bats = len(scene.bats) > 0
         self.args = (
-            state.ball_y[0:9].copy(), state.bat_flat.copy() if has_bats else None, n_ticks, m.dt, m.method,
+            state.ball_flat[0:9].copy(), state.bat_flat.copy() if has_bats else None, n_ticks, m.dt, m.method,
             m.gravity, m.drag_k, m.magnus_k, scene.rtol, scene.atol, m.table, m.floor_z, m.net, m.posts,
             m.bat_mass, m.bat_inertia, state.bat_motion.copy() if has_bats else None, m.ball_params, m.materials,
             state.work, state.scratch, state.adapt.copy(), np.zeros((MAX_IMPACTS_PER_TICK, EVENT_ROW)), scene.ticks,

@@ -91,14 +91,14 @@ def make_ais(scene: Scene, model, seed: int, eager: bool = True) -> AIPlayers:
                       for i, bat in enumerate(scene.bats) if bat.skill is not None})
 
 
-def ai_inputs(ais: AIPlayers, now: float, ball_y: np.ndarray, bats: np.ndarray, rally_key,
+def ai_inputs(ais: AIPlayers, now: float, ball_flat: np.ndarray, bats: np.ndarray, rally_key,
               phase: int, server: int, striker: int, inputs: np.ndarray) -> None:
     """Every AI's force and torque from one state: the one function both the in-process match
     and the AI worker call, so lockstep runs compute bit for bit the same inputs.
 
     bats: the (n_bats,) BAT_DTYPE array; inputs: (n_bats, 6), written at the AIs' rows.
     """
-    ais.control(now, ball_y, bats, rally_key, next_striker(phase, server, striker), phase == Phase.WAITING_SERVE,
+    ais.control(now, ball_flat, bats, rally_key, next_striker(phase, server, striker), phase == Phase.WAITING_SERVE,
                 inputs)
 
 
@@ -134,7 +134,7 @@ class LocalAI:
 
     def request(self, match: "Match", now: float) -> None:
         ref = match.referee
-        ai_inputs(self.ais, now, match.state.ball_y, match.state.bats, match.rally_key(), int(ref.phase), ref.server,
+        ai_inputs(self.ais, now, match.state.ball_flat, match.state.bats, match.rally_key(), int(ref.phase), ref.server,
                   ref.striker, match.ai_next)
 
 
@@ -261,7 +261,7 @@ class Match:
         for k in range(n):
             point = referee.on_contact(int(self.events[k]["body"]), self.events[k]["pos"]) or point
         if point is None and referee.phase != Phase.OVER:
-            x, y, z = self.state.ball_y[0:3].tolist()  # Python floats: the same doubles, cheaper arithmetic
+            x, y, z = self.state.ball_flat[0:3].tolist()  # Python floats: the same doubles, cheaper arithmetic
             gone = x * x + y * y > _GONE_RADIUS_2 or z < _GONE_Z
             if gone or self._world_i[4] != 0 or self._world_d[1] > deadline:  # ball_support: resting
                 point = referee.ball_out_of_play(x, y)

@@ -97,8 +97,8 @@ def run(scene: Scene, ticks: int | None = None, model: Model | None = None, trac
             collected.append(events[:n].copy())
             # A bounce starts a flight whose apex counts only if the last impact was the table.
             after_table_bounce = int(events[n - 1]["body"]) == Body.TABLE
-        z = float(state.ball_y[2])
-        vz = float(state.ball_y[5])
+        z = float(state.ball_flat[2])
+        vz = float(state.ball_flat[5])
         in_flight = int(state.world[0]["ball_support"]) == 0
         if after_table_bounce and in_flight and n == 0 and vz_prev > 0.0 >= vz and g > 0.0:
             heights.append(z_prev + vz_prev * vz_prev / (2.0 * g) - radius)

@@ -255,7 +255,7 @@ def run_case(case: Case | NetCase) -> Outcome:
     asleep = [math.nan]  # the net's energy while it sleeps (its knots do not move then)
 
     def energy() -> float:
-        e = _energy(state.ball_y, g)
+        e = _energy(state.ball_flat, g)
         if net is not None:
             if not net.sleeping:
                 asleep[0] = math.nan
@@ -269,7 +269,7 @@ def run_case(case: Case | NetCase) -> Outcome:
     knot_penetration = 0.0
     shapes, unsettled = [], []  # loop cases: the distinct shapes the net settled to; loops it was awake at the end
     sides = _thin_side(state, model)
-    cloth_side = _cloth_side(state.ball_y[0:3], net.knot_pos, scene.cloth) if net is not None else math.nan
+    cloth_side = _cloth_side(state.ball_flat[0:3], net.knot_pos, scene.cloth) if net is not None else math.nan
     hit_bodies: set[int] = set()
     normal = np.zeros(3)
     try:
@@ -285,13 +285,13 @@ def run_case(case: Case | NetCase) -> Outcome:
                 state.world["ball_adapt"] = start["world"]["ball_adapt"]
                 hit_bodies.clear()
                 sides = _thin_side(state, model)
-                cloth_side = _cloth_side(state.ball_y[0:3], net.knot_pos, scene.cloth) if net is not None else math.nan
+                cloth_side = _cloth_side(state.ball_flat[0:3], net.knot_pos, scene.cloth) if net is not None else math.nan
             n = step(model, state, None, events)
             out.ticks = tick + 1
             for k in range(n):
                 out.events.append(int(events[k]["body"]))
                 hit_bodies.add(int(events[k]["body"]))
-            y = state.ball_y
+            y = state.ball_flat
             out.max_abs_state = max(out.max_abs_state, float(np.abs(y).max()))
             p = y[0:3]
             gaps = [box_sdf(p, TABLE_BOX, normal) - R] if model.table is not None else []
@@ -342,7 +342,7 @@ def run_case(case: Case | NetCase) -> Outcome:
         out.wall_s = time.perf_counter() - started
         return out
     out.energy_change = (energy() - e0) / max(abs(e0), 1e-12)
-    out.final = state.ball_y.copy()
+    out.final = state.ball_flat.copy()
     problems = []
     if out.max_penetration_m > PENETRATION_TOL:
         problems.append(f"penetration {out.max_penetration_m:.2e} m > {PENETRATION_TOL:g}")

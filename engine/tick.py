@@ -36,7 +36,7 @@ def _all_finite(a):
 
 
 @njit(cache=True)
-def advance_ticks(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_tmp, ball_y, method,
+def advance_ticks(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_tmp, ball_flat, method,
                   gravity, drag_k, magnus_k, rtol, atol, table, floor_z, net, posts, params, materials, work,
                   scratch, adapt, event_rows, gone_r2, gone_z, deadline, watch):
     """Advance up to n_max ticks of length h; stop after the first tick that needs attention.
@@ -45,7 +45,7 @@ def advance_ticks(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, 
         world: (1,) WORLD_DTYPE, updated per tick (tick, time, support, event counts).
         bat_flat, bat_motion: (n_bats, ...) or None together when the scene has no bats;
             bat_mass, bat_inertia, bat_tmp as engine.bat.bat_step.
-        ball_y ... adapt: as engine.collision.ball_tick. event_rows: (MAX_IMPACTS_PER_TICK,
+        ball_flat ... adapt: as engine.collision.ball_tick. event_rows: (MAX_IMPACTS_PER_TICK,
             EVENT_ROW) written with the events of the tick that stopped the run, times absolute.
         gone_r2: m^2, stop once x^2 + y^2 of the ball exceeds it (inf: never).
         gone_z: m, stop once the ball's z is below it (-inf: never).
@@ -60,7 +60,7 @@ def advance_ticks(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, 
     """
     if bat_motion is not None and not _all_finite(bat_flat):
         return 0, 0, STOP_LIMIT, ERR_BATS_BEFORE
-    ticks, n, reason, error = _advance(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_tmp, ball_y,
+    ticks, n, reason, error = _advance(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_tmp, ball_flat,
                                        method, gravity, drag_k, magnus_k, rtol, atol, table, floor_z, net, posts,
                                        params, materials, work, scratch, adapt, event_rows, gone_r2, gone_z,
                                        deadline, watch)
@@ -70,7 +70,7 @@ def advance_ticks(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, 
 
 
 @njit(cache=True)
-def _advance(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_tmp, ball_y, method, gravity, drag_k,
+def _advance(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_tmp, ball_flat, method, gravity, drag_k,
              magnus_k, rtol, atol, table, floor_z, net, posts, params, materials, work, scratch, adapt, event_rows,
              gone_r2, gone_z, deadline, watch):
     """advance_ticks' loop, with its arguments and returns."""
@@ -79,7 +79,7 @@ def _advance(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_t
         if bat_motion is not None:
             bat_step(bat_flat, h, bat_mass, bat_inertia, bat_motion, bat_tmp)
         support_before = w['ball_support']
-        n, support = ball_tick(ball_y, h, support_before, method, gravity, drag_k, magnus_k, rtol, atol,
+        n, support = ball_tick(ball_flat, h, support_before, method, gravity, drag_k, magnus_k, rtol, atol,
                                table, floor_z, net, posts, bat_motion, params, materials, work, scratch, adapt,
                                event_rows)
         if n < 0:
@@ -95,14 +95,14 @@ def _advance(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_t
         w['time'] = w['time'] + h
         if n > 0:
             return k + 1, n, STOP_EVENT, 0
-        if ball_y[0] * ball_y[0] + ball_y[1] * ball_y[1] > gone_r2 or ball_y[2] < gone_z:
+        if ball_flat[0] * ball_flat[0] + ball_flat[1] * ball_flat[1] > gone_r2 or ball_flat[2] < gone_z:
             return k + 1, 0, STOP_GONE, 0
         if support != support_before:
             return k + 1, 0, STOP_SUPPORT, 0
         if w['time'] > deadline:
             return k + 1, 0, STOP_DEADLINE, 0
-        if watch is not None and (watch[0] <= ball_y[0] <= watch[3] and watch[1] <= ball_y[1] <= watch[4]
-                                  and watch[2] <= ball_y[2] <= watch[5]):
+        if watch is not None and (watch[0] <= ball_flat[0] <= watch[3] and watch[1] <= ball_flat[1] <= watch[4]
+                                  and watch[2] <= ball_flat[2] <= watch[5]):
             return k + 1, 0, STOP_WATCH, 0
     return n_max, 0, STOP_LIMIT, 0
 

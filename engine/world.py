@@ -161,8 +161,8 @@ class State:
     ball: np.ndarray  # (1,) BALL_DTYPE view
     bats: np.ndarray  # (n_bats,) BAT_DTYPE view
     world: np.ndarray  # (1,) WORLD_DTYPE view
+    ball_flat: np.ndarray  # (9,) float64 view of the ball: pos m, vel m/s, spin rad/s (the integrators' y)
     # Scratch, allocated once: a tick allocates nothing.
-    ball_y: np.ndarray
     bat_flat: np.ndarray
     bat_motion: np.ndarray
     work: np.ndarray
@@ -194,7 +194,7 @@ def initial_state(scene: Scene) -> State:
         ball=ball,
         bats=bats,
         world=world,
-        ball_y=ball.view("<f8"),
+        ball_flat=ball.view("<f8"),
         bat_flat=bats.view("<f8").reshape(len(scene.bats), BAT_WIDTH),
         bat_motion=motion,
         work=np.zeros(WORK_SHAPE),
@@ -297,7 +297,7 @@ def advance(model: Model, state: State, n_max: int, inputs: np.ndarray | None, e
     # untouched) and checks them again after its run (ERR_BATS_AFTER); _check_bats names it.
     ticks, n, reason, error = advance_ticks(
         n_max, h, state.world, state.bat_flat if has_bats else None, model.bat_mass, model.bat_inertia,
-        state.bat_motion if has_bats else None, state.bat_tmp, state.ball_y[0:9], model.method, model.gravity,
+        state.bat_motion if has_bats else None, state.bat_tmp, state.ball_flat[0:9], model.method, model.gravity,
         model.drag_k, model.magnus_k, model.scene.rtol, model.scene.atol, model.table, model.floor_z, model.net,
         model.posts, model.ball_params, model.materials, state.work, state.scratch, state.adapt, state.event_rows,
         gone_radius * gone_radius, gone_z, deadline, watch)
@@ -327,7 +327,7 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
     its `sleeping`, `step` and `step_free` (processes.workers.net.RemoteNet).
     """
     net = state.net_sim
-    y = state.ball_y
+    y = state.ball_flat
     mass = float(model.ball_params[P_MASS])
     radius = float(model.ball_params[P_RADIUS])
     done = 0
@@ -391,9 +391,9 @@ def _net_event(state: State, events: np.ndarray, k: int, p0, v0, contact, h: flo
     ev["pos"] = p0 + v0 * contact.toi * h
     ev["normal"] = normal
     ev["vel_in"] = v0
-    ev["vel_out"] = state.ball_y[3:6]
-    ev["spin_in"] = state.ball_y[6:9]
-    ev["spin_out"] = state.ball_y[6:9]
+    ev["vel_out"] = state.ball_flat[3:6]
+    ev["spin_in"] = state.ball_flat[6:9]
+    ev["spin_out"] = state.ball_flat[6:9]
     ev["normal_speed"] = max(0.0, -float(v0 @ normal))
 
 

@@ -279,7 +279,7 @@ class BatAI:
         return normal, bat_vel, got_w
 
     # --- planning -----------------------------------------------------------------------
-    def _think(self, now: float, ball_y: np.ndarray, end_sign: int, serve: bool, start_time: float, first_row: int):
+    def _think(self, now: float, ball_flat: np.ndarray, end_sign: int, serve: bool, start_time: float, first_row: int):
         """The stroke to play, thought out in steps (a generator: each next() does one piece, none
         much longer than PREDICT_CHUNK ticks of prediction or one shot solution); the answer is
         left in self._thought: (p, normal, bat_vel, t_hit, target), or None to let the ball go.
@@ -297,7 +297,7 @@ class BatAI:
         if n_max + 1 > self._traj.shape[0]:
             raise ValueError(f"BatAI: thinking {first_row} ticks ahead needs a longer prediction buffer")
         traj, memo = self._traj, self._memo
-        traj[0] = ball_y
+        traj[0] = ball_flat
         reset_memo(memo)
         self._adapt[:] = 0.0
         rule = STOP_SERVE_STRIKE if serve else STOP_RETURN_STRIKE
@@ -473,12 +473,12 @@ class BatAI:
     def _make_ready(end_sign: int) -> tuple[np.ndarray, np.ndarray]:
         return np.array([end_sign * (HALF_LENGTH + 0.4), 0.0, 0.15]), np.array([-end_sign, 0.0, 0.0])
 
-    def control(self, now: float, ball_y: np.ndarray, bat: np.ndarray, rally_key, my_turn: bool,
+    def control(self, now: float, ball_flat: np.ndarray, bat: np.ndarray, rally_key, my_turn: bool,
                 serve: bool, end_sign: int, out: np.ndarray | None = None) -> np.ndarray:
         """Force and torque (6,) for the bat now.
 
         Args:
-            now: s. ball_y: (9,) ball state. bat: one BAT_DTYPE record of this AI's bat, or the
+            now: s. ball_flat: (9,) ball state. bat: one BAT_DTYPE record of this AI's bat, or the
                 same bytes as a (BAT_FLOATS,) float64 array (a row of
                 bats.view('<f8').reshape(len(bats), BAT_FLOATS)), which is cheaper to pass on.
             rally_key: changes whenever the ball changes hands (new rally or a strike).
@@ -487,13 +487,13 @@ class BatAI:
             out: (6,) written and returned if given.
         """
         floats = self._bat_floats(bat)
-        self.decide(now, ball_y, floats, rally_key, my_turn, serve, end_sign)
+        self.decide(now, ball_flat, floats, rally_key, my_turn, serve, end_sign)
         if out is None:
             out = np.zeros(6)
         bat_control(now, floats, self._ctl, out)
         return out
 
-    def decide(self, now: float, ball_y: np.ndarray, floats: np.ndarray, rally_key, my_turn: bool, serve: bool,
+    def decide(self, now: float, ball_flat: np.ndarray, floats: np.ndarray, rally_key, my_turn: bool, serve: bool,
                end_sign: int) -> None:
         """control without the force: bring the plan and what bat_control tracks (self._ctl) up to
         date. floats: the bat as a (BAT_FLOATS,) float64 array (see _bat_floats)."""
@@ -501,7 +501,7 @@ class BatAI:
             self.turn_key = rally_key
             self.turn_seen_at = now
         if my_turn and self.planned_key != rally_key:
-            self._start_thinking(now, ball_y, rally_key, end_sign, serve)
+            self._start_thinking(now, ball_flat, rally_key, end_sign, serve)
         if self._thinking is not None and now >= self._thinking_due:
             if self._thinking_left:  # not thought out in time: the turn waits for the rest
                 started = time.perf_counter()
@@ -533,7 +533,7 @@ class BatAI:
         end = self._plan_end if self.plan is not None else math.inf
         return due, end
 
-    def _start_thinking(self, now: float, ball_y: np.ndarray, rally_key, end_sign: int, serve: bool) -> None:
+    def _start_thinking(self, now: float, ball_flat: np.ndarray, rally_key, end_sign: int, serve: bool) -> None:
         """Start thinking out the stroke for rally_key from the ball's state now; it is played from
         the first control tick after the reaction time (none for a service), as if thought out
         there (see _think): the ball's path from now on is known, so the thinking can start now
@@ -547,7 +547,7 @@ class BatAI:
             for _ in range(every):
                 start_time = start_time + h
             first_row += every
-        self._thinking = self._think(now, np.array(ball_y, dtype=np.float64), end_sign, serve, start_time, first_row)
+        self._thinking = self._think(now, np.array(ball_flat, dtype=np.float64), end_sign, serve, start_time, first_row)
         self._thinking_key = rally_key
         self._thinking_due = due
         self._thinking_left = True
@@ -629,13 +629,13 @@ class AIPlayers(dict):
             self._bats = bats
         return self._floats
 
-    def control(self, now: float, ball_y: np.ndarray, bats: np.ndarray, rally_key, to_strike: int, serve: bool,
+    def control(self, now: float, ball_flat: np.ndarray, bats: np.ndarray, rally_key, to_strike: int, serve: bool,
                 out: np.ndarray) -> None:
         """Every AI's force and torque into out[player] (see BatAI.control); to_strike: the player
         whose ball it is to strike next."""
         floats = self.bat_floats(bats)
         for player, ai in self.items():
-            ai.decide(now, ball_y, floats[player], rally_key, to_strike == player, serve, -1 if player == 0 else 1)
+            ai.decide(now, ball_flat, floats[player], rally_key, to_strike == player, serve, -1 if player == 0 else 1)
         control_bats(now, floats, self.ctl, self.players, out)
 
     def wakes(self) -> tuple[float, float]:

@@ -27,7 +27,7 @@ class BotBrain:
         self.ai = BatAI(self.model, self.player, SKILLS[skill], seed=seed * 1000 + self.player)
         self.ai.warm_up()
         self.bat = np.zeros((), BAT_DTYPE)
-        self.ball_y = np.zeros(9)
+        self.ball_flat = np.zeros(9)
         self.out = np.zeros(6)
         self._last = None
         self._turns = 0
@@ -44,12 +44,12 @@ class BotBrain:
         p = self.player
         if predictor is not None and predictor.tick is not None:
             ball, bat, now = predictor.ball, predictor.bat, predictor.tick * dt
-            self.ball_y[0:3], self.ball_y[3:6], self.ball_y[6:9] = ball["pos"], ball["vel"], ball["spin"]
+            self.ball_flat[0:3], self.ball_flat[3:6], self.ball_flat[6:9] = ball["pos"], ball["vel"], ball["spin"]
             self.bat["pos"], self.bat["quat"], self.bat["vel"], self.bat["ang_vel"] = (
                 bat["pos"], bat["quat"], bat["vel"], bat["ang_vel"])
         else:
             now = snapshot.tick * dt
-            self.ball_y[0:3], self.ball_y[3:6], self.ball_y[6:9] = (snapshot["ball_pos"], snapshot["ball_vel"],
+            self.ball_flat[0:3], self.ball_flat[3:6], self.ball_flat[6:9] = (snapshot["ball_pos"], snapshot["ball_vel"],
                                                                     snapshot["ball_spin"])
             self.bat["pos"], self.bat["quat"] = snapshot["bat_pos"][p], snapshot["bat_quat"][p]
             self.bat["vel"], self.bat["ang_vel"] = snapshot["bat_vel"][p], snapshot["bat_ang_vel"][p]
@@ -61,5 +61,5 @@ class BotBrain:
             self._turns += 1  # a strike: a return (the striker changed) or the service
         self._last = (rally, phase, striker)
         my_turn = next_striker(phase, int(server), int(striker)) == p
-        return self.ai.control(now, self.ball_y, self.bat, (rally, self._turns), my_turn,
+        return self.ai.control(now, self.ball_flat, self.bat, (rally, self._turns), my_turn,
                                phase == Phase.WAITING_SERVE, -1 if p == 0 else 1, self.out)

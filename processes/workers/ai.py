@@ -52,7 +52,7 @@ class Answerer:
     def __init__(self, ais, n_bats: int):
         self.ais = ais
         self.snap = np.zeros(1, physics_snapshot_dtype(n_bats))
-        self.ball_y = self.snap["ball"].view("<f8")  # views into the snapshot copy: nothing else is copied
+        self.ball_flat = self.snap["ball"].view("<f8")  # views into the snapshot copy: nothing else is copied
         self.bats = self.snap["bats"][0]
         self.rally = self.snap[0]["rally"]
         self.world = self.snap[0]["world"]
@@ -67,7 +67,7 @@ class Answerer:
         rally = self.rally
         phase, server, striker = int(rally["phase"]), int(rally["server"]), int(rally["striker"])
         rally_key = (int(rally["rally"]), int(rally["shots"]))
-        ai_inputs(self.ais, float(self.world["time"]), self.ball_y, self.bats, rally_key, phase, server, striker,
+        ai_inputs(self.ais, float(self.world["time"]), self.ball_flat, self.bats, rally_key, phase, server, striker,
                   self.inputs)
         record = self.record
         record["key"] = decision_key(*rally_key, phase, server, striker)
