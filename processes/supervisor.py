@@ -22,7 +22,8 @@ from engine.scene import Scene
 from processes.network.gateway import GatewayConfig
 from processes.runtime.control import READY_TIMEOUT_S, STARTUP_LIMIT_S, WorkerState, worker_main
 from processes.runtime.shm import Arena
-from processes.workers import PLAYERS_TIMEOUT_S, WORKERS, RunLayout, RunOptions, build_layout, workers_for
+from processes.workers import (PLAYERS_TIMEOUT_S, RunLayout, RunOptions, build_layout, worker_modules, worker_target,
+                               workers_for)
 from processes.workers.layout import EVENT_LOG_CAPACITY
 
 STOP_TIMEOUT_S = 5.0
@@ -95,7 +96,7 @@ class Supervisor:
         self.layout: RunLayout | None = None
         # forkserver: workers fork from a clean server that never ran threads or kernels.
         self._ctx = multiprocessing.get_context("forkserver")
-        self._ctx.set_forkserver_preload(["engine.world", "engine.match", "processes.workers"])
+        self._ctx.set_forkserver_preload(["engine.world", "engine.match", *worker_modules(self.kinds)])
         self.arena: Arena | None = None
         self._workers: list[_Worker] = []
 
@@ -112,7 +113,7 @@ class Supervisor:
                                                        feed_bind=worker.ready.get("feed") or ""))
         worker.process = self._ctx.Process(
             target=worker_main, name=f"pingpong-{worker.kind}",
-            args=(WORKERS[worker.kind], child, self.arena.layout(), worker.index, self.scene, options))
+            args=(worker_target(worker.kind), child, self.arena.layout(), worker.index, self.scene, options))
         worker.process.start()
         child.close()
         worker.conn = parent

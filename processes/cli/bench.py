@@ -1,5 +1,5 @@
 """`pingpong bench STUDY`: thin front end to the studies in bench/ (parse, call, format), and to
-the hand-off and match benchmarks (processes.cli.handoff, processes.cli.match).
+the match benchmark (processes.cli.match).
 
 The studies live in bench/accuracy.py, bench/effects.py, bench/net_resolution.py and bench/ringdown.py,
 next to the pytest-benchmark suite, and need a source checkout (bench/ is not an installed package) and the dev extras (scipy).
@@ -136,9 +136,7 @@ def _print_net_resolution(study, result: dict) -> None:
 def bench_command(args) -> int:
     """Run `pingpong bench STUDY`; returns the exit status."""
     if args.what == "handoff":
-        from processes.cli.handoff import handoff_command
-
-        return handoff_command(args)
+        return load_study("handoff").handoff_command(args)
     if args.what == "match":
         from processes.cli.match import bench_match_command
 

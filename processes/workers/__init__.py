@@ -1,13 +1,32 @@
 """The workers of a run: the registry the supervisor looks a worker up in, and which a scene needs."""
-from processes.workers.ai import ai_worker
-from processes.workers.gateway import gateway_worker
-from processes.workers.layout import RunLayout, build_layout
-from processes.workers.net import net_worker
-from processes.workers.options import PLAYERS_TIMEOUT_S, RunOptions
-from processes.workers.physics import physics_worker
+from importlib import import_module
 
-# Each worker is a function (control, arena, scene, options) run by processes.runtime.control.worker_main.
-WORKERS = {"physics": physics_worker, "ai": ai_worker, "net": net_worker, "gateway": gateway_worker}
+from processes.workers.layout import RunLayout, build_layout
+from processes.workers.options import PLAYERS_TIMEOUT_S, RunOptions
+
+# Each worker is a function (control, arena, scene, options) that processes.runtime.control.worker_main
+# runs, named "module:function" and imported only when a run starts it (as Gymnasium's registry
+# names its environments' entry points): importing the registry, or the run's layout, loads no worker.
+WORKERS = {
+    "physics": "processes.workers.physics:physics_worker",
+    "ai": "processes.workers.ai:ai_worker",
+    "net": "processes.workers.net:net_worker",
+    "gateway": "processes.workers.gateway:gateway_worker",
+}
+
+
+def worker_target(kind: str):
+    """The worker function registered as `kind`."""
+    try:
+        module, name = WORKERS[kind].split(":")
+    except KeyError:
+        raise ValueError(f"no worker {kind!r}; the workers are {', '.join(WORKERS)}") from None
+    return getattr(import_module(module), name)
+
+
+def worker_modules(kinds: list[str]) -> list[str]:
+    """The modules of the workers `kinds` (for a forkserver to import once, before it forks them)."""
+    return [WORKERS[kind].split(":")[0] for kind in kinds]
 
 
 def workers_for(scene) -> list[str]:
@@ -22,4 +41,5 @@ def workers_for(scene) -> list[str]:
     return kinds
 
 
-__all__ = ["PLAYERS_TIMEOUT_S", "WORKERS", "RunLayout", "RunOptions", "build_layout", "workers_for"]
+__all__ = ["PLAYERS_TIMEOUT_S", "WORKERS", "RunLayout", "RunOptions", "build_layout", "worker_modules",
+           "worker_target", "workers_for"]

@@ -84,6 +84,9 @@ def _time(fn, n) -> float:
 def measure(n: int = 5000, repeats: int = 3) -> dict:
     """Median µs per round trip of each method over `repeats` runs of `n` round trips."""
     ctx = multiprocessing.get_context("forkserver")
+    # The children fork from a server that imported what they run, as the supervisor's workers
+    # do (processes.supervisor), not the command line that started the benchmark.
+    ctx.set_forkserver_preload([__name__])
     results: dict[str, list[float]] = {"semaphore": [], "shm_spin": [], "queue": [], "lockstep_handoff": []}
     for _ in range(repeats):
         a, b = ctx.Semaphore(0), ctx.Semaphore(0)
