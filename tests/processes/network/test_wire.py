@@ -591,10 +591,21 @@ def test_a_knot_beyond_the_wires_range_is_clamped_and_counted():
     assert back[5, 0] == pytest.approx(wire.NET_MAX_OFFSET * wire.NET_STEP_M, abs=1e-12)  # the range's edge
 
 
-def test_the_wires_rest_grid_is_the_nets_built_shape():
+def test_the_wires_rest_grid_carries_the_nets_built_and_hanging_shapes():
     from net_kernel import build_topology
     from net_kernel.topology import NetSpec
 
     spec = NetSpec(cols=85, rows=8)
     rest = wire.net_rest(spec.cols, spec.rows, spec.width, spec.height)
-    np.testing.assert_array_equal(rest, build_topology(spec).knot_pos)  # the same formula, bit for bit
+    topo = build_topology(spec)
+    # the same knot order and columns, bit for bit; the built net's rows start at its hem gap and
+    # it rests in its hanging shape, which the offsets carry
+    np.testing.assert_array_equal(rest[:, :2], topo.knot_pos[:, :2])
+    for shape in (topo.knot_pos, topo.rest_pos):
+        messages, clamped = wire.net_messages(shape, cols=spec.cols, rows=spec.rows, width=spec.width,
+                                              height=spec.height, asleep=True, tick=0)
+        back = np.zeros_like(shape)
+        for data in messages:
+            wire.net_knots(decode(data), back)
+        assert clamped == 0
+        np.testing.assert_allclose(back, shape, rtol=0, atol=wire.NET_STEP_M / 2 + 1e-12)  # half a 0.01 mm step
