@@ -201,19 +201,7 @@ def test_the_live_page_draws_the_match_and_shows_the_servers_score(bridged, brow
     rig.record["rally"]["games_won"] = (1, 0)
     rig.record["rally"]["server"] = 1
     stop = threading.Event()
-
-    def serve():  # the gateway serves a ball flying along the table until the test is done
-        tick = 0
-        while not stop.is_set():
-            tick += 1
-            rig.record["world"]["tick"] = tick
-            rig.record["ball"]["pos"] = (-1.2 + 2.4 * ((tick // 10) % 100) / 100.0, 0.1, 0.25)
-            rig.clock.now += 0.001
-            rig.gateway.poll(1)
-            rig.gateway.service(rig.record)
-
-    pumping = threading.Thread(target=serve, daemon=True)
-    pumping.start()
+    pumping = _serving(rig, stop)  # a ball flying along the table until the test is done
     try:
         browser.get(url)
         state = _await_page(browser, lambda s: s["connected"] and s["frames"] > 5 and s["snapshots"] > 5)
