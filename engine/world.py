@@ -15,7 +15,6 @@ from engine.collision import (
     BAT_HALF_THICKNESS,
     BAT_RADIUS,
     BAT_ROW,
-    CONTACT_TOL,
     ERR_IMPACTS,
     ERR_NONFINITE,
     ERR_SUBSTEPS,
@@ -358,53 +357,13 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
         done += ticks
         contact = net.step(p0, v0, radius, 1.0 / mass)
         if contact.toi != NO_CONTACT:
-            if _bat_presses(model, state, events[:n], y[0:3], radius, contact.impulse):
-                # Squeezed between a bat and the cloth net, the bat yields, as it does against the
-                # table or the rigid net (engine.collision._project_out): the ball takes the net's
-                # path alone (its straight path plus the net's offset), not the bat's push.
-                y[0:3] = p0 + v0 * h
-                y[3:6] = v0
             y[0:3] += contact.offset
             y[3:6] += contact.impulse / mass
-            if model.table is not None:
-                _out_of_table(model.table, y, radius)
             _net_event(state, events, n, p0, v0, contact, h)
             n += 1
             reason = STOP_EVENT
         return done, n, STOP_NET if reason == STOP_LIMIT else reason
     return done, 0, STOP_LIMIT
-
-
-def _bat_presses(model: Model, state: State, events: np.ndarray, ball_pos: np.ndarray, radius: float,
-                 impulse: np.ndarray) -> bool:
-    """Does a bat press the ball into the cloth net: did it strike the ball in this tick (`events`,
-    the tick's contacts) or touch it at ball_pos (m; within CONTACT_TOL) at its end, while the net's
-    impulse (N s) pushes the ball back towards that bat (against the bat's outward normal)?"""
-    for ev in events:
-        if Body.BAT_A <= ev["body"] < Body.BAT_A + len(state.bats) and float(impulse @ ev["normal"]) < 0.0:
-            return True
-    axis, normal = np.zeros(3), np.zeros(3)
-    for b in range(len(state.bats)):
-        face_normal(state.bats["quat"][b], axis)
-        bat = model.scene.bats[b]
-        gap = disc_sdf(ball_pos, state.bats["pos"][b], axis, bat.radius, bat.half_thickness, normal) - radius
-        if gap <= CONTACT_TOL and float(impulse @ normal) < 0.0:
-            return True
-    return False
-
-
-def _out_of_table(table: np.ndarray, y: np.ndarray, radius: float) -> None:
-    """Move the ball (y: its flat state) out of the table along the surface's normal and take away
-    its velocity into it, in place: the cloth net's knots stop on the playing surface
-    (net_kernel/kernels/table.py) and cannot press the ball into it either (the tick kernel's
-    static-body projection, engine.collision._project_once)."""
-    normal = np.zeros(3)
-    gap = box_sdf(y[0:3], table, normal) - radius
-    if gap < 0.0:
-        y[0:3] -= gap * normal
-        inward = float(y[3:6] @ normal)
-        if inward < 0.0:
-            y[3:6] -= inward * normal
 
 
 def _in_box(box: np.ndarray, y: np.ndarray) -> bool:

@@ -51,7 +51,6 @@ def spring_forces(knot_pos, knot_vel, adj_start, adj_knot, adj_spring, spring_ij
     inv_len = 1.0 / length
     rate = np.einsum("ij,ij->i", knot_vel[j] - knot_vel[i], d)
     scale = (spring_k * (length - spring_rest) + spring_c * rate * inv_len) * inv_len
-    scale = np.where(length > spring_rest, scale, 0.0)  # slack threads push nothing
     owner = _slot_owner(adj_start)
     return _gather(scale[adj_spring][:, None] * (knot_pos[adj_knot] - knot_pos[owner]), adj_start)
 
@@ -88,7 +87,7 @@ def step_knots_scatter(knot_pos, knot_vel, knot_inv_mass, spring_ij, spring_rest
     n = d * (1.0 / length)[:, None]
     e = knot_vel[j] - knot_vel[i]
     rate = e[:, 0] * n[:, 0] + e[:, 1] * n[:, 1] + e[:, 2] * n[:, 2]
-    f = np.where(length > spring_rest, spring_k * (length - spring_rest) + spring_c * rate, 0.0)[:, None] * n
+    f = (spring_k * (length - spring_rest) + spring_c * rate)[:, None] * n
     knot_force[:] = 0.0
     # Spring s adds +f to knot i, then -f to knot j (x - f is x + (-f) exactly), in spring order.
     np.add.at(knot_force, np.stack([i, j], axis=1).ravel(), np.stack([f, -f], axis=1).reshape(-1, 3))
@@ -109,7 +108,6 @@ def _grid_t(xi, xj, vi, vj, k, c, rest):
     length = np.sqrt(length2)
     inv_len = 1.0 / length
     scale = (k * (length - rest) + c * rate * inv_len) * inv_len
-    scale = np.where(length > rest, scale, 0.0)
     return np.stack([scale * d0, scale * d1, scale * d2])
 
 
@@ -204,9 +202,6 @@ def step_knots_implicit(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, 
     length = np.linalg.norm(d, axis=1)
     n = d / length[:, None]
     rate = np.einsum("ij,ij->i", knot_vel[j] - knot_vel[i], n)
-    taut = length > spring_rest
-    spring_k = np.where(taut, spring_k, 0.0)
-    spring_c = np.where(taut, spring_c, 0.0)
     transverse = np.maximum(0.0, spring_k * (1.0 - spring_rest / length))
     a = h * h * transverse
     b_k = h * h * (spring_k - transverse)

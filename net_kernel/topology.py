@@ -4,21 +4,17 @@ Frame (DESIGN.md): the net hangs in the plane x = 0 and spans y in [-width/2, wi
 z in [hem_gap, height] (z in [0, height] when its bottom row is tied to the table). Knots sit
 on a regular grid of `cols` columns (along y) by `rows` rows (along z), numbered row-major from
 the bottom row: knot = row * cols + col. Springs are structural (horizontal, vertical) and
-shear (both diagonals) spring-dampers that act in tension only (threads, see below); the top
-row's horizontal springs are the tensioned top cord, the bottom row's the bottom cord. Springs
-between two fixed knots are left out (they could never move anything).
+shear (both diagonals) spring-dampers; the top row's horizontal springs are the tensioned top
+cord, the bottom row's the bottom cord. Springs between two fixed knots are left out (they
+could never move anything).
 
 The net is hung as ITTF Laws 2.2.2-2.2.4 and Technical Leaflet T2 describe a real one: the
 mesh hangs from a cord tied to the two posts; its bottom band carries a second cord, tied to
 the posts too, that keeps the bottom edge taut just above the playing surface; nothing holds
 it from below, so a struck net settles back onto one rest shape (the net tied to the table,
-fix_table, settles into several). Every spring is a thread or a cord, which cannot push: at or
-below its rest length it goes slack and carries nothing, spring and dashpot alike
-(net_kernel/kernels/__init__.py). So the mesh hangs from the top cord by its verticals and
-diagonals in tension, and a load on the cord is not carried down to the hem through columns in
-compression: the top cord's tension alone sets how far the net gauge's load depresses it
-(gauge_depression; NetSpec.cord_tension is calibrated to it). At rest two fifths of the 85 x 8
-net's springs, the ones the net's own weight shortens, hang slack.
+fix_table, buckles into several). The springs still bear compression as well as tension (a
+real net's threads go slack): at rest a third of the 85 x 8 net's shear and vertical springs
+carry up to 0.07 N in compression against the 0.49 N the whole net weighs.
 """
 import math
 from dataclasses import dataclass, field, replace
@@ -55,14 +51,12 @@ class NetSpec:
         cols: knots along y (>= 2).
         rows: knots along z (>= 2).
         knot_mass: kg per knot.
-        spring_k: N/m, stiffness of each mesh spring (k_s) in tension; every spring (mesh and
-            cords) is slack, no force at all, at or below its rest length.
-        spring_c: N s/m, axial dashpot of each mesh spring (k_d), acting while it is taut.
+        spring_k: N/m, stiffness of each mesh spring (k_s).
+        spring_c: N s/m, axial dashpot of each mesh spring (k_d).
         mesh_tension: N, pretension of the horizontal mesh springs at the built shape (the posts
             hold it; vertical springs get none, else they would pull the top cord down).
         cord_k: N/m, stiffness of each top-cord segment.
-        cord_tension: N, tension of the top cord at the built shape: the net gauge's (ITTF
-            Technical Leaflet T5; gauge_depression).
+        cord_tension: N, tension of the top cord at the built shape.
         hem_tension: N, tension of the bottom cord at the built shape (its stiffness is cord_k:
             the same cord).
         hem_gap: m, height of the bottom cord above the playing surface as built (a hanging
@@ -86,19 +80,17 @@ class NetSpec:
     spring_k: float = 2000.0
     spring_c: float = 2e-3
     mesh_tension: float = 0.5
-    # Chosen: the top cord's stability bound still allows ~60 us substeps. A soft cord (EA =
-    # cord_k x column spacing = 50 N, where a real cord's is kN), but the gauge's depression hardly
-    # feels it: a point load stretches the cord by a strain of only ~2 (depression / span)^2.
+    # Chosen: the top cord sags a few mm under the net's weight (2.5 mm on 85 x 8, sharing it with
+    # the bottom cord and the mesh) while its stability bound still allows ~60 us substeps. Not
+    # yet the net gauge's (tests/net_kernel/test_ittf.py: the model's columns carry a point load
+    # in compression, which a real net's threads cannot).
     cord_k: float = 5000.0
-    # The net gauge (GAUGE_LOAD's source: 100 g at the middle of the top depresses it by 1 cm): a
-    # taut string alone would need P span / (4 x 1 cm) = 45 N; with the net's weight on the cord
-    # 40 N gives 9.9 mm on 46 x 4 and 85 x 8 knots (tests/net_kernel/test_ittf.py).
-    cord_tension: float = 40.0
-    # Chosen: enough to keep the hem from swinging like a curtain (the ITTF asks only that the
-    # bottom be as close to the surface as possible).
+    cord_tension: float = 20.0
+    # Chosen: a tenth of the top cord's, enough to keep the hem from swinging like a curtain
+    # (the ITTF asks only that the bottom be as close to the surface as possible).
     hem_tension: float = 2.0
-    # Chosen: the hem sags ~2 mm under the net's weight at mid-span, so it rests ~2 mm above the
-    # playing surface (ITTF 2.2.4: "as close as possible").
+    # Chosen: the hem sags ~2.5 mm under the net's weight at mid-span, so it rests ~1.5 mm above
+    # the playing surface (ITTF 2.2.4: "as close as possible").
     hem_gap: float = 0.004
     # Chosen, not measured: a hanging net's slowest sway (~5 Hz) loses most of its amplitude within
     # a second. The mesh modes a ball excites (60-97 Hz at the struck point) then ring with damping

@@ -7,15 +7,10 @@ loop, a baseline for the profile, not used by NetSim). Numba only; the numpy twi
 net_kernel/reference.py.
 
 Model (issue 4, after Provot, "Deformation constraints in a mass-spring model", Graphics
-Interface 1995): each spring s between knots i and j is a spring-damper in tension only; with
+Interface 1995): each spring s between knots i and j is a spring-damper; with
 L = x_j - x_i, n = L/|L|, the force on knot i is
 
-    f_i = (k_s (|L| - L_rest) + k_d ((v_j - v_i) . n)) n  if |L| > L_rest, else 0,      f_j = -f_i.
-
-A net's threads and cords cannot push: at or below its rest length a spring is slack, spring
-and dashpot alike (its potential is k_s max(|L| - L_rest, 0)^2 / 2). The test is a select on the
-spring's scale, not a branch, so the spring loops stay vectorised; the implicit solver drops a
-slack spring's Hessian block with its force.
+    f_i = (k_s (|L| - L_rest) + k_d ((v_j - v_i) . n)) n,      f_j = -f_i.
 
 Determinism: every sum over springs here is a per-knot gather in a fixed order: over the CSR
 adjacency (knot i sums its own springs in the topology's slot order), or, in the grid kernels

@@ -64,8 +64,7 @@ def step_knots(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_sprin
         # Spring s's force over its length (N/m): the force on knot i is scale * (x_j - x_i).
         length = math.sqrt(length2[s])
         inv_len = 1.0 / length
-        scale = (spring_k[s] * (length - spring_rest[s]) + spring_c[s] * rate[s] * inv_len) * inv_len
-        spring_scale[s] = scale if length > spring_rest[s] else 0.0  # slack: no force (a select: no branch)
+        spring_scale[s] = (spring_k[s] * (length - spring_rest[s]) + spring_c[s] * rate[s] * inv_len) * inv_len
     # The knot pass is written out in both kernels, not shared through an inline helper: through
     # a helper (inline="always" or a plain njit call) the pass was several times slower.
     for i in prange(knot_pos.shape[0]):
@@ -135,8 +134,7 @@ def step_knots_serial(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, ad
         # Spring s's force over its length (N/m): the force on knot i is scale * (x_j - x_i).
         length = math.sqrt(length2[s])
         inv_len = 1.0 / length
-        scale = (spring_k[s] * (length - spring_rest[s]) + spring_c[s] * rate[s] * inv_len) * inv_len
-        spring_scale[s] = scale if length > spring_rest[s] else 0.0  # slack: no force (a select: no branch)
+        spring_scale[s] = (spring_k[s] * (length - spring_rest[s]) + spring_c[s] * rate[s] * inv_len) * inv_len
     for i in range(knot_pos.shape[0]):  # the same knot pass as step_knots, keep the two in step
         w = knot_inv_mass[i]
         x = knot_pos

@@ -68,7 +68,6 @@ def _grid_line(x, v, ri, rj, qi, qj, n, k, c, rest, work, row):
         length = math.sqrt(length2)
         inv_len = 1.0 / length
         scale = (k * (length - rest) + c * rate * inv_len) * inv_len
-        scale = scale if length > rest else 0.0  # a slack thread pushes nothing (a select: no branch)
         work[row, q] = scale * d0
         work[row + 1, q] = scale * d1
         work[row + 2, q] = scale * d2

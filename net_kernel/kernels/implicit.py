@@ -47,18 +47,15 @@ def _spring_prepare(knot_pos, knot_vel, spring_ij, spring_rest, spring_k, spring
         n2 = d2 / length
         rate = ((knot_vel[j, 0] - knot_vel[i, 0]) * n0 + (knot_vel[j, 1] - knot_vel[i, 1]) * n1
                 + (knot_vel[j, 2] - knot_vel[i, 2]) * n2)
-        # A slack thread (no longer than its rest length) has no force and no Hessian block.
-        taut = length > spring_rest[s]
-        k = spring_k[s] if taut else 0.0
-        c = spring_c[s] if taut else 0.0
+        k = spring_k[s]
         transverse = max(0.0, k * (1.0 - spring_rest[s] / length))
         spring_work[s, 0] = n0
         spring_work[s, 1] = n1
         spring_work[s, 2] = n2
         spring_work[s, 3] = h * h * transverse
         spring_work[s, 4] = h * h * (k - transverse)
-        spring_work[s, 5] = h * c
-        spring_work[s, 6] = k * (length - spring_rest[s]) + c * rate
+        spring_work[s, 5] = h * spring_c[s]
+        spring_work[s, 6] = k * (length - spring_rest[s]) + spring_c[s] * rate
 
 
 @njit(cache=True, fastmath=False)

@@ -39,7 +39,6 @@ def step_knots_scatter(knot_pos, knot_vel, knot_inv_mass, spring_ij, spring_rest
         rate = ((knot_vel[j, 0] - knot_vel[i, 0]) * n0 + (knot_vel[j, 1] - knot_vel[i, 1]) * n1
                 + (knot_vel[j, 2] - knot_vel[i, 2]) * n2)
         f = spring_k[s] * (length - spring_rest[s]) + spring_c[s] * rate
-        f = f if length > spring_rest[s] else 0.0  # a slack thread pushes nothing
         knot_force[i, 0] += f * n0
         knot_force[i, 1] += f * n1
         knot_force[i, 2] += f * n2

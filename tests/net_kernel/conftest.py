@@ -25,7 +25,7 @@ def net_energy(topo, knot_pos, knot_vel, gravity):
     free = topo.knot_inv_mass > 0
     kinetic = 0.5 * np.sum(topo.knot_mass[free] * np.sum(knot_vel[free] ** 2, axis=1))
     d = knot_pos[topo.spring_ij[:, 1]] - knot_pos[topo.spring_ij[:, 0]]
-    stretch = np.maximum(np.linalg.norm(d, axis=1) - topo.spring_rest, 0.0)  # slack threads store nothing
+    stretch = np.linalg.norm(d, axis=1) - topo.spring_rest
     elastic = 0.5 * np.sum(topo.spring_k * stretch**2)
     potential = gravity * np.sum(topo.knot_mass[free] * knot_pos[free, 2])
     return kinetic + elastic + potential
