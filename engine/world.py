@@ -15,6 +15,7 @@ from engine.collision import (
     BAT_HALF_THICKNESS,
     BAT_RADIUS,
     BAT_ROW,
+    CONTACT_TOL,
     ERR_IMPACTS,
     ERR_NONFINITE,
     ERR_SUBSTEPS,
@@ -316,7 +317,9 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
                         gone_z: float, deadline: float) -> tuple[int, int, int]:
     """advance() with a cloth net: the ball's ticks by the kernel, and near the net (or while the
     net is awake) tick by tick, each followed by the net's step with the ball's contact
-    (net_kernel.NetSim.step: the net moves the ball by `offset` and gives it `impulse`).
+    (net_kernel.NetSim.step: the net moves the ball by `offset` and gives it `impulse`). The net
+    cannot press the ball into the table, and a bat that presses the ball into the net is stopped
+    by it (the bats do not collide with the cloth itself; _bats_pressing, _stop_bat).
 
     Out of the net's reach (model.cloth_reach) the ball's ticks run in one kernel call and the net
     is then stepped as many ticks without it (NetSim.step_free): neither depends on the other
@@ -357,13 +360,70 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
         done += ticks
         contact = net.step(p0, v0, radius, 1.0 / mass)
         if contact.toi != NO_CONTACT:
+            pressing = _bats_pressing(model, state, events[:n], y[0:3], radius, contact.impulse)
+            if pressing:
+                # Squeezed between a bat and the cloth net, the ball takes the net's path alone (its
+                # straight path plus the net's offset), not the bat's push, and stops the bat (below):
+                # the net holds the ball as the table or the rigid net do (engine.collision._project_out).
+                y[0:3] = p0 + v0 * h
+                y[3:6] = v0
             y[0:3] += contact.offset
             y[3:6] += contact.impulse / mass
+            if model.table is not None:
+                _out_of_table(model.table, y, radius)
+            for b in pressing:
+                _stop_bat(model, state, b, y[0:3], radius)
             _net_event(state, events, n, p0, v0, contact, h)
             n += 1
             reason = STOP_EVENT
         return done, n, STOP_NET if reason == STOP_LIMIT else reason
     return done, 0, STOP_LIMIT
+
+
+def _bats_pressing(model: Model, state: State, events: np.ndarray, ball_pos: np.ndarray, radius: float,
+                   impulse: np.ndarray) -> list[int]:
+    """The bats that press the ball into the cloth net: each struck the ball in this tick (`events`,
+    the tick's contacts) or touches it at ball_pos (m; within CONTACT_TOL) at its end, while the
+    net's impulse (N s) pushes the ball back towards it (against its outward normal)."""
+    pressing = []
+    axis, normal = np.zeros(3), np.zeros(3)
+    for b in range(len(state.bats)):
+        struck = any(ev["body"] == Body.BAT_A + b and float(impulse @ ev["normal"]) < 0.0 for ev in events)
+        face_normal(state.bats["quat"][b], axis)
+        bat = model.scene.bats[b]
+        gap = disc_sdf(ball_pos, state.bats["pos"][b], axis, bat.radius, bat.half_thickness, normal) - radius
+        if struck or (gap <= CONTACT_TOL and float(impulse @ normal) < 0.0):
+            pressing.append(b)
+    return pressing
+
+
+def _stop_bat(model: Model, state: State, b: int, ball_pos: np.ndarray, radius: float) -> None:
+    """Bat b, pressing the ball at ball_pos (m) into the cloth net, is stopped there in place: moved
+    back along its outward normal at the ball until it just touches it, its velocity towards the
+    ball taken away (a player's bat pressed against a net is held by it)."""
+    axis, normal = np.zeros(3), np.zeros(3)
+    face_normal(state.bats["quat"][b], axis)
+    bat = model.scene.bats[b]
+    gap = disc_sdf(ball_pos, state.bats["pos"][b], axis, bat.radius, bat.half_thickness, normal) - radius
+    if gap < 0.0:
+        state.bats["pos"][b] += gap * normal
+    towards = float(state.bats["vel"][b] @ normal)
+    if towards > 0.0:
+        state.bats["vel"][b] -= towards * normal
+
+
+def _out_of_table(table: np.ndarray, y: np.ndarray, radius: float) -> None:
+    """Move the ball (y: its flat state) out of the table along the surface's normal and take away
+    its velocity into it, in place: the cloth net's knots stop on the playing surface
+    (net_kernel/kernels/table.py) and cannot press the ball into it either (the tick kernel's
+    static-body projection, engine.collision._project_once)."""
+    normal = np.zeros(3)
+    gap = box_sdf(y[0:3], table, normal) - radius
+    if gap < 0.0:
+        y[0:3] -= gap * normal
+        inward = float(y[3:6] @ normal)
+        if inward < 0.0:
+            y[3:6] -= inward * normal
 
 
 def _in_box(box: np.ndarray, y: np.ndarray) -> bool:
