@@ -151,7 +151,7 @@ def strike(air: float, moment: float, angle: float, stretch: float, slip: float,
     fs_b, e_b, fs_s = moment / a, angle * a, stretch * spec.mesh_tension
     pos, vel = np.array([-0.05, AIM[0], AIM[1]]), np.array([SPEED, 0.0, 0.0])
     quiet, asleep, marks = 0, math.inf, {}
-    for tick in range(int(round(duration / DT))):
+    for tick in range(round(duration / DT)):
         for _ in range(substeps):
             contact = sim.step(pos, vel)
             pos = pos + vel * h + contact.offset
