@@ -190,8 +190,21 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
     parser.add_argument("--quick", action="store_true", help="two cases over 0.3 s (a smoke run)")
+    parser.add_argument("--case", nargs=4, type=float, metavar=("MOMENT", "ANGLE", "STRETCH", "AIR"),
+                        help="one case instead of CASES: bending friction moment N m a knot, presliding angle rad, "
+                             "stretch friction as a fraction of the mesh tension, air damping 1/s")
+    parser.add_argument("--duration", type=float, default=max(MARKS_S), help="s of ring per case (default 4)")
     args = parser.parse_args(argv)
-    result = study(args.quick)
+    if args.case:
+        moment, angle, stretch, air = args.case
+        if not (moment >= 0 and angle > 0 and stretch >= 0 and air >= 0 and args.duration > 0):
+            parser.error(f"--case {' '.join(map(str, args.case))} --duration {args.duration}: the moment, stretch "
+                         "and air damping must be >= 0, the angle and the duration > 0")
+        name = f"moment {moment:g} N m, angle {angle:g} rad, stretch {stretch:g}, air {air:g}/s"
+        result = {"speed_m_s": SPEED, "dt_s": DT, "duration_s": args.duration,
+                  "cases": {name: strike(air, moment, angle, stretch, CASES[0][5], CASES[0][6], args.duration)}}
+    else:
+        result = study(args.quick)
     if args.json:
         print(json.dumps(result, indent=1))
         return 0
