@@ -8,7 +8,7 @@ from pathlib import Path
 
 from bench import relay
 
-ROOT = Path(__file__).resolve().parents[3]
+ROOT = Path(__file__).resolve().parents[2]
 TIMEOUT = 280  # s: the server's workers load (or, on a cold cache, compile) their kernels first
 
 
