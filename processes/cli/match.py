@@ -4,23 +4,18 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
-
-from engine import replay as replay_file
-from engine.geometry import Body
-from engine.match import Match, MatchResult, point_from_row, point_row
-from engine.rules import REASONS, Referee
-from engine.scene import SceneError, load_scene
-from engine.world import SimulationError
 from processes.cli.common import FORMATTER, add_common
 
 FRAME_EVERY = 10  # replay frames every 10 ms at 1 kHz
 
 
 def _scene(args):
+    from dataclasses import replace
+
+    from engine.scene import SceneError, load_scene
+
     scene = load_scene(args.scene)
     if scene.match is None:
         raise SceneError(f"{scene.source}: scene {scene.name!r} has no referee; `pingpong match` needs a scene "
@@ -62,6 +57,9 @@ class _Scoreboard:
 
 
 def summary_from_processes(scene, seed, result) -> dict:
+    from engine.match import MatchResult, point_from_row
+    from engine.rules import Referee
+
     points = [point_from_row(row) for row in result.points]
     spec = scene.match
     referee = Referee.restore(result.final["rally"], spec.best_of, "ab".index(spec.first_server), points)
@@ -90,6 +88,13 @@ def _print_summary(summary: dict) -> None:
 
 
 def match_command(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from engine import replay as replay_file
+    from engine.match import Match, point_row
+    from engine.scene import SceneError
+    from engine.world import SimulationError
+
     try:
         scene = _scene(args)
         ticks = scene.ticks if args.ticks is None else args.ticks
@@ -152,7 +157,7 @@ def _best_of(header: dict) -> int:
     """The recorded match's best_of, from the scene text the replay carries."""
     import tomllib
 
-    from engine.scene import parse_scene
+    from engine.scene import SceneError, parse_scene
 
     try:
         scene = parse_scene(tomllib.loads(header.get("scene_toml", "")), header["scene"])
@@ -167,6 +172,10 @@ def _scene_text(scene) -> str:
 
 
 def replay_command(args: argparse.Namespace) -> int:
+    from engine import replay as replay_file
+    from engine.geometry import Body
+    from engine.rules import REASONS
+
     try:
         data = replay_file.read(args.file)
     except replay_file.ReplayError as exc:
@@ -236,6 +245,10 @@ def replay_command(args: argparse.Namespace) -> int:
 def bench_match_command(args: argparse.Namespace) -> int:
     """`pingpong bench match`: a headless lockstep match, its realtime factor and time per worker,
     against the in-process reference in the same run (same seed, so the same match)."""
+    from dataclasses import replace
+
+    from engine.match import Match
+    from engine.scene import SceneError, load_scene
     from processes.supervisor import Supervisor
 
     try:

@@ -3,7 +3,6 @@ import argparse
 import json
 import sys
 
-from net_kernel.profile import parse_knots, profile_net
 from processes.cli.common import FORMATTER
 
 
@@ -13,6 +12,8 @@ def profile_net_command(args: argparse.Namespace) -> int:
     Returns:
         0, or 2 when --knots or --steps is malformed or the net cannot be built.
     """
+    from net_kernel.profile import parse_knots, profile_net
+
     try:
         cols, rows = parse_knots(args.knots)
         if args.steps is not None and args.steps < 1:

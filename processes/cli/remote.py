@@ -6,27 +6,19 @@ import argparse
 import json
 import os
 import sys
-import tempfile
-from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-
-from engine.scene import SceneError, load_scene, with_remote_players
-from engine.world import SimulationError
 from processes.cli.common import FORMATTER, add_common
-from processes.cli.match import summary_from_processes
-from processes.network import wire
-from processes.network.bot import BotBrain
-from processes.network.client import NO_TOKEN, Client, Rejected, curve_client_options, load_curve_key
-from processes.network.gateway import GatewayConfig
-from processes.network.interpolation import Interpolator
-from processes.network.keyboard import KeyboardPilot, TerminalKeys, top_view
-from processes.network.prediction import Predictor
-from processes.network.session import run_session
-from processes.network.wire import Slot
-from processes.supervisor import Supervisor
-from processes.workers import PLAYERS_TIMEOUT_S
+
+if TYPE_CHECKING:
+    from processes.network import wire
+    from processes.network.client import Client
+    from processes.network.wire import Slot
+
+# processes.workers.PLAYERS_TIMEOUT_S, spelled out: the parser imports no run machinery
+# (tests/processes/cli/test_cli.py checks the two agree).
+PLAYERS_TIMEOUT_S = 300.0
 
 
 def keys_command(args: argparse.Namespace) -> int:
@@ -48,6 +40,8 @@ def keys_command(args: argparse.Namespace) -> int:
 
 
 def _score_line(snapshot: wire.Message, ball_pos=None, ball_vel=None, tick=None) -> str:
+    import numpy as np
+
     s, g = snapshot["score"], snapshot["games_won"]
     b = snapshot["ball_pos"] if ball_pos is None else ball_pos
     v = snapshot["ball_vel"] if ball_vel is None else ball_vel
@@ -67,6 +61,8 @@ def _error_line(name: str, stats: dict) -> str:
 
 def keyboard_screen(summary: dict, frame: dict, slot: Slot, predictor=None) -> str:
     """The keyboard player's screen: score, top view, keys, prediction error so far."""
+    from processes.network.keyboard import top_view
+
     lines = [f"pingpong - you play {slot.name} (+ is your target)",
              _score_line(frame["snapshot"], frame["ball_pos"], frame["ball_vel"], frame["tick"]), ""]
     lines += top_view(frame["ball_pos"], frame["bat_pos"], frame["target"])
@@ -81,6 +77,9 @@ def keyboard_screen(summary: dict, frame: dict, slot: Slot, predictor=None) -> s
 
 def join_command(args: argparse.Namespace) -> int:
     """`pingpong join ADDRESS --as player|spectator [--bot]`."""
+    from processes.network.client import NO_TOKEN, Client, Rejected, curve_client_options
+    from processes.network.wire import Slot
+
     keyboard = args.role == "player" and not args.bot
     if keyboard and not sys.stdin.isatty():
         print("pingpong join: keyboard play needs a terminal (stdin is not a TTY); join a player with --bot, "
@@ -137,12 +136,25 @@ def join_command(args: argparse.Namespace) -> int:
 def _warm_up(skill: str) -> None:
     """Load (or compile) every kernel a player's client runs, with the bundled match scene: the
     kernels depend on types, not on the scene, so the served scene's objects build at once later."""
+    from engine.scene import load_scene
+    from processes.network.bot import BotBrain
+    from processes.network.prediction import Predictor
+    from processes.network.wire import Slot
+
     Predictor(load_scene("match"), Slot.A).advance_to(0)
     BotBrain("match", Slot.A, skill)
 
 
 def _play(client: Client, welcome: wire.Message, args: argparse.Namespace, keyboard: bool) -> dict:
     """The session of `pingpong join` once welcomed: bot, keyboard or spectator."""
+    from engine.scene import load_scene
+    from processes.network.bot import BotBrain
+    from processes.network.interpolation import Interpolator
+    from processes.network.keyboard import KeyboardPilot, TerminalKeys
+    from processes.network.prediction import Predictor
+    from processes.network.session import run_session
+    from processes.network.wire import Slot
+
     if client.slot == Slot.NONE:
         view = Interpolator(welcome["dt"], args.delay_ms / 1000.0)
 
@@ -171,6 +183,16 @@ def _play(client: Client, welcome: wire.Message, args: argparse.Namespace, keybo
 
 def serve_command(args: argparse.Namespace) -> int:
     """`pingpong serve`: a match in realtime worker processes, served through the gateway."""
+    import tempfile
+    from dataclasses import replace
+
+    from engine.scene import SceneError, load_scene, with_remote_players
+    from engine.world import SimulationError
+    from processes.cli.match import summary_from_processes
+    from processes.network.client import load_curve_key
+    from processes.network.gateway import GatewayConfig
+    from processes.supervisor import Supervisor
+
     try:
         scene = with_remote_players(load_scene(args.scene), args.players)
         if args.best_of is not None:
@@ -298,6 +320,7 @@ def watch_command(args: argparse.Namespace) -> int:
     """`pingpong watch ADDRESS --web HOST:PORT`: the match in the browser (processes.network.web)."""
     import threading
 
+    from processes.network.client import Rejected, curve_client_options
     from processes.network.web import WebBridge
 
     try:
@@ -342,6 +365,7 @@ def relay_command(args: argparse.Namespace) -> int:
 
     import zmq
 
+    from processes.network.client import curve_client_options
     from processes.network.relay import Relay
 
     try:
@@ -387,6 +411,8 @@ def _read_capture(source: str) -> bytes:
 
 
 def _human(message: wire.Message) -> str:
+    from processes.network import wire
+
     lines = [f"{message.kind.name.lower()}  seq {message.seq}  tick {message.tick}  flags 0x{message.flags:02x}  "
              f"({wire.SIZES[message.kind]} bytes, protocol {wire.PROTOCOL_VERSION})"]
     for name, value in message.to_dict().items():
@@ -402,6 +428,8 @@ def _human(message: wire.Message) -> str:
 
 def decode_command(args: argparse.Namespace) -> int:
     """`pingpong decode FILE|HEX`: pretty-print one captured message; exit 2 if it is bad."""
+    from processes.network import wire
+
     try:
         data = _read_capture(args.message)
     except (ValueError, OSError) as err:

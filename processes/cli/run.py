@@ -5,13 +5,12 @@ import argparse
 import json
 import sys
 
-from engine.run import run
-from engine.scene import SceneError, load_scene, with_overrides
-from engine.world import SimulationError
 from processes.cli.common import FORMATTER, add_common
 
 
 def _load(args: argparse.Namespace):
+    from engine.scene import load_scene, with_overrides
+
     scene = load_scene(args.scene)
     changes = {}
     if getattr(args, "dt", None) is not None:
@@ -74,6 +73,10 @@ def _process_summary(result, reference=None) -> dict:
 
 def run_scene_command(args: argparse.Namespace) -> int:
     """Run a scene in-process, or in worker processes with --processes, and print the summary."""
+    from engine.run import run
+    from engine.scene import SceneError
+    from engine.world import SimulationError
+
     try:
         scene = _load(args)
         if args.ticks is not None and args.ticks < 0:

@@ -13,14 +13,9 @@ import itertools
 import json
 import os
 import sys
-import tomllib
 from pathlib import Path
 
-from rich.console import Console
-from rich.table import Table
-
-from engine.scene import SceneError, load_scene
-from processes.cli import standings, tournament
+from processes.cli import tournament
 from processes.cli.common import FORMATTER
 
 CELLS_FILE = "cells.jsonl"
@@ -28,6 +23,8 @@ CELLS_FILE = "cells.jsonl"
 
 def parse_values(text: str) -> list:
     """V1,V2,...: TOML values (numbers, booleans, arrays, quoted strings), or bare words as strings."""
+    import tomllib
+
     try:
         values = tomllib.loads(f"v = [{text}]")["v"]
     except tomllib.TOMLDecodeError:
@@ -65,6 +62,8 @@ def cells_of(grid: dict[str, list]) -> list[dict]:
 
 def cell_summary(cell: dict, records: list[dict], profiles: list[str]) -> dict:
     """A cell's standings, with its overrides and its mean rally length over all its points."""
+    from processes.cli import standings
+
     table = standings.standings(records, profiles)
     points = sum(sum(r["points"]) for r in records)
     shots = sum(r["mean_rally_shots"] * sum(r["points"]) for r in records)
@@ -79,6 +78,9 @@ def _write_cells(path: Path, cells: list[dict]) -> None:
 
 
 def _print_cells(cells: list[dict], multi: bool) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
     grid = Table(title="sweep")
     columns = ["cell", "matches", "end A wins [95 %]", "mean rally shots", "realtime factor", "points lost by"]
     if multi:
@@ -110,6 +112,9 @@ def sweep_command(args: argparse.Namespace) -> int:
         0; 2 for a bad --set, option or scene (before any match runs); 130 after Ctrl-C, 1
         after a failed task.
     """
+    from engine.scene import SceneError, load_scene
+    from processes.cli import standings
+
     try:
         tournament.check_run_options(args)
         cells = cells_of(parse_sets(args.set))

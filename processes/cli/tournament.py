@@ -10,24 +10,23 @@ from __future__ import annotations
 
 import argparse
 import json
-import multiprocessing
 import os
 import signal
 import sys
 import time
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from rich.console import Console
-from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn,
-                           TimeRemainingColumn)
-
-from engine.match import match_hash, match_record, match_scene
-from engine.scene import SKILL_NAMES, Scene, SceneError, load_scene
-from processes.cli import standings
 from processes.cli.common import FORMATTER
+
+if TYPE_CHECKING:
+    from engine.scene import Scene
+
+# engine.scene.SKILL_NAMES, spelled out: the parser imports no engine (tests/processes/cli/test_cli.py
+# checks the two agree).
+SKILL_NAMES = ("pro", "club", "novice")
 
 MAX_RETRIES = 3  # Ray re-runs a task whose worker died this many times (Ray's task retries)
 WAIT_S = 1.0  # each wait for finished tasks is bounded: the progress bar and Ctrl-C stay live
@@ -60,6 +59,8 @@ def record_key(record: dict) -> tuple:
 def plan(scene: Scene, pairs: list[tuple[str, str]], seeds: int, best_of: int | None, max_ticks: int | None,
          cell: dict | None = None) -> list[MatchTask]:
     """The tasks of `pairs` (skill at end A, skill at end B) over seeds 0 .. seeds - 1."""
+    from engine.match import match_hash, match_scene
+
     tasks = []
     for a, b in pairs:
         played = match_scene(scene, a, b, best_of)
@@ -83,6 +84,8 @@ def play(task: MatchTask, crash_marker: str | None = None) -> dict:
     crash_marker: fault injection for the tests: if that file does not exist yet, create it and
     SIGKILL this process, so the first attempt of the task dies as a crashed worker would.
     """
+    from engine.match import match_record
+
     if crash_marker is not None and not os.path.exists(crash_marker):
         Path(crash_marker).touch()
         os.kill(os.getpid(), signal.SIGKILL)
@@ -131,6 +134,9 @@ def _ignore_sigint() -> None:
 
 def _local_results(tasks: list[MatchTask], workers: int, crash_marker: str | None):
     """Finished records, in the order they finish, from a local forkserver process pool."""
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
     # forkserver, as the supervisor: numba's threads make fork() after a kernel has run unsafe.
     ctx = multiprocessing.get_context("forkserver")
     ctx.set_forkserver_preload(["engine.match"])
@@ -230,6 +236,10 @@ def run_tasks(tasks: list[MatchTask], out: Path, cluster: str, workers: int, sho
     that died; Ray re-runs a task whose worker died itself): the matches finished so far stay in
     the file (a rerun resumes), the ones running are dropped.
     """
+    from rich.console import Console
+    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn,
+                               TimeRemainingColumn)
+
     log = MatchLog(out / MATCHES_FILE)
     todo = [task for task in tasks if task.key not in log]
     skipped = len(tasks) - len(todo)
@@ -296,6 +306,9 @@ def tournament_command(args: argparse.Namespace) -> int:
         0; 2 for a bad option or scene; 130 after Ctrl-C, 1 after a failed task (the finished
         matches kept either way).
     """
+    from engine.scene import SceneError, load_scene
+    from processes.cli import standings
+
     try:
         check_run_options(args)
         skills = parse_skills(args.skills)

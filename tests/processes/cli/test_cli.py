@@ -124,3 +124,39 @@ def test_replay_pictures(tmp_path):
     done = pingpong("replay", str(path), "--png", str(png), "--gif", str(gif))
     assert done.returncode == 0, done.stderr
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and gif.read_bytes()[:6] in (b"GIF89a", b"GIF87a")
+
+
+# The help of `pingpong` and of every command, in one fresh interpreter; it prints the roots of
+# the modules it imported. `python -m processes --help` runs as runpy runs it for `-m`.
+HELP_IMPORTS = """
+import argparse, contextlib, io, json, runpy, sys
+sys.argv = ["pingpong", "--help"]
+with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):
+    runpy.run_module("processes", run_name="__main__", alter_sys=True)
+from processes.cli import build_parser, main
+commands = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)).choices
+for command in commands:
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):
+        main([command, "--help"])
+print(json.dumps({"commands": sorted(commands), "roots": sorted({name.split(".")[0] for name in sys.modules})}))
+"""
+# What the command functions import when they run, never the parser.
+HEAVY = {"numpy", "numba", "zmq", "rich", "engine", "net_kernel", "scipy", "matplotlib"}
+
+
+def test_help_imports_no_engine_numpy_numba_or_zmq():
+    done = subprocess.run([sys.executable, "-c", HELP_IMPORTS], capture_output=True, text=True, timeout=TIMEOUT,
+                          stdin=subprocess.DEVNULL)
+    assert done.returncode == 0, done.stderr
+    report = json.loads(done.stdout)
+    assert {"match", "serve", "relay", "stress", "tournament", "sweep"} <= set(report["commands"])
+    assert not HEAVY & set(report["roots"]), sorted(HEAVY & set(report["roots"]))
+
+
+def test_the_parsers_spelled_out_defaults_are_the_runs():
+    from engine.scene import SKILL_NAMES
+    from processes.cli import remote, tournament
+    from processes.workers import PLAYERS_TIMEOUT_S
+
+    assert tournament.SKILL_NAMES == SKILL_NAMES
+    assert remote.PLAYERS_TIMEOUT_S == PLAYERS_TIMEOUT_S
