@@ -70,7 +70,7 @@ class Case:
     scene: dict
     ticks: int
     expect: Callable[["Outcome"], str | None] = lambda o: None  # None = fine, else what failed
-    bat_yields: bool = False  # squeeze cases: the bat passing through the ball is the answer
+    bat_yields: bool = False  # squeeze cases: the bat yields (through the ball, or stopped by the cloth net holding it)
     conserves: bool = False  # nothing moves or pushes the ball: its energy must not rise
     long: bool = False  # run by `make test-long` / `--long`, not in the default suite
     ci: bool = True  # in the suite's tests (tests/engine/test_stability.py); False: the CLI only (slow)
