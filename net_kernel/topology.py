@@ -100,7 +100,11 @@ class NetSpec:
     # (1/2 - gamma - ln(Re / 8)), on 0.5 mm threads at 0.01-0.1 m/s (Re 0.3-3, the upper end an
     # extrapolation), ~200 m of thread per m^2 of a 1 cm mesh and 0.18 kg/m^2, gives 0.08-0.3 /s.
     # A real net loses its energy to friction in its yarns and knots (Miguel et al., "Modeling and
-    # Estimation of Internal Friction in Cloth", SIGGRAPH Asia 2013), which the model lacks.
+    # Estimation of Internal Friction in Cloth", SIGGRAPH Asia 2013), which the model lacks: no
+    # measurement of a net's or a cord's friction is published, and Dahl friction at the magnitudes
+    # fabric measurements support (bench/net_friction.py) leaves the net's slowest motion, the mesh
+    # swinging about its top cord, which bends no knot and stretches no thread to first order,
+    # ringing longer than this damping does. It stands until a struck net's free decay is measured.
     air_damping: float = 5.0
     fix_posts: bool = True
     fix_table: bool = False
