@@ -171,7 +171,8 @@ def strike(air: float, moment: float, angle: float, stretch: float, slip: float,
         if quiet >= SLEEP_TICKS and abs(pos[0]) > 0.3:
             asleep = t
             break
-    return {"asleep_s": asleep if math.isfinite(asleep) else None, "fastest_knot_m_s": marks, "ball_back_m_s": float(-vel[0]),
+    return {"asleep_s": asleep if math.isfinite(asleep) else None, "fastest_knot_m_s": marks,
+            "ball_back_m_s": float(-vel[0]),
             "rest_deviation_m": float(np.abs(sim.knot_pos - topo.rest_pos).max()),
             "friction": {"moment_N_m": moment, "presliding_angle_rad": angle, "hinge_saturation_N": fs_b,
                          "hinge_presliding_m": e_b, "stretch_saturation_N": fs_s, "stretch_presliding_m": slip,
@@ -210,7 +211,8 @@ def main(argv=None) -> int:
         return 0
     for name, case in result["cases"].items():
         speeds = " ".join(f"{t} s {v * 1e3:.0f}" for t, v in case["fastest_knot_m_s"].items())
-        sleep = f"asleep at {case['asleep_s']:.2f} s" if case["asleep_s"] is not None else f"awake at {result['duration_s']:g} s"
+        asleep = case["asleep_s"]
+        sleep = f"asleep at {asleep:.2f} s" if asleep is not None else f"awake at {result['duration_s']:g} s"
         print(f"{name}: {sleep}; fastest knot (mm/s): {speeds}; ball back at {case['ball_back_m_s']:.2f} m/s")
     return 0
 
