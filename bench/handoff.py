@@ -70,7 +70,7 @@ def _handoff_child(layout, baton, n_bats):
         record[0]["inputs"][0, 0:3] = snap[0]["ball"]["vel"]
         record[0]["tick"] = tick
         copy_record(record, answer)
-        baton.done()
+        baton.done(tick)
     del view, answer, baton
     arena.close()
 

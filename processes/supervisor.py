@@ -76,11 +76,15 @@ class Supervisor:
         seed: the match's seed. frame_every: keep a snapshot every this many ticks (replays), 0: none.
         gateway: processes.network.gateway.GatewayConfig for a scene with the effect "remote".
         players_timeout: s, a served match waits this long for its remote players, then starts.
+        handoff_s: s, one wait of the physics for the AI's or the net's answer (RunOptions).
+        slow_turn_s: fault injection for tests: every incarnation of `crash_worker` (the AI or the
+            net) answers each turn this much later, as a worker descheduled on a busy machine.
     """
 
     def __init__(self, scene: Scene, ticks: int, mode: str = "lockstep", trace: bool = False,
                  crash_at_tick: int | None = None, seed: int = 0, frame_every: int = 0,
-                 crash_worker: str = "physics", gateway=None, players_timeout: float = PLAYERS_TIMEOUT_S):
+                 crash_worker: str = "physics", gateway=None, players_timeout: float = PLAYERS_TIMEOUT_S,
+                 handoff_s: float = RunOptions.handoff_s, slow_turn_s: float = 0.0):
         self.scene = scene
         self.ticks = ticks
         self.mode = mode
@@ -92,7 +96,8 @@ class Supervisor:
         if "gateway" in self.kinds and gateway is None:
             gateway = GatewayConfig()
         self.options = RunOptions(ticks=ticks, mode=mode, trace=trace, seed=seed, frame_every=frame_every,
-                                  players_timeout=players_timeout, gateway=gateway)
+                                  players_timeout=players_timeout, gateway=gateway, handoff_s=handoff_s)
+        self.slow_turn_s = slow_turn_s
         self.layout: RunLayout | None = None
         # forkserver: workers fork from a clean server that never ran threads or kernels.
         self._ctx = multiprocessing.get_context("forkserver")
@@ -106,7 +111,8 @@ class Supervisor:
         options = replace(self.options, ai_baton=layout.ai_baton, net_baton=layout.net_baton,
                           lock_path=layout.lock_path, start_event=layout.start_event,
                           crash_at_tick=self.crash_at_tick if worker.restarts == 0 and worker.kind == self.crash_worker
-                          else None)
+                          else None,
+                          slow_turn_s=self.slow_turn_s if worker.kind == self.crash_worker else 0.0)
         if worker.kind == "gateway" and worker.ready.get("endpoint"):
             # a restarted gateway listens where its clients already are, its feed included
             options = replace(options, gateway=replace(options.gateway, bind=worker.ready["endpoint"],
@@ -255,8 +261,10 @@ class Supervisor:
                    if "remote_inputs_refused" in w.report else {}),
                 # the physics' AI control ticks (since its last start): turns given to the AI worker,
                 # and forces it computed itself on the AIs' plans; its cloth net ticks: handed to
-                # the net worker with the ball (waited for), and without it (not waited for)
-                **({k: w.report[k] for k in ("ai_turns", "ai_local_ticks", "net_ball_ticks", "net_free_ticks")
+                # the net worker with the ball (waited for), and without it (not waited for), and
+                # the ball ticks given again because the net's answer took longer than handoff_s
+                **({k: w.report[k] for k in ("ai_turns", "ai_local_ticks", "net_ball_ticks", "net_free_ticks",
+                                             "net_turns_again")
                     if k in w.report} if w.kind == "physics" else {}),
                 # the AI worker's thinking between its turns, and the strokes it had to finish late
                 **({k: w.report[k] for k in ("think_s", "late_thoughts", "late_thinking_s", "turns", "longest_turn_s")

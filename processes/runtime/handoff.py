@@ -139,6 +139,10 @@ class Baton:
             return None
         return self._words[0]
 
-    def done(self) -> None:
-        self._words[2] = self._words[0]
+    def done(self, tick: int) -> None:
+        """Say the turn for `tick` is done: the tick the worker answered, not the slot's latest
+        (a turn given again while the worker was busy with it leaves a second wake-up behind,
+        and the hub may have given the next tick by the time that one is answered; marking the
+        answer with the slot's tick would pass the old answer off as the new one's)."""
+        self._words[2] = tick
         self._done.release()

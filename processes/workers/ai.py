@@ -79,7 +79,7 @@ class Answerer:
 
 def ai_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
     """options: seed, ai_baton; crash_at_tick (tests: SIGKILL this process
-    after its first turn at or after that tick)."""
+    after its first turn at or after that tick); slow_turn_s (tests: answer each turn that much later)."""
     model = build_model(scene)
     ais = make_ais(scene, model, options.seed, eager=False)
     thinkers = list(ais.values())
@@ -121,7 +121,9 @@ def ai_worker(control: Control, arena: Arena, scene, options: RunOptions) -> Non
             busy += took
             longest = max(longest, took)
             turns += 1
-            baton.done()
+            if options.slow_turn_s:
+                time.sleep(options.slow_turn_s)  # fault injection: a descheduled worker, not synchronisation
+            baton.done(tick)
             if crash_at is not None and tick >= crash_at:
                 os.kill(os.getpid(), signal.SIGKILL)
             control.beat(tick)

@@ -27,9 +27,9 @@ from processes.runtime.shm import Arena
 from processes.workers.layout import REMOTE_INPUT_DTYPE, RUN_LOCK_NAMES, decision_key, write_ack
 from processes.workers.options import RunOptions
 
-AI_HANDOFF_S = 1.0  # one call's bound; retried while a killed AI worker is restarted
+# A hand-off waits options.handoff_s, gives the turn again (a killed worker is being restarted)
+# and waits again, for this long in all.
 AI_GIVE_UP_S = 60.0
-NET_HANDOFF_S = 1.0  # one wait's bound; retried while a killed net worker is restarted
 NET_GIVE_UP_S = 60.0
 
 
@@ -90,6 +90,7 @@ class AIDriver:
         self.n_bats = len(scene.bats)
         self.plans = PlanFollower(scene)
         self.baton = options.ai_baton.attach(arena["ai_baton"].array)
+        self.handoff_s = options.handoff_s
         self.answer = arena["ai_answer"].array
         self.view = arena["ai_view"].array
         local = arena["ai_local"].array
@@ -127,7 +128,7 @@ class AIDriver:
             return
         started = time.perf_counter()
         # The AI worker may be restarting: stay alive and ask again (the view still holds the state).
-        self.baton.wait_done_or_retry(self.turn, AI_HANDOFF_S, AI_GIVE_UP_S, self.control.beat)
+        self.baton.wait_done_or_retry(self.turn, self.handoff_s, AI_GIVE_UP_S, self.control.beat)
         answer = self.answer[0]
         if int(answer["tick"]) == self.turn:  # done with our turn: its answer, written before done
             mask = int(answer["mask"])
@@ -247,11 +248,13 @@ class RemoteNet:
         self.local = local
         self.world = world
         self.baton = options.net_baton.attach(arena["net_baton"].array)
+        self.handoff_s = options.handoff_s
         self.io = arena["net_io"].array
         self._none = np.zeros(3)
         self.waits = 0.0
         self.ball_ticks = 0  # ticks handed to the net worker with the ball (and waited for)
         self.free_ticks = 0  # ticks granted without the ball (not waited for)
+        self.turns_again = 0  # turns given again because the net's answer took longer than one wait's bound
         # Nothing known yet (a fresh run's net is as built and awake; a resumed one, whatever the
         # net says at its first answer): awake is the guess that can cost a hand-off but no bit.
         self.sleeping = False
@@ -274,16 +277,19 @@ class RemoteNet:
         started = time.perf_counter()
         tick = int(self.world["tick"]) - 1
         row = self.io[0]
+        # `turn` odd while the fields are written, even once they all are (see net_worker): the
+        # worker may wake on an earlier post at any moment and must never read half of them.
+        row["turn"] = int(row["turn"]) // 2 * 2 + 1
         row["tick"] = tick
         row["ball"][0] = ball_pos
         row["ball"][1] = ball_vel
         row["radius"] = ball_radius
         row["inv_mass"] = ball_inv_mass
-        row["turn"] += 1  # last: the worker reads it before the fields above (see net_worker)
+        row["turn"] += 1
         self.baton.give(tick)
         # The net may still be stepping free ticks, or restarting: stay alive and ask again (a
         # new turn; net_io still holds the ball).
-        self.baton.wait_done_or_retry(tick, NET_HANDOFF_S, NET_GIVE_UP_S, self._ask_again)
+        self.baton.wait_done_or_retry(tick, self.handoff_s, NET_GIVE_UP_S, self._ask_again)
         self.sleeping = bool(row["sleeping"])
         self.box[:] = row["box"]
         self.waits += time.perf_counter() - started
@@ -292,4 +298,5 @@ class RemoteNet:
 
     def _ask_again(self, tick: int) -> None:
         self.control.beat(tick)
-        self.io[0]["turn"] += 1
+        self.turns_again += 1
+        self.io[0]["turn"] += 2  # the same fields, a new turn (even: nothing is being written)

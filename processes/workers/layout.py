@@ -59,7 +59,7 @@ NET_IO_DTYPE = np.dtype([
     ("sleeping", "<i8"),  # the net sleeps after this step
     ("box", "<f8", (2, 3)),  # m, lo and hi corners of the knots' box after this step (NetSim.box)
     ("granted", "<i8"),  # the physics: the net may step every tick below this without the ball
-    ("turn", "<i8"),  # the physics: counts its ball ticks (a repeated turn counts again)
+    ("turn", "<i8"),  # the physics: two a ball tick, odd while its fields are written (a repeated turn counts again)
     ("served", "<i8"),  # the worker: the last turn it answered
 ])
 NET_BLOCKS = ("net_even", "net_odd")  # by the parity of the tick a state holds

@@ -88,7 +88,8 @@ def _publish(sim: NetSim, tick: int, state: np.ndarray, blocks) -> None:
 
 def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
     """options: net_baton (processes.runtime.handoff.Baton); crash_at_tick (tests: SIGKILL this process
-    after publishing that ball tick's state and before saying it is done, the hardest moment)."""
+    after publishing that ball tick's state and before saying it is done, the hardest moment);
+    slow_turn_s (tests: answer each ball tick that much later)."""
     topo = build_topology(scene.cloth)
     sim = NetSim(topo, scene.dt)
     compile_kernels(topo, scene.dt)  # before "ready": nothing compiles mid-run
@@ -96,6 +97,7 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
     row = arena["net_io"].array[0]
     blocks = net_blocks(arena)
     state = np.zeros(1, net_snapshot_dtype(topo.n_knots))
+    ball = np.zeros((2, 3))  # the turn's ball, copied out of net_io: m, m/s
     if newest_state(blocks, state):
         _load(sim, state[0])  # restarted: resume from the newest state
         net_tick = int(state[0]["tick"])
@@ -104,6 +106,7 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
         _publish(sim, net_tick, state, blocks)
     published = net_tick  # the tick of the newest published state
     served = int(row["served"])
+    answered = None  # the tick of the answer in net_io, once this incarnation has written one
     control.start(net_tick)
     busy = 0.0
     steps = 0
@@ -128,14 +131,32 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
             if stop:
                 busy += time.perf_counter() - t0
                 break
-            if int(row["turn"]) == served:  # a nudge, or a turn already answered
+            # `turn` is odd while the physics writes a turn's fields and even once they are all
+            # written, and its give follows: a wake-up that finds it odd, or finds it changed
+            # after the fields were read, is an earlier post (a nudge, a turn given again) and the
+            # turn's own post comes later. x86-64 keeps both orders (stores are seen in program
+            # order, loads are not passed by later loads).
+            turn = int(row["turn"])
+            if turn == served or turn % 2:  # a nudge, a turn already answered, or one being written
                 busy += time.perf_counter() - t0
                 continue
-            # A wake-up may be an earlier post than the turn's (a nudge): the turn's fields are read
-            # from net_io after its `turn`, which the physics writes after them. x86-64 keeps both
-            # orders (stores are seen in program order, loads are not passed by later loads).
-            served = int(row["turn"])
             tick = int(row["tick"])
+            ball[:] = row["ball"]
+            radius, inv_mass = float(row["radius"]), float(row["inv_mass"])
+            if int(row["turn"]) != turn:
+                busy += time.perf_counter() - t0
+                continue
+            served = turn
+            if net_tick > tick + 1 or (net_tick == tick + 1 and answered == tick):
+                # A turn given again (the physics' wait ran out while we stepped it) for the tick
+                # answered last: net_io still holds that answer. Say so again, for a physics
+                # that still waits for it; one that took it and went on skips it (Baton.done).
+                # Past it (free ticks after it), the physics has taken it: nothing to answer.
+                row["served"] = served
+                if net_tick == tick + 1:
+                    baton.done(tick)
+                busy += time.perf_counter() - t0
+                continue
             if net_tick > tick:
                 # The physics does this tick again (it was restarted): back to the state before it.
                 newest_state(blocks, state, at_most=tick)
@@ -145,21 +166,24 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
                 if not sim.sleeping:
                     raise RuntimeError(f"net worker: asked for tick {tick} at tick {net_tick} while awake; the "
                                        "ticks between were neither granted free nor given")
-            contact = sim.step(row["ball"][0], row["ball"][1], float(row["radius"]), float(row["inv_mass"]))
+            contact = sim.step(ball[0], ball[1], radius, inv_mass)
             row["toi"] = contact.toi
             row["impulse"] = contact.impulse
             row["offset"] = contact.offset
             row["sleeping"] = sim.sleeping
             row["box"] = sim.box
             net_tick = tick + 1
+            answered = tick
             _publish(sim, net_tick, state, blocks)
             published = net_tick
             row["served"] = served
             steps += 1
             busy += time.perf_counter() - t0
+            if options.slow_turn_s:
+                time.sleep(options.slow_turn_s)  # fault injection: a descheduled worker, not synchronisation
             if tick == options.crash_at_tick:
                 os.kill(os.getpid(), signal.SIGKILL)
-            baton.done()
+            baton.done(tick)
             control.beat(tick)
         control.finish(busy, 0.0, {"tick": net_tick, "busy_s": busy, "steps": steps, "awake_ticks": sim.awake_ticks})
     finally:

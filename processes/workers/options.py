@@ -23,6 +23,10 @@ class RunOptions:
         ai_baton, net_baton: the processes.runtime.handoff.Baton of the AI's and the net's turns
             (None: no such worker). lock_path: the run's lock table (a run with a gateway).
         start_event: set by the gateway while every remote seat is held (a run with a gateway).
+        handoff_s: s, the physics waits this long for the AI's or the net's answer to a turn,
+            then gives the turn again (a restarted worker takes it) and waits again.
+        slow_turn_s: fault injection for tests: this worker (the AI or the net) answers each turn
+            this much later, as one descheduled on a busy machine does (0: never).
     """
 
     ticks: int
@@ -37,6 +41,8 @@ class RunOptions:
     net_baton: Any = None
     lock_path: str | None = None
     start_event: Any = None
+    handoff_s: float = 1.0
+    slow_turn_s: float = 0.0
 
     def __post_init__(self):
         if self.mode not in ("lockstep", "realtime"):

@@ -18,7 +18,7 @@ def _take_turns(layout, baton, n):
         if tick is None:
             break
         arena["seen"].array[tick] = tick * 10
-        baton.done()
+        baton.done(tick)
     del baton
     arena.close()
 
