@@ -1,6 +1,12 @@
 """The supervisor: builds the run's shared memory, starts only the workers the scene needs,
 watches them, restarts a dead one from the last consistent snapshot, and always cleans up.
 
+A worker that dies (any exit before its "done"), stalls (silent for STALL_TIMEOUT_S) or raises
+(its exception comes back with its traceback, which is logged) is restarted the same way, and
+counted. The restart budget, as an Erlang/OTP supervisor's intensity and period: one worker may
+be restarted RESTART_BUDGET times within RESTART_WINDOW_S; one more failure within that window
+ends the run with WorkerFailed, and a served match's clients are told goodbye server_error.
+
 Cleanup holds on every exit path: normal end, an exception, Ctrl-C (KeyboardInterrupt) or
 SIGTERM (turned into SystemExit), a worker's crash. Workers get a stop command, then a bounded
 join, then terminate, then kill; every segment of the run is unlinked. Should the supervisor
@@ -9,6 +15,7 @@ the multiprocessing resource tracker unlinks the segments.
 """
 from __future__ import annotations
 
+import logging
 import multiprocessing
 import multiprocessing.connection
 import signal
@@ -28,11 +35,15 @@ from processes.workers.layout import EVENT_LOG_CAPACITY
 
 STOP_TIMEOUT_S = 5.0
 STALL_TIMEOUT_S = 10.0  # a RUNNING worker silent this long is killed and restarted
-MAX_RESTARTS = 3
+RESTART_BUDGET = 3  # restarts of one worker allowed within RESTART_WINDOW_S
+RESTART_WINDOW_S = 600.0
+
+log = logging.getLogger(__name__)
 
 
 class WorkerFailed(RuntimeError):
-    """A worker raised; the message carries its traceback."""
+    """A worker failed past its restart budget (or while starting); the message says how,
+    with the last traceback of one that raised."""
 
 
 @dataclass
@@ -60,6 +71,8 @@ class _Worker:
         self.process = None
         self.conn = None
         self.restarts = 0
+        self.restarted_at: list[float] = []  # time.monotonic() of each restart (the budget's window)
+        self.raised = 0  # exceptions it shipped back (each restarted it, as a death does)
         self.finished = False
         self.ready: dict = {}  # what the worker reported with "ready" (the gateway: its endpoint)
         self.report: dict = {}  # what it reported with "done"
@@ -76,6 +89,8 @@ class Supervisor:
         seed: the match's seed. frame_every: keep a snapshot every this many ticks (replays), 0: none.
         gateway: processes.network.gateway.GatewayConfig for a scene with the effect "remote".
         players_timeout: s, a served match waits this long for its remote players, then starts.
+        crash_kind: how `crash_worker` ends at crash_at_tick: "kill" (SIGKILL) or "raise" (an exception).
+        restart_budget: restarts of one worker allowed within RESTART_WINDOW_S; one more failure ends the run.
         handoff_s: s, one wait of the physics for the AI's or the net's answer (RunOptions).
         slow_turn_s: fault injection for tests: every incarnation of `crash_worker` (the AI or the
             net) answers each turn this much later, as a worker descheduled on a busy machine.
@@ -84,7 +99,8 @@ class Supervisor:
     def __init__(self, scene: Scene, ticks: int, mode: str = "lockstep", trace: bool = False,
                  crash_at_tick: int | None = None, seed: int = 0, frame_every: int = 0,
                  crash_worker: str = "physics", gateway=None, players_timeout: float = PLAYERS_TIMEOUT_S,
-                 handoff_s: float = RunOptions.handoff_s, slow_turn_s: float = 0.0):
+                 handoff_s: float = RunOptions.handoff_s, slow_turn_s: float = 0.0, crash_kind: str = "kill",
+                 restart_budget: int = RESTART_BUDGET):
         self.scene = scene
         self.ticks = ticks
         self.mode = mode
@@ -96,7 +112,12 @@ class Supervisor:
         if "gateway" in self.kinds and gateway is None:
             gateway = GatewayConfig()
         self.options = RunOptions(ticks=ticks, mode=mode, trace=trace, seed=seed, frame_every=frame_every,
-                                  players_timeout=players_timeout, gateway=gateway, handoff_s=handoff_s)
+                                  players_timeout=players_timeout, gateway=gateway, handoff_s=handoff_s,
+                                  crash_kind=crash_kind)
+        if restart_budget < 0:
+            raise ValueError(f"restart_budget must be >= 0 (restarts within {RESTART_WINDOW_S:.0f} s), "
+                             f"got {restart_budget}")
+        self.restart_budget = restart_budget
         self.slow_turn_s = slow_turn_s
         self.layout: RunLayout | None = None
         # forkserver: workers fork from a clean server that never ran threads or kernels.
@@ -149,24 +170,31 @@ class Supervisor:
             elif worker.process.sentinel in ready:
                 raise WorkerFailed(f"{worker.kind} worker exited with code {worker.process.exitcode} while starting")
 
-    def _restart(self, worker: _Worker, why: str, start_wall: float) -> None:
-        if worker.restarts >= MAX_RESTARTS:
-            raise WorkerFailed(f"{worker.kind} worker {why}; gave up after {MAX_RESTARTS} restarts")
-        self._reap(worker)
+    def _restart(self, worker: _Worker, why: str, start_wall: float, detail: str = "") -> None:
+        now = time.monotonic()
+        worker.restarted_at = [t for t in worker.restarted_at if now - t < RESTART_WINDOW_S]
+        if len(worker.restarted_at) >= self.restart_budget:
+            raise WorkerFailed(f"{worker.kind} worker {why}; past its restart budget ({self.restart_budget} "
+                               f"restarts within {RESTART_WINDOW_S:.0f} s, {worker.restarts} in all)\n{detail}")
+        log.warning("%s worker %s; restarting it from the last consistent snapshot (restart %d)", worker.kind, why,
+                    worker.restarts + 1)
+        self._reap(worker, "restart")
+        worker.restarted_at.append(now)
         worker.restarts += 1
         self.arena["status"].array[worker.index]["restarts"] = worker.restarts
         self._start(worker)
         self._await_ready(worker)
         worker.conn.send(("go", start_wall))
 
-    def _reap(self, worker: _Worker) -> None:
-        """Stop one worker: ask, wait (bounded), terminate, kill."""
+    def _reap(self, worker: _Worker, why: str = "shutdown") -> None:
+        """Stop one worker: ask (saying why: runtime.control.StopRequested), wait (bounded),
+        terminate, kill."""
         process = worker.process
         if process is None:
             return
         if process.is_alive():
             try:
-                worker.conn.send(("stop", None))
+                worker.conn.send(("stop", why))
             except (OSError, BrokenPipeError):
                 pass
             process.join(STOP_TIMEOUT_S)
@@ -202,8 +230,11 @@ class Supervisor:
                         worker.report = payload if isinstance(payload, dict) else {}
                         continue
                     if kind == "error":
-                        raise WorkerFailed(f"{worker.kind} worker raised {payload['type']}: {payload['message']}\n"
-                                           f"{payload['traceback']}")
+                        worker.raised += 1
+                        why = f"raised {payload['type']}: {payload['message']}"
+                        log.error("%s worker %s\n%s", worker.kind, why, payload["traceback"])
+                        self._restart(worker, why, start_wall, payload["traceback"])
+                        continue
                 if not worker.finished and worker.process.sentinel in ready:
                     self._restart(worker, f"died (exit code {worker.process.exitcode})", start_wall)
                 elif not worker.finished:
@@ -219,6 +250,7 @@ class Supervisor:
         started = time.monotonic()
         self.layout = build_layout(self.scene, self.kinds, self.ticks, self.trace, self.frame_every, self._ctx)
         self.arena = self.layout.arena
+        end = "shutdown"  # what the workers are told as they stop (the gateway's goodbye)
         try:
             self._workers = [_Worker(kind, i) for i, kind in enumerate(self.kinds)]
             for worker in self._workers:
@@ -234,10 +266,13 @@ class Supervisor:
             self._watch(start_wall, progress)
             wall = time.monotonic() - start_wall
             return self._collect(wall, startup)
+        except Exception:
+            end = "error"  # not Ctrl-C or SIGTERM: the run failed
+            raise
         finally:
             self.layout.stop_turns()  # an AI or net worker waiting for its turn exits at once
             for worker in self._workers:
-                self._reap(worker)
+                self._reap(worker, end)
             self.layout.close()
             signal.signal(signal.SIGTERM, previous_term)
 
@@ -252,6 +287,7 @@ class Supervisor:
         workers = {
             w.kind: {
                 "restarts": w.restarts,
+                "raised": w.raised,
                 "late_ticks": int(status[w.index]["late_ticks"]),
                 "max_late_s": float(status[w.index]["max_late_s"]),
                 "busy_s": float(status[w.index]["busy_s"]),

@@ -16,9 +16,11 @@ if TYPE_CHECKING:
     from processes.network.client import Client
     from processes.network.wire import Slot
 
-# processes.workers.PLAYERS_TIMEOUT_S, spelled out: the parser imports no run machinery
-# (tests/processes/cli/test_cli.py checks the two agree).
+# processes.workers.PLAYERS_TIMEOUT_S and processes.supervisor's restart budget, spelled out: the
+# parser imports no run machinery (tests/processes/cli/test_cli.py checks they agree).
 PLAYERS_TIMEOUT_S = 300.0
+RESTART_BUDGET = 3
+RESTART_WINDOW_S = 600.0
 
 
 def keys_command(args: argparse.Namespace) -> int:
@@ -191,7 +193,7 @@ def serve_command(args: argparse.Namespace) -> int:
     from processes.cli.match import summary_from_processes
     from processes.network.client import load_curve_key
     from processes.network.gateway import GatewayConfig
-    from processes.supervisor import Supervisor
+    from processes.supervisor import Supervisor, WorkerFailed
 
     try:
         scene = with_remote_players(load_scene(args.scene), args.players)
@@ -208,9 +210,9 @@ def serve_command(args: argparse.Namespace) -> int:
             stats_path = os.path.join(tmp, "gateway.json")  # the counters of a gateway stopped by Ctrl-C
             config = GatewayConfig(bind=args.bind, snapshot_hz=args.snapshot_hz, timeout_s=args.timeout,
                                    grace_s=args.grace, stats_path=stats_path, **curve)
-            crash = getattr(args, "crash_gateway_at_tick", None)
+            fault = _fault(args)
             supervisor = Supervisor(scene, ticks, "realtime", seed=args.seed, gateway=config,
-                                    players_timeout=args.wait, crash_at_tick=crash, crash_worker="gateway")
+                                    players_timeout=args.wait, restart_budget=args.restart_budget, **fault)
 
             bridges: list = []
 
@@ -229,6 +231,13 @@ def serve_command(args: argparse.Namespace) -> int:
             except KeyboardInterrupt:
                 _interrupted(args, stats_path)
                 return 130
+            except WorkerFailed as exc:
+                first = str(exc).splitlines()[0]
+                if args.json:
+                    print(json.dumps({"failed": first}), flush=True)
+                print(f"pingpong serve: the match failed: {exc}\nevery client was told goodbye server_error",
+                      file=sys.stderr)
+                return 1
             finally:
                 for bridge in bridges:
                     _stop_process(bridge)
@@ -245,6 +254,18 @@ def serve_command(args: argparse.Namespace) -> int:
         print(f"{'winner: ' + winner.upper() if winner else 'no winner'}  games: {games}  ticks {summary['ticks']}")
         print("gateway: " + ", ".join(f"{k} {v}" for k, v in summary["gateway"].items()))
     return 0
+
+
+def _fault(args: argparse.Namespace) -> dict:
+    """The Supervisor's fault injection from --fault WORKER:KIND:TICK (or --crash-gateway-at-tick)."""
+    if args.fault is None:
+        tick = getattr(args, "crash_gateway_at_tick", None)
+        return {"crash_at_tick": tick, "crash_worker": "gateway"}
+    try:
+        worker, kind, tick = args.fault.split(":")
+        return {"crash_worker": worker, "crash_kind": kind, "crash_at_tick": int(tick)}
+    except ValueError:
+        raise ValueError(f"--fault must be WORKER:KIND:TICK (e.g. physics:raise:500), got {args.fault!r}") from None
 
 
 def _web_bridge(endpoint: str, args: argparse.Namespace):
@@ -465,6 +486,11 @@ def add_commands(sub) -> None:
     serve.add_argument("--wait", type=float, default=PLAYERS_TIMEOUT_S, help="s, wait this long for every remote player before the first serve, then start anyway "
                             "(and play on when a seat empties)")
     serve.add_argument("--crash-gateway-at-tick", type=int, default=None, help=argparse.SUPPRESS)
+    # fault injection for tests and `pingpong stress`: WORKER:KIND:TICK, e.g. physics:raise:500
+    serve.add_argument("--fault", default=None, help=argparse.SUPPRESS)
+    serve.add_argument("--restart-budget", type=int, default=RESTART_BUDGET,
+                       help=f"restarts of one worker allowed within {RESTART_WINDOW_S:.0f} s; one more failure ends "
+                            "the match (clients are told goodbye server_error)")
     serve.add_argument("--web", default=None, metavar="HOST:PORT",
                        help="also show the match in the browser: a web bridge (`pingpong watch`) serves it there")
     serve.add_argument("--curve-secret", default=None, metavar="FILE",

@@ -37,7 +37,8 @@ theirs on the session (two sends, and a player's snapshots are counted per sessi
   its feed connection does. The feed serves whoever connects to its port, as the session
   port welcomes any spectator (max_spectators bounds sessions, not feed readers; with CURVE
   the feed is encrypted and the server authenticated like the sessions, clients are not).
-- goodbye to every session on shutdown (shutdown) or at the end of the match (match_over); a
+- goodbye to every session on shutdown (shutdown), when the run failed (server_error) or at the
+  end of the match (match_over); a
   peer without a session that sends anything but a hello (a session of the gateway this one
   replaced after a crash) is told goodbye (unknown_session), once per connection, and may
   hello again (a player with its token, within the grace).

@@ -54,7 +54,32 @@ GO_TIMEOUT_S = STARTUP_LIMIT_S
 
 
 class StopRequested(Exception):
-    """The supervisor asked the worker to stop, or went away."""
+    """The supervisor asked the worker to stop, or went away.
+
+    reason: why the run stops, from the stop command: "shutdown" (an ordered stop, or the
+    supervisor gone), "error" (the run failed: a worker past its restart budget), "restart"
+    (this worker alone is replaced).
+    """
+
+    def __init__(self, reason: str = "shutdown"):
+        super().__init__(reason)
+        self.reason = reason
+
+
+class InjectedFault(RuntimeError):
+    """What a worker raises when fault injection asks it to (crash_kind "raise")."""
+
+
+CRASH_KINDS = ("kill", "raise")
+
+
+def crash(kind: str, tick: int) -> None:
+    """Fault injection for tests and `pingpong stress`: end this worker at `tick` as `kind`
+    says: "kill" SIGKILLs it (a worker that dies), "raise" raises InjectedFault (a worker's
+    exception, shipped to the supervisor with its traceback like any other)."""
+    if kind == "raise":
+        raise InjectedFault(f"fault injection: raised at tick {tick}")
+    os.kill(os.getpid(), signal.SIGKILL)
 
 
 class Control:
@@ -105,7 +130,7 @@ class Control:
             if self.conn.poll(min(left, 0.2)):
                 kind, payload = self.conn.recv()
                 if kind == "stop":
-                    raise StopRequested()
+                    raise StopRequested(payload or "shutdown")
                 if kind == expected:
                     return payload
             self.check_parent()
@@ -125,9 +150,9 @@ class Control:
             self._next_check = now + self.HEARTBEAT_S
             self.row["heartbeat"] = now
             if self.conn.poll(0):
-                kind, _ = self.conn.recv()
+                kind, payload = self.conn.recv()
                 if kind == "stop":
-                    raise StopRequested()
+                    raise StopRequested(payload or "shutdown")
             self.check_parent()
 
 

@@ -27,8 +27,6 @@ strokes are the same, bit for bit, however the thinking was spread.
 """
 from __future__ import annotations
 
-import os
-import signal
 import time
 
 import numpy as np
@@ -38,7 +36,7 @@ from engine.match import ai_inputs, make_ais
 from engine.world import build_model, copy_record
 from processes.runtime.handoff import NO_TURN, HandoffTimeout
 from processes.runtime.shm import Arena
-from processes.runtime.control import Control
+from processes.runtime.control import Control, crash
 from processes.workers.layout import ANSWER_DTYPE, decision_key
 from processes.workers.options import RunOptions
 
@@ -78,7 +76,7 @@ class Answerer:
 
 
 def ai_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
-    """options: seed, ai_baton; crash_at_tick (tests: SIGKILL this process
+    """options: seed, ai_baton; crash_at_tick, crash_kind (tests: end this process
     after its first turn at or after that tick); slow_turn_s (tests: answer each turn that much later)."""
     model = build_model(scene)
     ais = make_ais(scene, model, options.seed, eager=False)
@@ -125,7 +123,7 @@ def ai_worker(control: Control, arena: Arena, scene, options: RunOptions) -> Non
                 time.sleep(options.slow_turn_s)  # fault injection: a descheduled worker, not synchronisation
             baton.done(tick)
             if crash_at is not None and tick >= crash_at:
-                os.kill(os.getpid(), signal.SIGKILL)
+                crash(options.crash_kind, tick)
             control.beat(tick)
         busy += think
         control.finish(busy, 0.0, {"tick": int(control.row["tick"]), "busy_s": busy, "think_s": think,

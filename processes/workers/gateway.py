@@ -9,8 +9,6 @@ when a net message is due, for the clients' view of the net (network.feed.NetFee
 """
 from __future__ import annotations
 
-import os
-import signal
 import time
 
 import numpy as np
@@ -20,7 +18,7 @@ from engine.dtypes import net_snapshot_dtype, physics_snapshot_dtype
 from processes.network.gateway import STATS_EVERY_S, Gateway, GatewayConfig
 from processes.network.seats import SeatStore
 from processes.network.wire import GoodbyeReason, Slot
-from processes.runtime.control import Control, StopRequested
+from processes.runtime.control import Control, StopRequested, crash
 from processes.runtime.locks import LockTable
 from processes.runtime.mailbox import Mailbox
 from processes.runtime.shm import Arena
@@ -46,8 +44,8 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
 
     options: gateway (GatewayConfig), lock_path, ticks (the run's tick limit), start_event (set
     while every remote seat is held, clear while one is empty: the physics worker waits for it
-    before the first serve and pauses while it is clear), crash_at_tick (fault injection:
-    SIGKILL this process once the physics reached that tick).
+    before the first serve and pauses while it is clear), crash_at_tick, crash_kind (fault
+    injection: end this process once the physics reached that tick).
 
     A restarted gateway binds the same endpoint and has lost its sessions, not its seats: the
     seat table lives in the supervisor's "seats" block (SeatStore), so clients that hear nothing
@@ -113,19 +111,25 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
                     start_event.clear()  # the physics pauses (and a restarted one waits)
             control.beat(gateway.tick)
             if crash_at_tick is not None and gateway.tick >= crash_at_tick:
-                os.kill(os.getpid(), signal.SIGKILL)  # fault injection (tests)
+                crash(options.crash_kind, gateway.tick)  # fault injection (tests)
             if int(rec["rally"]["winner"]) >= 0 or gateway.tick >= n_ticks:
                 gateway.broadcast_snapshot(rec, ack)  # the final state
                 reason = GoodbyeReason.MATCH_OVER
                 break
-    except StopRequested:
-        reason = GoodbyeReason.SHUTDOWN
+    except StopRequested as stop:
+        # the run stops (shutdown), fails (server_error), or this gateway alone is replaced: then,
+        # as after a crash, its sessions hear nothing and hello again to the new one
+        reason = {"error": GoodbyeReason.SERVER_ERROR, "restart": None}.get(stop.reason, GoodbyeReason.SHUTDOWN)
+        raise
+    except BaseException:
+        reason = None  # raised: restarted like a gateway that died (above)
         raise
     finally:
-        told = gateway.shutdown(reason)
+        told = gateway.shutdown(reason) if reason is not None else 0
         stats = gateway.stats()
         stats["goodbyes_at_end"] = told
-        gateway.write_stats({"goodbyes_at_end": told, "end": reason.name.lower(), "tick": gateway.tick})
+        gateway.write_stats({"goodbyes_at_end": told, "end": "restart" if reason is None else reason.name.lower(),
+                             "tick": gateway.tick})
         gateway.close()
         zctx.term()
         del record, acks, points, snapshots, box, seat_store, blocks

@@ -25,8 +25,6 @@ going back: the physics grants a tick only after deciding it, and decides it the
 """
 from __future__ import annotations
 
-import os
-import signal
 import time
 
 import numpy as np
@@ -36,7 +34,7 @@ from net_kernel import NetSim, build_topology
 from net_kernel.sim import compile_kernels, net_box
 from processes.runtime.handoff import HandoffTimeout
 from processes.runtime.shm import Arena
-from processes.runtime.control import Control
+from processes.runtime.control import Control, crash
 from processes.workers.layout import NET_BLOCKS
 from processes.workers.options import RunOptions
 
@@ -87,7 +85,7 @@ def _publish(sim: NetSim, tick: int, state: np.ndarray, blocks) -> None:
 
 
 def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
-    """options: net_baton (processes.runtime.handoff.Baton); crash_at_tick (tests: SIGKILL this process
+    """options: net_baton (processes.runtime.handoff.Baton); crash_at_tick, crash_kind (tests: end this process
     after publishing that ball tick's state and before saying it is done, the hardest moment);
     slow_turn_s (tests: answer each ball tick that much later)."""
     topo = build_topology(scene.cloth)
@@ -182,7 +180,7 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
             if options.slow_turn_s:
                 time.sleep(options.slow_turn_s)  # fault injection: a descheduled worker, not synchronisation
             if tick == options.crash_at_tick:
-                os.kill(os.getpid(), signal.SIGKILL)
+                crash(options.crash_kind, tick)
             baton.done(tick)
             control.beat(tick)
         control.finish(busy, 0.0, {"tick": net_tick, "busy_s": busy, "steps": steps, "awake_ticks": sim.awake_ticks})

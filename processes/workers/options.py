@@ -4,6 +4,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from processes.runtime.control import CRASH_KINDS
+
 # A served match waits this long for its remote players to take their seats, then starts.
 PLAYERS_TIMEOUT_S = 300.0
 
@@ -15,8 +17,9 @@ class RunOptions:
     Attributes:
         ticks: ticks the run reaches. mode: "lockstep" or "realtime".
         trace: keep every tick's physics snapshot in the "trace" array.
-        crash_at_tick: fault injection for tests and `pingpong stress`: this worker SIGKILLs
-            itself at that tick (None: never). The supervisor sets it for one incarnation of one worker.
+        crash_at_tick: fault injection for tests and `pingpong stress`: this worker ends at that
+            tick (None: never), as crash_kind says: "kill" (SIGKILL) or "raise" (an exception).
+            The supervisor sets it for one incarnation of one worker.
         seed: the match's seed. frame_every: keep a snapshot every this many ticks (replays), 0: none.
         players_timeout: s, a served match waits this long for its remote players, then starts.
         gateway: processes.network.gateway.GatewayConfig of a scene with the effect "remote".
@@ -33,6 +36,7 @@ class RunOptions:
     mode: str = "lockstep"
     trace: bool = False
     crash_at_tick: int | None = None
+    crash_kind: str = "kill"
     seed: int = 0
     frame_every: int = 0
     players_timeout: float = PLAYERS_TIMEOUT_S
@@ -47,3 +51,5 @@ class RunOptions:
     def __post_init__(self):
         if self.mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode must be lockstep or realtime, got {self.mode!r}")
+        if self.crash_kind not in CRASH_KINDS:
+            raise ValueError(f"crash_kind must be one of {', '.join(CRASH_KINDS)}, got {self.crash_kind!r}")

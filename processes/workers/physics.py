@@ -4,8 +4,6 @@ It owns the physics snapshot (published every tick), the event log and the point
 """
 from __future__ import annotations
 
-import os
-import signal
 import time
 
 import numpy as np
@@ -13,7 +11,7 @@ import numpy as np
 from engine.dtypes import physics_snapshot_dtype
 from engine.match import Match, point_from_row, point_row
 from engine.world import build_model, copy_record, initial_state, new_events, step
-from processes.runtime.control import Control
+from processes.runtime.control import Control, crash
 from processes.runtime.shm import Arena
 from processes.workers.hub import AIDriver, RemoteInputs, RemoteNet
 from processes.workers.options import RunOptions
@@ -51,6 +49,7 @@ class _Publisher:
         self.record = record
         self.total_events = total_events
         self.crash_at_tick = options.crash_at_tick
+        self.crash_kind = options.crash_kind
 
     def start(self, resumed: bool) -> None:
         """A fresh run publishes tick 0 (a restarted one resumed from the published snapshot)."""
@@ -68,14 +67,15 @@ class _Publisher:
             copy_record(self.record, self.trace, tick)
         self.snapshots.publish(self.record, tick)
         if tick == self.crash_at_tick:
-            os.kill(os.getpid(), signal.SIGKILL)
+            crash(self.crash_kind, tick)
 
 
 def physics_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
     """Run the physics ticks: lockstep (as fast as possible) or realtime (paced by the wall clock).
 
     options: ticks (total to reach), mode ("lockstep" | "realtime"), trace (bool),
-        crash_at_tick (int or None: SIGKILL this process right after publishing that tick),
+        crash_at_tick, crash_kind (int or None: end this process right after publishing that tick, by
+        SIGKILL or an exception),
         and for a match: seed, ai_baton (when the scene has AI bats), lock_path (when it has remote players).
     """
     if scene.match is not None:

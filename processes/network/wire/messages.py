@@ -81,6 +81,7 @@ class GoodbyeReason(enum.IntEnum):
     MATCH_OVER = 4  # the match is decided or reached its tick limit
     KICKED = 5  # too many bad messages, or the seat's token was used by a new connection
     UNKNOWN_SESSION = 6  # the server has no session for this connection (it restarted): hello again
+    SERVER_ERROR = 7  # the server failed (a worker failed past its restart budget): the match is over, unfinished
 
 
 HEADER_FIELDS = [
@@ -367,7 +368,7 @@ class Goodbye(_Spec):
         off  size  field   type  unit / meaning
           0    24  header        HEADER_DTYPE
          24     1  reason  u1    GoodbyeReason: 1 quit, 2 shutdown, 3 timeout, 4 match_over, 5 kicked,
-                                 6 unknown_session
+                                 6 unknown_session, 7 server_error
     """
 
     kind = Kind.GOODBYE

@@ -160,3 +160,5 @@ def test_the_parsers_spelled_out_defaults_are_the_runs():
 
     assert tournament.SKILL_NAMES == SKILL_NAMES
     assert remote.PLAYERS_TIMEOUT_S == PLAYERS_TIMEOUT_S
+    from processes import supervisor
+    assert (remote.RESTART_BUDGET, remote.RESTART_WINDOW_S) == (supervisor.RESTART_BUDGET, supervisor.RESTART_WINDOW_S)

@@ -967,6 +967,50 @@ def test_a_killed_gateway_is_restarted_on_the_same_endpoint_and_the_token_reclai
     assert not shm.leftover_segments(hello["run_id"])
 
 
+def _until_goodbye(client, rounds=6000):
+    """Heartbeat and read until the server's goodbye (None if it never came); the snapshot ticks seen."""
+    ticks = []
+    for _ in range(rounds):
+        client.heartbeat_if_due()
+        message = client.recv(100)
+        if message is not None and message.kind == Kind.GOODBYE:
+            return message, ticks
+        if message is not None and message.kind == Kind.SNAPSHOT:
+            ticks.append(message.tick)
+    return None, ticks
+
+
+@pytest.mark.timeout(180)
+@pytest.mark.parametrize("budget", [3, 0])
+def test_a_worker_that_raises_is_restarted_and_past_the_budget_clients_are_told_server_error(served, zctx, budget):
+    # The physics raises at tick 300 (the match starts when the player is seated, so it is there):
+    # within the budget it is restarted and the match goes on to its end; past it, the run ends
+    # and the player is told why: server_error, not shutdown.
+    server = _pingpong("serve", "--players", "1", "--ticks", "1500", "--fault", "physics:raise:300",
+                       "--restart-budget", str(budget), "--json")
+    served.append(server)
+    hello = json.loads(_line(server, 60))
+    player = Client(hello["listening"], "player", "ann", zctx=zctx)
+    try:
+        assert player.join(30)["slot"] == Slot.A
+        goodbye, ticks = _until_goodbye(player)
+    finally:
+        player.close()
+    assert goodbye is not None, f"no goodbye; last snapshot ticks {ticks[-5:]}"
+    if budget:
+        assert goodbye["reason"] == GoodbyeReason.MATCH_OVER and max(ticks) == 1500
+        summary = json.loads(_line(server, 60))
+        assert server.wait(30) == 0
+        assert summary["workers"]["physics"]["raised"] == 1 and summary["workers"]["physics"]["restarts"] == 1
+    else:
+        assert goodbye["reason"] == GoodbyeReason.SERVER_ERROR and max(ticks) <= 300
+        failed = json.loads(_line(server, 60))
+        assert server.wait(30) == 1
+        assert "physics worker raised InjectedFault" in failed["failed"] and "restart budget" in failed["failed"]
+        assert "Traceback" in server.stderr.read()  # logged with its traceback
+    assert not shm.leftover_segments(hello["run_id"])
+
+
 # --- acknowledged input seqs: a snapshot names exactly the inputs it shows --------------------
 def test_a_snapshot_acknowledges_the_inputs_applied_before_its_tick_not_the_next_ones(tmp_path, no_leftovers):
     """The physics applies an input after publishing tick T (for the step T -> T+1); a gateway

@@ -42,10 +42,12 @@ def test_lockstep_match_equals_the_in_process_match_bit_for_bit(no_leftovers):
 # Seed 5's last control tick before 4321 (4320) needs no decision: the forces the physics
 # computed itself are taken up from ai_local; before 4175 (4170) the AIs decide (the rally key
 # changed): their turn is in flight when the physics dies.
-@pytest.mark.parametrize("crash_at", [4321, 4175])
-def test_physics_worker_killed_mid_match_resumes_and_stays_exact(no_leftovers, crash_at):
-    result = Supervisor(SCENE, TICKS, "lockstep", trace=True, seed=5, crash_at_tick=crash_at).run()
+# A physics worker that raises (any exception) is restarted as one that dies.
+@pytest.mark.parametrize("crash_at, kind", [(4321, "kill"), (4175, "kill"), (4175, "raise")])
+def test_physics_worker_killed_mid_match_resumes_and_stays_exact(no_leftovers, crash_at, kind):
+    result = Supervisor(SCENE, TICKS, "lockstep", trace=True, seed=5, crash_at_tick=crash_at, crash_kind=kind).run()
     assert result.workers["physics"]["restarts"] == 1
+    assert result.workers["physics"]["raised"] == (kind == "raise")
     _, trace = reference_trace(5, TICKS)
     assert first_difference(result.trace, trace) is None
 

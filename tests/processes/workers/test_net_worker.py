@@ -8,7 +8,7 @@ import pytest
 from engine.geometry import Body
 from engine.run import run
 from engine.scene import load_scene, parse_scene
-from processes.supervisor import Supervisor, first_difference, workers_for
+from processes.supervisor import Supervisor, WorkerFailed, first_difference, workers_for
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -75,3 +75,23 @@ def test_a_net_answering_late_still_steps_every_tick_exactly(mode, net_scene, re
     assert result.ticks == net_scene.ticks
     assert result.workers["net"]["awake_ticks"] == reference.state.net_sim.awake_ticks
     assert first_difference(result.trace, reference.trace) is None
+
+
+@pytest.mark.parametrize("worker, at", [("net", "contact"), ("physics", 150)])
+def test_a_worker_that_raises_is_restarted_and_the_cloth_run_stays_exact(worker, at, net_scene, reference,
+                                                                         no_leftovers):
+    # An exception is treated as a death: restarted from the last consistent state, counted.
+    tick = int(next(e["tick"] for e in reference.events if int(e["body"]) == Body.NET)) if at == "contact" else at
+    result = Supervisor(net_scene, net_scene.ticks, "lockstep", trace=True, crash_at_tick=tick,
+                        crash_worker=worker, crash_kind="raise").run()
+    assert result.workers[worker]["raised"] == 1 and result.workers[worker]["restarts"] == 1
+    assert result.ticks == net_scene.ticks
+    assert first_difference(result.trace, reference.trace) is None
+
+
+def test_a_worker_past_its_restart_budget_ends_the_run_with_its_traceback(net_scene, no_leftovers):
+    supervisor = Supervisor(net_scene, net_scene.ticks, "lockstep", crash_at_tick=150, crash_worker="net",
+                            crash_kind="raise", restart_budget=0)
+    with pytest.raises(WorkerFailed, match=r"(?s)net worker raised InjectedFault: fault injection: raised at tick "
+                                           r"150; past its restart budget \(0 restarts within 600 s.*Traceback"):
+        supervisor.run()
