@@ -92,8 +92,8 @@ class Supervisor:
         crash_kind: how `crash_worker` ends at crash_at_tick: "kill" (SIGKILL) or "raise" (an exception).
         restart_budget: restarts of one worker allowed within RESTART_WINDOW_S; one more failure ends the run.
         handoff_s: s, one wait of the physics for the AI's or the net's answer (RunOptions).
-        slow_turn_s: fault injection for tests: every incarnation of `crash_worker` (the AI or the
-            net) answers each turn this much later, as a worker descheduled on a busy machine.
+        slow_turn_s: fault injection for tests: every incarnation of `crash_worker` answers each
+            turn (the AI, the net) or steps each match tick (the physics) this much later.
     """
 
     def __init__(self, scene: Scene, ticks: int, mode: str = "lockstep", trace: bool = False,
@@ -293,8 +293,7 @@ class Supervisor:
                 "busy_s": float(status[w.index]["busy_s"]),
                 "handoff_s": float(status[w.index]["handoff_s"]),
                 **({"gateway": w.report.get("gateway", {})} if w.kind == "gateway" else {}),
-                **({"remote_inputs_refused": w.report["remote_inputs_refused"]}
-                   if "remote_inputs_refused" in w.report else {}),
+                **({k: w.report[k] for k in ("remote_inputs_refused", "remote_brake_ticks") if k in w.report}),
                 # the physics' AI control ticks (since its last start): turns given to the AI worker,
                 # and forces it computed itself on the AIs' plans; its cloth net ticks: handed to
                 # the net worker with the ball (waited for), and without it (not waited for), and

@@ -44,8 +44,9 @@ theirs on the session (two sends, and a player's snapshots are counted per sessi
   hello again (a player with its token, within the grace).
 - a snapshot of tick T says in input_seq the inputs applied before the step into T (the
   physics writes them per tick into the remote_acks ring before publishing T), so a client
-  rewinds to T and replays exactly its later inputs; an input holds input_hold_s at most, then
-  the idle arm (also that of a seat without a player) brakes its bat to rest (brake_force).
+  rewinds to T and replays exactly its later inputs. The gateway only forwards inputs: the
+  physics lets go of one input_hold_s after it applied it and brakes the bat itself
+  (processes.workers.hub.RemoteInputs), as it brakes the bat of a seat without a player.
 - the seat table (tokens, names, grace) is saved to a SeatStore on every change: a gateway
   restarted after a crash restores it and a player's token still reclaims its seat.
 - with a CURVE key pair (`pingpong keys`, `serve --curve-secret`) every session and the feed are
@@ -70,7 +71,6 @@ from dataclasses import dataclass
 import numpy as np
 import zmq
 
-from engine.arm import BRAKE_EVERY_S, BRAKE_MIN_SPEED, brake_force
 from processes.network import wire
 from processes.network.feed import NetFeed, feed_socket
 from processes.network.seats import SeatStore
@@ -78,8 +78,8 @@ from processes.network.wire import GoodbyeReason, InputMode, Kind, RejectReason,
 
 # A remote arm's input holds at most this long: a client that stalls (or whose snapshots stop)
 # must not leave its bat pushed by a constant force (120 N on a 0.17 kg bat is 70 m/s in 0.1 s).
-# After it, the gateway posts a zero input (same seq) until the next input comes.
-INPUT_HOLD_S = 0.1  # a player's input is let go of (zero force) this long after it arrived
+# The physics counts it in match time from the tick it applied the input, then brakes the bat.
+INPUT_HOLD_S = 0.1  # s of match time, an input is let go of this long after the physics applied it
 MAX_BAD = 64  # bad messages one session may send before it is kicked
 MAX_STRANGERS_TOLD = 4096  # connections without a session told goodbye, remembered so each is told once
 MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messages
@@ -103,8 +103,8 @@ class GatewayConfig:
     bind: ZeroMQ endpoint; port 0 or * picks a free port (see Gateway.endpoint).
     snapshot_hz: snapshots per second to every session. heartbeat_s: a heartbeat at least this
     often. timeout_s: a silent peer is dropped after this long. grace_s: a dropped player's
-    seat waits this long for its token. input_hold_s: a player's input is let go of (zero
-    force) this long after it arrived unless another came. sndhwm: messages queued per peer before its snapshots
+    seat waits this long for its token. input_hold_s: s of match time, the physics lets go of a
+    player's input this long after it applied it unless another came, and brakes the bat. sndhwm: messages queued per peer before its snapshots
     are dropped. sndbuf: the kernel's send buffer per connection in bytes, 0: the OS default.
     max_spectators: more are told "full". curve_secret_key, curve_public_key: Z85 keys of the
     server (`pingpong keys DIR`): every session and the feed are then encrypted and a client
@@ -146,8 +146,6 @@ class _Session:
     seq_out: int = 0
     seq_in: int = 0  # highest seq received
     input_seq: int = 0  # seq of the last input accepted
-    input_at: float = 0.0  # when it arrived (clock s)
-    holding: bool = False  # it pushes (non-zero) and has not expired
     bad: int = 0
     snapshots_dropped: int = 0
 
@@ -160,12 +158,6 @@ class _Seat:
     identity: bytes | None = None
     name: str = ""
     grace_until: float = 0.0  # while empty: only `token` may take it until then
-    last_seq: int = 0  # seq of the last input posted for this bat (what an idle arm's posts carry)
-    next_brake: float = 0.0
-
-
-def _zero_inputs():
-    return np.zeros(6)
 
 
 class Gateway:
@@ -181,14 +173,12 @@ class Gateway:
         seat_store: a SeatStore the seat table is saved to on every change and restored from at
             start (a restarted gateway: seats held at its predecessor's death wait `grace_s`
             for their tokens); None: seats live and die with this object.
-        bat_mass: kg per bat (A, B): an idle remote arm brakes its bat (brake_force, from the
-            served record's velocity); None: an idle arm only lets go (zero force).
         net_grid: (cols, rows, width m, height m) of a cloth net (service_net); None: no net messages.
     """
 
     def __init__(self, zctx, config: GatewayConfig, *, scene_name: str, best_of: int, dt: float,
                  remote_slots, post_input, clock=time.monotonic, seat_store: SeatStore | None = None,
-                 bat_mass=None, net_grid=None):
+                 net_grid=None):
         self.config = config
         self.scene_name = scene_name
         self.best_of = best_of
@@ -197,8 +187,6 @@ class Gateway:
         self.clock = clock
         self.seats = {slot: _Seat(slot, slot in set(remote_slots)) for slot in (Slot.A, Slot.B)}
         self.seat_store = seat_store
-        self.bat_mass = None if bat_mass is None else tuple(float(m) for m in bat_mass)
-        self._brake = np.zeros(6)
         self.sessions: dict[bytes, _Session] = {}
         self.counts: Counter[str] = Counter()
         self.drops = wire.DropCounter()
@@ -503,10 +491,7 @@ class Gateway:
         seat = self.seats[session.slot]
         if seat.identity != session.identity:
             return
-        seat.identity = None
-        bat = int(session.slot) - 1
-        if not self.post_input(bat, session.input_seq, self.tick, _zero_inputs()):  # an absent arm holds no force
-            self.counts["mailbox_full"] += 1
+        seat.identity = None  # its last input expires in the physics, which then brakes the bat
         if keep_seat:
             seat.grace_until = self.clock() + self.config.grace_s
         else:
@@ -531,8 +516,6 @@ class Gateway:
             return
         session.input_seq = message.seq
         inputs = np.concatenate([message["force"], message["torque"]])
-        session.input_at, session.holding = self.clock(), bool(inputs.any())
-        self.seats[session.slot].last_seq = message.seq
         if self.post_input(int(session.slot) - 1, message.seq, message.tick, inputs):
             self.counts["inputs_accepted"] += 1
         else:
@@ -560,18 +543,9 @@ class Gateway:
                 elif now >= session.next_beat:
                     session.next_beat = now + self.config.heartbeat_s
                     self._send(session, self._heartbeat(session.seq_in), "heartbeats")
-        for seat in self.seats.values():  # a player's input expires on time: two seats, every call
-            session = self.sessions.get(seat.identity) if seat.identity is not None else None
-            if session is not None and session.holding and now - session.input_at > self.config.input_hold_s:
-                session.holding = False  # the arm lets go: its last input expired
-                self.counts["inputs_expired"] += 1
-                if not self.post_input(int(session.slot) - 1, session.input_seq, self.tick, _zero_inputs()):
-                    self.counts["mailbox_full"] += 1
         if record is None:
             return
         self.tick = int(record["world"]["tick"])
-        if self.bat_mass is not None:
-            self._brake_idle_arms(record, now)
         if points is not None:
             self._events(record, points)
         if now < self._next_snapshot:
@@ -595,27 +569,6 @@ class Gateway:
         beat[16:24] = self.tick.to_bytes(8, "little", signed=True)
         beat[24:32] = ack.to_bytes(8, "little")
         return beat
-
-    def _brake_idle_arms(self, record, now: float) -> None:
-        """Stop the bats of remote seats whose arm is idle: no player, or its input expired."""
-        for seat in self.seats.values():
-            if not seat.remote or now < seat.next_brake:
-                continue
-            session = self.sessions.get(seat.identity) if seat.identity is not None else None
-            if session is not None and now - session.input_at <= self.config.input_hold_s:
-                continue  # the player's own input holds
-            bat = int(seat.slot) - 1
-            vel = record["bats"]["vel"][bat]
-            speed = float(np.abs(vel).max())  # nan for a nan component
-            if speed < BRAKE_MIN_SPEED:
-                continue
-            if not np.isfinite(speed):  # no force to brake it with (nor would the physics take one)
-                self.counts["idle_arm.non_finite_bat"] += 1
-                continue
-            seat.next_brake = now + BRAKE_EVERY_S
-            self.counts["idle_arm_brakes"] += 1
-            if not self.post_input(bat, seat.last_seq, self.tick, brake_force(self.bat_mass[bat], vel, self._brake)):
-                self.counts["mailbox_full"] += 1
 
     def broadcast_snapshot(self, record, input_seq=(0, 0)) -> None:
         try:

@@ -12,9 +12,9 @@ What the client cannot know, it predicts as follows, and the statistics measure 
 - the opponent's bat coasts (its force is not on the wire): the ball meets it where it drifts;
 - an input holds from the tick it was stamped with (the server applies it on arrival, about a
   one-way trip later), and an input not yet acknowledged at T holds from T at the earliest;
-  it holds for the gateway's INPUT_HOLD_S at most (then the server's idle arm brakes the bat,
-  engine.arm.brake_force), counted in ticks from its stamp (the gateway counts from its
-  arrival, and brakes every 10 ms where the prediction brakes every tick);
+  it holds for the gateway's INPUT_HOLD_S at most (then the server's idle arm brakes the bat
+  every tick, engine.arm.brake_force), counted in ticks from its stamp (the server's physics
+  counts from the tick it applied it);
 - the ball at a snapshot is in flight (the wire has no support flag: a resting ball settles
   again within a tick);
 - a new rally's toss moves the ball where no physics takes it: a snapshot whose rally differs

@@ -164,7 +164,8 @@ DEFAULTS = {  # GatewayConfig field: (the welcome's field that announces it, mea
     "grace_s": ("", "s, a dropped player's seat waits this long for its token, then the token expires"),
     "sndhwm": ("", "messages queued per peer before its newest are dropped"),
     "max_spectators": ("", "spectator sessions at most; one more is rejected full"),
-    "input_hold_s": ("", "s, an input is let go of (zero force) this long after it arrived"),
+    "input_hold_s": ("", "s of match time, an input is let go of this long after the physics applied it; "
+                         "the server's idle arm then brakes the bat"),
 }
 
 

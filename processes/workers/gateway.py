@@ -79,12 +79,10 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
         knots = np.zeros(1, net_snapshot_dtype(spec.cols * spec.rows))
     gateway = Gateway(zctx, config, scene_name=scene.name, best_of=scene.match.best_of, dt=scene.dt,
                       remote_slots=remote, post_input=post_input, seat_store=seat_store,
-                      bat_mass=[bat.mass for bat in scene.bats], net_grid=net_grid)
+                      net_grid=net_grid)
     start_event = options.start_event
     n_ticks = options.ticks
     crash_at_tick = options.crash_at_tick
-    for slot in remote:  # a restarted gateway has no sessions yet: no remote arm holds a force
-        post_input(int(slot) - 1, 0, 0, np.zeros(6))
     reason = GoodbyeReason.SHUTDOWN
     try:
         control.start({"endpoint": gateway.endpoint, "feed": gateway.feed_endpoint})

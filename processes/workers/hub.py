@@ -14,6 +14,7 @@ from collections import Counter
 import numpy as np
 
 from engine.ai import BAT_FLOATS, CTL_NORMAL, CTL_SIZE, control_bats
+from engine.arm import brake_force
 from engine.dtypes import BAT_DTYPE
 from engine.match import Match
 from engine.world import copy_record
@@ -157,7 +158,7 @@ def remote_input_refusal(bat: int, values, remote_bats: frozenset[int]) -> str |
     """Why the physics refuses a remote input (None: it is applied).
 
     The gateway posts only inputs that wire.decode accepted (finite, |force| <= MAX_FORCE_N,
-    |torque| <= MAX_TORQUE_NM) and its idle arms' brakes; these writes bypass
+    |torque| <= MAX_TORQUE_NM); these writes bypass
     engine.world._check_inputs (they go straight into the bats' records), so the same rules
     are checked again here, where they are applied: a bad input is refused and counted by
     the caller, never applied.
@@ -182,11 +183,18 @@ def remote_input_refusal(bat: int, values, remote_bats: frozenset[int]) -> str |
 
 
 class RemoteInputs:
-    """The remote players' inputs: drained from the gateway's locked mailbox before each tick.
+    """The remote players' inputs: drained from the gateway's locked mailbox before each tick,
+    and the idle arm of each remote bat.
 
-    Each is checked again before it touches a bat (remote_input_refusal); a refused one is
+    Each input is checked again before it touches a bat (remote_input_refusal); a refused one is
     counted in `refused` by reason (reported with the worker's "done") and its seq is not
-    acknowledged.
+    acknowledged. An input holds from the tick it is applied for hold_ticks (the gateway's
+    input_hold_s of match time), unless another comes; then, and for a bat whose seat has had no
+    input yet, the arm is idle: every tick, before the step, its force is the brake of
+    engine.arm.brake_force from the bat's velocity at that tick (the law the client's
+    prediction applies too). Computed here from the state being stepped, the brake has no delay
+    whatever the load: a gateway posting it from the snapshots it saw braked with a delay that
+    grew with the load, and a PD law with enough delay drives the bat instead of stopping it.
     """
 
     def __init__(self, arena: Arena, options: RunOptions, match: Match):
@@ -198,10 +206,19 @@ class RemoteInputs:
         self.match = match
         self.remote_bats = frozenset(i for i, bat in enumerate(match.scene.bats) if bat.remote)
         self.refused: Counter[str] = Counter()
+        self.hold_ticks = max(1, round(options.gateway.input_hold_s / match.model.dt))
+        # the tick from which each bat's arm is idle; 0: from the start (a restarted physics has
+        # lost its players' holds: it brakes until their next input)
+        self.idle_from = np.zeros(len(match.scene.bats), np.int64)
+        self._idle = sorted(self.remote_bats)
+        self._mass = [float(m) for m in match.model.bat_mass]
+        self._brake = np.zeros(6)
+        self.brake_ticks = 0  # ticks stepped with an idle arm's brake, summed over the remote bats
 
-    def apply(self) -> None:
-        """Each input holds from now on: in the bat's record (held between AI ticks) and in the
-        match's inputs (which an AI control tick writes to every bat)."""
+    def apply(self, tick: int) -> None:
+        """Before the step from `tick`: each new input holds from now on, in the bat's record
+        (held between AI ticks) and in the match's inputs (which an AI control tick writes to
+        every bat); an idle arm's bat gets its brake."""
         n = self.box.drain(self.inbox)
         bats = self.match.state.bats
         for k in range(n):
@@ -215,6 +232,14 @@ class RemoteInputs:
             bats[bat]["force"] = values[0:3]
             bats[bat]["torque"] = values[3:6]
             self.applied[bat] = self.inbox[k]["seq"]
+            self.idle_from[bat] = tick + self.hold_ticks
+        for bat in self._idle:
+            if tick >= self.idle_from[bat]:
+                brake = brake_force(self._mass[bat], bats[bat]["vel"], self._brake)
+                self.match.inputs[bat] = brake
+                bats[bat]["force"] = brake[0:3]
+                bats[bat]["torque"] = brake[3:6]
+                self.brake_ticks += 1
 
     def publish_ack(self, tick: int) -> None:
         """Before the snapshot of `tick` is published: the seqs it acknowledges (the inputs applied

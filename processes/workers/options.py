@@ -28,8 +28,9 @@ class RunOptions:
         start_event: set by the gateway while every remote seat is held (a run with a gateway).
         handoff_s: s, the physics waits this long for the AI's or the net's answer to a turn,
             then gives the turn again (a restarted worker takes it) and waits again.
-        slow_turn_s: fault injection for tests: this worker (the AI or the net) answers each turn
-            this much later, as one descheduled on a busy machine does (0: never).
+        slow_turn_s: fault injection for tests: this worker answers each turn (the AI, the net)
+            or steps each tick of a match (the physics) this much later, as one descheduled on a
+            busy machine does (0: never).
     """
 
     ticks: int

@@ -75,7 +75,7 @@ def physics_worker(control: Control, arena: Arena, scene, options: RunOptions) -
 
     options: ticks (total to reach), mode ("lockstep" | "realtime"), trace (bool),
         crash_at_tick, crash_kind (int or None: end this process right after publishing that tick, by
-        SIGKILL or an exception),
+        SIGKILL or an exception), slow_turn_s (tests: a match's every tick takes that much longer),
         and for a match: seed, ai_baton (when the scene has AI bats), lock_path (when it has remote players).
     """
     if scene.match is not None:
@@ -146,6 +146,8 @@ def _finish(control: Control, tick: int, busy: float, net, options: RunOptions, 
         driver.close()
     if match:
         report.update(remote_inputs_refused={} if remote is None else dict(remote.refused))
+        if remote is not None:
+            report.update(remote_brake_ticks=remote.brake_ticks)
     if remote is not None:
         remote.close()
     report.update(busy_s=busy - handoff, handoff_s=handoff)
@@ -211,7 +213,7 @@ def _match_worker(control: Control, arena: Arena, scene, options: RunOptions) ->
             pacer.wait(tick)
         t0 = time.perf_counter()
         if remote is not None:
-            remote.apply()
+            remote.apply(tick)
         chunk = 1 if per_tick else n_ticks - tick
         if frames is not None:
             chunk = min(chunk, frame_every - tick % frame_every)
@@ -228,5 +230,7 @@ def _match_worker(control: Control, arena: Arena, scene, options: RunOptions) ->
             remote.publish_ack(tick)
         out.publish(tick, match.events, match.n_events)
         busy += time.perf_counter() - t0
+        if options.slow_turn_s:
+            time.sleep(options.slow_turn_s)  # fault injection: a physics on a busy machine, not synchronisation
         control.beat(tick)
     _finish(control, tick, busy, net, options, True, driver, remote)

@@ -221,8 +221,9 @@ class Input(_Spec):
     predicted present); the server does not schedule by it: an input holds from the first tick
     the physics steps after it arrived, until the next input, and snapshot.input_seq says from
     which tick (header seq is echoed there once the server applied it). The gateway refuses an
-    input whose slot is not the session's own, and lets go of it (zero force, same seq) if no
-    other input follows within its input_hold_s (0.1 s by default). Mode 2 (target) is
+    input whose slot is not the session's own; the physics lets go of it if no other input
+    follows within input_hold_s (0.1 s of match time by default) and then brakes the bat to
+    rest itself, every tick (engine.arm.brake_force). Mode 2 (target) is
     reserved: valid on the wire, refused by a protocol-3 gateway like another bat's input.
 
     Layout, 130 bytes:

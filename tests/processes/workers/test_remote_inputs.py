@@ -57,6 +57,7 @@ def served(tmp_path, no_leftovers):
     from processes.runtime.mailbox import MAILBOX_HEADER, Mailbox
     from processes.workers.hub import RemoteInputs
     from processes.workers.options import RunOptions
+    from processes.network.gateway import GatewayConfig
 
     scene = with_remote_players(load_scene("match_rigid"), 2)
     arena = shm.Arena()
@@ -70,7 +71,7 @@ def served(tmp_path, no_leftovers):
         arena.shared_array("remote_applied", np.dtype("<u8"), 2)
         arena.shared_array("remote_acks", REMOTE_ACK_DTYPE, REMOTE_ACK_RING)
         match = Match(scene, 0)
-        physics = RemoteInputs(arena, RunOptions(ticks=0, lock_path=lock_path), match)
+        physics = RemoteInputs(arena, RunOptions(ticks=0, lock_path=lock_path, gateway=GatewayConfig()), match)
         gateway_locks = LockTable(lock_path, RUN_LOCK_NAMES, arena["lock_holders"])
         box = Mailbox("remote_inputs", arena["remote_header"], arena["remote_inputs"], gateway_locks)
         entry = np.zeros((), REMOTE_INPUT_DTYPE)
@@ -92,21 +93,21 @@ def served(tmp_path, no_leftovers):
 def test_a_bad_remote_input_is_refused_counted_and_never_applied(served):
     match, post, physics, applied = served
     post(0, 1, [10.0, 0, 0, 0, 0, 1.0])
-    physics.apply()
+    physics.apply(0)
     before = match.state.bats.tobytes()
     post(0, 2, [math.nan, 0, 0, 0, 0, 0])
     post(1, 3, [0, 0, 0, 0, 0, math.inf])
     post(0, 4, [0, 0, 600.0, 0, 0, 0])
     post(1, 5, [0, 0, 0, 60.0, 0, 0])
     post(7, 6, [0, 0, 0, 0, 0, 0])
-    physics.apply()
+    physics.apply(0)
     assert match.state.bats.tobytes() == before  # nothing of them reached a bat ...
     assert applied.tolist() == [1, 0]  # ... nor the acknowledged seqs
     assert match.inputs[0].tolist() == [10.0, 0, 0, 0, 0, 1.0] and not match.inputs[1].any()
     assert dict(physics.refused) == {"non_finite": 2, "force_out_of_range": 1, "torque_out_of_range": 1,
                                      "not_remote_bat": 1}
     post(1, 7, [0, -5.0, 0, 0, 0, 0])  # a good one after them still applies
-    physics.apply()
+    physics.apply(0)
     assert match.state.bats["force"][1].tolist() == [0, -5.0, 0] and applied.tolist() == [1, 7]
 
 
@@ -127,7 +128,7 @@ def test_a_player_pushing_its_bat_to_the_limits_publishes_only_encodable_states(
                 force = np.array([sign, 0.6 * flip, 0.5]) * 499.0 / math.sqrt(1 + 0.36 + 0.25)
                 torque = np.array([30.0 * flip, 0.0, 40.0])
                 post(bat, seq, np.concatenate([force, torque]))
-        physics.apply()
+        physics.apply(tick)
         match.tick(1)
         record = match.state.record[0]
         wire.snapshot_from_physics(record, seq=tick, input_seq=(0, 0))  # raises WireError if unencodable
@@ -140,3 +141,65 @@ def test_a_player_pushing_its_bat_to_the_limits_publishes_only_encodable_states(
     assert worst["speed"] == pytest.approx(BAT_MAX_SPEED, rel=1e-12)
     assert worst["spin"] == pytest.approx(BAT_MAX_SPIN, rel=1e-12)
     assert worst["reach"] == HALL_HI_X
+
+
+def _braked_every_tick(mass, vel_before, force_after):
+    """The ticks t (indices of vel_before) whose force is not engine.arm's brake from the
+    velocity at t's start, bit for bit."""
+    from engine.arm import brake_force
+
+    out = np.zeros(6)
+    return [t for t in range(len(vel_before))
+            if brake_force(mass, vel_before[t], out)[0:3].tobytes() != force_after[t].tobytes()]
+
+
+def test_an_input_holds_its_hold_then_the_physics_brakes_the_bat_every_tick(served):
+    match, post, physics, applied = served
+    mass = float(match.model.bat_mass[1])
+    post(1, 1, [0, 20.0, 0, 0, 0, 0])  # a push on bat B, then nothing more
+    hold = physics.hold_ticks
+    assert hold == round(0.1 / match.model.dt)  # the gateway's input_hold_s, in ticks
+    vel, force = [], []
+    for tick in range(3 * hold):
+        physics.apply(tick)
+        vel.append(match.state.bats["vel"][1].copy())
+        match.tick(1)
+        force.append(match.state.bats["force"][1].copy())
+    assert all(f.tolist() == [0, 20.0, 0] for f in force[:hold])  # held for its hold exactly
+    assert _braked_every_tick(mass, vel[hold:], force[hold:]) == []  # then braked from each tick's state
+    speed = np.linalg.norm(vel, axis=1)
+    assert speed[hold] > 1.0 and np.all(np.diff(speed[hold:]) <= 0.0)  # moving, then never faster
+    assert physics.brake_ticks >= 2 * hold
+
+
+def test_a_still_players_bat_stays_braked_with_the_physics_slowed_on_purpose(no_leftovers):
+    # A served match whose seat A nobody takes (it starts at once, players_timeout 0), bat A
+    # thrown at 2 m/s, in realtime with every physics tick 2 ms late (about a third of realtime,
+    # as on a busy machine): every tick its force is the brake from that tick's own velocity,
+    # so it never speeds up but by the ball's touch, and it comes to rest.
+    from dataclasses import replace
+
+    from engine.arm import BRAKE_PER_S
+    from engine.geometry import Body
+    from processes.supervisor import Supervisor
+
+    scene = with_remote_players(load_scene("match_rigid"), 1)
+    scene = replace(scene, bats=(replace(scene.bats[0], vel=(0.0, 2.0, 0.0)), scene.bats[1]))
+    ticks = 1500
+    result = Supervisor(scene, ticks, "realtime", trace=True, players_timeout=0.0, crash_worker="physics",
+                        slow_turn_s=0.002).run()
+    assert result.ticks == ticks and result.workers["physics"]["late_ticks"] > 0  # it did run late
+    trace = result.trace[: ticks + 1]
+    vel, force = trace["bats"]["vel"][:, 0], trace["bats"]["force"][:, 0]
+    assert _braked_every_tick(float(scene.bats[0].mass), vel[:-1], force[1:]) == []
+    touched = {int(e["tick"]) for e in result.events if int(e["body"]) == Body.BAT_A}
+    speed = np.linalg.norm(vel, axis=1)
+    grew = [t for t in range(ticks) if speed[t + 1] > speed[t] and t not in touched]
+    assert grew == [], f"bat A sped up without the ball at ticks {grew[:10]}"
+    assert speed[0] == 2.0
+    # From the last touch (or the start) on only the brake acts: below its clip each tick takes
+    # BRAKE_PER_S * dt of the speed away, at the clip more (engine.arm), so at the end the speed
+    # is at most speed[last] (1 - BRAKE_PER_S dt)^(ticks - last); 1e-9: the float64 steps' rounding.
+    last = max(touched, default=-1) + 1
+    bound = speed[last] * (1.0 - BRAKE_PER_S * scene.dt) ** (ticks - last)
+    assert speed[-1] <= bound * (1 + 1e-9) + 1e-12, f"bat A at {speed[-1]} m/s, above the brake's {bound}"
