@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.net_friction import friction_pass
+from tests.waits import DEADLINE_S
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -88,7 +89,7 @@ def test_the_bending_friction_element_decays_a_hinged_knot_as_coulomb_friction_d
 
 def test_net_friction_quick_json():
     done = subprocess.run([sys.executable, "-m", "bench.net_friction", "--quick", "--json"], capture_output=True,
-                          text=True, timeout=600, stdin=subprocess.DEVNULL, cwd=ROOT)
+                          text=True, timeout=DEADLINE_S, stdin=subprocess.DEVNULL, cwd=ROOT)
     assert done.returncode == 0, done.stderr
     result = json.loads(done.stdout)
     assert len(result["cases"]) == 2

@@ -7,14 +7,14 @@ import sys
 from pathlib import Path
 
 from bench import relay
+from tests.waits import DEADLINE_S
 
 ROOT = Path(__file__).resolve().parents[2]
-TIMEOUT = 280  # s: the server's workers load (or, on a cold cache, compile) their kernels first
 
 
 def test_bench_relay_tiny_run_feeds_every_subscriber(capsys):
     done = subprocess.run([sys.executable, "-m", "bench.relay", "--subscribers", "3", "--hz", "60", "--seconds", "1",
-                           "--rounds", "1", "--json"], capture_output=True, text=True, timeout=TIMEOUT,
+                           "--rounds", "1", "--json"], capture_output=True, text=True, timeout=DEADLINE_S,
                           stdin=subprocess.DEVNULL, cwd=ROOT)
     assert done.returncode == 0, done.stderr
     report = json.loads(done.stdout)

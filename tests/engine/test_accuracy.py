@@ -15,6 +15,7 @@ from bench.accuracy import SHOTS, Case, compare, fitted_order, reference_shot, r
 from engine.collision import CONTACT_TOL
 from engine.integrators import ORDERS
 from engine.world import build_model
+from tests.waits import DEADLINE_S
 
 ROOT = Path(__file__).resolve().parents[2]
 LOOP = next(s for s in SHOTS if s.name == "topspin_loop")
@@ -182,7 +183,7 @@ _COUNTING = textwrap.dedent("""
 def _count_calls(effects):
     env = {**os.environ, "NUMBA_DISABLE_JIT": "1", "PYTHONPATH": str(ROOT)}
     out = subprocess.run([sys.executable, "-c", _COUNTING, json.dumps(effects)], env=env, capture_output=True,
-                         text=True, timeout=120, cwd=ROOT)
+                         text=True, timeout=DEADLINE_S, cwd=ROOT)
     assert out.returncode == 0, out.stderr
     return json.loads(out.stdout.strip().splitlines()[-1])
 
@@ -200,5 +201,5 @@ def test_engine_runs_as_plain_python():
     # STYLE.md's coverage job runs the kernels as plain Python (NUMBA_DISABLE_JIT=1).
     code = "from engine.scene import load_scene; from engine.run import run; print(run(load_scene('drop'), 3).ticks)"
     env = {**os.environ, "NUMBA_DISABLE_JIT": "1", "PYTHONPATH": str(ROOT)}
-    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120, cwd=ROOT)
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=DEADLINE_S, cwd=ROOT)
     assert out.returncode == 0, out.stderr[-400:]

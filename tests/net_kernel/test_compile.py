@@ -3,6 +3,8 @@ import json
 import subprocess
 import sys
 
+from tests.waits import DEADLINE_S
+
 # In a fresh interpreter, so no earlier test has loaded a kernel the warm-up forgot: the set of
 # signatures each numba dispatcher holds after compile_kernels, then after a match's worth of net
 # ticks (a ball through the net, ticks without it, free ticks until the net sleeps, the probe of a
@@ -41,7 +43,7 @@ print(json.dumps({"before": before, "after": signatures(), "asleep": asleep, "wo
 
 
 def test_a_match_compiles_nothing_after_compile_kernels():
-    out = subprocess.run([sys.executable, "-c", _SCRIPT], capture_output=True, text=True, timeout=600, check=True)
+    out = subprocess.run([sys.executable, "-c", _SCRIPT], capture_output=True, text=True, timeout=DEADLINE_S, check=True)
     result = json.loads(out.stdout.strip().splitlines()[-1])
     assert result["asleep"] and result["woken"]  # the run went through every path it means to
     new = {name: sorted(set(sigs) - set(result["before"].get(name, []))) for name, sigs in result["after"].items()}

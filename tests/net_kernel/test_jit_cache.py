@@ -14,6 +14,7 @@ import net_kernel
 import net_kernel.jit_cache
 from net_kernel.jit_cache import keyed_packages, sources_hash
 from net_kernel.kernels import step_grid
+from tests.waits import DEADLINE_S
 
 
 def test_any_source_change_changes_the_key(tmp_path):
@@ -69,7 +70,7 @@ _INIT = textwrap.dedent("""\
     """)
 # Prints the kernel's result, the cache directory, this file's package, and the cache directory a
 # forkserver child (which imports the packages anew) sees.
-_RUN = textwrap.dedent("""\
+_RUN = textwrap.dedent(f"""\
     import multiprocessing
     import numba
     import net_kernel
@@ -78,7 +79,7 @@ _RUN = textwrap.dedent("""\
 
     if __name__ == "__main__":
         with multiprocessing.get_context("forkserver").Pool(1) as pool:
-            child = pool.apply_async(probe.cache_dir).get(timeout=120)
+            child = pool.apply_async(probe.cache_dir).get(timeout={DEADLINE_S})
         print(twice(2.0), numba.config.CACHE_DIR, net_kernel.__file__, child)
     """)
 _PROBE = "import numba\nimport net_kernel  # noqa: F401\n\n\ndef cache_dir():\n    return numba.config.CACHE_DIR\n"
@@ -108,8 +109,8 @@ def _run(root: Path, cache_dir: Path | None) -> tuple[float, Path]:
     env["PYTHONPATH"] = str(root)
     if cache_dir is not None:
         env["NUMBA_CACHE_DIR"] = str(cache_dir)
-    out = subprocess.run([sys.executable, "run.py"], cwd=root, env=env, capture_output=True, text=True, timeout=300,
-                         check=True)
+    out = subprocess.run([sys.executable, "run.py"], cwd=root, env=env, capture_output=True, text=True,
+                         timeout=DEADLINE_S, check=True)
     value, cache, package, child = out.stdout.split()
     assert Path(package).resolve().is_relative_to(root.resolve())  # the stand-in, not the installed net_kernel
     assert child == cache  # a forkserver child uses its parent's cache directory

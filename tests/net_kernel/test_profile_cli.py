@@ -6,11 +6,12 @@ import sys
 import pytest
 
 from net_kernel.profile import parse_knots
+from tests.waits import DEADLINE_S
 
 
 def test_profile_net_smoke():
     done = subprocess.run([sys.executable, "-m", "processes", "profile-net", "--knots", "20x8", "--steps", "2",
-                           "--json"], capture_output=True, text=True, timeout=120)
+                           "--json"], capture_output=True, text=True, timeout=DEADLINE_S)
     assert done.returncode == 0, done.stderr
     report = json.loads(done.stdout)
     assert report["knots"] == 160
@@ -33,12 +34,12 @@ def test_profile_net_smoke():
 
 def test_profile_net_text_and_bad_knots():
     done = subprocess.run([sys.executable, "-m", "processes", "profile-net", "--knots", "12x4", "--steps", "1",
-                           "--backend", "numba"], capture_output=True, text=True, timeout=120)
+                           "--backend", "numba"], capture_output=True, text=True, timeout=DEADLINE_S)
     assert done.returncode == 0, done.stderr
     assert "Msprings/s" in done.stdout and "of copy" in done.stdout and "x textbook" in done.stdout
     assert "vectorised?" in done.stdout and "the divider's floor" in done.stdout
     bad = subprocess.run([sys.executable, "-m", "processes", "profile-net", "--knots", "12by4"],
-                         capture_output=True, text=True, timeout=60)
+                         capture_output=True, text=True, timeout=DEADLINE_S)
     assert bad.returncode == 2 and "COLSxROWS" in bad.stderr
     assert parse_knots("184x16") == (184, 16)
 

@@ -16,6 +16,7 @@ from processes.runtime.shm import Arena, leftover_segments
 from processes.supervisor import Supervisor, first_difference, workers_for
 from processes.runtime.control import STATUS_DTYPE, WorkerState
 from tests.processes.conftest import ctrl_c_able
+from tests.waits import DEADLINE_S
 
 
 @pytest.mark.parametrize("name, integrator", [("rally", "verlet"), ("serve", "dopri5"), ("drop", "rk4")])
@@ -101,9 +102,9 @@ def test_sigint_to_the_supervisor_leaves_no_process_and_no_segment():
     cmd = ctrl_c_able("run", "rally", "--processes", "--mode", "realtime", "--ticks", "60000", "--json")
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True)
     try:
-        run_id, worker_pid = _wait_running(before, proc.pid, timeout=60)
+        run_id, worker_pid = _wait_running(before, proc.pid, timeout=DEADLINE_S)
         proc.send_signal(signal.SIGINT)
-        proc.communicate(timeout=30)
+        proc.communicate(timeout=DEADLINE_S)
         assert proc.returncode != 0
         assert leftover_segments(run_id) == []
         with pytest.raises(ProcessLookupError):
@@ -116,7 +117,7 @@ def test_sigint_to_the_supervisor_leaves_no_process_and_no_segment():
 
 def test_cli_processes_check_reference_json():
     done = subprocess.run([sys.executable, "-m", "processes", "run", "serve", "--processes", "--check-reference",
-                           "--json"], capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
+                           "--json"], capture_output=True, text=True, timeout=DEADLINE_S, stdin=subprocess.DEVNULL)
     assert done.returncode == 0, done.stderr
     summary = json.loads(done.stdout)
     assert summary["reference"]["bitwise_equal"] is True
@@ -137,12 +138,12 @@ def test_a_starting_worker_keeps_its_heartbeat_fresh_until_it_is_ready():
     started = threading.Event()
     beater = threading.Thread(target=worker._beat_while_starting, args=(row, started), daemon=True)
     beater.start()
-    deadline = time.monotonic() + 10 * worker.STARTUP_BEAT_S
+    deadline = time.monotonic() + DEADLINE_S
     beats = set()
     while len(beats) < 3 and time.monotonic() < deadline:
         beats.add(float(row["heartbeat"]))
         time.sleep(0.05)  # polling a shared value the thread writes, bounded by the deadline
     assert len(beats - {0.0}) >= 2  # it beat at least twice
     row["state"] = WorkerState.READY  # ready: the thread stops beating and ends
-    beater.join(timeout=3 * worker.STARTUP_BEAT_S)
+    beater.join(timeout=DEADLINE_S)
     assert not beater.is_alive()

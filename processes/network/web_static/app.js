@@ -21,7 +21,7 @@ const NET_QUEUE = 256;  // net messages waiting for their tick (4 s of a 60 Hz t
 const state = {
   frames: 0, snapshots: 0, events: 0, connected: false, ended: "", tick: -1, score: [0, 0],
   games: [0, 0], server: 0, phase: "", lastEvent: null, camera: "side", errors: [], nets: 0, netShown: 0,
-  netTick: -1, netKnots: 0,
+  netTick: -1, netKnots: 0, ball: null,  // ball: [x, y, z] m, where the last frame drew it
   seat: "", predicted: 0, rejected: "", keysSent: 0, aimsSent: 0,
 };
 const KEYS = { w: "up", ArrowUp: "up", s: "down", ArrowDown: "down", a: "left", ArrowLeft: "left", d: "right",
@@ -364,6 +364,7 @@ function page(protocol, send) {
         own.quaternion.copy(quatOf(predicted.bat_quat));
       }
       const p = world.ball.position;
+      state.ball = [p.x, p.y, p.z];
       const onTable = Math.abs(p.x) <= TABLE_LENGTH / 2 && Math.abs(p.y) <= TABLE_WIDTH / 2 && p.z > -0.01;
       world.shadow.position.set(p.x, p.y, onTable ? 0.001 : FLOOR_Z + 0.001);
       const shown = f < 0.5 ? a : b;

@@ -5,15 +5,16 @@ import subprocess
 import sys
 from pathlib import Path
 
+from tests.waits import DEADLINE_S
+
 ROOT = Path(__file__).resolve().parents[3]
 # s: a warm numba cache runs each in a few seconds; a cold one compiles the study's loops and
 # every toggled scene's tick first (about 15 s each on a loaded 2-core machine).
-TIMEOUT = 600
 
 
 def pingpong(*args):
     return subprocess.run([sys.executable, "-m", "processes", "bench", *args], capture_output=True, text=True,
-                          timeout=TIMEOUT, stdin=subprocess.DEVNULL, cwd=ROOT)
+                          timeout=DEADLINE_S, stdin=subprocess.DEVNULL, cwd=ROOT)
 
 
 def test_bench_accuracy_quick_json_and_plot(tmp_path):

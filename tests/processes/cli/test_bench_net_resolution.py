@@ -4,14 +4,15 @@ import subprocess
 import sys
 from pathlib import Path
 
+from tests.waits import DEADLINE_S
+
 ROOT = Path(__file__).resolve().parents[3]
 # s: the net kernels come from numba's cache in a few seconds; a cold cache compiles them first.
-TIMEOUT = 600
 
 
 def pingpong(*args):
     return subprocess.run([sys.executable, "-m", "processes", "bench", "net-resolution", *args], capture_output=True,
-                          text=True, timeout=TIMEOUT, stdin=subprocess.DEVNULL, cwd=ROOT)
+                          text=True, timeout=DEADLINE_S, stdin=subprocess.DEVNULL, cwd=ROOT)
 
 
 def test_bench_net_resolution_quick_json():

@@ -6,13 +6,13 @@ import sys
 import pytest
 
 from engine.scene import SCENES_DIR
+from tests.waits import DEADLINE_S
 
-TIMEOUT = 120  # s: first runs compile the numba kernels unless the cache is warm
 
 
 def pingpong(*args):
     return subprocess.run([sys.executable, "-m", "processes", *args], capture_output=True, text=True,
-                          timeout=TIMEOUT, stdin=subprocess.DEVNULL)
+                          timeout=DEADLINE_S, stdin=subprocess.DEVNULL)
 
 
 @pytest.mark.parametrize("scene", ["drop", "serve", "rally"])
@@ -96,7 +96,7 @@ def test_bad_integrator_exits_2():
 
 def test_bench_match_quick_json():
     done = subprocess.run([sys.executable, "-m", "processes", "bench", "match", "--quick", "--json"],
-                          capture_output=True, text=True, timeout=300, stdin=subprocess.DEVNULL)
+                          capture_output=True, text=True, timeout=DEADLINE_S, stdin=subprocess.DEVNULL)
     assert done.returncode == 0, done.stderr
     report = json.loads(done.stdout)
     assert report["same_match"] is True  # the lockstep match and the in-process one agree
@@ -105,7 +105,7 @@ def test_bench_match_quick_json():
 
 def test_bench_match_refuses_a_scene_without_a_match():
     done = subprocess.run([sys.executable, "-m", "processes", "bench", "match", "--scene", "drop", "--quick"],
-                          capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
+                          capture_output=True, text=True, timeout=DEADLINE_S, stdin=subprocess.DEVNULL)
     assert done.returncode == 2 and "has no [match] section" in done.stderr
 
 
@@ -145,7 +145,7 @@ HEAVY = {"numpy", "numba", "zmq", "rich", "engine", "net_kernel", "scipy", "matp
 
 
 def test_help_imports_no_engine_numpy_numba_or_zmq():
-    done = subprocess.run([sys.executable, "-c", HELP_IMPORTS], capture_output=True, text=True, timeout=TIMEOUT,
+    done = subprocess.run([sys.executable, "-c", HELP_IMPORTS], capture_output=True, text=True, timeout=DEADLINE_S,
                           stdin=subprocess.DEVNULL)
     assert done.returncode == 0, done.stderr
     report = json.loads(done.stdout)

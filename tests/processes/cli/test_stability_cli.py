@@ -3,11 +3,13 @@ import json
 import subprocess
 import sys
 
+from tests.waits import DEADLINE_S
+
 
 def test_stiff_net_rows_over_json():
     done = subprocess.run([sys.executable, "-m", "processes.cli", "stability", "--case",
                            "stiff net: 100x k_s and k_d, tick 10.0x h_max", "--json"],
-                          capture_output=True, text=True, timeout=300, stdin=subprocess.DEVNULL)
+                          capture_output=True, text=True, timeout=DEADLINE_S, stdin=subprocess.DEVNULL)
     assert done.returncode == 0, done.stderr
     rows = {row["case"].rsplit(", ", 1)[1]: row for row in map(json.loads, done.stdout.splitlines())}
     assert set(rows) == {"substepped", "fixed", "implicit"}

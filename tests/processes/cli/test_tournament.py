@@ -14,12 +14,12 @@ from engine.scene import load_scene
 from processes.cli import main, standings, sweep
 from processes.cli.tournament import MATCHES_FILE, pairs_of, plan, run_tasks
 from tests.processes.conftest import ctrl_c_able
+from tests.waits import DEADLINE_S
 
 ray = pytest.importorskip("ray")
 
 TICKS = 30_000  # 30 s of play: a few rallies, ~0.2 s a match
 SEEDS = 2
-WAIT_S = 60  # s: a bound for subprocesses (pool start-up and kernel loading included)
 
 
 @pytest.fixture(scope="module")
@@ -118,12 +118,12 @@ def test_tournament_cli_on_the_local_pool_and_ctrl_c_keeps_the_finished(tmp_path
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     log = tmp_path / MATCHES_FILE
     try:
-        deadline = time.monotonic() + WAIT_S
+        deadline = time.monotonic() + DEADLINE_S
         while not (log.exists() and log.read_text().count("\n") >= 1):
             assert time.monotonic() < deadline and proc.poll() is None, "no match finished"
             time.sleep(0.05)  # polling a file with a deadline, not a sleep used as a handshake
         proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=WAIT_S)
+        _, err = proc.communicate(timeout=DEADLINE_S)
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -132,7 +132,7 @@ def test_tournament_cli_on_the_local_pool_and_ctrl_c_keeps_the_finished(tmp_path
     kept = {(r["a"], r["b"], r["seed"]) for r in _lines(log)}
     assert 1 <= len(kept) < 80
     done = subprocess.run([sys.executable, "-m", "processes", *_tournament_args(tmp_path, 2), "--json"],
-                          capture_output=True, text=True, timeout=WAIT_S, stdin=subprocess.DEVNULL)
+                          capture_output=True, text=True, timeout=DEADLINE_S, stdin=subprocess.DEVNULL)
     assert done.returncode == 0, done.stderr
     summary = json.loads(done.stdout)
     planned = {(a, b, seed) for a, b in (("pro", "novice"), ("novice", "pro")) for seed in range(2)}

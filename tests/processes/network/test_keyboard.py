@@ -23,6 +23,7 @@ from processes.network.gateway import Gateway, GatewayConfig
 from processes.network.keyboard import STEP_M, STROKE_M, IterableKeys, KeyboardPilot, TerminalKeys, parse_keys, top_view
 from processes.network.prediction import Predictor
 from processes.network.wire import Slot
+from tests.waits import DEADLINE_S
 
 ROOT = Path(__file__).resolve().parents[3]
 PRO_MAX_FORCE_N = 120.0  # engine.ai.SKILLS["pro"].max_force_n
@@ -35,7 +36,6 @@ def test_parse_keys_reads_letters_arrows_and_keeps_a_cut_escape():
     assert parse_keys(b"\x1b[Zx\x1b") == ([], b"\x1b")  # unknown sequence and letter skipped
 
 
-@pytest.mark.timeout(20)
 def test_terminal_keys_from_a_pseudo_terminal_in_cbreak_mode():
     master, slave = os.openpty()
     try:
@@ -105,12 +105,12 @@ class GatewayThread:
 
     def _run(self):
         started = time.monotonic()
-        while not self.stop.is_set() and time.monotonic() - started < 60.0:
+        while not self.stop.is_set() and time.monotonic() - started < DEADLINE_S:
             self.gateway.poll(1)
             self.record["world"]["tick"] = int((time.monotonic() - started) / self.dt)
             self.gateway.service(self.record)
 
-    def wait_for(self, check, seconds=20.0):
+    def wait_for(self, check, seconds=DEADLINE_S):
         deadline = time.monotonic() + seconds
         while time.monotonic() < deadline:
             if check():
@@ -120,11 +120,10 @@ class GatewayThread:
 
     def close(self):
         self.stop.set()
-        self.thread.join(10)
+        self.thread.join(DEADLINE_S)
         self.gateway.close()
 
 
-@pytest.mark.timeout(60)
 def test_a_keyboard_session_sends_the_arms_forces_towards_the_target(zctx):
     scene = load_scene("match_rigid")
     # Built before joining: on a cold numba cache its kernels compile for longer than the welcome's
@@ -133,11 +132,11 @@ def test_a_keyboard_session_sends_the_arms_forces_towards_the_target(zctx):
     served = GatewayThread(zctx, scene)
     client = Client(served.gateway.endpoint, "player", "keys", zctx=zctx)
     try:
-        welcome = client.join(10)
+        welcome = client.join(DEADLINE_S)
         assert client.slot == Slot.A
         pilot = KeyboardPilot(predictor.model, client.slot)
         keys = IterableKeys([["up"] * 4] + [[]] * 150 + ["quit"])
-        summary = run_session(client, welcome, pilot=pilot, keys=keys, predictor=predictor, seconds=30.0)
+        summary = run_session(client, welcome, pilot=pilot, keys=keys, predictor=predictor, seconds=DEADLINE_S)
         assert summary["goodbye"] == "quit" and summary["snapshots"] > 0 and summary["inputs_sent"] > 0
         np.testing.assert_allclose(pilot.target, [-1.77 + 4 * STEP_M, 0.0, 0.15], rtol=0, atol=1e-12)
         assert served.wait_for(lambda: served.gateway.counts["quits"] == 1)
@@ -153,13 +152,12 @@ def test_a_keyboard_session_sends_the_arms_forces_towards_the_target(zctx):
         served.close()
 
 
-@pytest.mark.timeout(90)
 def test_pingpong_join_plays_from_the_keyboard_on_a_terminal(zctx):
     """The real command on a pseudo-terminal: it draws the table, takes keys, leaves on q."""
     served = GatewayThread(zctx, load_scene("match_rigid"))
     master, slave = os.openpty()
     proc = subprocess.Popen([sys.executable, "-m", "processes.cli", "join", served.gateway.endpoint, "--as",
-                             "player", "--seconds", "60"], cwd=ROOT, stdin=slave, stdout=slave, stderr=slave,
+                             "player", "--seconds", f"{DEADLINE_S:.0f}"], cwd=ROOT, stdin=slave, stdout=slave, stderr=slave,
                             start_new_session=True, env={**os.environ, "TERM": "xterm", "COLUMNS": "120"})
     os.close(slave)
     screen = bytearray()
@@ -176,12 +174,12 @@ def test_pingpong_join_plays_from_the_keyboard_on_a_terminal(zctx):
         return check()
 
     try:
-        assert read_until(lambda: b"you play A" in screen, 60), screen.decode(errors="replace")[-2000:]
+        assert read_until(lambda: b"you play A" in screen, DEADLINE_S), screen.decode(errors="replace")[-2000:]
         os.write(master, b"ww")
         assert served.wait_for(lambda: len(served.posted) > 5)
         os.write(master, b"q")
-        assert read_until(lambda: b"prediction error at the snapshots' ticks, own bat" in screen, 30)
-        assert proc.wait(30) == 0
+        assert read_until(lambda: b"prediction error at the snapshots' ticks, own bat" in screen, DEADLINE_S)
+        assert proc.wait(DEADLINE_S) == 0
         assert b"session ended: quit" in screen
         assert served.wait_for(lambda: served.gateway.counts["quits"] == 1)
     finally:

@@ -19,7 +19,8 @@ from processes.network import wire
 from processes.network.client import Client
 from processes.network.feed import NetFeed
 from processes.network.wire import Kind
-from tests.processes.network.test_gateway import ROUNDS, _line, _pingpong, rig, served  # noqa: F401 (fixtures)
+from tests.processes.network.test_gateway import ROUNDS, _pingpong, rig, served  # noqa: F401 (fixtures)
+from tests.waits import DEADLINE_S, line
 
 TICKS = 1500  # 1.5 s of realtime play: the net falls asleep within it
 
@@ -35,18 +36,17 @@ def _reference(spec, dt, ticks) -> dict[int, np.ndarray]:
     return out
 
 
-@pytest.mark.timeout(180)
 def test_a_spectator_gets_the_net_workers_knots_while_the_net_is_awake_and_once_asleep(served):
     server = _pingpong("serve", "--players", "1", "--ticks", str(TICKS), "--json")
     served.append(server)
-    endpoint = json.loads(_line(server, 120))["listening"]
+    endpoint = json.loads(line(server, "the server's listening line"))["listening"]
     spectator = Client(endpoint, "spectator", "net-watcher")
     player = Client(endpoint, "player", "idle")
     nets = []  # (tick, asleep, first, knots of the message)
     try:
-        spectator.join(30)
-        player.join(30)  # the match starts: the net's first tick
-        deadline = time.monotonic() + 90
+        spectator.join(DEADLINE_S)
+        player.join(DEADLINE_S)  # the match starts: the net's first tick
+        deadline = time.monotonic() + DEADLINE_S
         while spectator.goodbye is None and not spectator.server_lost and time.monotonic() < deadline:
             player.heartbeat_if_due()
             player.recv_batch(0)

@@ -2,7 +2,7 @@
 
 The gateway runs in this process on 127.0.0.1 (a random port) with a clock the test sets, as in
 test_gateway.py; the bridge runs its own threads; browsers are websockets' own client and
-urllib. Every receive is bounded. The page's decoder is run by node against the golden messages
+urllib. Every receive is bounded; every wait for an event by the suite's deadline (tests/waits.py). The page's decoder is run by node against the golden messages
 of test_wire.py, where node is installed.
 """
 import json
@@ -20,15 +20,16 @@ from processes.network import protocol, wire
 from processes.network.feed import NetFeed
 from processes.network.web import STATIC, WebBridge, parse_host_port
 from processes.network.wire import Kind
-from tests.processes.network.test_gateway import ROUNDS, Rig
+from tests.processes.network.test_gateway import Rig
 from tests.processes.network.test_wire import GOLDEN
+from tests.waits import DEADLINE_S, Deadline, wait_for
 
 pytest.importorskip("websockets")
 
 
 def _get(url: str) -> tuple[int, str, bytes]:
     try:
-        with urllib.request.urlopen(url, timeout=10) as reply:
+        with urllib.request.urlopen(url, timeout=DEADLINE_S) as reply:
             return reply.status, reply.headers.get("Content-Type", ""), reply.read()
     except urllib.error.HTTPError as err:
         return err.code, "", b""
@@ -41,21 +42,21 @@ def bridged(zctx):
     bridge = WebBridge(rig.gateway.endpoint, "127.0.0.1:0")
 
     def pump_join():
-        for _ in range(ROUNDS):
+        deadline = Deadline()
+        while not deadline.expired():
             rig.step()
             if rig.gateway.counts["spectators_joined"]:
                 return
 
     pumping = threading.Thread(target=pump_join, daemon=True)  # the gateway answers while start() waits
     pumping.start()
-    url = bridge.start()
-    pumping.join(10)
+    url = bridge.start(DEADLINE_S)
+    pumping.join(DEADLINE_S)
     yield rig, bridge, url
     bridge.stop()
     rig.close()
 
 
-@pytest.mark.timeout(60)
 def test_the_page_and_its_scripts_load_from_the_bridge_and_nothing_from_elsewhere(bridged):
     _, _, url = bridged
     status, kind, page = _get(url)
@@ -72,19 +73,19 @@ def test_the_page_and_its_scripts_load_from_the_bridge_and_nothing_from_elsewher
     assert (STATIC / "vendor" / "three.LICENSE").read_text().startswith("The MIT License")
 
 
-@pytest.mark.timeout(60)
 def test_a_browser_gets_the_welcome_then_the_feeds_own_snapshot_bytes(bridged):
     from websockets.sync.client import connect
 
     rig, bridge, url = bridged
     watcher = rig.client(role="spectator")
     rig.join(watcher)
-    with connect(url.replace("http://", "ws://") + "ws", open_timeout=10) as browser:
-        first = wire.decode(browser.recv(timeout=10))
+    with connect(url.replace("http://", "ws://") + "ws", open_timeout=DEADLINE_S) as browser:
+        first = wire.decode(browser.recv(timeout=DEADLINE_S))
         assert first.kind == Kind.WELCOME and first["scene"] == "match_rigid"
         forwarded = None
         tick = 0
-        for _ in range(ROUNDS):  # serve ticks until a snapshot reaches the browser
+        deadline = Deadline()
+        while not deadline.expired():  # serve ticks until a snapshot reaches the browser
             tick += 1
             rig.record["world"]["tick"] = tick
             rig.clock.now += 0.002
@@ -99,7 +100,8 @@ def test_a_browser_gets_the_welcome_then_the_feeds_own_snapshot_bytes(bridged):
                 break
         assert forwarded is not None, "no snapshot reached the browser"
         message = wire.decode(forwarded)
-        for _ in range(ROUNDS):  # the same tick as a direct spectator of the gateway got it
+        deadline = Deadline()
+        while not deadline.expired():  # the same tick as a direct spectator of the gateway got it
             direct = watcher.recv(10)
             if direct is not None and direct.kind == Kind.SNAPSHOT and direct.tick == message.tick:
                 break
@@ -127,7 +129,7 @@ for (const [name, hex] of Object.entries(input.golden)) out[name] = decoder.deco
 console.log(JSON.stringify(out));
 """)
     feed = json.dumps({"protocol": protocol.layout_json(), "golden": {k: v.hex() for k, v in GOLDEN.items()}})
-    done = subprocess.run(["node", str(script)], input=feed, capture_output=True, text=True, timeout=30)
+    done = subprocess.run(["node", str(script)], input=feed, capture_output=True, text=True, timeout=DEADLINE_S)
     assert done.returncode == 0, done.stderr
     decoded = json.loads(done.stdout)
     for name, data in GOLDEN.items():
@@ -162,8 +164,8 @@ def browser():
     options.binary_location = CHROMIUM
     options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
     driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
-    driver.set_page_load_timeout(30)
-    driver.set_script_timeout(30)
+    driver.set_page_load_timeout(DEADLINE_S)
+    driver.set_script_timeout(DEADLINE_S)
     yield driver
     driver.quit()
 
@@ -172,14 +174,15 @@ def _page_state(driver):
     return driver.execute_script("return window.__pingpong || null")
 
 
-def _await_page(driver, check, rounds=150):
-    """The page's state once check(state) holds: polled in the browser (each wait is bounded)."""
-    for _ in range(rounds):
+def _await_page(driver, check):
+    """The page's state once check(state) holds: polled in the browser every 0.1 s, within the deadline."""
+    deadline, state = Deadline(), None
+    while not deadline.expired():
         state = driver.execute_async_script(
             "const done = arguments[arguments.length - 1]; setTimeout(() => done(window.__pingpong || null), 100);")
         if state is not None and check(state):
             return state
-    raise AssertionError(f"the page never got there: {state}")
+    raise AssertionError(f"the page never got there within {DEADLINE_S:.0f} s: {state}")
 
 
 def _screenshot(driver):
@@ -194,31 +197,39 @@ def _errors(driver):
     return [entry for entry in driver.get_log("browser") if entry["level"] == "SEVERE"]
 
 
-@pytest.mark.timeout(120)
+def _drawn_at(driver, ball_pos):
+    """The page's state once it has drawn frames with the ball held at ball_pos: the frame
+    counter past the first frame that drew it there, so the picture on screen is one of them."""
+    state = _await_page(driver, lambda s: s["ball"] is not None and np.allclose(s["ball"], ball_pos, rtol=0, atol=1e-9))
+    return _await_page(driver, lambda s: s["frames"] >= state["frames"] + 2)
+
+
 def test_the_live_page_draws_the_match_and_shows_the_servers_score(bridged, browser):
     rig, bridge, url = bridged
     rig.record["rally"]["score"] = (3, 5)
     rig.record["rally"]["games_won"] = (1, 0)
     rig.record["rally"]["server"] = 1
     stop = threading.Event()
-    pumping = _serving(rig, stop)  # a ball flying along the table until the test is done
+    held = [(-1.0, 0.1, 0.25)]  # the ball stands over A's half, then over B's
+    pumping = _serving(rig, stop, held)
     try:
         browser.get(url)
         state = _await_page(browser, lambda s: s["connected"] and s["frames"] > 5 and s["snapshots"] > 5)
         assert state["score"] == [3, 5] and state["games"] == [1, 0] and state["server"] == 1  # the server's
+        _drawn_at(browser, held[-1])
         first = _screenshot(browser)
         assert first.std() > 0.05  # a scene, not a blank canvas
-        _await_page(browser, lambda s: s["frames"] > state["frames"] + 10)
+        held.append((1.0, 0.1, 0.25))
+        _drawn_at(browser, held[-1])
         second = _screenshot(browser)
-        assert np.abs(second - first).max() > 0.1  # the ball moved between the two
+        assert np.abs(second - first).max() > 0.1  # the ball moved between the two pictures
         assert _errors(browser) == [] and _page_state(browser)["errors"] == []
     finally:
         stop.set()
-        pumping.join(10)
+        pumping.join(DEADLINE_S)
     assert bridge.counts["browsers"] == 1
 
 
-@pytest.mark.timeout(120)
 def test_the_live_page_draws_a_cloth_nets_knots_in_place_of_the_panel(bridged, browser):
     """The gateway's net messages (an 85 x 8 net bulging and moving, two messages a state) reach
     the page through the bridge, which draws the mesh from them, every knot of it."""
@@ -251,11 +262,10 @@ def test_the_live_page_draws_a_cloth_nets_knots_in_place_of_the_panel(bridged, b
         assert _errors(browser) == [] and _page_state(browser)["errors"] == []
     finally:
         stop.set()
-        pumping.join(10)
+        pumping.join(DEADLINE_S)
     assert bridge.counts["nets"] >= 4
 
 
-@pytest.mark.timeout(120)
 def test_the_replay_page_plays_offline_from_one_file(browser, tmp_path):
     from engine.dtypes import physics_snapshot_dtype
     from engine.rules import REASONS, Reason
@@ -285,14 +295,15 @@ def test_the_replay_page_plays_offline_from_one_file(browser, tmp_path):
     assert _errors(browser) == [] and state["errors"] == []
 
 
-def _serving(rig, stop):
-    """The gateway serves its record (a ball flying along the table) until `stop` (a thread)."""
+def _serving(rig, stop, held=None):
+    """The gateway serves its record until `stop` (a thread): a ball flying along the table, or
+    standing where the last entry of the list `held` says."""
     def serve():
         tick = 0
         while not stop.is_set():
             tick += 1
             rig.record["world"]["tick"] = tick
-            rig.record["ball"]["pos"] = (-1.2 + 2.4 * ((tick // 10) % 100) / 100.0, 0.1, 0.25)
+            rig.record["ball"]["pos"] = held[-1] if held else (-1.2 + 2.4 * ((tick // 10) % 100) / 100.0, 0.1, 0.25)
             rig.clock.now += 0.001
             rig.gateway.poll(1)
             rig.gateway.service(rig.record)
@@ -302,19 +313,19 @@ def _serving(rig, stop):
     return thread
 
 
-def _texts(browser, check, rounds=600):
-    """JSON text messages from the bridge until check(message) holds (binary ones skipped; bounded)."""
-    for _ in range(rounds):
+def _texts(browser, check):
+    """JSON text messages from the bridge until check(message) holds (binary ones skipped; within the deadline)."""
+    deadline = Deadline()
+    while not deadline.expired():
         try:
             data = browser.recv(timeout=0.05)
         except TimeoutError:
             continue
         if isinstance(data, str) and check(json.loads(data)):
             return json.loads(data)
-    raise AssertionError("no such message from the bridge")
+    raise AssertionError(f"no such message from the bridge within {DEADLINE_S:.0f} s")
 
 
-@pytest.mark.timeout(120)
 def test_a_browser_plays_its_own_seat_and_moves_only_its_own_bat(bridged):
     from websockets.sync.client import connect
 
@@ -322,8 +333,8 @@ def test_a_browser_plays_its_own_seat_and_moves_only_its_own_bat(bridged):
     stop = threading.Event()
     pumping = _serving(rig, stop)
     try:
-        with connect(url.replace("http://", "ws://") + "ws", open_timeout=10) as watcher, \
-                connect(url.replace("http://", "ws://") + "ws", open_timeout=10) as browser:
+        with connect(url.replace("http://", "ws://") + "ws", open_timeout=DEADLINE_S) as watcher, \
+                connect(url.replace("http://", "ws://") + "ws", open_timeout=DEADLINE_S) as browser:
             watcher.send(json.dumps({"key": "up"}))  # a page that plays no seat controls nothing
             browser.send(json.dumps({"play": "a"}))
             assert _texts(browser, lambda m: "seat" in m or "rejected" in m)["seat"] == "a"
@@ -333,20 +344,23 @@ def test_a_browser_plays_its_own_seat_and_moves_only_its_own_bat(bridged):
             browser.send(json.dumps({"aim": [99.0, 0.0, 0.0]}))  # beyond the wire's range: ignored
             predicted = _texts(browser, lambda m: "predicted" in m and m["predicted"]["inputs_sent"] > 5)
             assert len(predicted["predicted"]["bat_pos"]) == 3 and predicted["predicted"]["aim"][1] == pytest.approx(0.3)
-            for _ in range(ROUNDS):
+            deadline = Deadline()
+            while not deadline.expired():
                 if any(bat == 0 and np.any(inputs != 0.0) for bat, _, _, inputs in list(rig.posted)):
                     break
-                browser.recv(timeout=0.05)
+                try:
+                    browser.recv(timeout=0.05)  # (read what the bridge sends meanwhile)
+                except TimeoutError:
+                    pass
             pushed = [(bat, inputs) for bat, _, _, inputs in list(rig.posted) if np.any(inputs != 0.0)]
             assert pushed and {bat for bat, _ in pushed} == {0}  # bat A only: the other is out of reach
             assert rig.gateway.counts.get("refused.other_bat", 0) == 0
     finally:
         stop.set()
-        pumping.join(10)
+        pumping.join(DEADLINE_S)
     assert bridge.counts["players"] == 1 and bridge.counts["ignored_from_browser"] >= 2
 
 
-@pytest.mark.timeout(150)
 def test_in_the_browser_a_player_takes_seat_a_and_its_keys_push_only_bat_a(bridged, browser):
     from selenium.webdriver.common.by import By
 
@@ -363,13 +377,11 @@ def test_in_the_browser_a_player_takes_seat_a_and_its_keys_push_only_bat_a(bridg
             body.send_keys(key)
         state = _await_page(browser, lambda s: s["keysSent"] >= 10 and s["predicted"] > 5)
         assert state["seat"] == "a" and state["camera"] == "a"  # the player's own view
-        for _ in range(ROUNDS):
-            if any(bat == 0 and np.any(inputs != 0.0) for bat, _, _, inputs in list(rig.posted)):
-                break
-            _page_state(browser)
+        wait_for(lambda: any(bat == 0 and np.any(inputs != 0.0) for bat, _, _, inputs in list(rig.posted)),
+                 "a push of bat A from the page's keys", seen=lambda: rig.posted[-3:])
         pushed = {bat for bat, _, _, inputs in list(rig.posted) if np.any(inputs != 0.0)}
         assert pushed == {0}  # the browser's bat, never the other
         assert _errors(browser) == [] and _page_state(browser)["errors"] == []
     finally:
         stop.set()
-        pumping.join(10)
+        pumping.join(DEADLINE_S)

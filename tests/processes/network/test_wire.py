@@ -17,8 +17,8 @@ from processes.network.wire import (
     BadEnum, BadFlags, BadMagic, BadText, BadVersion, DropCounter, EventKind, GoodbyeReason, InputMode, Kind,
     NonFinite, OutOfRange, RejectReason, Role, Slot, TooLong, TooShort, UnknownType, WireError, decode, encode,
 )
+from tests.waits import DEADLINE_S
 
-TIMEOUT = 60  # s, for each subprocess
 TOKEN = bytes(range(0xA0, 0xB0))
 R = math.sqrt(0.5)  # a 90-degree turn about y: (R, 0, +-R, 0), norm 1 to the last bit or two
 
@@ -530,7 +530,7 @@ def test_snapshots_of_a_real_match_pass_the_decoder():
 # --- pingpong decode ---------------------------------------------------------------------------------------
 def _pingpong(*args):
     return subprocess.run([sys.executable, "-m", "processes", *args], capture_output=True, text=True,
-                          timeout=TIMEOUT, stdin=subprocess.DEVNULL)
+                          timeout=DEADLINE_S, stdin=subprocess.DEVNULL)
 
 
 def test_decode_command_hex_json():

@@ -8,6 +8,7 @@ import pytest
 
 from processes.runtime.handoff import TICK_SLOT_DTYPE, Baton, HandoffTimeout
 from processes.runtime.shm import Arena
+from tests.waits import DEADLINE_S
 
 
 def _take_turns(layout, baton, n):
@@ -33,10 +34,10 @@ def test_baton_hands_each_tick_over_in_order(ctx, procs, no_leftovers):
         procs.append(worker)
         worker.start()
         for tick in range(50):
-            baton.call(tick, timeout=10)
+            baton.call(tick, timeout=DEADLINE_S)
             assert seen[tick] == tick * 10  # the worker's write is visible when call returns
         baton.stop()
-        worker.join(10)
+        worker.join(DEADLINE_S)
         assert worker.exitcode == 0
         del slot, seen, baton
     finally:
@@ -58,7 +59,7 @@ def test_call_to_a_worker_that_never_answers_times_out(ctx, no_leftovers):
 
 def test_bench_handoff_quick_json():
     done = subprocess.run([sys.executable, "-m", "processes", "bench", "handoff", "--quick", "--json"],
-                          capture_output=True, text=True, timeout=180, stdin=subprocess.DEVNULL)
+                          capture_output=True, text=True, timeout=DEADLINE_S, stdin=subprocess.DEVNULL)
     assert done.returncode == 0, done.stderr
     report = json.loads(done.stdout)
     assert set(report["us_per_round_trip"]) == {"semaphore", "shm_spin", "queue", "lockstep_handoff"}

@@ -8,6 +8,7 @@ import pytest
 from processes.runtime.locks import HOLDER_DTYPE, LockOrderError, LockTable, LockTimeout
 from processes.runtime.mailbox import MAILBOX_HEADER, Mailbox
 from processes.runtime.shm import Arena
+from tests.waits import DEADLINE_S
 
 NAMES = ("net_impulses", "bat_inputs")
 
@@ -27,7 +28,7 @@ def _hold_forever(path, layout, name, held, never):
     """A worker that takes a lock and never releases it (blocked on an event nobody sets)."""
     arena = Arena.attach(layout)
     locks = LockTable(path, NAMES, arena["holders"])
-    locks.acquire(name, timeout=5)
+    locks.acquire(name, timeout=DEADLINE_S)
     held.set()
     never.wait()  # bounded by the test, which kills this process
 
@@ -35,7 +36,7 @@ def _hold_forever(path, layout, name, held, never):
 def _take_and_die(path, layout, name, dirty_mailbox):
     arena = Arena.attach(layout)
     locks = LockTable(path, NAMES, arena["holders"])
-    locks.acquire(name, timeout=5)
+    locks.acquire(name, timeout=DEADLINE_S)
     if dirty_mailbox:
         arena["inbox_header"].array["dirty"][0] = 1  # died in the middle of a post
         arena["inbox_header"].array["count"][0] = 1
@@ -48,15 +49,15 @@ def test_lock_never_released_is_detected_reported_and_recovered(table, ctx, proc
     stuck = ctx.Process(target=_hold_forever, args=(path, arena.layout(), "bat_inputs", held, never))
     procs.append(stuck)
     stuck.start()
-    assert held.wait(30)
+    assert held.wait(DEADLINE_S)
     # Detected within its bound, and the report names the lock and the holder's pid.
     with pytest.raises(LockTimeout, match=rf"lock 'bat_inputs' not acquired within 0.3 s: held by pid {stuck.pid} \(alive\)"):
         locks.acquire("bat_inputs", timeout=0.3)
     # Recovered: the supervisor's remedy is to kill the stuck holder; the kernel drops its lock.
     pid, _ = locks.holder("bat_inputs")
     os.kill(pid, signal.SIGKILL)
-    stuck.join(10)
-    got = locks.acquire("bat_inputs", timeout=2)
+    stuck.join(DEADLINE_S)
+    got = locks.acquire("bat_inputs", timeout=DEADLINE_S)
     assert got.recovered_from == stuck.pid
     locks.release("bat_inputs")
     assert locks.stats("bat_inputs")["recovered"] == 1
@@ -67,11 +68,11 @@ def test_dead_holder_never_hangs_the_next(table, ctx, procs):
     dier = ctx.Process(target=_take_and_die, args=(path, arena.layout(), "net_impulses", False))
     procs.append(dier)
     dier.start()
-    dier.join(30)
-    got = locks.acquire("net_impulses", timeout=2)
+    dier.join(DEADLINE_S)
+    got = locks.acquire("net_impulses", timeout=DEADLINE_S)
     assert got.recovered_from == dier.pid
     locks.release("net_impulses")
-    got = locks.acquire("net_impulses", timeout=2)
+    got = locks.acquire("net_impulses", timeout=DEADLINE_S)
     assert got.recovered_from == 0  # released cleanly this time
     locks.release("net_impulses")
 
@@ -110,6 +111,6 @@ def test_mailbox_discards_what_a_dying_sender_half_wrote(table, ctx, procs):
     dier = ctx.Process(target=_take_and_die, args=(path, arena.layout(), "bat_inputs", True))
     procs.append(dier)
     dier.start()
-    dier.join(30)
+    dier.join(DEADLINE_S)
     assert box.drain(np.zeros(4, RECORD)) == 0  # the torn record is not acted on
     assert box.stats()["discarded_torn"] == 1

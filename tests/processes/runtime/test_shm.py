@@ -1,9 +1,9 @@
 """Shared-memory snapshots are never torn, and segments never outlive their run."""
-import time
 
 import numpy as np
 
 from processes.runtime.shm import Arena, SnapshotBlock, leftover_segments
+from tests.waits import DEADLINE_S, Deadline
 
 RECORD = np.dtype([("counter", "<i8"), ("values", "<f8", (64,)), ("checksum", "<f8")])
 
@@ -30,13 +30,14 @@ def test_reader_never_sees_a_torn_snapshot(ctx, procs, no_leftovers):
         writer = ctx.Process(target=_hammer, args=(block.name, stop, started, 10_000_000))
         procs.append(writer)
         writer.start()
-        assert started.wait(30)
+        assert started.wait(DEADLINE_S)
         out = np.zeros(4, RECORD)
         seen = set()
-        deadline = time.monotonic() + 2.0  # bounded: at most 2 s or 20,000 snapshots
-        for _ in range(20_000):
-            if time.monotonic() > deadline:
-                break
+        deadline, reads = Deadline(), 0
+        # 20,000 snapshots at least, and on until the writer has been seen at 10 writes (the
+        # machine decides how many it gets done meanwhile)
+        while (reads < 20_000 or len(seen) <= 10) and not deadline.expired():
+            reads += 1
             block.snapshot(out)
             counters = set(out["counter"].tolist())
             assert len(counters) == 1, f"records from different writes in one snapshot: {counters}"
@@ -44,7 +45,7 @@ def test_reader_never_sees_a_torn_snapshot(ctx, procs, no_leftovers):
             np.testing.assert_array_equal(out["checksum"], out["values"].sum(axis=1))
             seen.add(int(out["counter"][0]))
         stop.set()
-        writer.join(10)
+        writer.join(DEADLINE_S)
         assert len(seen) > 10  # the writer really was writing while we read
     finally:
         arena.close()
