@@ -5,7 +5,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install match test test-long bench bench-accuracy protocol browser lint clean
+.PHONY: install match test test-busy warm-up test-long bench bench-accuracy protocol browser lint clean
 
 install: $(STAMP)
 
@@ -24,10 +24,18 @@ lint: install
 	$(BIN)/lint-imports
 
 # Two workers: CI has two cores and a cold run is mostly numba compiling, one specialisation
-# per effect combination. A test file stays on one worker (loadfile), so its specialisations
-# compile once; the other worker finds them in numba's on-disk cache.
-test: lint browser
+# per effect combination. The warm-up first compiles what the tests' worker processes run, so no
+# test waits for a server that is still compiling; a test file stays on one worker (loadfile), so
+# its own specialisations compile once and the other worker finds them in numba's on-disk cache.
+test: lint browser warm-up
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=25
+
+warm-up: install
+	$(BIN)/python -m tests.warmup
+
+# The suite on a busy machine: `make test` beside two CPU hogs, stopped whatever its result.
+test-busy: install
+	$(BIN)/python -m tests.hogs 2 -- $(MAKE) test
 
 # The web page's tests run in the system's headless Chromium: installed here as root where it is
 # missing (CI); without root they are skipped, and say how to install.

@@ -1,0 +1,67 @@
+"""`python -m tests.warmup`: load or compile, once, the numba kernels that the suite's processes run.
+
+A cold numba cache compiles for minutes (one specialisation per effect combination and array
+type), and a worker compiles before it says it is ready: a test that starts a server on a cold
+cache would spend its wait for the server's first line on compiling. `make test` runs this first,
+so the suite's tests load the kernels from the cache instead. It runs what the tests run: a
+match in worker processes on each bundled match scene (the physics, net and AI workers
+compile what they run, numba.config.CACHE_DIR is the same for every process of this checkout),
+a served match's workers, a bot's client, and the in-process match. Prints what each step took.
+"""
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from tests.waits import DEADLINE_S
+
+ROOT = Path(__file__).resolve().parents[1]
+IN_PROCESS = """\
+from engine.match import Match
+from engine.scene import load_scene
+from processes.cli.remote import _warm_up
+for name in ("match_rigid", "match"):
+    Match(load_scene(name), 0).play(max_ticks=2)
+_warm_up("pro")
+"""
+# Stages one after the other, the steps of a stage side by side. The first compiles nearly every
+# kernel (its physics, net and AI workers side by side, on both cores); the others then load
+# those from the cache and compile only their own few, so they do not compile the same twice.
+STAGES = (
+    (("match workers", ["-m", "processes", "match", "--scene", "match", "--ticks", "2", "--json"]),),
+    (("in-process match and bot", ["-c", IN_PROCESS]),
+     ("match_rigid workers", ["-m", "processes", "match", "--scene", "match_rigid", "--ticks", "2", "--json"]),
+     ("served match", ["-m", "processes", "serve", "--players", "0", "--ticks", "2", "--json"])),
+)
+
+
+def main() -> int:
+    start = time.monotonic()
+    failed = []
+    for stage in STAGES:
+        running = [(name, subprocess.Popen([sys.executable, *args], cwd=ROOT, stdin=subprocess.DEVNULL,
+                                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True),
+                    time.monotonic()) for name, args in stage]
+        for step in running:
+            failed += _finish(*step)
+    print(f"warm-up: {time.monotonic() - start:.0f} s", flush=True)
+    for name, err in failed:
+        print(f"warm-up: {name} failed (the tests will say why):\n{err[-2000:]}", file=sys.stderr)
+    return 0  # a failing step is the suite's to report, with its own test
+
+
+def _finish(name: str, proc: subprocess.Popen, began: float) -> list[tuple[str, str]]:
+    try:
+        _, err = proc.communicate(timeout=DEADLINE_S)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        _, err = proc.communicate()
+        return [(name, f"still running after {DEADLINE_S:.0f} s\n{err}")]
+    print(f"warm-up: {name}: {time.monotonic() - began:.0f} s", flush=True)
+    return [(name, err)] if proc.returncode else []
+
+
+if __name__ == "__main__":
+    sys.exit(main())
