@@ -49,20 +49,19 @@ from numba import njit
 
 from net_kernel import NetSim, build_topology
 from net_kernel.sim import BALL_MASS, SLEEP_SPEED, SLEEP_TICKS
-from net_kernel.topology import grid_spacings, resolution_spec
+from net_kernel.topology import AIR_DAMPING_PHYSICAL, grid_spacings, resolution_spec
 
 DT = 1e-3  # s, the engine's tick (scenes/match.toml)
 SPEED = 20.0  # m/s, the ball into the middle of the net
 AIM = (0.0, 0.10)  # (y, z) m
-AIR_PHYSICAL = 0.2  # 1/s: the top of Lamb's 0.08-0.3/s (NetSpec.air_damping's comment)
 MARKS_S = (0.25, 0.5, 1.0, 2.0, 4.0)  # s: when the fastest knot's speed is reported
 # (name, air damping 1/s, bending: M_s N m and theta_s rad, stretch: F_s N and e m, beta s)
 CASES = (
     ("air damping 5/s (the engine today)", 5.0, 0.0, 0.15, 0.0, 1e-4, 1e-4),
-    ("physical air drag only", AIR_PHYSICAL, 0.0, 0.15, 0.0, 1e-4, 1e-4),
-    ("bending friction, knot estimate (KNOT)", AIR_PHYSICAL, 1e-5, 0.15, 0.0, 1e-4, 1e-4),
-    ("bending friction x4, sharp stick (KNOT_HIGH)", AIR_PHYSICAL, 4e-5, 0.005, 0.0, 1e-4, 1e-4),
-    ("KNOT_HIGH and stretch friction (STRETCH)", AIR_PHYSICAL, 4e-5, 0.005, 1.0 / 6.0, 1e-4, 1e-4),
+    ("physical air drag only", AIR_DAMPING_PHYSICAL, 0.0, 0.15, 0.0, 1e-4, 1e-4),
+    ("bending friction, knot estimate (KNOT)", AIR_DAMPING_PHYSICAL, 1e-5, 0.15, 0.0, 1e-4, 1e-4),
+    ("bending friction x4, sharp stick (KNOT_HIGH)", AIR_DAMPING_PHYSICAL, 4e-5, 0.005, 0.0, 1e-4, 1e-4),
+    ("KNOT_HIGH and stretch friction (STRETCH)", AIR_DAMPING_PHYSICAL, 4e-5, 0.005, 1.0 / 6.0, 1e-4, 1e-4),
 )
 
 

@@ -42,6 +42,12 @@ _MIN_KNOTS, _MAX_KNOTS = 2, 4000
 MIN_SPRING_LENGTH = 1e-6
 
 
+# 1/s: the air's own drag on a net's threads as a mass-proportional damping, within the
+# 0.08-0.3/s that Lamb's low-Reynolds drag on a thin cylinder gives (NetSpec.air_damping's
+# comment): a net damped by the air alone. scenes/match_air.toml plays the default match with it.
+AIR_DAMPING_PHYSICAL = 0.2
+
+
 @dataclass(frozen=True)
 class NetSpec:
     """Static description of the cloth net; the plain field names mirror the scene's [net].
@@ -62,8 +68,12 @@ class NetSpec:
             the same cord).
         hem_gap: m, height of the bottom cord above the playing surface as built (a hanging
             net's bottom row; it sags from there under the net's weight).
-        air_damping: 1/s, linear air drag per unit mass on every free knot (damps the sway
-            that axial dashpots cannot reach).
+        air_damping: 1/s, linear drag per unit mass on every free knot (damps the sway that
+            axial dashpots cannot reach): a chosen constant, not a measurement (no free decay of
+            a struck sports net is published); the air's own drag on the threads is far weaker,
+            AIR_DAMPING_PHYSICAL. It sets how long a struck net rings and so what it costs: the
+            out-of-plane modes decay at air_damping / 2 (`pingpong bench ringdown` and `bench
+            match --scene match,match_air` show 5/s beside the air's own drag).
         fix_posts: the first and last columns are tied to the posts.
         fix_table: the bottom row is tied to the table (at z = 0) instead of hanging on the
             bottom cord: a net held up by its columns in compression, which buckles.
@@ -107,6 +117,10 @@ class NetSpec:
     # fabric measurements support (bench/net_friction.py) leaves the net's slowest motion, the mesh
     # swinging about its top cord, which bends no knot and stretches no thread to first order,
     # ringing longer than this damping does. It stands until a struck net's free decay is measured.
+    # What it changes, against AIR_DAMPING_PHYSICAL: how long a struck net rings before it falls
+    # asleep (the net's awake ticks, the match's CPU and realtime factor), how far the bulge's waves
+    # carry its knots (the peak deflection), where the net is when the next ball arrives, and so
+    # the match's outcome.
     air_damping: float = 5.0
     fix_posts: bool = True
     fix_table: bool = False

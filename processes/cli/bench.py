@@ -199,15 +199,19 @@ def _print_ringdown(study, result: dict) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    console = Console()
-    table = Table("net", "point", "m/s", "asleep s", "peak mm", "absorbed mJ", "ring Hz", "zeta", "zeta model")
+    console = Console(width=max(Console().width, 140))  # twelve columns: wider than a pipe's default 80
+    table = Table("net", "air 1/s", "point", "m/s", "asleep s", "awake ticks", "net CPU s", "peak mm", "absorbed mJ",
+                  "ring Hz", "zeta", "zeta model")
     for name, net in result["nets"].items():
         for shot in net["shots"]:
-            table.add_row(name, shot["point"], f"{shot['speed_m_s']:g}", f"{shot['sleep_s']:.2f}",
+            asleep = f"{shot['sleep_s']:.2f}" if math.isfinite(shot["sleep_s"]) else f"> {shot['stepped_s']:g}"
+            table.add_row(name, f"{net['air_damping_per_s']:g}", shot["point"], f"{shot['speed_m_s']:g}", asleep,
+                          str(shot["awake_ticks"]), f"{shot['net_cpu_s']:.2f}",
                           f"{shot['peak_deflection_m'] * 1e3:.1f}", f"{shot['energy_absorbed_J'] * 1e3:.1f}",
                           f"{shot['ring_frequency_hz']:.1f}", f"{shot['damping_ratio']:.4f}",
                           f"{shot['damping_ratio_model']:.4f}")
     console.print(table)
+    console.print(f"kernels compiled or loaded in {result['compile_s']:.1f} s, apart from every shot's net CPU")
     for line in study.summary_lines(result):
         console.print(f"- {line}")
 
@@ -219,8 +223,11 @@ def add_commands(sub) -> None:
                        help="which study to run")
     bench.add_argument("--best-of", type=int, default=5, help="match: games in the benchmarked match")
     bench.add_argument("--scene", default="match",
-                       help="match: scene TOML file or bundled scene name (match: the cloth net, match_rigid: the rigid one)")
+                       help="match: scene TOML files or bundled scene names, comma-separated, run back to back "
+                            "(match: the cloth net, match_air: it damped by the air alone, match_rigid: the rigid net)")
     bench.add_argument("--seed", type=int, default=0, help="match: the match's seed")
+    bench.add_argument("--ticks", type=int, default=None,
+                       help="match: stop each match after this many ticks (default: the scene's bound; --quick: 20000)")
     bench.add_argument("--json", action="store_true", help="print one JSON object")
     bench.add_argument("--png", default=None, help="accuracy: write the work-precision plot to this PNG file")
     bench.add_argument("--quick", action="store_true", help="fewer step sizes and repeats (smoke runs)")

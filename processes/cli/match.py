@@ -242,32 +242,27 @@ def replay_command(args: argparse.Namespace) -> int:
     return 0
 
 
-def bench_match_command(args: argparse.Namespace) -> int:
-    """`pingpong bench match`: a headless lockstep match, its realtime factor and time per worker,
-    against the in-process reference in the same run (same seed, so the same match)."""
+def _bench_scene(name: str, args: argparse.Namespace) -> dict:
+    """One scene's `pingpong bench match` report: the match in worker processes (lockstep) and
+    in-process (same seed, so the same match); raises SceneError for a scene it cannot play."""
     from dataclasses import replace
 
     from engine.match import Match
     from engine.scene import SceneError, load_scene
     from processes.supervisor import Supervisor
 
-    try:
-        scene = load_scene(args.scene)
-    except SceneError as exc:
-        print(f"pingpong bench match: {exc}", file=sys.stderr)
-        return 2
+    scene = load_scene(name)
     if scene.match is None:
-        print(f"pingpong bench match: scene {scene.name!r} has no [match] section (and no referee); "
-              "use a match scene such as 'match' or 'match_rigid'", file=sys.stderr)
-        return 2
+        raise SceneError(f"scene {scene.name!r} has no [match] section (and no referee); "
+                         "use a match scene such as 'match', 'match_air' or 'match_rigid'")
     scene = replace(scene, match=replace(scene.match, best_of=args.best_of if not args.quick else 1))
-    ticks = scene.ticks if not args.quick else 20_000
+    ticks = args.ticks if args.ticks is not None else scene.ticks if not args.quick else 20_000
     result = Supervisor(scene, ticks, "lockstep", seed=args.seed).run()
     multi = summary_from_processes(scene, args.seed, result)
     match = Match(scene, seed=args.seed)
     reference = match.play(max_ticks=ticks).summary()
     net = match.state.net_sim  # the cloth net's awake ticks: what it cost, to set beside the net worker's
-    report = {
+    return {
         "scene": scene.name,
         "net": scene.net_kind,
         "best_of": scene.match.best_of,
@@ -280,25 +275,73 @@ def bench_match_command(args: argparse.Namespace) -> int:
         "in_process": {"wall_seconds": reference["wall_seconds"], "realtime_factor": reference["realtime_factor"],
                        "ai_seconds": reference["ai_seconds"],
                        "us_per_tick": 1e6 * reference["wall_seconds"] / max(reference["ticks"], 1),
-                       **({"net_awake_ticks": net.awake_ticks} if net is not None else {})},
+                       **({"net_awake_ticks": net.awake_ticks,
+                           "net_awake_share": net.awake_ticks / max(reference["ticks"], 1)} if net is not None else {})},
         "target": "a best-of-5 match at >= 100x realtime, headless lockstep (issue 6)",
+        # The cloth net's chosen damping (NetSpec.air_damping; scenes/match_air.toml: the air's own drag).
+        "air_damping_per_s": scene.cloth.air_damping if scene.cloth is not None else None,
+        "outcome": {key: multi[key] for key in ("winner", "games", "points", "points_won", "mean_rally_shots",
+                                                "point_reasons")},
     }
+
+
+def bench_match_command(args: argparse.Namespace) -> int:
+    """`pingpong bench match`: a headless lockstep match, its realtime factor and time per worker,
+    against the in-process reference in the same run (same seed, so the same match). Several scenes
+    (--scene a,b,...) run back to back: the first's report is the top-level object, the others go
+    in its "beside" list with their realtime factors as ratios to the first's."""
+    from engine.scene import SceneError
+
+    names = [name.strip() for name in args.scene.split(",")]
+    if not all(names):
+        print(f"pingpong bench match: --scene {args.scene!r} has an empty name; give scenes as NAME[,NAME...]",
+              file=sys.stderr)
+        return 2
+    if args.ticks is not None and args.ticks < 1:
+        print(f"pingpong bench match: --ticks {args.ticks} must be >= 1", file=sys.stderr)
+        return 2
+    reports = []
+    for name in names:
+        try:
+            reports.append(_bench_scene(name, args))
+        except SceneError as exc:
+            print(f"pingpong bench match: {exc}", file=sys.stderr)
+            return 2
+    report = reports[0]
+    if len(reports) > 1:
+        for other in reports[1:]:
+            other["realtime_factor_ratio"] = {
+                where: other[where]["realtime_factor"] / report[where]["realtime_factor"]
+                for where in ("processes", "in_process")}
+        report["beside"] = reports[1:]
     if args.json:
         print(json.dumps(report))
         return 0
-    p, r = report["processes"], report["in_process"]
-    print(f"match {report['scene']} ({report['net']} net), best of {report['best_of']}, seed {report['seed']}: "
+    for one in reports:
+        _print_bench(one, report)
+    return 0
+
+
+def _print_bench(report: dict, first: dict) -> None:
+    p, r, o = report["processes"], report["in_process"], report["outcome"]
+    air = f", air damping {report['air_damping_per_s']:g}/s" if report["air_damping_per_s"] is not None else ""
+    print(f"match {report['scene']} ({report['net']} net{air}), best of {report['best_of']}, seed {report['seed']}: "
           f"{report['sim_seconds']:.1f} s simulated, "
           f"same match in both runs: {report['same_match']}")
-    print(f"  worker processes (lockstep): {p['wall_seconds']:.2f} s wall, {p['realtime_factor']:.1f}x realtime, "
+    games = ", ".join(f"{a}-{b}" for a, b in o["games"])
+    print(f"  outcome: winner {(o['winner'] or '-').upper()}, games {games or '-'}, {o['points']} points, "
+          f"rally shots mean {o['mean_rally_shots']:.1f}")
+    ratio = report.get("realtime_factor_ratio")
+    beside = f" ({ratio['processes']:.2f}x {first['scene']}'s)" if ratio else ""
+    print(f"  worker processes (lockstep): {p['wall_seconds']:.2f} s wall, {p['realtime_factor']:.1f}x realtime{beside}, "
           f"{p['us_per_tick']:.1f} us/tick, startup {p['startup_seconds']:.2f} s")
     for kind, info in p["workers"].items():
         awake = info.get("awake_ticks")
         awake_text = f", {awake} ticks awake ({1e6 * info['busy_s'] / awake:.0f} us each)" if awake else ""
         print(f"    {kind:<8} own work {info['busy_s']:.2f} s, hand-offs {info['handoff_s']:.2f} s{awake_text}")
+    share = f", net awake {r['net_awake_share']:.0%} of ticks" if "net_awake_share" in r else ""
     print(f"  in-process reference:        {r['wall_seconds']:.2f} s wall, {r['realtime_factor']:.1f}x realtime, "
-          f"{r['us_per_tick']:.1f} us/tick (AI {r['ai_seconds']:.2f} s)")
-    return 0
+          f"{r['us_per_tick']:.1f} us/tick (AI {r['ai_seconds']:.2f} s){share}")
 
 
 def add_commands(sub) -> None:

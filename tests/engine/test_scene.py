@@ -1,13 +1,24 @@
 """Scenes: bundled scenes load; every bad scene is refused with the file, the key and what is allowed."""
+from dataclasses import replace
+
 import pytest
 
 from engine.scene import SCENES_DIR, SceneError, load_scene, with_overrides
+from net_kernel.topology import AIR_DAMPING_PHYSICAL
 
 
 @pytest.mark.parametrize("name", ["drop", "serve", "rally"])
 def test_bundled_scenes_load(name):
     scene = load_scene(name)
     assert scene.name == name and scene.ticks > 0
+
+
+def test_match_air_is_the_default_match_with_the_airs_own_drag():
+    match, air = load_scene("match"), load_scene("match_air")
+    assert air.cloth.air_damping == AIR_DAMPING_PHYSICAL
+    same = {"name": match.name, "description": match.description, "source": match.source,
+            "cloth": replace(air.cloth, air_damping=match.cloth.air_damping)}
+    assert replace(air, **same) == match  # everything else as scenes/match.toml has it
 
 
 def write(tmp_path, text):

@@ -65,9 +65,24 @@ def test_bench_ringdown_quick_json():
     done = pingpong("ringdown", "--quick", "--json")
     assert done.returncode == 0, done.stderr
     result = json.loads(done.stdout)
-    assert set(result["nets"]) == {"hanging", "tied"}
-    for net in result["nets"].values():
+    assert set(result["nets"]) == {"hanging", "tied", "hanging_air"}
+    assert result["nets"]["hanging"]["air_damping_per_s"] == 5.0  # NetSpec.air_damping, the chosen value
+    assert result["nets"]["hanging_air"]["air_damping_per_s"] == 0.2  # topology.AIR_DAMPING_PHYSICAL
+    for name, net in result["nets"].items():
         for shot in net["shots"]:
-            assert shot["sleep_s"] is not None and shot["sleep_s"] > 0.0  # every struck net fell asleep
+            if name != "hanging_air":  # the air alone rings for about a minute: --quick stops it awake
+                assert shot["sleep_s"] is not None and shot["sleep_s"] > 0.0  # every struck net fell asleep
+            assert shot["awake_ticks"] == round(shot["stepped_s"] / result["dt_s"])  # awake until asleep or stopped
+            assert shot["net_cpu_s"] > 0.0
             assert 0.0 < shot["energy_absorbed_J"] <= shot["energy_in_J"]  # the net takes energy, never gives
             assert shot["peak_deflection_m"] > 0.0
+    compare = result["air_against_chosen"]
+    assert compare["air_damping_per_s"] == [5.0, 0.2] and compare["shots"] == 2
+    # The weaker damping keeps the net awake for at least as long as the chosen one does.
+    assert compare["awake_ticks_ratio"] >= 1.0
+
+
+def test_bench_ringdown_human_output():
+    done = pingpong("ringdown", "--quick")
+    assert done.returncode == 0, done.stderr
+    assert "hanging_air" in done.stdout and "air drag alone (0.2/s) against the chosen 5/s" in done.stdout

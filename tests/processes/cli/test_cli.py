@@ -103,6 +103,26 @@ def test_bench_match_quick_json():
     assert set(report["processes"]["workers"]) == {"physics", "net", "ai"}  # the default match: the cloth net
 
 
+def test_bench_match_sets_the_air_damped_match_beside_the_default():
+    done = subprocess.run([sys.executable, "-m", "processes", "bench", "match", "--scene", "match,match_air",
+                           "--quick", "--ticks", "3000", "--json"],
+                          capture_output=True, text=True, timeout=DEADLINE_S, stdin=subprocess.DEVNULL)
+    assert done.returncode == 0, done.stderr
+    report = json.loads(done.stdout)
+    # The first scene's report keeps every key of the one-scene report; the others go beside it.
+    assert set(report) >= {"scene", "net", "best_of", "seed", "same_match", "sim_seconds", "processes", "in_process",
+                           "target", "air_damping_per_s", "outcome", "beside"}
+    assert [report["scene"]] + [other["scene"] for other in report["beside"]] == ["match", "match_air"]
+    air = report["beside"][0]
+    assert (report["air_damping_per_s"], air["air_damping_per_s"]) == (5.0, 0.2)  # NetSpec's; AIR_DAMPING_PHYSICAL
+    for one in (report, air):
+        assert one["same_match"] is True  # each scene's lockstep match and its in-process one agree
+        assert one["sim_seconds"] == pytest.approx(3.0)  # --ticks 3000 at 1 ms
+        assert one["processes"]["workers"]["net"]["awake_ticks"] == one["in_process"]["net_awake_ticks"]
+        assert set(one["outcome"]) >= {"winner", "games", "points", "point_reasons"}
+    assert air["realtime_factor_ratio"]["processes"] > 0.0
+
+
 def test_bench_match_refuses_a_scene_without_a_match():
     done = subprocess.run([sys.executable, "-m", "processes", "bench", "match", "--scene", "drop", "--quick"],
                           capture_output=True, text=True, timeout=DEADLINE_S, stdin=subprocess.DEVNULL)
