@@ -7,12 +7,12 @@ import numpy as np
 from numba import njit
 
 from engine.bat import face_normal
-from engine.dtypes import BAT_DTYPE
+from engine.dtypes import ACTION_DTYPE, ARM_SEGMENTS, BAT_DTYPE
 
 # One segment of a planned path, a cubic Hermite curve of the bat centre (engine.ai.Segment), as
 # SEG_WIDTH floats at these offsets: t0, t1 s; p0, v0 m, m/s at t0; p1, v1 at t1.
 SEG_T0, SEG_T1, SEG_P0, SEG_V0, SEG_P1, SEG_V1 = 0, 1, 2, 5, 8, 11
-SEG_WIDTH = 14
+SEG_WIDTH = ACTION_DTYPE["segments"].shape[1]  # 14: a player's arm target carries the same rows
 
 # The bat's fields in a BAT_DTYPE record seen as float64 (offsets in numbers).
 BAT_POS, BAT_QUAT, BAT_VEL, BAT_ANG_VEL = (BAT_DTYPE.fields[name][1] // 8 for name in ("pos", "quat", "vel", "ang_vel"))
@@ -25,7 +25,7 @@ BAT_FLOATS = BAT_DTYPE.itemsize // 8
 (CTL_MASS, CTL_INERTIA, CTL_KP, CTL_KD, CTL_K_ANGLE, CTL_D_ANGLE, CTL_MAX_FORCE, CTL_MAX_TORQUE,
  CTL_MAX_SPEED) = range(9)
 CTL_HOLD, CTL_NORMAL, CTL_N_SEGMENTS, CTL_SEGMENTS = 9, 12, 15, 16
-MAX_SEGMENTS = 3  # backswing, swing, follow-through
+MAX_SEGMENTS = ARM_SEGMENTS  # backswing, swing, follow-through
 CTL_SIZE = CTL_SEGMENTS + MAX_SEGMENTS * SEG_WIDTH
 
 

@@ -23,6 +23,57 @@ BAT_DTYPE = np.dtype(
     ]
 )
 
+# A bat's motion as a player sees it: BAT_DTYPE's first four fields, at the same offsets.
+BAT_STATE_DTYPE = np.dtype(
+    [
+        ("pos", "<f8", (3,)),  # m, centre of the blade
+        ("quat", "<f8", (4,)),  # unit quaternion (w, x, y, z): bat frame -> world; bat z = face normal
+        ("vel", "<f8", (3,)),  # m/s
+        ("ang_vel", "<f8", (3,)),  # rad/s, world frame
+    ]
+)
+
+# What a player (engine.bot.Bot) sees at each of its control ticks, and all it sees: the ball as
+# the wire's snapshot shows it, its own bat and the other one, the referee's public state and the
+# clock. World frame and SI units like everything else; players are 0 (A, x < 0) and 1 (B).
+OBSERVATION_DTYPE = np.dtype(
+    [
+        ("tick", "<i8"),  # the tick the state is at
+        ("time", "<f8"),  # s, simulated
+        ("ball", BALL_DTYPE),  # pos m, vel m/s, spin rad/s
+        ("own", BAT_STATE_DTYPE),  # the player's bat
+        ("other", BAT_STATE_DTYPE),  # the opponent's bat
+        ("score", "<i4", (2,)),  # points in the current game, A then B
+        ("games_won", "<i4", (2,)),  # A then B
+        ("phase", "<i4"),  # engine.rules.Phase: 0 waiting for the service ... 5 rally decided
+        ("server", "<i4"),  # the player serving this rally
+        ("to_strike", "<i4"),  # the player who must strike the ball next, -1 for nobody
+        ("shots", "<i4"),  # strikes in this rally, the service included
+        ("rally", "<i8"),  # rallies started since the match began
+    ]
+)
+
+# How many segments an arm target's path holds: backswing, swing, follow-through.
+ARM_SEGMENTS = 3
+
+# What a player answers (engine.bot): kind ACTION_TARGET, the arm's target (a pose to hold and
+# a path of cubic Hermite segments of the bat centre, (t0, t1, p0, v0, p1, v1) with times s
+# in the world clock, positions m, velocities m/s), which engine.arm's PD law turns into force
+# and torque within the arm's limits; or kind ACTION_FORCE, the force and torque themselves,
+# each within the arm's limits. The float fields come first, so a record's first ACTION_FLOATS
+# bytes view as float64.
+ACTION_DTYPE = np.dtype(
+    [
+        ("force", "<f8", (3,)),  # N, world frame (ACTION_FORCE)
+        ("torque", "<f8", (3,)),  # N m (ACTION_FORCE)
+        ("hold", "<f8", (3,)),  # m, where the bat stays once the path is over (ACTION_TARGET)
+        ("normal", "<f8", (3,)),  # unit, the face normal to turn to (ACTION_TARGET)
+        ("segments", "<f8", (ARM_SEGMENTS, 14)),  # t0, t1, p0 (3), v0 (3), p1 (3), v1 (3), in time order
+        ("n_segments", "<i4"),  # segments in use, 0 .. ARM_SEGMENTS
+        ("kind", "<i4"),  # 0 ACTION_TARGET, 1 ACTION_FORCE
+    ]
+)
+
 # Scalars of the world, one record per world.
 WORLD_DTYPE = np.dtype(
     [
@@ -110,10 +161,12 @@ def ai_answer_dtype(max_bats: int, ctl_size: int) -> np.dtype:
     N m of every AI bat; key: the decision key it was made under; due, end: s, the AIs' wakes
     (engine.ai.BatAI.wakes); ctl: (max_bats, ctl_size) each AI's controller row (engine.arm's
     CTL_* layout), in the order of the scene's AI bats, so the physics can evaluate the force
-    law itself until the next decision.
+    law itself until the next decision; fault: (max_bats,) per bat, engine.bot.FAULTS index of
+    what went wrong with its player's decision (0: nothing), fault_text: what, in words.
     """
     return np.dtype([("tick", "<i8"), ("mask", "<i8"), ("inputs", "<f8", (max_bats, 6)), ("key", "<i8", (4,)),
-                     ("due", "<f8"), ("end", "<f8"), ("ctl", "<f8", (max_bats, ctl_size))])
+                     ("due", "<f8"), ("end", "<f8"), ("ctl", "<f8", (max_bats, ctl_size)),
+                     ("fault", "<i4", (max_bats,)), ("fault_text", "S240", (max_bats,))])
 
 
 def ai_local_dtype(max_bats: int) -> np.dtype:

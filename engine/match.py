@@ -20,9 +20,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from engine import equipment
-from engine.ai import SKILLS, AIPlayers, BatAI
+from engine.bot import ON_BOT_ERROR, BotError, bot_source, is_bot_spec
 from engine.dtypes import CONTACT_DTYPE, POINT_DTYPE, physics_snapshot_dtype
-from engine.rules import REASONS, Phase, PointRecord, Referee, next_striker
+from engine.players import DEFAULT_BUDGET_S, Players, make_players
+from engine.rules import REASONS, Phase, PointRecord, Referee
 from engine.scene import Scene, SceneError, scene_digest, with_skills
 from engine.world import advance, build_model, copy_record, initial_state, new_events, step
 
@@ -42,6 +43,8 @@ class MatchResult:
     compile_seconds: float
     ai_seconds: float
     ai_stats: dict = field(default_factory=dict)
+    bot_errors: list = field(default_factory=list)  # Match.bot_errors
+    stopped: str | None = None  # the bot error that stopped the match
 
     def summary(self) -> dict:
         ref = self.referee
@@ -72,6 +75,8 @@ class MatchResult:
             "ai_seconds": self.ai_seconds,
             "realtime_factor": self.sim_seconds / self.wall_seconds if self.wall_seconds > 0 else None,
             "ai": self.ai_stats,
+            "bot_errors": self.bot_errors,
+            "stopped": self.stopped,
         }
 
 
@@ -80,26 +85,27 @@ def control_period(scene: Scene) -> int:
     return max(1, int(round(1.0 / (scene.match.ai_hz * scene.dt))))
 
 
-def make_ais(scene: Scene, model, seed: int, eager: bool = True) -> AIPlayers:
-    """The AI of every bat that has a skill, each seeded from the match seed and its player.
+def make_ais(scene: Scene, model, seed: int, eager: bool = True, budget_s: float | None = DEFAULT_BUDGET_S,
+             interrupt: bool = False) -> Players:
+    """The player of every bat that has one (an AI profile or a bot), seeded from the match seed
+    and its player (engine.players.make_players).
 
-    eager=False: each thinks a stroke out only in the steps its think_step is given (and what
-    is left when it is due), as the AI worker does between its turns; the same strokes.
+    eager=False: each AI profile thinks a stroke out only in the steps its think_step is given
+    (and what is left when it is due), as the AI worker does between its turns; the same strokes.
     """
-    every = control_period(scene)
-    return AIPlayers({i: BatAI(model, i, SKILLS[bat.skill], seed=seed * 1000 + i, control_every=every, eager=eager)
-                      for i, bat in enumerate(scene.bats) if bat.skill is not None})
+    return make_players(scene, model, seed, control_period(scene), eager=eager, budget_s=budget_s, interrupt=interrupt)
 
 
-def ai_inputs(ais: AIPlayers, now: float, ball_flat: np.ndarray, bats: np.ndarray, rally_key,
-              phase: int, server: int, striker: int, inputs: np.ndarray) -> None:
-    """Every AI's force and torque from one state: the one function both the in-process match
+def ai_inputs(players: Players, tick: int, now: float, ball_flat: np.ndarray, bats: np.ndarray, rally,
+              inputs: np.ndarray) -> list:
+    """Every player's force and torque from one state: the one function both the in-process match
     and the AI worker call, so lockstep runs compute bit for bit the same inputs.
 
-    bats: the (n_bats,) BAT_DTYPE array; inputs: (n_bats, 6), written at the AIs' rows.
+    ball_flat: (9,) the ball; bats: the (n_bats,) BAT_DTYPE array; rally: the state's
+    RALLY_DTYPE record; inputs: (n_bats, 6), written at the players' rows. Returns the
+    decisions' faults [(player, fault, detail)] (engine.bot.FAULTS names).
     """
-    ais.control(now, ball_flat, bats, rally_key, next_striker(phase, server, striker), phase == Phase.WAITING_SERVE,
-                inputs)
+    return players.control(tick, now, ball_flat, bats, rally, inputs)
 
 
 def point_row(point: PointRecord, tick: int) -> np.ndarray:
@@ -124,18 +130,23 @@ def _rows(rows: list[int]):
 
 
 class LocalAI:
-    """The AIs in this process (the reference): each control tick they decide at once."""
+    """The players in this process (the reference): each control tick they decide at once. The
+    faults of a decision reach the match with it, at the next control tick, as the AI worker's do."""
 
-    def __init__(self, ais: dict[int, BatAI]):
+    def __init__(self, ais: Players):
         self.ais = ais
+        self.faults: list = []
 
-    def collect(self, match: "Match") -> None:
-        """Nothing to wait for: request() already wrote match.ai_next."""
+    def collect(self, match: "Match") -> list:
+        """request() already wrote match.ai_next; the faults of that decision [(player, tick, fault, detail)]."""
+        faults, self.faults = self.faults, []
+        return faults
 
     def request(self, match: "Match", now: float) -> None:
-        ref = match.referee
-        ai_inputs(self.ais, now, match.state.ball_flat, match.state.bats, match.rally_key(), int(ref.phase), ref.server,
-                  ref.striker, match.ai_next)
+        tick = int(match._world_q[0])
+        faults = ai_inputs(self.ais, tick, now, match.state.ball_flat, match.state.bats, match.rally_record,
+                           match.ai_next)
+        self.faults = [(player, tick, fault, detail) for player, fault, detail in faults]
 
 
 class Match:
@@ -144,11 +155,18 @@ class Match:
     At each AI control tick the match calls ai_driver.collect(match), which must leave in
     match.ai_next the AIs' decision from the previous control tick, applies it, then
     ai_driver.request(match, now), which starts the decision from the state now (to be collected
-    at the next control tick). By default the AIs run here (LocalAI, the reference); the
-    physics worker passes a driver that asks the AI worker.
+    at the next control tick); collect returns the faults of the decision it collected. By
+    default the players run here (LocalAI, the reference); the physics worker passes a driver
+    that asks the AI worker.
+
+    A player's decision that goes wrong (engine.players: it raised, was malformed, non-finite,
+    oversized or overran its budget_s of CPU) is recorded in bot_errors when it is collected;
+    on_bot_error "point" gives the rally to the other player (reason bot_error), "stop" ends
+    the match there (stopped holds the BotError).
     """
 
-    def __init__(self, scene: Scene, seed: int = 0, ai_driver=None):
+    def __init__(self, scene: Scene, seed: int = 0, ai_driver=None, on_bot_error: str = "point",
+                 budget_s: float | None = DEFAULT_BUDGET_S):
         if scene.match is None:
             raise ValueError(f"{scene.source}: scene {scene.name!r} has no referee; a match needs the effect 'referee'")
         self.scene = scene
@@ -158,8 +176,13 @@ class Match:
         self.events = new_events()
         spec = scene.match
         self.referee = Referee(best_of=spec.best_of, first_server="ab".index(spec.first_server))
+        if on_bot_error not in ON_BOT_ERROR:
+            raise ValueError(f"on_bot_error: must be one of {', '.join(ON_BOT_ERROR)}, got {on_bot_error!r}")
+        self.on_bot_error = on_bot_error
+        self.bot_errors: list[dict] = []
+        self.stopped: BotError | None = None
         self.has_ai = any(bat.skill is not None for bat in scene.bats)
-        self.ais = make_ais(scene, self.model, seed) if ai_driver is None else {}
+        self.ais = make_ais(scene, self.model, seed, budget_s=budget_s) if ai_driver is None else {}
         self.ai_driver = ai_driver or LocalAI(self.ais)
         self.ai_bats = [i for i, bat in enumerate(scene.bats) if bat.skill is not None]
         self._ai_rows = _rows(self.ai_bats)
@@ -173,6 +196,7 @@ class Match:
         world_bytes = memoryview(self.state.world.view(np.uint8)).cast("B")
         self._world_q, self._world_d, self._world_i = world_bytes.cast("q"), world_bytes.cast("d"), world_bytes.cast("i")
         self._max_rally_s = scene.match.max_rally_s
+        self.rally_record = self.state.record[0]["rally"]  # a view: the players read the referee's state here
         self.rally = 0
         self.rally_started = 0.0
         self.n_events = 0
@@ -245,7 +269,12 @@ class Match:
             every = self.ai_every
             if tick % every == 0:
                 started = time.perf_counter()
-                self.ai_driver.collect(self)
+                faults = self.ai_driver.collect(self)
+                if faults:
+                    self._faults(faults)
+                    if self.stopped is not None:
+                        self.ticks_done = self.n_events = 0
+                        return None
                 self.inputs[self._ai_rows] = self.ai_next[self._ai_rows]
                 self.ai_driver.request(self, self._world_d[1])
                 self.ai_seconds += time.perf_counter() - started
@@ -273,6 +302,30 @@ class Match:
             self._sync_rally()
         return point
 
+    @property
+    def over(self) -> bool:
+        """The match is won, or stopped by a bot's fault."""
+        return self.referee.match_over or self.stopped is not None
+
+    def _faults(self, faults: list) -> None:
+        """Record the faults of a decision; the point to the other player or the match stopped."""
+        for player, tick, fault, detail in faults:
+            bat = self.scene.bats[player]
+            error = BotError(bat.skill, player, tick, fault, detail)
+            self.bot_errors.append({"player": "ab"[player], "bot": bat.skill, "tick": tick, "fault": fault,
+                                    "detail": detail})
+            if self.on_bot_error == "stop":
+                self.stopped = error
+                return
+            if self.referee.award_fault(player) is None:
+                continue
+            if self.referee.match_over:
+                self._sync_rally()
+                return
+            self.referee.next_rally()
+            self.rally += 1
+            self.toss()
+
     def play(self, max_ticks: int | None = None, on_point=None, on_tick=None, events_out: list | None = None) -> MatchResult:
         """Play until the match is won (or max_ticks).
 
@@ -288,8 +341,12 @@ class Match:
         start = time.perf_counter()
         ticks = 0
         chunk = 1 if on_tick is not None else 1 << 30  # per-tick callbacks see every tick
-        while ticks < limit and not self.referee.match_over:
+        decided = len(self.referee.points)
+        while ticks < limit and not self.over:
             point = self.tick(min(chunk, limit - ticks))
+            if point is None and len(self.referee.points) > decided:  # a bot's fault gave the rally away
+                point = self.referee.points[-1]
+            decided = len(self.referee.points)
             ticks += self.ticks_done
             if events_out is not None and self.n_events:
                 events_out.extend(self.events[: self.n_events].copy())
@@ -299,7 +356,8 @@ class Match:
                 on_point(self, point)
         wall = time.perf_counter() - start
         return MatchResult(self.scene, self.seed, self.referee, ticks, ticks * self.scene.dt, wall, compile_seconds,
-                           self.ai_seconds, {"ab"[k]: dict(ai.stats) for k, ai in self.ais.items()})
+                           self.ai_seconds, self.ais.stats if self.ais else {}, self.bot_errors,
+                           None if self.stopped is None else str(self.stopped))
 
 
 def match_scene(scene: Scene, skill_a: str, skill_b: str, best_of: int | None = None) -> Scene:
@@ -316,13 +374,19 @@ def match_scene(scene: Scene, skill_a: str, skill_b: str, best_of: int | None = 
 
 
 def match_hash(scene: Scene, max_ticks: int) -> str:
-    """16 hex digits naming one match's conditions: the scene it plays (skills and best_of in it)
-    and its tick bound. With the seed and the code, they decide the match."""
-    return hashlib.sha256(f"{scene_digest(scene)}/{max_ticks}".encode()).hexdigest()[:16]
+    """16 hex digits naming one match's conditions: the scene it plays (skills and best_of in it),
+    the source of its file bots and its tick bound. With the seed and the code, they decide the match."""
+    digest = hashlib.sha256(f"{scene_digest(scene)}/{max_ticks}".encode())
+    for bat in scene.bats:
+        source = bot_source(bat.skill) if bat.skill is not None and is_bot_spec(bat.skill) else None
+        if source is not None:
+            digest.update(source.encode())
+    return digest.hexdigest()[:16]
 
 
 def match_record(scene: Scene, seed: int, skill_a: str, skill_b: str, best_of: int | None = None,
-                 max_ticks: int | None = None) -> dict:
+                 max_ticks: int | None = None, on_bot_error: str = "point",
+                 budget_s: float | None = DEFAULT_BUDGET_S) -> dict:
     """Play one match in this process and describe it in a small JSON-able record.
 
     The record: a, b (the skills at ends A and B), seed, scene (its name), scene_hash
@@ -330,15 +394,20 @@ def match_record(scene: Scene, seed: int, skill_a: str, skill_b: str, best_of: i
     scores), points (won by A, by B), lets, reasons (per end, the reasons of the points it
     lost), mean_rally_shots, ticks, sim_seconds, wall_seconds (the play, not the kernels' load),
     record_hash: sha256 over the match's contact events, point log and final state, so two runs
-    of a match compare by one string.
+    of a match compare by one string; bot_errors (Match.bot_errors without their details,
+    which may hold times) and stopped (whether a bot's fault stopped the match). skill_a and
+    skill_b are AI profiles or bot specs (engine.bot.load_bot).
     """
     played = match_scene(scene, skill_a, skill_b, best_of)
     limit = played.ticks if max_ticks is None else max_ticks
-    match = Match(played, seed=seed)
+    match = Match(played, seed=seed, on_bot_error=on_bot_error, budget_s=budget_s)
     events: list = []
     point_ticks: list[int] = []
-    result = match.play(max_ticks=limit, events_out=events,
-                        on_point=lambda m, point: point_ticks.append(int(m.state.world[0]["tick"])))
+
+    def on_point(m, point) -> None:  # every point decided in the call: a bot's fault may add one before
+        point_ticks.extend([int(m.state.world[0]["tick"])] * (len(m.referee.points) - len(point_ticks)))
+
+    result = match.play(max_ticks=limit, events_out=events, on_point=on_point)
     points = match.referee.points
     final = np.zeros(1, physics_snapshot_dtype(len(played.bats)))
     match.save(final)
@@ -369,4 +438,6 @@ def match_record(scene: Scene, seed: int, skill_a: str, skill_b: str, best_of: i
         "sim_seconds": result.sim_seconds,
         "wall_seconds": result.wall_seconds,
         "record_hash": digest.hexdigest(),
+        "bot_errors": [{k: v for k, v in error.items() if k != "detail"} for error in match.bot_errors],
+        "stopped": match.stopped is not None,
     }

@@ -46,6 +46,7 @@ class Reason(enum.Enum):
     DOUBLE_HIT = "double_hit"  # 2.10.1.6: struck twice in succession
     OBSTRUCTION = "obstruction"  # 2.10.1.8: touched above the playing surface before it bounced
     LET = "let"  # 2.9.1.1: a service touching the net assembly, otherwise good: replayed
+    BOT_ERROR = "bot_error"  # the player's bot failed a decision (engine.bot.FAULTS), the match plays on
 
 
 REASONS = tuple(Reason)  # stable codes for logs and replay files: REASONS.index(reason)
@@ -205,6 +206,13 @@ class Referee:
             return self._award(other, Reason.SERVE_MISSED_OWN_COURT)
         # SERVE_BOUNCED or STRUCK: it never reached the opponent's court.
         return self._award(other, self._out_reason(x, y))
+
+    def award_fault(self, player: int) -> PointRecord | None:
+        """The player's bot failed a decision: the rally in play goes to the other player (None
+        when no rally is in play: decided already, or the match is over)."""
+        if self.phase == Phase.OVER or self.match_over:
+            return None
+        return self._award(1 - player, Reason.BOT_ERROR)
 
     def _out_reason(self, x: float, y: float) -> Reason:
         """Why a struck ball that never touched the opponent's court is out, from where it ended."""

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from engine import equipment
+from engine.bot import is_bot_spec
 from engine.integrators import METHODS
 from net_kernel.sim import SAFETY
 from net_kernel.topology import SEMI_IMPLICIT, SOLVERS, NetSpec, build_topology, resolution_spec, validate_spec
@@ -64,7 +65,7 @@ class BatSpec:
     mass: float = equipment.BAT_MASS
     radius: float = equipment.BAT_RADIUS
     half_thickness: float = equipment.BAT_HALF_THICKNESS
-    skill: str | None = None  # AI skill level driving this bat (effect "ai"), None = no AI
+    skill: str | None = None  # the player driving this bat (effect "ai"): an AI profile or a bot spec; None = none
     remote: bool = False  # played by a remote client through the gateway (effect "remote")
 
 
@@ -446,12 +447,14 @@ def scene_digest(scene: Scene) -> str:
 
 
 def with_skills(scene: Scene, skill_a: str, skill_b: str) -> Scene:
-    """The scene with bat A played by the AI of skill_a and bat B by skill_b (SKILL_NAMES)."""
+    """The scene with bat A played by skill_a and bat B by skill_b: AI profiles (SKILL_NAMES) or
+    bot specs ("FILE.py:Class", "module:Class"; engine.bot.load_bot)."""
     if len(scene.bats) != 2:
         raise SceneError(f"{scene.source}: two AI players need both bats; the scene has {len(scene.bats)}")
     for name, skill in zip(BAT_NAMES, (skill_a, skill_b)):
-        if skill not in SKILL_NAMES:
-            raise SceneError(f"bats.{name}.skill: must be one of {', '.join(SKILL_NAMES)}; got {skill!r}")
+        if not isinstance(skill, str) or (skill not in SKILL_NAMES and not is_bot_spec(skill)):
+            raise SceneError(f"bats.{name}.skill: must be one of {', '.join(SKILL_NAMES)} or a bot "
+                             f"(FILE.py:Class or module:Class); got {skill!r}")
     bats = tuple(replace(bat, skill=skill, remote=False) for bat, skill in zip(scene.bats, (skill_a, skill_b)))
     return replace(scene, bats=bats, effects=(scene.effects - {"remote"}) | {"ai"})
 

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from engine.dtypes import CONTACT_DTYPE, physics_snapshot_dtype
+from engine.players import DEFAULT_BUDGET_S
 from engine.scene import Scene
 from processes.network.gateway import GatewayConfig
 from processes.runtime.control import READY_TIMEOUT_S, STARTUP_LIMIT_S, WorkerState, worker_main
@@ -94,13 +95,15 @@ class Supervisor:
         handoff_s: s, one wait of the physics for the AI's or the net's answer (RunOptions).
         slow_turn_s: fault injection for tests: every incarnation of `crash_worker` answers each
             turn (the AI, the net) or steps each match tick (the physics) this much later.
+        on_bot_error, bot_budget_s: engine.match.Match's on_bot_error and budget_s.
     """
 
     def __init__(self, scene: Scene, ticks: int, mode: str = "lockstep", trace: bool = False,
                  crash_at_tick: int | None = None, seed: int = 0, frame_every: int = 0,
                  crash_worker: str = "physics", gateway=None, players_timeout: float = PLAYERS_TIMEOUT_S,
                  handoff_s: float = RunOptions.handoff_s, slow_turn_s: float = 0.0, crash_kind: str = "kill",
-                 restart_budget: int = RESTART_BUDGET):
+                 restart_budget: int = RESTART_BUDGET, on_bot_error: str = "point",
+                 bot_budget_s: float | None = DEFAULT_BUDGET_S):
         self.scene = scene
         self.ticks = ticks
         self.mode = mode
@@ -113,7 +116,8 @@ class Supervisor:
             gateway = GatewayConfig()
         self.options = RunOptions(ticks=ticks, mode=mode, trace=trace, seed=seed, frame_every=frame_every,
                                   players_timeout=players_timeout, gateway=gateway, handoff_s=handoff_s,
-                                  crash_kind=crash_kind)
+                                  crash_kind=crash_kind, on_bot_error=on_bot_error,
+                                  bot_budget_s=bot_budget_s)
         if restart_budget < 0:
             raise ValueError(f"restart_budget must be >= 0 (restarts within {RESTART_WINDOW_S:.0f} s), "
                              f"got {restart_budget}")
@@ -299,11 +303,11 @@ class Supervisor:
                 # the net worker with the ball (waited for), and without it (not waited for), and
                 # the ball ticks given again because the net's answer took longer than handoff_s
                 **({k: w.report[k] for k in ("ai_turns", "ai_local_ticks", "net_ball_ticks", "net_free_ticks",
-                                             "net_turns_again")
+                                             "net_turns_again", "bot_errors", "stopped")
                     if k in w.report} if w.kind == "physics" else {}),
                 # the AI worker's thinking between its turns, and the strokes it had to finish late
-                **({k: w.report[k] for k in ("think_s", "late_thoughts", "late_thinking_s", "turns", "longest_turn_s")
-                    if k in w.report} if w.kind == "ai" else {}),
+                **({k: w.report[k] for k in ("think_s", "late_thoughts", "late_thinking_s", "turns", "longest_turn_s",
+                                             "bot_faults") if k in w.report} if w.kind == "ai" else {}),
                 # the cloth net's ticks stepped awake (its cost: a sleeping net's ticks cost nothing)
                 **({"awake_ticks": w.report["awake_ticks"]} if w.kind == "net" and "awake_ticks" in w.report else {}),
             }

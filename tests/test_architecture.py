@@ -9,8 +9,9 @@ ROOT = Path(__file__).resolve().parent.parent
 ALLOWED = {
     # net_kernel needs only numpy and numba (and the standard library).
     "net_kernel": {"numpy", "numba", "net_kernel"},
-    # engine: no sockets, processes or zmq; net_kernel below it is fine.
-    "engine": {"numpy", "numba", "engine", "net_kernel"},
+    # engine: no sockets, processes or zmq; net_kernel below it is fine; matplotlib draws the
+    # replay's picture (engine/render.py), which the Gymnasium environment (engine/env.py) renders.
+    "engine": {"numpy", "numba", "engine", "net_kernel", "matplotlib"},
 }
 
 

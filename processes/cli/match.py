@@ -6,7 +6,7 @@ import json
 import sys
 from pathlib import Path
 
-from processes.cli.common import FORMATTER, add_common
+from processes.cli.common import FORMATTER, add_common, add_players, bot_budget_s, with_players
 
 FRAME_EVERY = 10  # replay frames every 10 ms at 1 kHz
 
@@ -24,7 +24,7 @@ def _scene(args):
         if args.best_of < 1 or args.best_of % 2 == 0:
             raise SceneError(f"--best-of must be an odd number >= 1, got {args.best_of}")
         scene = replace(scene, match=replace(scene.match, best_of=args.best_of))
-    return scene
+    return with_players(scene, args)
 
 
 class _Scoreboard:
@@ -65,8 +65,10 @@ def summary_from_processes(scene, seed, result) -> dict:
     referee = Referee.restore(result.final["rally"], spec.best_of, "ab".index(spec.first_server), points)
     summary = MatchResult(scene, seed, referee, result.ticks, result.ticks * scene.dt, result.wall_seconds,
                           result.startup_seconds, 0.0).summary()
+    physics = result.workers.get("physics", {})
     summary.update(mode=result.mode, processes=True, startup_seconds=result.startup_seconds,
-                   workers=result.workers, compile_seconds=None, ai_seconds=None)
+                   workers=result.workers, compile_seconds=None, ai_seconds=None,
+                   bot_errors=physics.get("bot_errors", []), stopped=physics.get("stopped"))
     return summary
 
 
@@ -83,6 +85,11 @@ def _print_summary(summary: dict) -> None:
     factor = summary["realtime_factor"]
     print(f"simulated {summary['sim_seconds']:.1f} s in {summary['wall_seconds']:.2f} s wall"
           f" ({factor:.1f}x realtime)" if factor else "")
+    for error in summary.get("bot_errors") or []:
+        print(f"bot error: {error['bot']} (player {error['player'].upper()}) at tick {error['tick']}: "
+              f"{error['fault']}: {error['detail']}")
+    if summary.get("stopped"):
+        print(f"match stopped: {summary['stopped']}")
     for kind, info in (summary.get("workers") or {}).items():
         print(f"  worker {kind}: busy {info['busy_s']:.2f} s, restarts {info['restarts']}, late ticks {info['late_ticks']}")
 
@@ -102,7 +109,7 @@ def match_command(args: argparse.Namespace) -> int:
             raise SceneError(f"--ticks must be >= 0, got {args.ticks}")
         frame_every = FRAME_EVERY if args.replay else 0
         if args.in_process:
-            match = Match(scene, seed=args.seed)
+            match = Match(scene, seed=args.seed, on_bot_error=args.on_bot_error, budget_s=bot_budget_s(args))
             frames = []
             from engine.dtypes import physics_snapshot_dtype
 
@@ -125,7 +132,8 @@ def match_command(args: argparse.Namespace) -> int:
             from processes.supervisor import Supervisor
 
             board = _Scoreboard(scene) if not args.json and sys.stdout.isatty() else None
-            supervisor = Supervisor(scene, ticks, args.mode, seed=args.seed, frame_every=frame_every)
+            supervisor = Supervisor(scene, ticks, args.mode, seed=args.seed, frame_every=frame_every,
+                                    on_bot_error=args.on_bot_error, bot_budget_s=bot_budget_s(args))
             if board is not None:
                 with board.live:
                     result = supervisor.run(progress=board.update)
@@ -133,7 +141,7 @@ def match_command(args: argparse.Namespace) -> int:
                 result = supervisor.run()
             summary = summary_from_processes(scene, args.seed, result)
             points, frame_array, event_array = result.points, result.frames, result.events
-    except (SceneError, SimulationError) as exc:
+    except (SceneError, SimulationError, ValueError) as exc:
         print(f"pingpong: {exc}", file=sys.stderr)
         return 2
     if args.replay:
@@ -212,7 +220,7 @@ def replay_command(args: argparse.Namespace) -> int:
     }
     title = f"{h['scene']}, seed {h['seed']}: winner {summary['winner'] or '-'}, games {summary['games']}"
     if args.png or args.gif:
-        from processes.cli import render
+        from engine import render
 
         if args.png:
             render.png(data.frames, data.events, args.png, title)
@@ -346,7 +354,7 @@ def _print_bench(report: dict, first: dict) -> None:
 
 def add_commands(sub) -> None:
     """`pingpong match` and `pingpong replay`."""
-    match = sub.add_parser("match", help="play a match (AI against AI by default) in worker processes",
+    match = sub.add_parser("match", help="play a match (AI or bots: --a, --b) in worker processes",
                            formatter_class=FORMATTER)
     match.add_argument("--scene", default="match", help="scene TOML file or bundled scene name")
     match.add_argument("--best-of", type=int, default=None, help="games in the match (default: the scene's)")
@@ -355,6 +363,7 @@ def add_commands(sub) -> None:
     match.add_argument("--ticks", type=int, default=None, help="stop after this many ticks even if undecided")
     match.add_argument("--replay", default=None, help="write a replay file here")
     match.add_argument("--in-process", action="store_true", help="run the in-process reference instead of workers")
+    add_players(match)
     add_common(match)
     match.set_defaults(func=match_command)
 

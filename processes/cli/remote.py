@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from processes.cli.common import FORMATTER, add_common
+from processes.cli.common import FORMATTER, add_common, add_players
 
 if TYPE_CHECKING:
     from processes.network import wire
@@ -190,13 +190,18 @@ def serve_command(args: argparse.Namespace) -> int:
 
     from engine.scene import SceneError, load_scene, with_remote_players
     from engine.world import SimulationError
+    from processes.cli.common import bot_budget_s, with_players
     from processes.cli.match import summary_from_processes
     from processes.network.client import load_curve_key
     from processes.network.gateway import GatewayConfig
     from processes.supervisor import Supervisor, WorkerFailed
 
     try:
-        scene = with_remote_players(load_scene(args.scene), args.players)
+        for end, player in (("a", args.a), ("b", args.b)):
+            if player is not None and "ab".index(end) < args.players:
+                raise SceneError(f"--{end}: bat {end.upper()} is played remotely with --players {args.players}; "
+                                 f"give the AI seats' players only")
+        scene = with_remote_players(with_players(load_scene(args.scene), args), args.players)
         if args.best_of is not None:
             if args.best_of < 1 or args.best_of % 2 == 0:
                 raise SceneError(f"--best-of must be an odd number >= 1, got {args.best_of}")
@@ -212,7 +217,8 @@ def serve_command(args: argparse.Namespace) -> int:
                                    grace_s=args.grace, stats_path=stats_path, **curve)
             fault = _fault(args)
             supervisor = Supervisor(scene, ticks, "realtime", seed=args.seed, gateway=config,
-                                    players_timeout=args.wait, restart_budget=args.restart_budget, **fault)
+                                    players_timeout=args.wait, restart_budget=args.restart_budget,
+                                    on_bot_error=args.on_bot_error, bot_budget_s=bot_budget_s(args), **fault)
 
             bridges: list = []
 
@@ -475,6 +481,7 @@ def add_commands(sub) -> None:
     serve = sub.add_parser("serve", help="serve a realtime match that remote players and spectators join",
                            formatter_class=FORMATTER)
     serve.add_argument("--scene", default="match", help="scene TOML file or bundled scene name (needs a referee)")
+    add_players(serve)
     serve.add_argument("--bind", default="tcp://127.0.0.1:0", help="ZeroMQ endpoint; port 0 picks a free port")
     serve.add_argument("--players", type=int, choices=[0, 1, 2], default=1,
                        help="remote players (bat A first); the other bats are played by the AI")

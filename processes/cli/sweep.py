@@ -127,7 +127,8 @@ def sweep_command(args: argparse.Namespace) -> int:
         else:
             skills = tournament.parse_skills(args.skills)
             pairs = [tournament.pairs_of(skills)] * len(cells)
-        plans = [tournament.plan(scene, cell_pairs, args.seeds, args.best_of, args.ticks, cell)
+        plans = [tournament.plan(scene, cell_pairs, args.seeds, args.best_of, args.ticks, cell, args.on_bot_error,
+                                 args.bot_budget_ms / 1000.0)
                  for scene, cell_pairs, cell in zip(scenes, pairs, cells)]
     except (SceneError, ValueError) as exc:
         print(f"pingpong sweep: {exc}", file=sys.stderr)
@@ -167,6 +168,7 @@ def add_commands(sub) -> None:
     parser.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2",
                         help="a scene key and its values (repeat for a grid): match.ai_hz=50,100,250")
     parser.add_argument("--skills", default=None,
-                        help="comma-separated profiles to pit in every cell (default: the scene's bats' skills)")
+                        help="comma-separated players to pit in every cell, AI profiles and bots (FILE.py:Class) "
+                             "(default: the scene's bats' skills)")
     tournament.add_run_options(parser, out="sweep")
     parser.set_defaults(func=sweep_command)

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from processes.cli.common import FORMATTER
+from processes.cli.common import FORMATTER, add_bot_options, bot_budget_s
 
 if TYPE_CHECKING:
     from engine.scene import Scene
@@ -45,6 +45,9 @@ class MatchTask:
     max_ticks: int
     scene_hash: str
     cell: dict = field(default_factory=dict)  # a sweep's overrides, copied into the record
+    bots: dict = field(default_factory=dict)  # {spec: source} of its file bots, shipped with the task
+    on_bot_error: str = "point"
+    bot_budget_s: float | None = None  # None: engine.players.DEFAULT_BUDGET_S
 
     @property
     def key(self) -> tuple:
@@ -57,8 +60,11 @@ def record_key(record: dict) -> tuple:
 
 
 def plan(scene: Scene, pairs: list[tuple[str, str]], seeds: int, best_of: int | None, max_ticks: int | None,
-         cell: dict | None = None) -> list[MatchTask]:
-    """The tasks of `pairs` (skill at end A, skill at end B) over seeds 0 .. seeds - 1."""
+         cell: dict | None = None, on_bot_error: str = "point", bot_budget_s: float | None = None) -> list[MatchTask]:
+    """The tasks of `pairs` (player at end A, player at end B: AI profiles or bot specs) over
+    seeds 0 .. seeds - 1. A file bot's source goes with each task, so a worker on any machine
+    plays the bot that was planned (and a changed bot is a new match: its source is in the hash)."""
+    from engine.bot import bot_source, is_bot_spec
     from engine.match import match_hash, match_scene
 
     tasks = []
@@ -66,7 +72,9 @@ def plan(scene: Scene, pairs: list[tuple[str, str]], seeds: int, best_of: int | 
         played = match_scene(scene, a, b, best_of)
         limit = played.ticks if max_ticks is None else max_ticks
         digest = match_hash(played, limit)
-        tasks.extend(MatchTask(scene, seed, a, b, best_of, limit, digest, dict(cell or {})) for seed in range(seeds))
+        bots = {spec: bot_source(spec) for spec in (a, b) if is_bot_spec(spec) and bot_source(spec) is not None}
+        tasks.extend(MatchTask(scene, seed, a, b, best_of, limit, digest, dict(cell or {}), bots, on_bot_error,
+                               bot_budget_s) for seed in range(seeds))
     return tasks
 
 
@@ -84,12 +92,17 @@ def play(task: MatchTask, crash_marker: str | None = None) -> dict:
     crash_marker: fault injection for the tests: if that file does not exist yet, create it and
     SIGKILL this process, so the first attempt of the task dies as a crashed worker would.
     """
+    from engine.bot import register_sources
     from engine.match import match_record
+    from engine.players import DEFAULT_BUDGET_S
 
     if crash_marker is not None and not os.path.exists(crash_marker):
         Path(crash_marker).touch()
         os.kill(os.getpid(), signal.SIGKILL)
-    record = match_record(task.scene, task.seed, task.a, task.b, task.best_of, task.max_ticks)
+    register_sources(task.bots)
+    budget = DEFAULT_BUDGET_S if task.bot_budget_s is None else task.bot_budget_s
+    record = match_record(task.scene, task.seed, task.a, task.b, task.best_of, task.max_ticks, task.on_bot_error,
+                          budget)
     if task.cell:
         record["cell"] = task.cell
     return record
@@ -272,11 +285,16 @@ def run_tasks(tasks: list[MatchTask], out: Path, cluster: str, workers: int, sho
 
 
 def parse_skills(text: str) -> list[str]:
+    """The players of --skills: AI profiles and bots (FILE.py:Class, module:Class), each loaded
+    here so that a bad one is told before any match starts."""
+    from processes.cli.common import check_players
+
     skills = [s.strip() for s in text.split(",") if s.strip()]
-    unknown = [s for s in skills if s not in SKILL_NAMES]
+    unknown = [s for s in skills if s not in SKILL_NAMES and ":" not in s]
     if not skills or unknown or len(set(skills)) != len(skills):
-        raise ValueError(f"--skills: a comma-separated list of different profiles out of {', '.join(SKILL_NAMES)}; "
-                         f"got {text!r}")
+        raise ValueError(f"--skills: a comma-separated list of different players: profiles out of "
+                         f"{', '.join(SKILL_NAMES)} or bots (FILE.py:Class); got {text!r}")
+    check_players(skills)
     return skills
 
 
@@ -290,6 +308,7 @@ def check_run_options(args: argparse.Namespace) -> None:
         raise ValueError(f"--ticks: must be >= 1, got {args.ticks}")
     if args.cluster != "local":
         ray_address(args.cluster)
+    bot_budget_s(args)
 
 
 def run_summary(report: RunReport, cluster: str, workers: int) -> dict:
@@ -313,7 +332,8 @@ def tournament_command(args: argparse.Namespace) -> int:
         check_run_options(args)
         skills = parse_skills(args.skills)
         scene = load_scene(args.scene)
-        tasks = plan(scene, pairs_of(skills), args.seeds, args.best_of, args.ticks)
+        tasks = plan(scene, pairs_of(skills), args.seeds, args.best_of, args.ticks,
+                     on_bot_error=args.on_bot_error, bot_budget_s=bot_budget_s(args))
     except (SceneError, ValueError) as exc:
         print(f"pingpong tournament: {exc}", file=sys.stderr)
         return 2
@@ -363,13 +383,15 @@ def add_run_options(parser: argparse.ArgumentParser, out: str) -> None:
                         help="processes of the local pool, CPUs of a local Ray instance")
     parser.add_argument("--out", default=out, help="directory of matches.jsonl (a rerun resumes), tables and plots")
     parser.add_argument("--json", action="store_true", help="print JSON instead of tables")
+    add_bot_options(parser)
 
 
 def add_commands(sub) -> None:
     """`pingpong tournament`."""
     parser = sub.add_parser("tournament", help="every pair of AI profiles over many seeds, on a local pool or Ray",
                             formatter_class=FORMATTER)
-    parser.add_argument("--skills", default=",".join(SKILL_NAMES), help="comma-separated profiles to pit")
+    parser.add_argument("--skills", default=",".join(SKILL_NAMES),
+                        help="comma-separated players to pit: AI profiles and bots (FILE.py:Class)")
     parser.add_argument("--scene", default="match", help="scene TOML file or bundled scene name (needs a referee)")
     add_run_options(parser, out="tournament")
     parser.set_defaults(func=tournament_command)

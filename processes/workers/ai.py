@@ -27,24 +27,27 @@ strokes are the same, bit for bit, however the thinking was spread.
 """
 from __future__ import annotations
 
+import sys
 import time
 
 import numpy as np
 
+from engine.bot import FAULT_CODES
 from engine.dtypes import physics_snapshot_dtype
 from engine.match import ai_inputs, make_ais
 from engine.world import build_model, copy_record
 from processes.runtime.handoff import NO_TURN, HandoffTimeout
 from processes.runtime.shm import Arena
 from processes.runtime.control import Control, crash
-from processes.workers.layout import ANSWER_DTYPE, decision_key
+from processes.workers.layout import ANSWER_DTYPE, FAULT_TEXT_BYTES, decision_key
 from processes.workers.options import RunOptions
 
 class Answerer:
     """The AI side of a turn: the AIs' decision from one state, as an ANSWER_DTYPE record.
 
     Args:
-        ais: engine.ai.AIPlayers. n_bats: the scene's bats.
+        ais: engine.players.Players. n_bats: the scene's bats. names: each bat's player, for
+            the faults this process reports on its stderr.
     """
 
     def __init__(self, ais, n_bats: int):
@@ -58,17 +61,24 @@ class Answerer:
         self.inputs = self.record["inputs"][0][:n_bats]
         self.ctl = self.record["ctl"][0][:len(ais)]
         self.record["mask"] = sum(1 << player for player in ais)
+        self.faults = 0
 
     def answer(self, view: np.ndarray, tick: int) -> np.ndarray:
         """Decide from view[0] (a physics snapshot record) for `tick`; returns self.record, (1,)."""
         copy_record(view, self.snap)  # our own copy, byte for byte: the AIs keep views into it
         rally = self.rally
         phase, server, striker = int(rally["phase"]), int(rally["server"]), int(rally["striker"])
-        rally_key = (int(rally["rally"]), int(rally["shots"]))
-        ai_inputs(self.ais, float(self.world["time"]), self.ball_flat, self.bats, rally_key, phase, server, striker,
-                  self.inputs)
+        faults = ai_inputs(self.ais, int(self.world["tick"]), float(self.world["time"]), self.ball_flat, self.bats,
+                           rally, self.inputs)
         record = self.record
-        record["key"] = decision_key(*rally_key, phase, server, striker)
+        record["fault"] = 0
+        for player, fault, detail in faults:
+            record["fault"][0][player] = FAULT_CODES[fault]
+            record["fault_text"][0][player] = detail.encode("utf-8", "replace")[:FAULT_TEXT_BYTES]
+            print(f"pingpong ai worker: bot {self.ais[player].name} (player {'AB'[player]}) at tick {tick}: "
+                  f"{fault}: {detail}", file=sys.stderr, flush=True)
+            self.faults += 1
+        record["key"] = decision_key(int(rally["rally"]), int(rally["shots"]), phase, server, striker)
         record["due"], record["end"] = self.ais.wakes()
         self.ctl[:] = self.ais.ctl
         record["tick"] = tick
@@ -76,11 +86,12 @@ class Answerer:
 
 
 def ai_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
-    """options: seed, ai_baton; crash_at_tick, crash_kind (tests: end this process
-    after its first turn at or after that tick); slow_turn_s (tests: answer each turn that much later)."""
+    """options: seed, ai_baton, bot_budget_s; crash_at_tick, crash_kind (tests: end this process
+    after its first turn at or after that tick); slow_turn_s (tests: answer each turn that much later).
+    A bot's hung decision is interrupted (SIGALRM)."""
     model = build_model(scene)
-    ais = make_ais(scene, model, options.seed, eager=False)
-    thinkers = list(ais.values())
+    ais = make_ais(scene, model, options.seed, eager=False, budget_s=options.bot_budget_s, interrupt=True)
+    thinkers = ais.thinkers
     baton = options.ai_baton.attach(arena["ai_baton"].array)
     answer = arena["ai_answer"].array
     view = arena["ai_view"].array
@@ -129,6 +140,6 @@ def ai_worker(control: Control, arena: Arena, scene, options: RunOptions) -> Non
         control.finish(busy, 0.0, {"tick": int(control.row["tick"]), "busy_s": busy, "think_s": think,
                                    "late_thoughts": sum(ai.late_thoughts for ai in thinkers),
                                    "late_thinking_s": sum(ai.late_thinking_s for ai in thinkers),
-                                   "turns": turns, "longest_turn_s": longest})
+                                   "turns": turns, "longest_turn_s": longest, "bot_faults": answerer.faults})
     finally:
         del view, answer, baton, answerer

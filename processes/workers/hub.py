@@ -15,6 +15,7 @@ import numpy as np
 
 from engine.ai import BAT_FLOATS, CTL_NORMAL, CTL_SIZE, control_bats
 from engine.arm import brake_force
+from engine.bot import FAULTS
 from engine.dtypes import BAT_DTYPE
 from engine.match import Match
 from engine.world import copy_record
@@ -121,12 +122,14 @@ class AIDriver:
         self.turn = tick
         self.turns += 1
 
-    def collect(self, match: Match) -> None:
+    def collect(self, match: Match) -> list:
+        """The AIs' decision into match.ai_next; returns its faults [(player, tick, fault, detail)]."""
         if self.turn is None:
             if self.restored is not None:
                 match.ai_next[:] = self.restored
                 self.restored = None
-            return
+            return []
+        faults = []
         started = time.perf_counter()
         # The AI worker may be restarting: stay alive and ask again (the view still holds the state).
         self.baton.wait_done_or_retry(self.turn, self.handoff_s, AI_GIVE_UP_S, self.control.beat)
@@ -136,9 +139,13 @@ class AIDriver:
             for bat in range(self.n_bats):
                 if mask >> bat & 1:
                     match.ai_next[bat] = answer["inputs"][bat]
+                    if answer["fault"][bat]:
+                        faults.append((bat, self.turn, FAULTS[int(answer["fault"][bat])],
+                                       bytes(answer["fault_text"][bat]).decode("utf-8", "replace")))
             self.plans.take(answer)
         self.turn = None
         self.waits += time.perf_counter() - started
+        return faults
 
     def resume(self, tick: int, period: int) -> None:
         """After a restart at `tick`: the decision of the last control tick before it is in

@@ -48,6 +48,7 @@ POINT_LOG_CAPACITY = 1 << 12  # a best-of-9 match has at most a few hundred rall
 
 MAX_BATS = 2
 ANSWER_DTYPE = ai_answer_dtype(MAX_BATS, CTL_SIZE)
+FAULT_TEXT_BYTES = ANSWER_DTYPE["fault_text"].base.itemsize
 LOCAL_DTYPE = ai_local_dtype(MAX_BATS)
 
 # The physics' hand-off of a ball tick to the net worker, and the net's answer (NetSim.step's).

@@ -4,6 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from engine.players import DEFAULT_BUDGET_S
 from processes.runtime.control import CRASH_KINDS
 
 # A served match waits this long for its remote players to take their seats, then starts.
@@ -31,6 +32,8 @@ class RunOptions:
         slow_turn_s: fault injection for tests: this worker answers each turn (the AI, the net)
             or steps each tick of a match (the physics) this much later, as one descheduled on a
             busy machine does (0: never).
+        on_bot_error: "point" or "stop" (engine.match.Match). bot_budget_s: CPU s a bot's
+            decision may take (engine.players).
     """
 
     ticks: int
@@ -48,6 +51,8 @@ class RunOptions:
     start_event: Any = None
     handoff_s: float = 1.0
     slow_turn_s: float = 0.0
+    on_bot_error: str = "point"
+    bot_budget_s: float | None = DEFAULT_BUDGET_S
 
     def __post_init__(self):
         if self.mode not in ("lockstep", "realtime"):

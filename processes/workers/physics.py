@@ -125,15 +125,15 @@ def _stop_net(net, options: RunOptions) -> float:
     return net.waits
 
 
-def _finish(control: Control, tick: int, busy: float, net, options: RunOptions, match: bool = False, driver=None,
-            remote=None) -> None:
+def _finish(control: Control, tick: int, busy: float, net, options: RunOptions, match: Match | None = None,
+            driver=None, remote=None) -> None:
     """The physics' last words: stop the AI's and the net's turns, report the work and hand-offs.
 
     busy_s counts the physics' own work; the hand-offs to the AI and the net (and their work
     inside them, which they report themselves) are reported apart, as handoff_s. The report
     also carries the AI control ticks (turns given to the AI worker, forces computed here on
     the AIs' plans), the cloth net's ticks (handed to the net worker with the ball and waited
-    for, or granted without it) and the remote inputs refused by reason.
+    for, or granted without it), the remote inputs refused by reason and the match's bot errors.
     """
     handoff = _stop_net(net, options)
     report = {"tick": tick}
@@ -144,8 +144,9 @@ def _finish(control: Control, tick: int, busy: float, net, options: RunOptions, 
         options.ai_baton.stop()
         report.update(ai_turns=driver.turns, ai_local_ticks=driver.local)
         driver.close()
-    if match:
-        report.update(remote_inputs_refused={} if remote is None else dict(remote.refused))
+    if match is not None:
+        report.update(remote_inputs_refused={} if remote is None else dict(remote.refused), bot_errors=match.bot_errors,
+                      stopped=None if match.stopped is None else str(match.stopped))
         if remote is not None:
             report.update(remote_brake_ticks=remote.brake_ticks)
     if remote is not None:
@@ -169,7 +170,7 @@ def _match_worker(control: Control, arena: Arena, scene, options: RunOptions) ->
     n_bats = len(scene.bats)
     has_ai = any(bat.skill is not None for bat in scene.bats)
     driver = AIDriver(control, arena, options, scene) if has_ai else None
-    match = Match(scene, options.seed, ai_driver=driver)
+    match = Match(scene, options.seed, ai_driver=driver, on_bot_error=options.on_bot_error)
     snapshots = arena["physics"]
     points_log = arena["points"].array
     frames = arena["frames"].array if "frames" in arena.blocks else None
@@ -204,7 +205,7 @@ def _match_worker(control: Control, arena: Arena, scene, options: RunOptions) ->
     busy = 0.0
     # pacing, traces and remote inputs (drained before every tick) want every tick
     per_tick = pacer is not None or options.trace or remote is not None
-    while tick < n_ticks and not match.referee.match_over:
+    while tick < n_ticks and not match.over:
         if pause_when_empty and not options.start_event.is_set():
             paused = _await_players(control, options, tick, None)
             if pacer is not None:
@@ -233,4 +234,4 @@ def _match_worker(control: Control, arena: Arena, scene, options: RunOptions) ->
         if options.slow_turn_s:
             time.sleep(options.slow_turn_s)  # fault injection: a physics on a busy machine, not synchronisation
         control.beat(tick)
-    _finish(control, tick, busy, net, options, True, driver, remote)
+    _finish(control, tick, busy, net, options, match, driver, remote)

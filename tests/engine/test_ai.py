@@ -165,7 +165,7 @@ class _SpreadThinking(LocalAI):
 
     def request(self, match, now):
         super().request(match, now)
-        for ai in self.ais.values():
+        for ai in self.ais.thinkers:
             for _ in range(int(self.rng.integers(0, 4))):
                 ai.think_step()
 
@@ -177,5 +177,5 @@ def test_strokes_thought_out_in_steps_are_the_strokes_thought_out_at_once():
         eager.tick()
         spread.tick()
         assert eager.state.record.tobytes() == spread.state.record.tobytes()
-    late = sum(ai.late_thoughts for ai in spread.ai_driver.ais.values())
+    late = sum(ai.late_thoughts for ai in spread.ai_driver.ais.thinkers)
     assert late > 0 and len(eager.referee.points) >= 2  # some strokes were finished when due

@@ -2,12 +2,14 @@
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 from engine.scene import SCENES_DIR
 from tests.waits import DEADLINE_S
 
+EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
 
 
 def pingpong(*args):
@@ -44,6 +46,21 @@ def test_match_two_ticks():
     summary = json.loads(done.stdout)
     assert summary["scene"] == "match" and summary["ticks"] == 2 and summary["winner"] is None
     assert set(summary["workers"]) == {"physics", "net", "ai"}  # the default match plays the cloth net
+
+
+def test_match_of_the_example_bots_two_ticks():
+    done = pingpong("match", "--scene", "match_rigid", "--a", str(EXAMPLES / "block.py") + ":Block", "--b",
+                    str(EXAMPLES / "attack.py") + ":Attack", "--ticks", "2", "--json")
+    assert done.returncode == 0, done.stderr
+    summary = json.loads(done.stdout)
+    assert summary["ticks"] == 2 and summary["bot_errors"] == [] and summary["stopped"] is None
+
+
+@pytest.mark.parametrize("player, message", [("no/such.py:Bot", "no file no/such.py"),
+                                             ("grandmaster", "a bot (FILE.py:Class or module:Class)")])
+def test_match_with_a_bad_player_exits_2_with_the_reason(player, message):
+    done = pingpong("match", "--a", player, "--ticks", "2")
+    assert done.returncode == 2 and message in done.stderr, done.stderr
 
 
 def test_replay_two_ticks(tmp_path):
@@ -174,11 +191,13 @@ def test_help_imports_no_engine_numpy_numba_or_zmq():
 
 
 def test_the_parsers_spelled_out_defaults_are_the_runs():
+    from engine.players import DEFAULT_BUDGET_S
     from engine.scene import SKILL_NAMES
-    from processes.cli import remote, tournament
+    from processes.cli import common, remote, tournament
     from processes.workers import PLAYERS_TIMEOUT_S
 
     assert tournament.SKILL_NAMES == SKILL_NAMES
     assert remote.PLAYERS_TIMEOUT_S == PLAYERS_TIMEOUT_S
     from processes import supervisor
     assert (remote.RESTART_BUDGET, remote.RESTART_WINDOW_S) == (supervisor.RESTART_BUDGET, supervisor.RESTART_WINDOW_S)
+    assert common.BOT_BUDGET_MS == DEFAULT_BUDGET_S * 1000

@@ -5,6 +5,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 from scipy.stats import binomtest
@@ -52,6 +53,23 @@ def test_local_pool_and_ray_write_the_same_records(tmp_path, tasks, local_ray):
     first = tasks[0]
     in_process = match_record(first.scene, first.seed, first.a, first.b, first.best_of, first.max_ticks)
     assert hashes["local"][(first.a, first.b, first.seed)] == in_process["record_hash"]
+
+
+def test_a_bot_plays_the_same_records_on_the_pool_and_on_ray_from_the_source_it_was_planned_with(tmp_path,
+                                                                                                 local_ray):
+    bot = tmp_path / "my_block.py"
+    bot.write_text((Path(__file__).resolve().parents[3] / "examples" / "block.py").read_text())
+    spec = f"{bot}:Block"
+    bot_tasks = plan(load_scene("match_rigid"), pairs_of([spec, "novice"]), 1, best_of=1, max_ticks=TICKS // 3)
+    in_process = match_record(bot_tasks[0].scene, 0, spec, "novice", 1, TICKS // 3)
+    bot.unlink()  # the workers get the bot's source with their task, not from this file
+    local = run_tasks(bot_tasks, tmp_path / "local", "local", 2, show_progress=False)
+    on_ray = run_tasks(bot_tasks, tmp_path / "ray", "ray", 2, show_progress=False)
+    assert local.failure is None and on_ray.failure is None and local.played == on_ray.played == 2
+    records = {name: {(r["a"], r["b"]): r["record_hash"] for r in _lines(tmp_path / name / MATCHES_FILE)}
+               for name in ("local", "ray")}
+    assert records["local"] == records["ray"]
+    assert records["local"][(spec, "novice")] == in_process["record_hash"]
 
 
 def test_resume_skips_finished_matches_and_a_cut_line(tmp_path, tasks, local_ray):

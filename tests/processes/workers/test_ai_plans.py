@@ -30,8 +30,9 @@ class _Follow:
         self.decisions = self.followed = 0
         self.floats = None
 
-    def collect(self, match: Match) -> None:
-        """Nothing to wait for: request() wrote match.ai_next."""
+    def collect(self, match: Match) -> list:
+        """Nothing to wait for: request() wrote match.ai_next; no faults (no bots)."""
+        return []
 
     def request(self, match: Match, now: float) -> None:
         ref = match.referee
@@ -48,7 +49,7 @@ class _Follow:
                 self.floats = match.state.bats.view(np.float64).reshape(len(match.state.bats), -1)
             self.plans.control(now, self.floats, match.ai_next)
             self.followed += 1
-        for ai in self.ais.values():
+        for ai in self.ais.thinkers:
             for _ in range(self.think_steps):
                 ai.think_step()
 

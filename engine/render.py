@@ -1,4 +1,4 @@
-"""Pictures of a replay: side view (x-z) and top view (x-y), as a PNG or an animated GIF."""
+"""Pictures of a replay: side view (x-z) and top view (x-y), as a PNG, an RGB array or an animated GIF."""
 from __future__ import annotations
 
 import numpy as np
@@ -41,6 +41,23 @@ def _figure():
 
 def png(frames: np.ndarray, events: np.ndarray, path: str, title: str, seconds: float = 3.0) -> None:
     """The ball's path over the last `seconds` of the replay, bats where they ended, impacts marked."""
+    fig, plt = _picture(frames, events, title, seconds)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def rgb(frames: np.ndarray, events: np.ndarray, title: str, seconds: float = 3.0) -> np.ndarray:
+    """png's picture as a (700, 900, 3) uint8 array (rows, columns, RGB) at 100 dpi."""
+    fig, plt = _picture(frames, events, title, seconds)
+    fig.set_dpi(100)
+    fig.canvas.draw()
+    pixels = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+    plt.close(fig)
+    return pixels
+
+
+def _picture(frames: np.ndarray, events: np.ndarray, title: str, seconds: float):
+    """The figure of png and rgb: (figure, pyplot)."""
     fig, side, top, plt = _figure()
     if len(frames):
         t = frames["world"]["time"]
@@ -57,8 +74,7 @@ def png(frames: np.ndarray, events: np.ndarray, path: str, title: str, seconds: 
             side.plot(ev["pos"][0], ev["pos"][2], marker, color="k", ms=5)
             top.plot(ev["pos"][0], ev["pos"][1], marker, color="k", ms=5)
     fig.suptitle(title)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    return fig, plt
 
 
 def gif(frames: np.ndarray, path: str, title: str, seconds: float = 4.0, fps: int = 25) -> None:

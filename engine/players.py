@@ -1,0 +1,302 @@
+"""The seats of a match's AI-driven bats: each one's player (a bot or an AI profile), what it is
+shown, how its answer is checked, and the force law that plays it.
+
+At a control tick a seat whose player may decide differently (a bot: always; an AI profile:
+when BatAI.wakes says so, or the rally's key changed) gets a fresh observation and answers; the
+answer is checked (engine.bot.check_action) against its arm's limits and, within its CPU time
+budget, becomes the seat's arm target (its row of the ctl array that engine.arm.control_bats
+tracks) or its raw force and torque. A decision that raises, returns something malformed or
+non-finite, or overruns is a fault: the seat's arm brakes the bat instead (engine.arm.brake_force)
+and the fault is returned, for the match to record and act on (engine.match.Match).
+"""
+from __future__ import annotations
+
+import math
+import signal
+import time
+import traceback
+
+import numpy as np
+
+from engine.ai import SKILLS, BatAI
+from engine.ai.bot import ProfileBot
+from engine.arm import (BAT_FLOATS, CTL_D_ANGLE, CTL_HOLD, CTL_INERTIA, CTL_K_ANGLE, CTL_KD, CTL_KP, CTL_MASS,
+                        CTL_MAX_FORCE, CTL_MAX_SPEED, CTL_MAX_TORQUE, CTL_N_SEGMENTS, CTL_NORMAL, CTL_SEGMENTS,
+                        CTL_SIZE, brake_force, control_bats)
+from engine.bot import (A_FORCE, A_HOLD, A_SEGMENTS, ACTION_FLOATS, ACTION_FORCE, ACTION_TARGET, Bot, bot_name,
+                        check_action, is_bot_spec, load_bot, new_observation)
+from engine.dtypes import BAT_DTYPE, OBSERVATION_DTYPE
+from engine.rules import Phase, next_striker
+
+DEFAULT_BUDGET_S = 0.02  # CPU seconds a bot's decision may take, unless the bot or the match says otherwise
+# A decision still running after HANG_FACTOR budgets of wall time (at least HANG_MIN_S) is
+# interrupted where the seats may use SIGALRM (the AI worker): a bot that waits forever.
+HANG_FACTOR = 10.0
+HANG_MIN_S = 0.2
+_OBS_FLOATS_AT = OBSERVATION_DTYPE.fields["time"][1]  # time, ball (9), own (13), other (13): 36 float64 words
+_STATE_FLOATS = 13  # a bat's pos, quat, vel, ang_vel: BAT_DTYPE's first words, engine.dtypes.BAT_STATE_DTYPE
+
+
+class _Overrun(BaseException):
+    """Raised by SIGALRM inside a decision that did not return in time (not an Exception, so a
+    bot's own `except Exception` does not swallow it)."""
+
+
+def _alarm(signum, frame):
+    raise _Overrun()
+
+
+def _floats(record: np.ndarray, start: int, count: int) -> np.ndarray:
+    """A float64 view of `count` words of a 0-d structured array from byte `start`."""
+    return record.reshape(1).view(np.uint8)[start:start + count * 8].view(np.float64)
+
+
+def decision_key(rally) -> tuple[int, int, int, int]:
+    """What a decision depends on besides the clock and the ball, from a RALLY_DTYPE record:
+    (rally, shots, the player to strike next, whether that strike is a service)."""
+    phase, server, striker = int(rally["phase"]), int(rally["server"]), int(rally["striker"])
+    return (int(rally["rally"]), int(rally["shots"]), next_striker(phase, server, striker),
+            int(phase == Phase.WAITING_SERVE))
+
+
+class Seat:
+    """One AI-driven bat's player.
+
+    Args:
+        bot: the engine.bot.Bot (set up here). name: for messages. player: its bat (0 or 1).
+        scene: the match scene. mass: kg, inertia: kg m^2, of its bat. ctl: its (CTL_SIZE,) row
+            of Players.ctl. budget_s: CPU s per decision (the bot's own budget_s wins).
+        interrupt: stop a hung decision with SIGALRM (only where this is the main thread of a
+            process that uses no other alarm: the AI worker).
+    """
+
+    def __init__(self, bot: Bot, name: str, player: int, scene, mass: float, inertia: float, ctl: np.ndarray,
+                 budget_s: float | None, interrupt: bool):
+        if bot.arm not in SKILLS:
+            raise ValueError(f"bot {name}: arm {bot.arm!r} must be one of the profiles {', '.join(SKILLS)}")
+        self.bot, self.name, self.player = bot, name, player
+        self.profile = isinstance(bot, ProfileBot)
+        arm = SKILLS[bot.arm]
+        self.max_force, self.max_torque = arm.max_force_n, arm.max_torque_nm
+        self.mass = mass
+        self.ctl = ctl
+        ctl[[CTL_MASS, CTL_INERTIA, CTL_KP, CTL_KD, CTL_K_ANGLE, CTL_D_ANGLE]] = (
+            mass, inertia, BatAI.KP, BatAI.KD, BatAI.K_ANGLE, BatAI.D_ANGLE)
+        ctl[[CTL_MAX_FORCE, CTL_MAX_TORQUE, CTL_MAX_SPEED]] = arm.max_force_n, arm.max_torque_nm, arm.max_speed
+        end_sign = -1 if player == 0 else 1
+        ctl[CTL_HOLD:CTL_HOLD + 3] = scene.bats[player].pos
+        ctl[CTL_NORMAL:CTL_NORMAL + 3] = (-end_sign, 0.0, 0.0)
+        self.budget_s = None if self.profile else (bot.budget_s if bot.budget_s is not None else budget_s)
+        self.interrupt = interrupt and self.budget_s is not None and math.isfinite(self.budget_s)
+        self.hang_s = max(HANG_MIN_S, HANG_FACTOR * self.budget_s) if self.interrupt else None
+        self.kind = ACTION_TARGET
+        self.force = np.zeros(6)  # the raw action (ACTION_FORCE) or the brake after a fault
+        self.obs = new_observation()
+        self.view = self.obs.view()
+        self.view.flags.writeable = False  # the bot's: it reads, never writes, what the seat shows
+        self.obs_floats = _floats(self.obs, _OBS_FLOATS_AT, 36)
+        self.key = None  # the decision key of the last decision
+        self.decisions = 0
+        self.faults = 0
+        self.act_seconds = 0.0  # CPU time of the bot's decisions
+
+    def needs_decision(self, key, now: float) -> bool:
+        """Whether the player may answer differently now: always for a bot; for an AI profile,
+        when the key changed or the clock reached its wakes (engine.ai.BatAI.wakes)."""
+        if not self.profile or self.kind != ACTION_TARGET or key != self.key:
+            return True
+        due, end = self.bot.wakes()
+        return now >= due or now > end
+
+    def wakes(self) -> tuple[float, float]:
+        """(due, end) s: until the first `now >= due` or `now > end` no decision of this seat can
+        change anything (-inf, -inf: ask at every control tick)."""
+        if not self.profile or self.kind != ACTION_TARGET:
+            return -math.inf, -math.inf
+        return self.bot.wakes()
+
+    def observe(self, tick: int, now: float, ball_flat, floats: np.ndarray, rally, key) -> np.ndarray:
+        """Write the observation of a state into the seat's record; returns the bot's read-only view.
+
+        floats: (n_bats, BAT_FLOATS) every bat's record as float64. rally: the RALLY_DTYPE record.
+        key: (rally, shots, to_strike, serve), Players.control's.
+        """
+        obs, o = self.obs, self.obs_floats
+        me = self.player
+        obs["tick"] = tick
+        o[0] = now
+        o[1:10] = ball_flat
+        o[10:23] = floats[me, :_STATE_FLOATS]
+        o[23:36] = floats[1 - me, :_STATE_FLOATS]
+        obs["score"], obs["games_won"] = rally["score"], rally["games_won"]
+        obs["phase"], obs["server"], obs["shots"], obs["rally"] = rally["phase"], rally["server"], key[1], key[0]
+        obs["to_strike"] = key[2]
+        return self.view
+
+    def decide(self, tick: int, now: float, ball_flat, floats: np.ndarray, rally, key) -> tuple | None:
+        """Show the state (observe), take the answer: the fault (player, fault, detail) or None."""
+        self.observe(tick, now, ball_flat, floats, rally, key)
+        me = self.player
+        self.key = key
+        self.decisions += 1
+        fault = detail = None
+        started = time.thread_time()
+        try:
+            if self.interrupt:
+                signal.setitimer(signal.ITIMER_REAL, self.hang_s)
+            try:
+                action = self.bot.act(self.view)
+            finally:
+                if self.interrupt:
+                    signal.setitimer(signal.ITIMER_REAL, 0.0)
+        except _Overrun:
+            fault, detail = "overran", f"act() had not returned after {self.hang_s:g} s: interrupted"
+        except Exception as exc:  # noqa: BLE001 - whatever a bot raises is its fault, reported, never fatal
+            where = traceback.extract_tb(exc.__traceback__)[-1]
+            fault, detail = "raised", f"{type(exc).__name__}: {exc} ({where.filename}:{where.lineno})"
+        used = time.thread_time() - started
+        self.act_seconds += used
+        if fault is None and self.budget_s is not None and used > self.budget_s:
+            fault, detail = "overran", f"act() took {used * 1e3:.1f} ms of CPU, its budget is {self.budget_s * 1e3:g} ms"
+        if fault is None:
+            problem = check_action(action, self.max_force, self.max_torque)
+            if problem is None:
+                self._take(action)
+                return None
+            fault, detail = problem
+        self.faults += 1
+        self.kind = ACTION_FORCE  # the idle arm's brake until the next good decision
+        brake_force(self.mass, floats[me, 7:10], self.force)
+        return me, fault, detail
+
+    def _take(self, action) -> None:
+        """The checked action becomes what the seat plays: its ctl row, or its raw force."""
+        values = np.frombuffer(action, np.float64, ACTION_FLOATS) if isinstance(action, np.void) else \
+            _floats(action, 0, ACTION_FLOATS)
+        if int(action["kind"]) == ACTION_FORCE:
+            self.kind = ACTION_FORCE
+            self.force[:] = values[A_FORCE:A_FORCE + 6]
+            return
+        self.kind = ACTION_TARGET
+        ctl = self.ctl
+        ctl[CTL_HOLD:CTL_HOLD + 6] = values[A_HOLD:A_HOLD + 6]  # hold, then normal
+        ctl[CTL_N_SEGMENTS] = int(action["n_segments"])
+        ctl[CTL_SEGMENTS:] = values[A_SEGMENTS:]
+
+
+class Players(dict):
+    """{player: Seat} of a match's AI-driven bats; their arm targets are the rows of one ctl
+    array, played for all of them in one numba call (engine.arm.control_bats)."""
+
+    def __init__(self, seats: dict[int, Seat], ctl: np.ndarray):
+        super().__init__(seats)
+        self.players = np.array(list(seats), dtype=np.int64)
+        self.ctl = ctl
+        self._raw = []  # seats playing raw forces at the last control
+        self._bats = None  # the bats array last seen, and its float64 view
+        self._floats = None
+
+    @property
+    def thinkers(self) -> list[BatAI]:
+        """The AI profiles' BatAI (the AI worker spreads their thinking between turns)."""
+        return [seat.bot.ai for seat in self.values() if seat.profile]
+
+    def bat_floats(self, bats: np.ndarray) -> np.ndarray:
+        """(n_bats, BAT_FLOATS) float64 view of a BAT_DTYPE array (made once for the same array)."""
+        if bats is not self._bats:
+            if bats.dtype != BAT_DTYPE or bats.ndim != 1 or not bats.flags.c_contiguous:
+                raise TypeError(f"Players: bats must be a contiguous 1-D engine.dtypes.BAT_DTYPE array, got "
+                                f"dtype {bats.dtype}, shape {bats.shape}")
+            self._floats = bats.view(np.float64).reshape(len(bats), BAT_FLOATS)
+            self._bats = bats
+        return self._floats
+
+    def control(self, tick: int, now: float, ball_flat: np.ndarray, bats: np.ndarray, rally, out: np.ndarray) -> list:
+        """Every seat's force and torque into out[player], after the decisions that may change.
+
+        Args:
+            tick, now: the state's tick and time (s). ball_flat: (9,) the ball. bats: the
+                (n_bats,) BAT_DTYPE array. rally: its RALLY_DTYPE record. out: (n_bats, 6).
+
+        Returns:
+            The faults of this control tick: [(player, fault, detail)], engine.bot.FAULTS names.
+        """
+        floats = self.bat_floats(bats)
+        key = decision_key(rally)
+        faults = []
+        for seat in self.values():
+            if seat.needs_decision(key, now):
+                fault = seat.decide(tick, now, ball_flat, floats, rally, key)
+                if fault is not None:
+                    faults.append(fault)
+        control_bats(now, floats, self.ctl, self.players, out)
+        for player, seat in self.items():
+            if seat.kind == ACTION_FORCE:
+                out[player] = seat.force
+        return faults
+
+    def wakes(self) -> tuple[float, float]:
+        """(due, end) s: the earliest of every seat's wakes."""
+        due = end = math.inf
+        for seat in self.values():
+            seat_due, seat_end = seat.wakes()
+            due, end = min(due, seat_due), min(end, seat_end)
+        return due, end
+
+    @property
+    def stats(self) -> dict:
+        """Per end: an AI profile's BatAI.stats; a bot's decisions, faults and CPU seconds."""
+        return {"ab"[p]: dict(seat.bot.ai.stats) if seat.profile else
+                {"bot": seat.name, "decisions": seat.decisions, "faults": seat.faults, "act_s": seat.act_seconds}
+                for p, seat in self.items()}
+
+    def warm_up(self) -> None:
+        """BatAI.warm_up of each AI profile, and control_bats."""
+        for ai in self.thinkers:
+            ai.warm_up()
+        bats = np.zeros(max(self, default=0) + 1, BAT_DTYPE)
+        bats["quat"] = (1.0, 0.0, 0.0, 0.0)
+        ctl = self.ctl.copy()
+        ctl[:, CTL_NORMAL] = 1.0
+        control_bats(0.0, bats.view(np.float64).reshape(len(bats), BAT_FLOATS), ctl, self.players,
+                     np.zeros((len(bats), 6)))
+
+
+def make_players(scene, model, seed: int, control_every: int, eager: bool = True,
+                 budget_s: float | None = DEFAULT_BUDGET_S, interrupt: bool = False) -> Players:
+    """The seat of every bat the scene gives a player (bat.skill: an AI profile or a bot spec).
+
+    An AI profile's BatAI is seeded from the match seed and its player (seed * 1000 + player), a
+    bot's rng likewise. eager=False: the profiles think a stroke out only in the steps they are
+    given (the AI worker); the same strokes. Raises ValueError naming a bot that cannot be
+    loaded, made or set up.
+    """
+    chosen = [(i, bat.skill) for i, bat in enumerate(scene.bats) if bat.skill is not None]
+    ctl = np.zeros((len(chosen), CTL_SIZE))
+    if interrupt:
+        signal.signal(signal.SIGALRM, _alarm)
+    seats = {}
+    for k, (player, spec) in enumerate(chosen):
+        if is_bot_spec(spec):
+            name = bot_name(spec)
+            try:
+                bot = load_bot(spec)()
+            except ValueError:
+                raise
+            except Exception as exc:
+                raise ValueError(f"bot {name}: making it raised {type(exc).__name__}: {exc}") from exc
+        else:
+            name = spec
+            bot = ProfileBot(model, player, SKILLS[spec], spec, seed=seed * 1000 + player,
+                             control_every=control_every, eager=eager)
+        end_sign = -1 if player == 0 else 1
+        bot.player, bot.end_sign = player, end_sign
+        bot.normal = np.array([-end_sign, 0.0, 0.0])
+        bot.rng = np.random.default_rng(seed * 1000 + player)
+        try:
+            bot.setup(player, scene)
+        except Exception as exc:
+            raise ValueError(f"bot {name}: setup() raised {type(exc).__name__}: {exc}") from exc
+        seats[player] = Seat(bot, name, player, scene, float(model.bat_mass[player]), float(model.bat_inertia[player][0]),
+                             ctl[k], budget_s, interrupt)
+    return Players(seats, ctl)

@@ -1,0 +1,129 @@
+"""The bot API: what a bot sees, what it may answer, and what a match does when it fails."""
+import numpy as np
+import pytest
+
+from engine.ai.bot import ProfileBot
+from engine.bot import ACTION_FORCE, BotError, check_action, force, hold, load_bot, new_action
+from engine.dtypes import BAT_DTYPE, BAT_STATE_DTYPE, OBSERVATION_DTYPE
+from engine.match import Match, control_period, match_record, match_scene
+from engine.rules import Reason
+from engine.scene import SceneError, load_scene
+from tests import bots
+
+BASE = load_scene("match_rigid")
+BUDGET_S = 0.005
+
+
+def _match(a: str, b: str = "pro", **kwargs) -> Match:
+    return Match(match_scene(BASE, a, b, best_of=1), seed=3, budget_s=BUDGET_S, **kwargs)
+
+
+def test_a_bat_state_is_the_first_fields_of_a_bat_record():
+    for name in BAT_STATE_DTYPE.names:
+        assert BAT_STATE_DTYPE.fields[name] == BAT_DTYPE.fields[name]
+    assert set(OBSERVATION_DTYPE.names) == {"tick", "time", "ball", "own", "other", "score", "games_won", "phase",
+                                            "server", "to_strike", "shots", "rally"}
+
+
+def test_the_engines_ai_plays_through_the_bot_api():
+    match = _match("pro", "novice")
+    assert all(isinstance(seat.bot, ProfileBot) for seat in match.ais.values())
+
+
+def test_a_bot_decides_at_every_control_tick_and_sees_a_copy_of_the_state():
+    match = _match(bots.spec("Spy"))
+    match.play(max_ticks=2000)
+    every = control_period(match.scene)
+    seen = match.ais[0].bot.seen
+    assert len(seen) == 2000 // every  # decisions at ticks 0, every, ... (the last one's force unplayed)
+    last = seen[-1]
+    assert int(last["tick"]) == 2000 - every
+    seat = match.ais[0]
+    assert not seat.view.flags.writeable and not np.shares_memory(seat.view, match.state.record)
+    assert match.bot_errors == []
+
+
+def test_a_bot_that_writes_to_its_observation_faults_and_moves_nothing():
+    match = _match(bots.spec("Writes"))
+    before = match.state.ball.copy()
+    match.tick()  # tick 0: the decision is taken (and fails) from the state as tossed
+    assert np.array_equal(match.state.ball["pos"][0][:2], before["pos"][0][:2])  # the toss is vertical: x, y stay
+    match.play(max_ticks=20)
+    assert match.bot_errors[0]["fault"] == "raised" and "read-only" in match.bot_errors[0]["detail"]
+
+
+def test_a_raw_force_moves_only_the_bots_own_bat():
+    steady = _match(bots.spec("Steady"), "novice")
+    other = _match("pro", "novice")
+    steady.play(max_ticks=300)  # before the ball reaches B: B's bat moves by its own AI alone
+    other.play(max_ticks=300)
+    np.testing.assert_array_equal(steady.state.bats[1], other.state.bats[1])
+    assert steady.state.bats[0]["vel"][1] > 0.0
+
+
+@pytest.mark.parametrize("name, fault", [("Raises", "raised"), ("NotANumber", "non_finite"),
+                                         ("Oversized", "oversized"), ("Malformed", "malformed"),
+                                         ("Overruns", "overran")])
+def test_a_failing_bot_gives_the_point_away_and_the_match_goes_on(name, fault):
+    match = _match(bots.spec(name))
+    result = match.play(max_ticks=6000)
+    every = control_period(match.scene)
+    first = match.bot_errors[0]
+    assert first["fault"] == fault and first["player"] == "a" and first["bot"] == bots.spec(name)
+    assert first["tick"] == (bots.FAIL_AT - 1) * every  # the tick of the state it decided from
+    faulted = [p for p in match.referee.points if p.reason == Reason.BOT_ERROR]
+    assert faulted and all(p.winner == 1 for p in faulted)
+    assert result.ticks == 6000 or match.referee.match_over  # it played on
+    assert str(BotError(first["bot"], 0, first["tick"], fault, first["detail"])).startswith(
+        f"bot {bots.spec(name)} (player A) at tick {first['tick']}: {fault}")
+
+
+def test_a_failing_bot_stops_the_match_when_told_to():
+    match = _match(bots.spec("Raises"), on_bot_error="stop")
+    result = match.play(max_ticks=6000)
+    every = control_period(match.scene)
+    assert match.stopped is not None and len(match.bot_errors) == 1
+    assert result.ticks == bots.FAIL_AT * every  # stopped when the failed decision was collected
+    assert "RuntimeError: no idea what to do" in result.stopped
+
+
+def test_the_failed_decisions_are_in_the_match_record():
+    record = match_record(BASE, 3, bots.spec("Oversized"), "novice", best_of=1, max_ticks=3000, budget_s=BUDGET_S)
+    assert record["bot_errors"][0] == {"player": "a", "bot": bots.spec("Oversized"),
+                                       "tick": (bots.FAIL_AT - 1) * control_period(BASE), "fault": "oversized"}
+    assert record["reasons"]["a"].get("bot_error", 0) >= 1 and not record["stopped"]
+
+
+def test_actions_are_checked_against_the_arms_limits():
+    assert check_action(force((119.0, 0.0, 0.0), (0.0, 0.0, 3.9)), 120.0, 4.0) is None
+    assert check_action(force((0.0, 121.0, 0.0)), 120.0, 4.0)[0] == "oversized"
+    assert check_action(force((0.0, 0.0, 0.0), (0.0, 4.5, 0.0)), 120.0, 4.0)[0] == "oversized"
+    assert check_action(hold((1.0, 0.0, 0.1), (1.0, 0.0, 0.0)), 120.0, 4.0) is None
+    bad = new_action()
+    bad["normal"] = (2.0, 0.0, 0.0)
+    assert check_action(bad, 120.0, 4.0)[0] == "malformed"
+    bad = new_action()
+    bad["n_segments"] = 1  # a segment from t0 = 0 to t1 = 0
+    assert check_action(bad, 120.0, 4.0)[0] == "malformed"
+    bad = new_action()
+    bad["kind"] = 7
+    assert check_action(bad, 120.0, 4.0)[0] == "malformed"
+    bad = hold((np.inf, 0.0, 0.1), (1.0, 0.0, 0.0))
+    assert check_action(bad, 120.0, 4.0)[0] == "non_finite"
+    assert check_action(np.zeros(3), 120.0, 4.0)[0] == "malformed"
+    assert int(force((1.0, 0.0, 0.0))["kind"]) == ACTION_FORCE
+
+
+def test_a_bad_bot_spec_says_what_is_wrong(tmp_path):
+    with pytest.raises(ValueError, match="no file"):
+        load_bot("no/such/file.py:Bot")
+    with pytest.raises(ValueError, match="must be a subclass of engine.bot.Bot"):
+        load_bot(bots.spec("NotABot"))
+    with pytest.raises(ValueError, match="FILE.py:ClassName"):
+        load_bot("just-a-name:")
+    broken = tmp_path / "broken.py"
+    broken.write_text("def oops(:\n")
+    with pytest.raises(ValueError, match="raised while loading: SyntaxError"):
+        load_bot(f"{broken}:Bot")
+    with pytest.raises(SceneError, match="a bot"):
+        match_scene(BASE, "grandmaster", "pro")

@@ -1,0 +1,76 @@
+"""Bots in the AI worker: lockstep matches with bots equal the in-process match bit for bit, and a
+bot that fails (also one that never returns) costs the point, never the worker or the match."""
+from pathlib import Path
+
+import numpy as np
+
+from engine.dtypes import physics_snapshot_dtype
+from engine.match import Match, control_period, match_scene
+from engine.scene import load_scene
+from processes.supervisor import Supervisor, first_difference
+from tests import bots
+
+BASE = load_scene("match_rigid")
+EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
+BUDGET_S = 0.005
+TICKS = 6000
+
+
+def _reference(scene, seed: int, ticks: int):
+    """The in-process match's states, tick by tick, to `ticks` or the match's end."""
+    match = Match(scene, seed=seed, budget_s=BUDGET_S)
+    trace = np.zeros(ticks + 1, physics_snapshot_dtype(len(scene.bats)))
+    match.save(trace, 0)
+    done = 0
+    while done < ticks and not match.over:
+        match.tick()
+        done += 1
+        match.save(trace, done)
+    return match, trace[:done + 1]
+
+
+def _same_run(result, trace) -> None:
+    """The run's trace is the reference's, and it ended where the reference did."""
+    assert result.ticks == len(trace) - 1
+    assert first_difference(result.trace[:len(trace)], trace) is None
+
+
+def test_the_example_bots_play_in_processes_as_in_process(no_leftovers):
+    scene = match_scene(BASE, f"{EXAMPLES / 'attack.py'}:Attack", f"{EXAMPLES / 'block.py'}:Block", best_of=1)
+    result = Supervisor(scene, TICKS, "lockstep", trace=True, seed=2, bot_budget_s=BUDGET_S).run()
+    match, trace = _reference(scene, 2, TICKS)
+    _same_run(result, trace)
+    assert len(match.referee.points) > 0 and match.bot_errors == []
+    assert result.workers["physics"]["bot_errors"] == []
+    # a bot decides at every control tick: every one is a turn of the AI worker
+    assert result.workers["physics"]["ai_turns"] == TICKS // control_period(scene)
+
+
+def test_a_raising_bot_in_the_worker_is_recorded_as_in_process(no_leftovers):
+    scene = match_scene(BASE, bots.spec("Raises"), "pro", best_of=1)
+    result = Supervisor(scene, TICKS, "lockstep", trace=True, seed=1, bot_budget_s=BUDGET_S).run()
+    match, trace = _reference(scene, 1, TICKS)
+    _same_run(result, trace)  # B wins the game on A's faults, one point a control tick
+    assert match.referee.winner == 1
+    assert result.workers["physics"]["bot_errors"] == match.bot_errors != []
+    assert result.workers["ai"]["restarts"] == 0
+
+
+def test_a_bot_that_never_returns_is_interrupted_and_the_match_goes_on(no_leftovers):
+    scene = match_scene(BASE, bots.spec("Hangs"), "pro", best_of=1)
+    result = Supervisor(scene, 3000, "lockstep", seed=1, bot_budget_s=BUDGET_S).run()
+    errors = result.workers["physics"]["bot_errors"]
+    every = control_period(scene)
+    assert errors[0]["fault"] == "overran" and errors[0]["tick"] == (bots.FAIL_AT - 1) * every
+    assert "interrupted" in errors[0]["detail"]
+    assert result.ticks == 3000 or int(result.final["rally"]["winner"]) == 1  # it played on
+    # the worker counts every failed decision, also one made after the match's last point was decided
+    assert result.workers["ai"]["restarts"] == 0 and result.workers["ai"]["bot_faults"] >= len(errors)
+
+
+def test_a_bot_stops_a_match_in_processes_when_told_to(no_leftovers):
+    scene = match_scene(BASE, bots.spec("NotANumber"), "pro", best_of=1)
+    result = Supervisor(scene, TICKS, "lockstep", seed=1, on_bot_error="stop", bot_budget_s=BUDGET_S).run()
+    every = control_period(scene)
+    assert result.ticks == bots.FAIL_AT * every
+    assert result.workers["physics"]["stopped"].startswith(f"bot {bots.spec('NotANumber')} (player A) at tick")
