@@ -13,7 +13,15 @@ from engine import equipment
 from engine.bot import is_bot_spec
 from engine.integrators import METHODS
 from net_kernel.sim import SAFETY
-from net_kernel.topology import SEMI_IMPLICIT, SOLVERS, NetSpec, build_topology, resolution_spec, validate_spec
+from net_kernel.topology import (
+    PRECISIONS,
+    SEMI_IMPLICIT,
+    SOLVERS,
+    NetSpec,
+    build_topology,
+    resolution_spec,
+    validate_spec,
+)
 
 SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
 
@@ -207,6 +215,12 @@ def _read_cloth(r: _Reader, data: dict) -> NetSpec:
             fields[key] = value
     if "solver" in data:
         fields["solver"] = r.string(data, "solver", "net.solver", "", SOLVERS)
+    if "kernel_precision" in data:
+        fields["kernel_precision"] = r.string(data, "kernel_precision", "net.kernel_precision", "", PRECISIONS)
+    if "kernel_fma" in data:
+        if not isinstance(data["kernel_fma"], bool):
+            raise r.fail("net.kernel_fma", f"must be true or false, got {data['kernel_fma']!r}")
+        fields["kernel_fma"] = data["kernel_fma"]
     spec = NetSpec(**fields)
     try:
         validate_spec(spec)
@@ -326,7 +340,8 @@ def parse_scene(data: dict, source: str) -> Scene:
     if "net" in data:
         if "net" not in effects:
             raise r.fail("net", "a net is described but the effect 'net' is not listed in effects; add it or remove [net]")
-        net_data = r.table(data["net"], "net", ("kind", "solver", CLOTH_RESOLUTION) + CLOTH_FLOATS + CLOTH_INTS)
+        net_data = r.table(data["net"], "net", ("kind", "solver", "kernel_precision", "kernel_fma", CLOTH_RESOLUTION)
+                           + CLOTH_FLOATS + CLOTH_INTS)
         net_kind = r.string(net_data, "kind", "net.kind", "rigid", NET_KINDS)
         cloth = _read_cloth(r, net_data) if net_kind == "cloth" else None
         if net_kind == "rigid" and len(net_data) > ("kind" in net_data):

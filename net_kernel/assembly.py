@@ -2,7 +2,7 @@
 
 A loop is vectorised when its body does its floating-point arithmetic with packed instructions
 (vaddpd, vmulpd, vsqrtpd, ...); their register says the width: xmm 2, ymm 4, zmm 8 float64
-lanes. numba shows no assembly for a kernel it loaded from its cache, so each kernel is compiled
+lanes, twice as many float32 ones (vaddps, ...: reported as "ymm/f32" and so on). numba shows no assembly for a kernel it loaded from its cache, so each kernel is compiled
 afresh here (an uncached copy of the same Python function, the same options, for the same
 argument types) and its innermost loops, found as the code between a label and a backward jump
 to it, are sorted by what their arithmetic uses. A vectorised loop comes with scalar copies
@@ -19,16 +19,14 @@ import numba
 _ARITH = re.compile(r"^v?(?:add|sub|mul|div|sqrt|max|min|rsqrt14|rcp14|fn?m(?:add|sub)\d{3})(p|s)([ds])$")
 _LABEL = re.compile(r"^(\.L\w+):")
 _JUMP = re.compile(r"^\s+j\w+\s+(\.L\w+)")
-LANES = {"zmm": 8, "ymm": 4, "xmm": 2, "scalar": 1}  # float64 lanes per register
+LANES = {"zmm": 8, "ymm": 4, "xmm": 2, "zmm/f32": 16, "ymm/f32": 8, "xmm/f32": 4, "scalar": 1}  # lanes per register
 
 
-def _width(line: str, packed: bool) -> str:
+def _width(line: str, packed: bool, single: bool) -> str:
     if not packed:
         return "scalar"
-    for register in ("zmm", "ymm"):
-        if f"%{register}" in line:
-            return register
-    return "xmm"
+    register = next((r for r in ("zmm", "ymm") if f"%{r}" in line), "xmm")
+    return register + "/f32" if single else register
 
 
 def innermost_loops(asm: str) -> list[Counter]:
@@ -51,7 +49,7 @@ def innermost_loops(asm: str) -> list[Counter]:
             parts = line.split()
             op = _ARITH.match(parts[0]) if parts else None
             if op:
-                widths[_width(line, op.group(1) == "p")] += 1
+                widths[_width(line, op.group(1) == "p", op.group(2) == "s")] += 1
         if widths:
             out.append(widths)
     return out

@@ -6,11 +6,13 @@ kernel's loops (kernel_vectors, from numba's assembly).
 
 Plain dicts out (stdlib + numpy + numba only); processes/cli/profile_net.py formats them.
 
-Two kernel paths (both give the same bits): "csr", the general per-knot gather over the CSR
-adjacency (kernels.step_knots, one step a call), and "grid", the structured-grid kernel
-(kernels.step_grid, NetSim's path for build_topology's nets), timed as NetSim calls it while
-the ball is away: a 1 ms tick's substeps in one call (steps_per_call; fewer on big nets, where
-one call would outlast a timed run).
+Kernel paths: "csr", the general per-knot gather over the CSR adjacency (kernels.step_knots,
+one step a call), and "grid", the structured-grid kernel (kernels.step_grid, NetSim's path for
+build_topology's nets), both float64 and the same bits; "grid32" and "grid32_fma", the grid
+kernel in float32 on offsets from the built grid (kernels.step_grid32, NetSpec.kernel_precision
+"float32", without and with kernel_fma). The grid paths are timed as NetSim calls them while the
+ball is away: a 1 ms tick's substeps in one call (steps_per_call; fewer on big nets, where one
+call would outlast a timed run).
 
 Byte model of one step (the compulsory memory traffic, neighbours from cache):
   csr, per knot: spring pass reads knot_pos, knot_vel (48 B); knot pass reads knot_pos,
@@ -24,6 +26,9 @@ Byte model of one step (the compulsory memory traffic, neighbours from cache):
             them back in place (48 B)                                         -> 104 B
   grid, per spring: nothing (class parameters; a row's spring forces stay in a scratch
             of a few rows, in cache)                                            -> 0 B
+  grid32, per knot: float32 offset and velocity read and written (24 + 24 B), the step's
+            factors (16 B) and the table's offset (4 B); the float64 state's conversion
+            in and out once a call is left out (amortised over the call's steps)  -> 68 B
   textbook scatter, per knot: the force zeroed (24 B), read and written by the spring
             loop (48 B), read by the knot loop (24 B); pos, vel read by both loops (96 B);
             knot_inv_mass (8 B); out_pos, out_vel written (48 B)               -> 248 B
@@ -35,6 +40,7 @@ import math
 import os
 import statistics
 import time
+from dataclasses import replace
 
 import numba
 import numpy as np
@@ -43,16 +49,19 @@ from numba import njit
 from net_kernel import kernels, reference
 from net_kernel.assembly import vector_report
 from net_kernel.kernels import grid as grid_kernels
+from net_kernel.kernels import grid32 as grid32_kernels
 from net_kernel.sim import SAFETY, NetSim
-from net_kernel.topology import NetSpec, build_topology, grid_spec
+from net_kernel.topology import FLOAT32, NetSpec, build_topology, grid_spec, resolution_spec
 
 BYTES_PER_KNOT = 160
 BYTES_PER_SPRING = 104
 GRID_BYTES_PER_KNOT = 104
 GRID_BYTES_PER_SPRING = 0
+GRID32_BYTES_PER_KNOT = 68
 TEXTBOOK_BYTES_PER_KNOT = 248
 TEXTBOOK_BYTES_PER_SPRING = 32
-PATHS = ("grid", "csr")
+PATHS = ("grid", "grid32", "grid32_fma", "csr")
+GRID32_PATHS = {"grid32": kernels.GRID32_EXACT, "grid32_fma": kernels.GRID32_FMA}  # path: grid32_work's variant
 # The textbook kernel (kernels.step_knots_scatter) is timed as a path of its own, serial, one
 # step a call, on the same net in the same run: the baseline of the ratios.
 TEXTBOOK = "scatter"
@@ -110,7 +119,7 @@ def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True
         parallel: numba: the parallel kernel (else the serial twin of the same bits).
         target_s: s, rough total timing budget when steps is None.
         repeats: timed runs.
-        path: "csr" (step_knots, one step a call) or "grid" (step_grid).
+        path: "csr" (step_knots, one step a call), "grid" (step_grid) or a GRID32_PATHS one (step_grid32).
         steps_per_call: grid: steps per kernel call (None: a TICK_S tick's substeps, as
             NetSim calls it, or fewer if a call would outlast one timed run); csr: always 1.
     """
@@ -119,15 +128,20 @@ def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True
     mod = kernels if backend == "numba" else reference
     pos, vel, out_pos, out_vel = _state(topo)
     h = 0.5 * topo.h_max
-    if path == "grid":
+    grid = path == "grid" or path in GRID32_PATHS
+    if grid:
         rows, cols = topo.spec.rows, topo.spec.cols
-        step = mod.step_grid if parallel else mod.step_grid_serial
         state = np.zeros((2, 3, rows, cols))
         state[0] = pos.T.reshape(3, rows, cols)
         state[1] = vel.T.reshape(3, rows, cols)
         blocks = min(rows, max(1, numba.get_num_threads())) if parallel and backend == "numba" else 1
-        work = np.zeros((blocks, kernels.GRID_WORK_ROWS, cols))
         inv_mass = topo.knot_inv_mass.reshape(rows, cols)
+        if path == "grid":
+            step = mod.step_grid if parallel else mod.step_grid_serial
+            work = np.zeros((blocks, kernels.GRID_WORK_ROWS, cols))
+        else:
+            step = mod.step_grid32 if parallel else mod.step_grid32_serial
+            work = mod.grid32_work(topo.knot_pos.T.reshape(3, rows, cols).copy(), inv_mass, blocks, GRID32_PATHS[path])
 
         def call(n):
             step(state, inv_mass, topo.grid_params, topo.spec.gravity, topo.spec.air_damping, h, n, work)
@@ -165,7 +179,7 @@ def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True
         one = min(one, time.perf_counter() - t0)
     budget = target_s / repeats  # s, one timed run
     per_call = 1
-    if path == "grid":
+    if grid:
         # A tick's substeps (NetSim's call), fewer where that would not fit one timed run
         # (a large net: hundreds of substeps a tick, each of them long).
         per_call = steps_per_call or max(1, min(_substeps_per_tick(topo), int(budget / max(one, 1e-7))))
@@ -189,6 +203,8 @@ def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True
     # machine (time spent waiting for a core is left out); not defined for the parallel kernel.
     cpu_per_step = statistics.median(cpu_runs) if not (parallel and backend == "numba") else None
     per_knot, per_spring = {"grid": (GRID_BYTES_PER_KNOT, GRID_BYTES_PER_SPRING),
+                            "grid32": (GRID32_BYTES_PER_KNOT, GRID_BYTES_PER_SPRING),
+                            "grid32_fma": (GRID32_BYTES_PER_KNOT, GRID_BYTES_PER_SPRING),
                             TEXTBOOK: (TEXTBOOK_BYTES_PER_KNOT, TEXTBOOK_BYTES_PER_SPRING)}.get(
                                 path, (BYTES_PER_KNOT, BYTES_PER_SPRING))
     n_bytes = per_knot * topo.n_knots + per_spring * topo.n_springs
@@ -228,6 +244,8 @@ def profile_net(cols: int, rows: int, steps: int | None = None, backends=("numba
     results = []
     for path in paths:
         for backend in backends:
+            if backend == "reference" and path == "grid32_fma":
+                continue  # the numpy twin fuses nothing: it is grid32's row
             variants = (True, False) if backend == "numba" else (False,)
             for parallel in variants:
                 results.append(profile_backend(topo, backend, steps, parallel=parallel, target_s=target_s, path=path))
@@ -255,6 +273,8 @@ def profile_net(cols: int, rows: int, steps: int | None = None, backends=("numba
         "substeps_per_tick": _substeps_per_tick(topo),
         "byte_model": (f"grid: {GRID_BYTES_PER_KNOT} B per knot (position, velocity read and written; inv_mass), "
                        f"{GRID_BYTES_PER_SPRING} B per spring (class parameters, row scratch in cache); "
+                       f"grid32: {GRID32_BYTES_PER_KNOT} B per knot (float32 offset, velocity read and written; step "
+                       "factors; table offset), 0 B per spring; "
                        f"csr: {BYTES_PER_KNOT} B per knot (pos, vel read by both passes, written once; inv_mass; "
                        f"CSR start) + {BYTES_PER_SPRING} B per spring (ij, 2 slots as uint32; |L|^2, rate "
                        "out and in; rest, k, c; scale out and read twice; all f8); neighbours from cache"),
@@ -267,6 +287,7 @@ def profile_net(cols: int, rows: int, steps: int | None = None, backends=("numba
         "results": results,
         "passes": grid_passes(topo, target_s=target_s) if "numba" in backends and "grid" in paths else None,
         "vectors": kernel_vectors(topo) if "numba" in backends else None,
+        "awake_ticks": awake_tick_costs(target_s=target_s) if "numba" in backends and "grid" in paths else None,
     }
 
 
@@ -564,6 +585,7 @@ def kernel_vectors(topo) -> dict:
     work = np.zeros((grid_kernels.GRID_WORK_ROWS, cols))
     inv_mass = topo.knot_inv_mass.reshape(rows, cols)
     u = np.uint64
+    net32 = kernels.grid32_work(topo.knot_pos.T.reshape(3, rows, cols).copy(), inv_mass, 1, kernels.GRID32_EXACT)
     pos, vel = topo.knot_pos.copy(), np.zeros_like(topo.knot_pos)
     h = 0.5 * topo.h_max
     csr = (pos, vel, topo.knot_inv_mass, topo.adj_start, topo.adj_knot, topo.adj_spring, topo.spring_ij,
@@ -577,6 +599,48 @@ def kernel_vectors(topo) -> dict:
             state[0], state[1], u(0), u(0), u(0), u(1), u(cols - 1), 1.0, 1.0, 1.0, work, 0)),
         "grid knots (_grid_update)": vector_report(grid_kernels._grid_update, (  # noqa: SLF001
             state, inv_mass, 0, 3, 12, work, 9.81, 5.0, h)),
+        "grid32 block (_block_exact)": vector_report(grid32_kernels._block_exact, (  # noqa: SLF001
+            net32, cols, 0, 0, rows)),
         "csr (step_knots_serial)": vector_report(kernels.step_knots_serial, csr),
         "textbook scatter (step_knots_scatter)": vector_report(kernels.step_knots_scatter, textbook),
     }
+
+
+# ---------------------------------------------------------------------------------------------
+# The awake tick of the match's net (resolution_spec(85, 8)) with each grid kernel: NetSim.step
+# with the ball away, as the net worker pays it (kernels and NetSim's Python).
+AWAKE_KERNELS = {"float64": {}, "float32": {"kernel_precision": FLOAT32},
+                 "float32 fma": {"kernel_precision": FLOAT32, "kernel_fma": True}}
+
+
+def awake_tick_costs(cols: int = 85, rows: int = 8, target_s: float = 1.0, repeats: int = REPEATS) -> dict:
+    """µs per awake NetSim tick (TICK_S, no ball) of resolution_spec(cols, rows) for each AWAKE_KERNELS option.
+
+    This thread's CPU time; the options interleaved run by run from the same perturbed state, the
+    median of `repeats` runs each; "ratio": float64's µs over the option's, same run.
+    """
+    sims = {}
+    for name, fields in AWAKE_KERNELS.items():
+        spec = replace(resolution_spec(cols, rows), **fields)
+        sim = NetSim(build_topology(spec), dt=TICK_S)
+        pos, vel, _, _ = _state(sim.topo)
+        sims[name] = (sim, pos, vel)
+    runs = {name: [] for name in sims}
+    for name, (sim, pos, vel) in sims.items():  # compile or load, and size the runs
+        sim.knot_pos[:], sim.knot_vel[:] = pos, vel
+        sim.step()
+        t0 = time.thread_time()
+        sim.step()
+        one = max(time.thread_time() - t0, 1e-6)
+    ticks = max(10, int(target_s / (len(sims) * repeats * one)))
+    for _ in range(repeats):
+        for name, (sim, pos, vel) in sims.items():
+            sim.knot_pos[:], sim.knot_vel[:] = pos, vel
+            t0 = time.thread_time()
+            for _ in range(ticks):
+                sim.wake()
+                sim.step()
+            runs[name].append((time.thread_time() - t0) / ticks)
+    us = {name: statistics.median(r) * 1e6 for name, r in runs.items()}
+    return {"cols": cols, "rows": rows, "ticks": ticks, "repeats": repeats, "substeps": sims["float64"][0].substeps,
+            "us": us, "ratio": {name: us["float64"] / value for name, value in us.items()}}

@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from net_kernel.kernels import (  # noqa: F401  (shared)
-    FREE_ASLEEP,
+    GRID_CLASSES,    FREE_ASLEEP,
     FREE_AWAKE,
     FREE_NOT_FINITE,
     FREE_OUT_OF_REACH,
@@ -25,6 +25,7 @@ from net_kernel.kernels import (  # noqa: F401  (shared)
     STEP_WORK_ROWS,
     TABLE_Z,
 )
+from net_kernel.kernels.grid32 import LANES as GRID32_LANES
 
 
 def _slot_owner(adj_start):
@@ -162,13 +163,113 @@ def step_grid(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps,
 step_grid_serial = step_grid
 
 
+def grid32_work(built, knot_inv_mass, blocks, variant):
+    """Numpy twin of kernels.grid32_work: the same tuple, the same values."""
+    rows, cols = built.shape[1], built.shape[2]
+    width = (cols // GRID32_LANES + 1) * GRID32_LANES + 1
+    inv_mass = np.zeros((rows, width), dtype=np.float32)
+    inv_mass[:, 1:cols + 1] = knot_inv_mass
+    table = np.full((rows, width), -np.inf, dtype=np.float32)
+    table[:, 1:cols + 1] = TABLE_Z - built[2]
+    classes = np.zeros((GRID_CLASSES, 5), dtype=np.float32)
+    across_y, up_z = built[1, 0, 1] - built[1, 0, 0], built[2, 1, 0] - built[2, 0, 0]
+    classes[[GRID_MESH, GRID_CORD, GRID_HEM, GRID_SHEAR], 0] = across_y
+    classes[[GRID_VERTICAL, GRID_SHEAR], 1] = up_z
+    return (built.copy(), np.zeros((2, 3, rows, width), dtype=np.float32), np.zeros((4, rows, width), dtype=np.float32),
+            inv_mass, table, np.zeros((blocks, GRID_WORK_ROWS, width + 1), dtype=np.float32), classes,
+            np.int64(variant), np.full(3, np.nan))
+
+
+def _grid32_t(oi, oj, vi, vj, dy, dz, k, c, k_rest):
+    """(3, ...) float32 t = scale d per spring, kernels.grid32._spring32's operations in its order."""
+    d0, d1, d2 = oj[0] - oi[0], dy + (oj[1] - oi[1]), dz + (oj[2] - oi[2])
+    e0, e1, e2 = vj[0] - vi[0], vj[1] - vi[1], vj[2] - vi[2]
+    length2 = d0 * d0 + d1 * d1 + d2 * d2
+    rate = e0 * d0 + e1 * d1 + e2 * d2
+    inv_len = np.float32(1.0) / np.sqrt(length2)
+    scale = k + inv_len * (c * rate * inv_len - k_rest)
+    return np.stack([scale * d0, scale * d1, scale * d2])
+
+
+def step_grid32(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, net32):
+    """Numpy twin of kernels.step_grid32 (args, in-place update; the GRID32_EXACT variant's bits, whatever
+    net32's variant: numpy fuses nothing). net32's scratch is unused."""
+    if n_steps <= 0:
+        return
+    f32 = np.float32
+    ref, classes = net32[0], net32[6]
+    rows, cols = knot_state.shape[2], knot_state.shape[3]
+    free = knot_inv_mass != 0.0
+    o = (knot_state[0] - ref).astype(f32)
+    v = knot_state[1].astype(f32)
+    step = f32(h)
+    hw = step * knot_inv_mass.astype(f32)
+    b = np.where(free, f32(1.0) - step * f32(drag), f32(1.0)).astype(f32)
+    hg = np.where(free, step * f32(gravity), f32(0.0)).astype(f32)
+    s = np.where(free, step, f32(0.0)).astype(f32)
+    floor = (TABLE_Z - ref[2]).astype(f32)
+    k, c = grid_params[:, 0].astype(f32), grid_params[:, 1].astype(f32)
+    k_rest = k * grid_params[:, 2].astype(f32)
+    top = (np.arange(rows) == rows - 1)[:, None]
+    bottom = (np.arange(rows) == 0)[:, None]
+    h_kind = np.where(top, GRID_CORD, np.where(bottom, GRID_HEM, GRID_MESH))  # (rows, 1)
+
+    def line(oi, oj, vi, vj, kind, mirror=False):
+        dy = -classes[kind, 0] if mirror else classes[kind, 0]
+        return _grid32_t(oi, oj, vi, vj, dy, classes[kind, 1], k[kind], c[kind], k_rest[kind])
+
+    for _ in range(n_steps):
+        t_h = np.zeros((3, rows, cols), dtype=f32)
+        t_v = np.zeros((3, rows, cols), dtype=f32)
+        t_d1 = np.zeros((3, rows, cols), dtype=f32)
+        t_d2 = np.zeros((3, rows, cols), dtype=f32)
+        t_h[:, :, :-1] = line(o[:, :, :-1], o[:, :, 1:], v[:, :, :-1], v[:, :, 1:], h_kind)
+        t_v[:, :-1] = line(o[:, :-1], o[:, 1:], v[:, :-1], v[:, 1:], GRID_VERTICAL)
+        t_d1[:, :-1, :-1] = line(o[:, :-1, :-1], o[:, 1:, 1:], v[:, :-1, :-1], v[:, 1:, 1:], GRID_SHEAR)
+        t_d2[:, :-1, :-1] = line(o[:, :-1, 1:], o[:, 1:, :-1], v[:, :-1, 1:], v[:, 1:, :-1], GRID_SHEAR, mirror=True)
+        # The kernel's order: above-right - below-left, - below, - below-right, - left, + right, + above-left, + above.
+        f = t_d1 - _left(_below(t_d1))
+        f -= _below(t_v)
+        f -= _below(t_d2)
+        f -= _left(t_h)
+        f += t_h
+        f += _left(t_d2)
+        f += t_v
+        nv = b * v + hw * f
+        nv[2] -= hg
+        v = nv
+        o = o + s * nv
+        below = o[2] < floor
+        o[2] = np.where(below, floor, o[2])
+        v[2] = np.where(below, np.maximum(v[2], f32(0.0)), v[2])
+    knot_state[0] = np.where(free, ref + o.astype(np.float64), knot_state[0])
+    knot_state[1] = np.where(free, v.astype(np.float64), knot_state[1])
+
+
+step_grid32_serial = step_grid32
+
+
+def step_grid32_free(knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks, sleep_speed,
+                     sleep_ticks, quiet_ticks, reach, box):
+    """Numpy twin of kernels.step_grid32_free (args and returns as step_grid_free)."""
+    return _free_ticks(step_grid32, knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks,
+                       sleep_speed, sleep_ticks, quiet_ticks, reach, box)
+
+
 def step_grid_free(knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks, sleep_speed,
                    sleep_ticks, quiet_ticks, reach, box):
     """Numpy twin of kernels.step_grid_free (args, returns and bits identical)."""
+    return _free_ticks(step_grid, knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks,
+                       sleep_speed, sleep_ticks, quiet_ticks, reach, box)
+
+
+def _free_ticks(step, knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks, sleep_speed,
+                sleep_ticks, quiet_ticks, reach, box):
+    """step_grid_free's ticks with `step` for their steps (kernels.grid.free_ticks)."""
     pos = knot_state[0].reshape(3, -1).T
     vel = knot_state[1].reshape(3, -1).T
     for t in range(ticks):
-        step_grid(knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work)
+        step(knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work)
         speed = knot_speed_max(pos, vel)
         if not math.isfinite(speed):
             return t + 1, quiet_ticks, FREE_NOT_FINITE
@@ -335,6 +436,19 @@ def collide_ball_near(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, bal
 def step_grid_ball(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, grid_work, ball, ball_radius,
                    ball_inv_mass, knot_radius, restitution, max_hits, near, out_impulse):
     """Numpy twin of kernels.step_grid_ball (args and in-place updates identical): collide_ball, then step_grid, n_steps times."""
+    return _ball_substeps(step_grid, knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, grid_work, ball,
+                          ball_radius, ball_inv_mass, knot_radius, restitution, max_hits, near, out_impulse)
+
+
+def step_grid32_ball(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, net32, ball, ball_radius,
+                     ball_inv_mass, knot_radius, restitution, max_hits, near, out_impulse):
+    """Numpy twin of kernels.step_grid32_ball: collide_ball, then step_grid32, n_steps times."""
+    return _ball_substeps(step_grid32, knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, net32, ball,
+                          ball_radius, ball_inv_mass, knot_radius, restitution, max_hits, near, out_impulse)
+
+
+def _ball_substeps(step, knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, grid_work, ball, ball_radius,
+                   ball_inv_mass, knot_radius, restitution, max_hits, near, out_impulse):
     rows, cols = knot_state.shape[2], knot_state.shape[3]
     n = rows * cols
     knot_pos = knot_state[0].reshape(3, n).T
@@ -351,5 +465,5 @@ def step_grid_ball(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_s
             out_impulse += ball[3]
             ball[1] += ball[3] * ball_inv_mass
         ball[0] = ball[2]
-        step_grid(knot_state, knot_inv_mass, grid_params, gravity, drag, h, 1, grid_work)
+        step(knot_state, knot_inv_mass, grid_params, gravity, drag, h, 1, grid_work)
     return toi

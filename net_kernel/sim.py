@@ -10,13 +10,15 @@ from net_kernel.kernels import (
     FREE_ASLEEP,
     FREE_NOT_FINITE,
     FREE_OUT_OF_REACH,
+    GRID32_EXACT,
+    GRID32_FMA,
     GRID_WORK_ROWS,
     KNOT_WORK_ROWS,
     NO_CONTACT,
     SPRING_WORK_COLS,
     STEP_WORK_ROWS,
 )
-from net_kernel.topology import IMPLICIT, NetTopology
+from net_kernel.topology import FLOAT32, IMPLICIT, NetTopology
 
 # One switch picks the backend; both modules expose the same kernel names and signatures.
 BACKENDS = {"numba": kernels, "reference": reference}
@@ -137,6 +139,8 @@ class NetSim:
             parallel = topo.n_knots >= PARALLEL_MIN_KNOTS
         if grid is None:
             grid = topo.grid_params is not None and not self.implicit
+        if not grid and spec is not None and spec.kernel_precision == FLOAT32:
+            raise ValueError("kernel_precision = 'float32' needs the grid kernels: use grid=None or True")
         if grid and (topo.grid_params is None or self.implicit):
             raise ValueError("grid=True needs a net built by build_topology (grid_params) and the semi-implicit "
                              "solver; use grid=None to pick the kernels from the net")
@@ -162,6 +166,12 @@ class NetSim:
             # One scratch block per row block; the block count changes no bit (kernels.step_grid).
             blocks = min(rows, max(1, numba.get_num_threads())) if parallel and backend == "numba" else 1
             self._grid_work = np.zeros((blocks, GRID_WORK_ROWS, cols))
+            if spec.kernel_precision == FLOAT32:  # the float32 grid kernels (kernels.grid32), the same calls
+                self._step_grid = mod.step_grid32 if parallel else mod.step_grid32_serial
+                self._step_grid_ball = mod.step_grid32_ball
+                self._step_grid_free = mod.step_grid32_free if not parallel else None
+                self._grid_work = mod.grid32_work(topo.knot_pos.T.reshape(3, rows, cols).copy(), self._grid_inv_mass,
+                                                  blocks, GRID32_FMA if spec.kernel_fma else GRID32_EXACT)
         else:
             self._pos = [topo.rest_pos.copy(), topo.rest_pos.copy()]
             self._vel = [np.zeros((n, 3)), np.zeros((n, 3))]

@@ -34,6 +34,12 @@ SEMI_IMPLICIT = "semi_implicit"  # symplectic Euler, substepped under the stabil
 IMPLICIT = "implicit"  # backward Euler, one Newton step solved by conjugate gradients
 SOLVERS = (SEMI_IMPLICIT, IMPLICIT)
 
+# Arithmetic of the grid kernels a NetSpec may name (kernel_precision): float64 (kernels.grid), or
+# float32 on offsets from the built grid (kernels.grid32), with multiply-adds fused if kernel_fma.
+FLOAT64 = "float64"
+FLOAT32 = "float32"
+PRECISIONS = (FLOAT64, FLOAT32)
+
 # Knot counts accepted by the builder: 2 per side is the smallest grid with a spring; a
 # million knots (1000 x 1000) is the profiling size the issue asks for, 4000 leaves headroom.
 _MIN_KNOTS, _MAX_KNOTS = 2, 4000
@@ -79,6 +85,12 @@ class NetSpec:
             bottom cord: a net held up by its columns in compression, which buckles.
         solver: "semi_implicit" (substepped symplectic Euler) or "implicit" (backward Euler, CG).
         gravity: m/s^2, along -z.
+        kernel_precision: the grid kernels' arithmetic, "float64" (kernels.step_grid) or "float32"
+            (kernels.step_grid32: offsets from the built grid, 8 lanes a ymm register); the
+            semi-implicit solver only. Its error against float64 is measured, not assumed
+            (tests/net_kernel/test_grid32.py).
+        kernel_fma: float32 only: fused multiply-adds (kernels.GRID32_FMA); the last bits then
+            depend on the machine's FMA, lockstep on one machine stays bit for bit.
     """
 
     width: float = NET_WIDTH
@@ -126,6 +138,8 @@ class NetSpec:
     fix_table: bool = False
     solver: str = SEMI_IMPLICIT
     gravity: float = 9.81
+    kernel_precision: str = FLOAT64
+    kernel_fma: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -205,6 +219,16 @@ def validate_spec(spec: NetSpec) -> None:
             raise _fail(name, value, f"an integer in [{_MIN_KNOTS}, {_MAX_KNOTS}]")
     if spec.solver not in SOLVERS:
         raise _fail("solver", spec.solver, f"one of {', '.join(SOLVERS)}")
+    if spec.kernel_precision not in PRECISIONS:
+        raise _fail("kernel_precision", spec.kernel_precision, f"one of {', '.join(PRECISIONS)}")
+    if spec.kernel_precision == FLOAT32 and spec.solver != SEMI_IMPLICIT:
+        raise _fail("kernel_precision", spec.kernel_precision,
+                    f"{FLOAT64} with solver = {spec.solver!r} (float32 grid kernels step the semi_implicit solver only)")
+    if not isinstance(spec.kernel_fma, bool):
+        raise _fail("kernel_fma", spec.kernel_fma, "True or False")
+    if spec.kernel_fma and spec.kernel_precision != FLOAT32:
+        raise _fail("kernel_fma", spec.kernel_fma, f"False unless kernel_precision = {FLOAT32!r} (only the float32 "
+                    "grid kernels fuse multiply-adds)")
     if not spec.fix_table and spec.hem_gap >= spec.height:
         raise _fail("hem_gap", spec.hem_gap, f"< height = {spec.height} (the bottom cord below the top cord)")
     col_spacing, row_spacing = grid_spacings(spec)
@@ -280,9 +304,10 @@ def build_topology(spec: NetSpec) -> NetTopology:
                          spring_c[order], spec=spec)
     object.__setattr__(topo, "grid_params", grid_params)
     if not spec.fix_table:
-        rest = _REST_SHAPES.get(spec)
+        shape_key = replace(spec, kernel_precision=FLOAT64, kernel_fma=False)  # the kernels do not settle it
+        rest = _REST_SHAPES.get(shape_key)
         if rest is None:
-            rest = _REST_SHAPES[spec] = hanging_shape(topo)
+            rest = _REST_SHAPES[shape_key] = hanging_shape(topo)
         object.__setattr__(topo, "rest_pos", rest)
     return topo
 

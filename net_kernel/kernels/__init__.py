@@ -1,7 +1,8 @@
 """Numba kernels of the net: knot steps (semi-implicit and implicit Euler) and the ball's contact.
 
 One module per layout or concern: csr (knot steps over the CSR adjacency, any topology), grid
-(the same step on a regular grid, fused row by row), implicit (backward Euler by conjugate
+(the same step on a regular grid, fused row by row), grid32 (the grid step in float32 on offsets
+from the built grid, a NetSpec option), implicit (backward Euler by conjugate
 gradients), contact (the ball against the knots), scatter (the textbook per-spring scatter
 loop, a baseline for the profile, not used by NetSim). Numba only; the numpy twins are in
 net_kernel/reference.py.
@@ -16,7 +17,8 @@ Determinism: every sum over springs here is a per-knot gather in a fixed order: 
 adjacency (knot i sums its own springs in the topology's slot order), or, in the grid kernels
 (step_grid), over the 8 grid neighbours in that same order; per-spring passes write one value
 per spring. So `parallel=True` changes no bit: no prange scatter-add, no prange reduction;
-reductions (CG dot products, speed maximum) are serial loops. fastmath stays off. No kernel
+reductions (CG dot products, speed maximum) are serial loops. fastmath stays off, except the
+grid32 FMA variant's flag contract, which reorders no sum (see grid32). No kernel
 allocates; scratch comes in as arguments.
 
 error_model="numpy" on the step kernels: no ZeroDivisionError test on 1/|L| (the builder
@@ -29,7 +31,14 @@ on it with its downward velocity removed.
 
 Every kernel has a numpy twin with the same signature in net_kernel/reference.py.
 """
-from net_kernel.kernels.contact import NEAR_SLACK, NO_CONTACT, collide_ball, collide_ball_near, step_grid_ball
+from net_kernel.kernels.contact import (
+    NEAR_SLACK,
+    NO_CONTACT,
+    collide_ball,
+    collide_ball_near,
+    step_grid32_ball,
+    step_grid_ball,
+)
 from net_kernel.kernels.csr import STEP_WORK_ROWS, knot_speed_max, step_knots, step_knots_serial
 from net_kernel.kernels.grid import (
     FREE_ASLEEP,
@@ -47,6 +56,14 @@ from net_kernel.kernels.grid import (
     step_grid_free,
     step_grid_serial,
 )
+from net_kernel.kernels.grid32 import (
+    GRID32_EXACT,
+    GRID32_FMA,
+    grid32_work,
+    step_grid32,
+    step_grid32_free,
+    step_grid32_serial,
+)
 from net_kernel.kernels.implicit import KNOT_WORK_ROWS, SPRING_WORK_COLS, step_knots_implicit
 from net_kernel.kernels.scatter import step_knots_scatter
 from net_kernel.kernels.table import TABLE_Z
@@ -56,6 +73,8 @@ __all__ = [
     "FREE_AWAKE",
     "FREE_NOT_FINITE",
     "FREE_OUT_OF_REACH",
+    "GRID32_EXACT",
+    "GRID32_FMA",
     "GRID_CLASSES",
     "GRID_CORD",
     "GRID_HEM",
@@ -71,8 +90,13 @@ __all__ = [
     "TABLE_Z",
     "collide_ball",
     "collide_ball_near",
+    "grid32_work",
     "knot_speed_max",
     "step_grid",
+    "step_grid32",
+    "step_grid32_ball",
+    "step_grid32_free",
+    "step_grid32_serial",
     "step_grid_ball",
     "step_grid_free",
     "step_grid_serial",

@@ -9,6 +9,7 @@ import numpy as np
 from numba import njit
 
 from net_kernel.kernels.grid import step_grid_serial
+from net_kernel.kernels.grid32 import step_grid32_serial
 
 NO_CONTACT = -1.0  # collide_ball's return when the ball touched no knot
 
@@ -333,6 +334,27 @@ def step_grid_ball(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_s
     Returns:
         Fraction of the tick (n_steps h) at the first contact, or NO_CONTACT.
     """
+    return _ball_substeps(step_grid_serial, knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, grid_work,
+                          ball, ball_radius, ball_inv_mass, knot_radius, restitution, max_hits, near, out_impulse)
+
+
+@njit(cache=True, fastmath=False, error_model="numpy")
+def step_grid32_ball(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, net32, ball, ball_radius,
+                     ball_inv_mass, knot_radius, restitution, max_hits, near, out_impulse):
+    """step_grid_ball with the float32 grid step (kernels.grid32.step_grid32_serial) between the contact sweeps.
+
+    The sweep runs on the float64 state as in step_grid_ball; each substep's grid step converts
+    the state to float32 offsets and back (step_grid32). Args as step_grid_ball, net32 in place
+    of grid_work (grid32_work's tuple).
+    """
+    return _ball_substeps(step_grid32_serial, knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, net32,
+                          ball, ball_radius, ball_inv_mass, knot_radius, restitution, max_hits, near, out_impulse)
+
+
+@njit(inline="always")
+def _ball_substeps(step, knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, grid_work, ball, ball_radius,
+                   ball_inv_mass, knot_radius, restitution, max_hits, near, out_impulse):
+    """step_grid_ball's substeps with `step` (a serial grid kernel of step_grid_serial's signature) as the grid step."""
     rows, cols = knot_state.shape[2], knot_state.shape[3]
     n = rows * cols
     knot_pos = knot_state[0].reshape(3, n).T  # (n_knots, 3) views, as NetSim's knot_pos / knot_vel
@@ -353,5 +375,5 @@ def step_grid_ball(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_s
                 out_impulse[c] += hit_impulse[c]
                 bv[c] += hit_impulse[c] * ball_inv_mass
         bp[:] = ball[2]
-        step_grid_serial(knot_state, knot_inv_mass, grid_params, gravity, drag, h, 1, grid_work)
+        step(knot_state, knot_inv_mass, grid_params, gravity, drag, h, 1, grid_work)
     return toi

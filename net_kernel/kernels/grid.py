@@ -277,12 +277,20 @@ def step_grid_free(knot_state, knot_inv_mass, grid_params, gravity, drag, h, sub
     Returns:
         (ticks taken, quiet_ticks after them, FREE_* status).
     """
+    return free_ticks(step_grid_serial, knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work,
+                      ticks, sleep_speed, sleep_ticks, quiet_ticks, reach, box)
+
+
+@njit(inline="always")
+def free_ticks(step, knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks, sleep_speed,
+               sleep_ticks, quiet_ticks, reach, box):
+    """step_grid_free's ticks with `step` (a serial grid kernel of step_grid_serial's signature) for their steps."""
     rows = knot_state.shape[2]
     cols = knot_state.shape[3]
     x = knot_state[0]
     v = knot_state[1]
     for t in range(ticks):
-        step_grid_serial(knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work)
+        step(knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work)
         top = 0.0
         for a in range(3):
             box[0, a] = math.inf

@@ -12,7 +12,7 @@ def profile_net_command(args: argparse.Namespace) -> int:
     Returns:
         0, or 2 when --knots or --steps is malformed or the net cannot be built.
     """
-    from net_kernel.profile import parse_knots, profile_net
+    from net_kernel.profile import PATHS, parse_knots, profile_net
 
     try:
         cols, rows = parse_knots(args.knots)
@@ -20,7 +20,7 @@ def profile_net_command(args: argparse.Namespace) -> int:
             raise ValueError(f"--steps {args.steps}: must be >= 1")
         backends = ("numba", "reference") if args.backend == "both" else (args.backend,)
         path = args.path
-        paths = ("grid", "csr") if path == "both" else (path,)
+        paths = PATHS if path == "all" else (path,)
         report = profile_net(cols, rows, steps=args.steps, backends=backends, paths=paths)
     except ValueError as exc:
         print(f"pingpong profile-net: {exc}", file=sys.stderr)
@@ -36,20 +36,21 @@ def profile_net_command(args: argparse.Namespace) -> int:
     print(f"copy bandwidth (numpy copy of {copy['bytes'] / 2**21:.0f} MiB, read + write): "
           f"{copy['gb_per_s']:.1f} GB/s (before {copy['before']:.1f}, after {copy['after']:.1f})")
     print(f"byte model: {report['byte_model']}")
-    header = (f"  {'path':<7} {'backend':<18} {'compile s':>9} {'steps':>7} {'per call':>8} {'µs/step':>10} "
+    header = (f"  {'path':<10} {'backend':<18} {'compile s':>9} {'steps':>7} {'per call':>8} {'µs/step':>10} "
               f"{'[min .. max]':>22} {'cpu µs/step':>11} {'Msprings/s':>11} {'GB/s':>7} {'of copy':>8} {'x textbook':>10}")
     print(header)
     for r in report["results"]:
         name = r["backend"] + (" parallel" if r["parallel"] else " serial" if r["backend"] == "numba" else "")
         spread = f"[{r['us_per_step_min']:.1f} .. {r['us_per_step_max']:.1f}]"
         cpu = "-" if r["cpu_us_per_step"] is None else f"{r['cpu_us_per_step']:.1f}"
-        print(f"  {r['path']:<7} {name:<18} {r['compile_s']:>9.2f} {r['steps']:>7} {r['steps_per_call']:>8} "
+        print(f"  {r['path']:<10} {name:<18} {r['compile_s']:>9.2f} {r['steps']:>7} {r['steps_per_call']:>8} "
               f"{r['us_per_step']:>10.1f} {spread:>22} {cpu:>11} {r['msprings_per_s']:>11.1f} {r['gb_per_s']:>7.2f} "
               f"{100 * r['copy_share']:>7.1f}% {_ratio(r):>10}")
     print(f"  median of {report['results'][0]['repeats']} timed runs each; cpu µs/step: the stepping thread's CPU "
           "time (serial kernels; time waiting for a core left out); compile time is the first call's "
           "excess over the second (0 when numba's cache is warm); grid: a tick's substeps per call, as NetSim "
-          "steps a net the ball is away from; csr: one step per call; scatter: the textbook per-spring scatter "
+          "steps a net the ball is away from; grid32, grid32_fma: the grid kernel in float32 on offsets from the built grid "
+          "(NetSpec kernel_precision = 'float32', kernel_fma off and on); csr: one step per call; scatter: the textbook per-spring scatter "
           "loop (kernels.step_knots_scatter), serial, one step per call; x textbook: its cpu µs/step over the "
           "row's (µs/step for parallel rows), same net, same run")
     _print_anatomy(report)
@@ -62,8 +63,9 @@ def add_commands(sub) -> None:
     profile.add_argument("--knots", default="184x16", help="knot grid, COLUMNSxROWS")
     profile.add_argument("--steps", type=int, default=None, help="timed steps (default: sized to ~1 s per backend)")
     profile.add_argument("--backend", choices=["numba", "reference", "both"], default="both")
-    profile.add_argument("--path", choices=["grid", "csr", "both"], default="both",
-                         help="kernel path: the grid kernel NetSim uses, the general CSR kernel, or both")
+    profile.add_argument("--path", choices=["grid", "grid32", "grid32_fma", "csr", "all"], default="all",
+                         help="kernel path: the grid kernel NetSim uses (float64), its float32 variants, the general "
+                              "CSR kernel, or all")
     profile.add_argument("--json", action="store_true", help="print one JSON object")
     profile.set_defaults(func=profile_net_command)
 
@@ -90,7 +92,15 @@ def _print_anatomy(report: dict) -> None:
               f"float64 Newton step) {passes['spring_floor_no_divider_us']:.2f} µs")
     vectors = report.get("vectors")
     if vectors:
-        print("vectorised? each kernel's widest loop, from numba's assembly (float64 lanes: xmm 2, ymm 4, zmm 8)")
+        print("vectorised? each kernel's widest loop, from numba's assembly (float64 lanes: xmm 2, ymm 4, zmm 8; "
+              "float32, /f32: twice as many)")
         for name, v in vectors.items():
             packed = "scalar only" if v["lanes"] == 1 else f"packed {v['width']} x{v['lanes']}, {v['packed_ops']} ops"
             print(f"  {name:<40} {packed:<28} {v['scalar_loops']} of {v['loops']} loops scalar only")
+    awake = report.get("awake_ticks")
+    if awake:
+        print(f"awake NetSim tick of the match's {awake['cols']} x {awake['rows']} net (resolution_spec, ball away, "
+              f"{awake['substeps']} substeps; this thread's CPU time, median of {awake['repeats']} runs of "
+              f"{awake['ticks']} ticks, interleaved): µs per tick, and float64's over it")
+        for name, us in awake["us"].items():
+            print(f"  {name:<12} {us:>8.1f} µs {awake['ratio'][name]:>6.2f}x")

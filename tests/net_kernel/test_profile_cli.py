@@ -16,10 +16,11 @@ def test_profile_net_smoke():
     report = json.loads(done.stdout)
     assert report["knots"] == 160
     assert {(r["path"], r["backend"]) for r in report["results"]} == {
-        (path, backend) for path in ("grid", "csr") for backend in ("numba", "reference")} | {("scatter", "numba")}
+        (path, backend) for path in ("grid", "grid32", "csr") for backend in ("numba", "reference")} | {
+        ("grid32_fma", "numba"), ("scatter", "numba")}
     for r in report["results"]:
         assert r["us_per_step"] > 0 and r["msprings_per_s"] > 0 and 0 < r["copy_share"]
-        assert r["steps"] == 2 and r["steps_per_call"] == (2 if r["path"] == "grid" else 1)
+        assert r["steps"] == 2 and r["steps_per_call"] == (2 if r["path"].startswith("grid") else 1)
         parallel = r["backend"] == "numba" and r["parallel"]
         assert (r["cpu_us_per_step"] is None) if parallel else r["cpu_us_per_step"] > 0  # serial kernels only
         assert (r["backend"] == "reference") or r["textbook_ratio"] > 0  # the numba rows against the textbook loop
@@ -29,7 +30,11 @@ def test_profile_net_smoke():
     assert passes["step_us"] > 0 and passes["divider_floor_us"] > 0 and passes["long_rows"] is None  # 8 rows < 16
     assert passes["spring_floor_us"] > 0 and passes["spring_floor_no_divider_us"] > 0
     assert set(report["vectors"]) == {"grid springs (_grid_line)", "grid knots (_grid_update)",
-                                      "csr (step_knots_serial)", "textbook scatter (step_knots_scatter)"}
+                                      "grid32 block (_block_exact)", "csr (step_knots_serial)",
+                                      "textbook scatter (step_knots_scatter)"}
+    assert report["vectors"]["grid32 block (_block_exact)"]["width"].endswith("/f32")  # float32 lanes
+    awake = report["awake_ticks"]
+    assert set(awake["us"]) == {"float64", "float32", "float32 fma"} and min(awake["us"].values()) > 0
 
 
 def test_profile_net_text_and_bad_knots():
@@ -38,6 +43,7 @@ def test_profile_net_text_and_bad_knots():
     assert done.returncode == 0, done.stderr
     assert "Msprings/s" in done.stdout and "of copy" in done.stdout and "x textbook" in done.stdout
     assert "vectorised?" in done.stdout and "the divider's floor" in done.stdout
+    assert "grid32_fma" in done.stdout and "awake NetSim tick" in done.stdout
     bad = subprocess.run([sys.executable, "-m", "processes", "profile-net", "--knots", "12by4"],
                          capture_output=True, text=True, timeout=DEADLINE_S)
     assert bad.returncode == 2 and "COLSxROWS" in bad.stderr

@@ -95,3 +95,22 @@ def test_a_worker_past_its_restart_budget_ends_the_run_with_its_traceback(net_sc
     with pytest.raises(WorkerFailed, match=r"(?s)net worker raised InjectedFault: fault injection: raised at tick "
                                            r"150; past its restart budget \(0 restarts within 600 s.*Traceback"):
         supervisor.run()
+
+
+@pytest.mark.parametrize("crash_at", [None, 150])
+def test_lockstep_with_a_float32_net_equals_the_in_process_engine(crash_at, no_leftovers):
+    # The float32 grid kernels with fused multiply-adds (NetSpec kernel_precision, kernel_fma): the
+    # worker and the in-process engine run the same compiled kernel, so the bits agree, also across
+    # a SIGKILLed net worker restarted from its snapshot (tick 150: the net awake, the ball near).
+    with open(ROOT / "scenes" / "net.toml", "rb") as f:
+        data = tomllib.load(f)
+    data["net"] = COARSE | {"kernel_precision": "float32", "kernel_fma": True}
+    data["duration"] = 0.8
+    scene = parse_scene(data, "net-coarse-float32")
+    reference = run(scene, trace=True)
+    assert any(int(e["body"]) == Body.NET for e in reference.events)  # the ball met the cloth
+    crash = {} if crash_at is None else {"crash_at_tick": crash_at, "crash_worker": "net"}
+    result = Supervisor(scene, scene.ticks, "lockstep", trace=True, **crash).run()
+    assert result.workers["net"]["restarts"] == (0 if crash_at is None else 1)
+    assert first_difference(result.trace, reference.trace) is None
+    assert result.events.tobytes() == reference.events.tobytes()
