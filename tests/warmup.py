@@ -12,10 +12,11 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
-from tests.waits import DEADLINE_S
+from tests.waits import DEADLINE_S, POLL_S, Deadline
 
 ROOT = Path(__file__).resolve().parents[1]
 IN_PROCESS = """\
@@ -41,26 +42,38 @@ def main() -> int:
     start = time.monotonic()
     failed = []
     for stage in STAGES:
-        running = [(name, subprocess.Popen([sys.executable, *args], cwd=ROOT, stdin=subprocess.DEVNULL,
-                                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True),
-                    time.monotonic()) for name, args in stage]
-        for step in running:
-            failed += _finish(*step)
+        failed += _run_stage(stage)
     print(f"warm-up: {time.monotonic() - start:.0f} s", flush=True)
     for name, err in failed:
         print(f"warm-up: {name} failed (the tests will say why):\n{err[-2000:]}", file=sys.stderr)
     return 0  # a failing step is the suite's to report, with its own test
 
 
-def _finish(name: str, proc: subprocess.Popen, began: float) -> list[tuple[str, str]]:
-    try:
-        _, err = proc.communicate(timeout=DEADLINE_S)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        _, err = proc.communicate()
-        return [(name, f"still running after {DEADLINE_S:.0f} s\n{err}")]
-    print(f"warm-up: {name}: {time.monotonic() - began:.0f} s", flush=True)
-    return [(name, err)] if proc.returncode else []
+def _run_stage(stage) -> list[tuple[str, str]]:
+    """Runs the stage's steps side by side; says when each ended; (name, stderr) of those that failed."""
+    began = time.monotonic()
+    running, failed = {}, []
+    for name, args in stage:
+        err = tempfile.TemporaryFile("w+")  # a file, not a pipe: nobody reads it until the step ends
+        running[name] = (subprocess.Popen([sys.executable, *args], cwd=ROOT, stdin=subprocess.DEVNULL,
+                                          stdout=subprocess.DEVNULL, stderr=err, text=True), err)
+    deadline = Deadline()
+    while running:
+        for name, (proc, err) in list(running.items()):
+            if proc.poll() is None and not deadline.expired():
+                continue
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+                failed.append((name, f"still running after {DEADLINE_S:.0f} s"))
+            elif proc.returncode:
+                err.seek(0)
+                failed.append((name, err.read()))
+            print(f"warm-up: {name}: {time.monotonic() - began:.0f} s", flush=True)
+            err.close()
+            del running[name]
+        time.sleep(POLL_S)  # polling the steps' exits, bounded by the deadline
+    return failed
 
 
 if __name__ == "__main__":
