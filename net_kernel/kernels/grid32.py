@@ -158,8 +158,10 @@ def _band32(o, v, classes, r, cols, work, band):
 
 @njit(inline="always")
 def _axis32(x_row, v_row, factors, r, below_left, below, below_right, horizontal, above_left, above, above_right,
-            gravity):
-    """One axis of a row's knots stepped in place (step_grid's sum order); `gravity` a constant bool."""
+            floor, vertical):
+    """One axis of a row's knots stepped in place (step_grid's sum order); `vertical` (a constant bool):
+    z, with gravity and the playing surface (net_kernel/kernels/table.py) at the offset `floor`, which
+    pads and knots far above never reach."""
     hw, b, hg, s = factors[_HW, r], factors[_B, r], factors[_HG, r], factors[_S, r]
     for p in range(x_row.shape[0] - 1):
         f = above_right[p + 1] - below_left[p]
@@ -170,27 +172,27 @@ def _axis32(x_row, v_row, factors, r, below_left, below, below_right, horizontal
         f += above_left[p]
         f += above[p + 1]
         nv = b[p] * v_row[p] + hw[p] * f
-        if gravity:
+        if vertical:
             nv -= hg[p]
-        v_row[p] = nv
-        x_row[p] += s[p] * nv
+            z = x_row[p] + s[p] * nv
+            below_floor = z < floor[p]
+            x_row[p] = floor[p] if below_floor else z
+            v_row[p] = max(nv, np.float32(0.0)) if below_floor else nv
+        else:
+            v_row[p] = nv
+            x_row[p] += s[p] * nv
 
 
 @njit(inline="always")
 def _update_row32(state, factors, table, r, down, up, work):
-    """Row r's knots stepped in place: each axis, then the playing surface for z."""
+    """Row r's knots stepped in place, axis by axis."""
     for k in range(2):
         _axis32(state[0, k, r], state[1, k, r], factors, r, work[down + _D1 + k], work[down + _V + k],
-                work[down + _D2 + k], work[_H + k], work[up + _D2 + k], work[up + _V + k], work[up + _D1 + k], False)
+                work[down + _D2 + k], work[_H + k], work[up + _D2 + k], work[up + _V + k], work[up + _D1 + k],
+                table[r], False)
     _axis32(state[0, 2, r], state[1, 2, r], factors, r, work[down + _D1 + 2], work[down + _V + 2],
-            work[down + _D2 + 2], work[_H + 2], work[up + _D2 + 2], work[up + _V + 2], work[up + _D1 + 2], True)
-    # The playing surface (net_kernel/kernels/table.py) as an offset: pads and rows far above never reach it.
-    x_row, v_row, floor = state[0, 2, r], state[1, 2, r], table[r]
-    for p in range(x_row.shape[0] - 1):
-        z = x_row[p]
-        below_floor = z < floor[p]
-        x_row[p] = floor[p] if below_floor else z
-        v_row[p] = max(v_row[p], np.float32(0.0)) if below_floor else v_row[p]
+            work[down + _D2 + 2], work[_H + 2], work[up + _D2 + 2], work[up + _V + 2], work[up + _D1 + 2], table[r],
+            True)
 
 
 @njit(inline="always")
