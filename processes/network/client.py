@@ -151,7 +151,8 @@ class Client:
         self.slot = message["slot"]
         self.token = message["token"]
         self.heartbeat_s = message["heartbeat_ms"] / 1000.0
-        self.timeout_s = message["timeout_ms"] / 1000.0
+        # the document's rule: a server silent for max(timeout_ms, SERVER_SILENCE_BEATS heartbeats) is gone
+        self.timeout_s = max(message["timeout_ms"], wire.SERVER_SILENCE_BEATS * message["heartbeat_ms"]) / 1000.0
         self._next_beat = time.monotonic() + self.heartbeat_s
         self.subscribe(message["feed_port"])
         return True

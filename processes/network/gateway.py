@@ -12,8 +12,9 @@ theirs on the session (two sends, and a player's snapshots are counted per sessi
   version, bad_request, bad_token, shutting_down), and the session is closed on a reject. A
   frame that claims to be a hello (magic, version, kind) but fails to decode is rejected
   bad_request, with the decoder's reason in the detail.
-- heartbeats both ways: the gateway sends one every `heartbeat_s` to each session; any valid
-  message from a peer counts as a sign of life; a peer silent for `timeout_s` is sent goodbye
+- heartbeats both ways: the gateway sends one every `heartbeat_s` to each session (with
+  start_heartbeats, also from a thread of its own, which no wait of the caller's loop holds up);
+  any valid message from a peer counts as a sign of life; a peer silent for `timeout_s` is sent goodbye
   (timeout) and dropped. A dropped player's seat is kept for `grace_s`: only its token may
   reclaim it (rejoin); after the grace the token expires (bad_token) and anyone may take the
   seat. A player who says goodbye frees its seat at once. A hello with the token of a seat
@@ -21,7 +22,7 @@ theirs on the session (two sends, and a player's snapshots are counted per sessi
   kicked).
 - input: decoded and validated, accepted only for the sender's own bat (another bat's input,
   a spectator's input, target mode and stale sequence numbers are refused and counted; all but
-  stale ones count towards MAX_BAD: target mode is reserved in protocol 3), then posted to
+  stale ones count towards MAX_BAD: target mode is reserved since protocol 3), then posted to
   the locked remote-input mailbox that the physics worker drains each tick.
 - snapshots at `snapshot_hz` from the physics snapshot block, plus point/game/match events
   from the point log, and a cloth net's knots (network.feed.NetFeed). Sends never block:
@@ -42,6 +43,9 @@ theirs on the session (two sends, and a player's snapshots are counted per sessi
   peer without a session that sends anything but a hello (a session of the gateway this one
   replaced after a crash) is told goodbye (unknown_session), once per connection, and may
   hello again (a player with its token, within the grace).
+- snapshots follow the match clock: one every 1/snapshot_hz s of match time (snapshot_ticks),
+  at most snapshot_hz a wall second, the same tick again each period while the clock stands;
+  each says the realtime factor measured over the last RATE_WINDOW_S.
 - a snapshot of tick T says in input_seq the inputs applied before the step into T (the
   physics writes them per tick into the remote_acks ring before publishing T), so a client
   rewinds to T and replays exactly its later inputs. The gateway only forwards inputs: the
@@ -64,8 +68,9 @@ from __future__ import annotations
 import os
 import secrets
 import struct
+import threading
 import time
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -86,6 +91,7 @@ MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messa
 MAX_FRAME_BYTES = 4096  # libzmq disconnects a peer sending a bigger frame (MAXMSGSIZE)
 SWEEPS_PER_HEARTBEAT = 10  # passes over every session (timeouts, heartbeats) per heartbeat period
 STATS_EVERY_S = 1.0  # the worker writes its counters to GatewayConfig.stats_path this often
+RATE_WINDOW_S = 1.0  # snapshot.realtime_factor: the match time run over this much wall time
 NO_TOKEN = bytes(wire.TOKEN_SIZE)
 # A session's heartbeat, the message a thousand spectators send twice a second: magic, version,
 # kind, flags 0 and the size say it all (its only body field, ack, is any u64), so it is taken by
@@ -199,6 +205,16 @@ class Gateway:
         self._match_sent = False
         self._strangers_told: set[bytes] = set()
         self.net = NetFeed(net_grid, config.snapshot_hz) if net_grid is not None else None
+        # one snapshot per 1/snapshot_hz of match time (and at most snapshot_hz a wall second)
+        self.snapshot_ticks = max(1, round(1.0 / (config.snapshot_hz * dt)))
+        self._snapshot_tick: int | None = None  # the tick of the last snapshot sent
+        self._snapshot_due = 0  # the tick from which the next one is due (a grid in match time)
+        self._snapshot_wall = 0.0  # when the last one was sent (clock s)
+        self._rate: deque[tuple[float, float]] = deque()  # (wall s, match s) over the last RATE_WINDOW_S
+        self.realtime_factor = 0.0
+        self.lock = threading.Lock()  # with start_heartbeats: held around every other call
+        self._sweeper: threading.Thread | None = None
+        self._stop_sweeps = threading.Event()
         self.router = zctx.socket(zmq.ROUTER)
         self.router.setsockopt(zmq.LINGER, 0)
         self._two_io_threads = zctx.get(zmq.IO_THREADS) >= 2
@@ -508,7 +524,7 @@ class Gateway:
             self._bad(session)
             return
         if message["mode"] != InputMode.FORCE:
-            self.counts["refused.target_mode"] += 1  # reserved in protocol 3: no server-side arm controller
+            self.counts["refused.target_mode"] += 1  # reserved (protocols 3 and 4): no server-side arm controller
             self._bad(session)
             return
         if message.seq <= session.input_seq:
@@ -529,30 +545,80 @@ class Gateway:
         bat. points: the run's POINT_DTYPE log (events for the points `record` counts).
         """
         now = self.clock()
-        if now >= self._next_sweep:
-            # every session's timeout and heartbeat, a few times per heartbeat period, not every
-            # call: with 1000 spectators a pass is ~0.5 ms of Python and the worker calls this
-            # every few ms
-            self._next_sweep = now + self.config.heartbeat_s / SWEEPS_PER_HEARTBEAT
-            self._expire_tokens(now)
-            for session in list(self.sessions.values()):
-                if now - session.last_seen > self.config.timeout_s:
-                    self.counts["timeouts"] += 1
-                    self._goodbye(session, GoodbyeReason.TIMEOUT)
-                    self._end(session, keep_seat=True)
-                elif now >= session.next_beat:
-                    session.next_beat = now + self.config.heartbeat_s
-                    self._send(session, self._heartbeat(session.seq_in), "heartbeats")
+        self.sweep(now)
         if record is None:
             return
         self.tick = int(record["world"]["tick"])
+        self._measure_rate(now, float(record["world"]["time"]))
         if points is not None:
             self._events(record, points)
         if now < self._next_snapshot:
             return
-        # on a fixed grid (no drift from the poll loop's latency); after a stall, restart from now
+        tick, last = self.tick, self._snapshot_tick
+        if last is not None and last < tick < self._snapshot_due:
+            return  # the match clock has not yet reached the next one's tick (a slow server)
+        if tick == last and now - self._snapshot_wall < 0.99 / self.config.snapshot_hz:  # 0.99: clock rounding
+            return  # a clock slower than a tick per period has not stood a whole period yet
+        # on fixed grids (no drift from the poll loop's latency), in wall time and in match time;
+        # after a stall, restarted from now; a standing clock repeats its tick on the wall grid
         self._next_snapshot = max(self._next_snapshot + 1.0 / self.config.snapshot_hz, now)
+        if last is not None and tick < last:
+            self._snapshot_due = tick + self.snapshot_ticks  # the clock went back (a restarted physics)
+        elif tick != last:
+            self._snapshot_due = max(self._snapshot_due + self.snapshot_ticks, tick + 1)
+        self._snapshot_tick, self._snapshot_wall = tick, now
         self.broadcast_snapshot(record, input_seq)
+
+    def sweep(self, now: float) -> None:
+        """Every session's timeout and heartbeat, when due: a few times per heartbeat period, not
+        every call (with 1000 spectators a pass is ~0.5 ms of Python and the worker calls
+        service every few ms)."""
+        if now < self._next_sweep:
+            return
+        self._next_sweep = now + self.config.heartbeat_s / SWEEPS_PER_HEARTBEAT
+        self._expire_tokens(now)
+        for session in list(self.sessions.values()):
+            if now - session.last_seen > self.config.timeout_s:
+                self.counts["timeouts"] += 1
+                self._goodbye(session, GoodbyeReason.TIMEOUT)
+                self._end(session, keep_seat=True)
+            elif now >= session.next_beat:
+                session.next_beat = now + self.config.heartbeat_s
+                self._send(session, self._heartbeat(session.seq_in), "heartbeats")
+
+    def start_heartbeats(self) -> None:
+        """Sweep also from a thread of its own from now on: the worker's loop waits outside
+        `lock` for the physics' and the net's published states (a writer descheduled mid-write on
+        a busy machine holds such a copy up), and the heartbeats and timeouts go on meanwhile.
+        The caller holds `lock` around every other call from then on (ZeroMQ sockets are not
+        thread-safe); shutdown() and close() stop the thread."""
+        def run():
+            period = self.config.heartbeat_s / SWEEPS_PER_HEARTBEAT / 2
+            while not self._stop_sweeps.wait(period):
+                with self.lock:
+                    self.sweep(self.clock())
+
+        self._sweeper = threading.Thread(target=run, name="gateway-heartbeats", daemon=True)
+        self._sweeper.start()
+
+    def _stop_heartbeats(self) -> None:
+        if self._sweeper is not None:
+            self._stop_sweeps.set()
+            if self._sweeper is not threading.current_thread():
+                self._sweeper.join(5.0)
+            self._sweeper = None
+
+    def _measure_rate(self, now: float, match_s: float) -> None:
+        """snapshot.realtime_factor: match seconds run per wall second over RATE_WINDOW_S."""
+        rate = self._rate
+        if rate and match_s < rate[-1][1]:
+            rate.clear()  # the clock went back (a restarted physics resumed earlier): start over
+        rate.append((now, match_s))
+        while len(rate) > 2 and now - rate[1][0] >= RATE_WINDOW_S:
+            rate.popleft()
+        wall = now - rate[0][0]
+        if wall >= RATE_WINDOW_S / 4:
+            self.realtime_factor = (match_s - rate[0][1]) / wall
 
     def net_due(self) -> bool:
         return self.net is not None and self.net.due(self.clock())
@@ -572,7 +638,8 @@ class Gateway:
 
     def broadcast_snapshot(self, record, input_seq=(0, 0)) -> None:
         try:
-            data = wire.snapshot_from_physics(record, seq=0, input_seq=input_seq)
+            data = wire.snapshot_from_physics(record, seq=0, input_seq=input_seq,
+                                              realtime_factor=self.realtime_factor)
         except wire.WireError as err:
             self.counts["snapshots_unencodable"] += 1  # e.g. a bat beyond the wire's ranges
             self.counts[f"snapshots_unencodable.{err.reason}"] += 1
@@ -621,6 +688,7 @@ class Gateway:
 
     def shutdown(self, reason: GoodbyeReason = GoodbyeReason.SHUTDOWN) -> int:
         """Goodbye to every session; returns how many were told."""
+        self._stop_heartbeats()
         self.shutting_down = True
         told = 0
         for session in list(self.sessions.values()):
@@ -632,6 +700,7 @@ class Gateway:
     def close(self, linger_ms: int = 500) -> None:
         """Close the sockets; what is still queued (the goodbyes of shutdown) gets up to linger_ms
         to leave (linger 0 discarded them: `pingpong stress` saw bots miss their goodbye)."""
+        self._stop_heartbeats()
         self.router.close(linger=linger_ms)
         if self.feed is not None:
             self.feed.close(linger=0)  # a snapshot nobody took yet is worth nothing after the end

@@ -143,7 +143,8 @@ def _constant_comment(module, name: str) -> str:
 LIMITS = [(messages, "MAX_FORCE_N", "N"), (messages, "MAX_TORQUE_NM", "N m"), (messages, "MAX_POS_M", "m"),
           (messages, "MAX_SPEED_MS", "m/s"), (messages, "MAX_SPIN_RADS", "rad/s"),
           (messages, "MAX_BAT_ANG_VEL_RADS", "rad/s"), (messages, "MAX_GAMES_WON", "games"),
-          (messages, "MAX_BEST_OF", "games"), (messages, "MAX_DT_S", "s"), (messages, "TOKEN_SIZE", "bytes"),
+          (messages, "MAX_BEST_OF", "games"), (messages, "MAX_DT_S", "s"), (messages, "MAX_REALTIME_FACTOR", ""),
+          (messages, "SERVER_SILENCE_BEATS", "heartbeats"), (messages, "TOKEN_SIZE", "bytes"),
           (messages, "NAME_SIZE", "bytes"), (messages, "DETAIL_SIZE", "bytes"), (messages, "NET_STEP_M", "m"),
           (messages, "NET_MAX_OFFSET", "steps"), (messages, "NET_CHUNK_KNOTS", "knots"),
           (messages, "NET_MAX_SIDE", "knots"),
@@ -158,7 +159,7 @@ def limits_block() -> str:
 
 
 DEFAULTS = {  # GatewayConfig field: (the welcome's field that announces it, meaning)
-    "snapshot_hz": ("welcome.snapshot_hz", "snapshots per second (`pingpong serve --snapshot-hz`, 100 there)"),
+    "snapshot_hz": ("welcome.snapshot_hz", "snapshots per second of match time (`pingpong serve --snapshot-hz`, 100 there)"),
     "heartbeat_s": ("welcome.heartbeat_ms", "s, the gateway sends a heartbeat to each session this often"),
     "timeout_s": ("welcome.timeout_ms", "s, a peer silent this long is told goodbye timeout and dropped"),
     "grace_s": ("", "s, a dropped player's seat waits this long for its token, then the token expires"),

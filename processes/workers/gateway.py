@@ -86,22 +86,31 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
     reason = GoodbyeReason.SHUTDOWN
     try:
         control.start({"endpoint": gateway.endpoint, "feed": gateway.feed_endpoint})
+        # Heartbeats and timeouts also from a thread of their own: the copies of the physics' and
+        # the net's states below wait, outside the gateway's lock, for writers a busy machine may
+        # deschedule mid-write.
+        gateway.start_heartbeats()
+        lock = gateway.lock
         poll_ms = max(1, int(500 / config.snapshot_hz))
         next_stats = 0.0
         while True:
-            gateway.poll(poll_ms)
-            if config.stats_path and time.monotonic() >= next_stats:
-                next_stats = time.monotonic() + STATS_EVERY_S
-                gateway.write_stats({"end": None, "tick": gateway.tick})
+            with lock:
+                gateway.poll(poll_ms)
+                if config.stats_path and time.monotonic() >= next_stats:
+                    next_stats = time.monotonic() + STATS_EVERY_S
+                    gateway.write_stats({"end": None, "tick": gateway.tick})
             rec, ack = _consistent_snapshot(snapshots, acks, record)
             if ack is None:
-                gateway.counts["snapshots_without_ack"] += 1  # the gateway fell a ring behind: skip one
-                gateway.service(None)
+                with lock:
+                    gateway.counts["snapshots_without_ack"] += 1  # the gateway fell a ring behind: skip one
+                    gateway.service(None)
                 continue
-            gateway.service(rec, ack, points)
+            with lock:
+                gateway.service(rec, ack, points)
             if blocks is not None and gateway.net_due() and newest_state(blocks, knots):
                 state = knots[0]
-                gateway.service_net(int(state["tick"]), bool(state["sleeping"]), state["pos"])
+                with lock:
+                    gateway.service_net(int(state["tick"]), bool(state["sleeping"]), state["pos"])
             if start_event is not None and gateway.seats_filled != start_event.is_set():
                 if gateway.seats_filled:
                     start_event.set()  # the physics plays
@@ -111,7 +120,8 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
             if crash_at_tick is not None and gateway.tick >= crash_at_tick:
                 crash(options.crash_kind, gateway.tick)  # fault injection (tests)
             if int(rec["rally"]["winner"]) >= 0 or gateway.tick >= n_ticks:
-                gateway.broadcast_snapshot(rec, ack)  # the final state
+                with lock:
+                    gateway.broadcast_snapshot(rec, ack)  # the final state
                 reason = GoodbyeReason.MATCH_OVER
                 break
     except StopRequested as stop:

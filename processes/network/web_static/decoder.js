@@ -7,6 +7,7 @@
 
 const TYPES = {
   f8: [8, (dv, at) => dv.getFloat64(at, true)],
+  f4: [4, (dv, at) => dv.getFloat32(at, true)],
   u8: [8, (dv, at) => Number(dv.getBigUint64(at, true))],
   i8: [8, (dv, at) => Number(dv.getBigInt64(at, true))],
   u4: [4, (dv, at) => dv.getUint32(at, true)],

@@ -6,9 +6,9 @@ message type. Every message starts with the same 24-byte header:
 
     off  size  field    type  unit / meaning
       0     4  magic    S4    b"PPNG", the same in every version
-      4     2  version  <u2   PROTOCOL_VERSION (3); with magic, frozen for all versions
+      4     2  version  <u2   PROTOCOL_VERSION (4); with magic, frozen for all versions
       6     1  kind     u1    Kind: 1 hello ... 9 net
-      7     1  flags    u1    no bits defined in version 3: a set bit is refused (bad_flags)
+      7     1  flags    u1    no bits defined in version 4: a set bit is refused (bad_flags)
       8     8  seq      <u8   sender's sequence number, +1 per message it sends on that stream
                               (a session; the gateway's spectator feed numbers its own stream)
      16     8  tick     <i8   physics tick the message refers to, >= 0 (see each message)
@@ -51,6 +51,7 @@ from processes.network.wire.knots import net_knots, net_messages, net_rest
 from processes.network.wire.messages import (DETAIL_SIZE, Event, EventKind, Goodbye, GoodbyeReason, HEADER_DTYPE,
                                              HEADER_FIELDS, HEADER_SIZE, Heartbeat, Hello, Input, InputMode, Kind,
                                              MAGIC, MAX_BAT_ANG_VEL_RADS, MAX_BEST_OF, MAX_DT_S, MAX_FORCE_N,
+                                             MAX_REALTIME_FACTOR, SERVER_SILENCE_BEATS,
                                              MAX_GAMES_WON, MAX_POS_M, MAX_SPEED_MS, MAX_SPIN_RADS, MAX_TORQUE_NM,
                                              NAME_SIZE, NET_CHUNK_KNOTS, NET_MAX_OFFSET, NET_MAX_SIDE, NET_STEP_M,
                                              PROTOCOL_VERSION, Net, Reject, RejectReason, Role, SIZES, SPECS, Slot,
@@ -60,7 +61,7 @@ from processes.network.wire.messages import (DETAIL_SIZE, Event, EventKind, Good
 __all__ = [
     "BadEnum", "BadFlags", "BadMagic", "BadText", "BadVersion", "DETAIL_SIZE", "DropCounter", "Event",
     "EventKind", "Goodbye", "GoodbyeReason", "HEADER_DTYPE", "HEADER_FIELDS", "HEADER_SIZE", "Heartbeat", "Hello",
-    "Input", "InputMode", "Kind", "MAGIC", "MAX_BAT_ANG_VEL_RADS", "MAX_BEST_OF", "MAX_DT_S", "MAX_FORCE_N",
+    "Input", "InputMode", "Kind", "MAGIC", "MAX_BAT_ANG_VEL_RADS", "MAX_BEST_OF", "MAX_DT_S", "MAX_FORCE_N", "MAX_REALTIME_FACTOR", "SERVER_SILENCE_BEATS",
     "MAX_GAMES_WON", "MAX_POS_M", "MAX_SPEED_MS", "MAX_SPIN_RADS", "MAX_TORQUE_NM", "Message", "NAME_SIZE",
     "NET_CHUNK_KNOTS", "NET_MAX_OFFSET", "NET_MAX_SIDE", "NET_STEP_M", "Net", "NonFinite", "OutOfRange", "PROTOCOL_VERSION", "QUAT_TOL", "REASON_CODES", "Reject", "RejectReason", "Role",
     "SIZES", "SPECS", "Slot", "Snapshot", "TOKEN_SIZE", "TooLong", "TooShort", "UnknownType", "WIRE_ERRORS",

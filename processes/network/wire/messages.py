@@ -9,7 +9,8 @@ from engine.rules import REASONS, Phase, Reason
 from processes.network.wire.checks import BadEnum, OutOfRange, _box, _norm_at_most, _unit, _within, _zero
 
 MAGIC = b"PPNG"
-PROTOCOL_VERSION = 3  # 2: welcome.feed_port (the spectator feed); 3: net (the cloth net's knots)
+PROTOCOL_VERSION = 4  # 2: welcome.feed_port (the spectator feed); 3: net (the cloth net's knots);
+# 4: snapshot.realtime_factor (how fast the server's match clock runs)
 
 # Ranges: generous for real play, tight enough that a corrupted or hostile value is refused.
 MAX_FORCE_N = 500.0  # |force| of an input; the AI arm's own limit is 50..120 N (engine/ai.py SKILLS)
@@ -21,6 +22,8 @@ MAX_BAT_ANG_VEL_RADS = 1000.0  # |angular velocity| of a bat
 MAX_GAMES_WON = 5  # best of 9 is the longest match a scene allows (engine/scene.py)
 MAX_BEST_OF = 9  # games of the longest match a scene allows
 MAX_DT_S = 0.05  # the scene's own bound on a tick's length
+SERVER_SILENCE_BEATS = 4  # a client takes a server silent for max(timeout_ms, this many heartbeat_ms) as gone
+MAX_REALTIME_FACTOR = 1000.0  # snapshot.realtime_factor: a realtime server runs at most about 1
 TOKEN_SIZE = 16  # bytes of a rejoin token; all zero = none
 NAME_SIZE = 32  # bytes of a UTF-8 name, NUL-padded
 DETAIL_SIZE = 64  # bytes of a UTF-8 human-readable detail, NUL-padded
@@ -57,7 +60,7 @@ class Slot(enum.IntEnum):
 
 class InputMode(enum.IntEnum):
     FORCE = 1  # force and torque held over the ticks until the next input
-    TARGET = 2  # reserved: a pose for a server-side arm controller; protocol 3 gateways refuse it
+    TARGET = 2  # reserved: a pose for a server-side arm controller; protocol 3 and 4 gateways refuse it
 
 
 class RejectReason(enum.IntEnum):
@@ -153,7 +156,7 @@ class Welcome(_Spec):
           0    24  header                HEADER_DTYPE
          24     1  slot          u1      Slot given: 0 spectator, 1 A, 2 B
          25     1  best_of       u1      games in the match, odd, 1..9
-         26     2  snapshot_hz   <u2     snapshots per second the server sends, 1..1000
+         26     2  snapshot_hz   <u2     snapshots per second of match time, 1..1000
          28     4  heartbeat_ms  <u4     send a heartbeat at least this often, 1..60000 ms
          32     4  timeout_ms    <u4     a peer silent this long is dropped, heartbeat_ms..600000 ms
          36     8  dt            <f8     s, the physics tick, (0, 0.05]
@@ -264,9 +267,10 @@ class Snapshot(_Spec):
     A player gets it on its session; a spectator on the feed (welcome.feed_port), where header
     seq is the feed's own: the same bytes go to every spectator.
 
-    Ball and bats as the physics worker has them (float64, lossless), the referee's score.
+    Ball and bats as the physics worker has them (float64, lossless), the referee's score, and
+    how fast the match's clock runs against the wall clock.
 
-    Layout, 334 bytes:
+    Layout, 338 bytes:
         off  size  field        type       unit / meaning
           0    24  header                  HEADER_DTYPE
          24    24  ball_pos     <f8[3]     m, world frame, |each| <= 8
@@ -286,13 +290,18 @@ class Snapshot(_Spec):
         331     1  server       u1         player serving this rally: 0 A, 1 B
         332     1  striker      u1         player who struck last (or must serve): 0 A, 1 B
         333     1  winner       i1         -1 while the match is on, else 0 A or 1 B
+        334     4  realtime_factor <f4     match seconds per wall second over the server's last
+                                           second (1: realtime; below 1 the machine cannot keep up
+                                           and the match runs slower; 0 while it stands: paused,
+                                           not started), 0..MAX_REALTIME_FACTOR
     """
 
     kind = Kind.SNAPSHOT
     body = [("ball_pos", "<f8", (3,)), ("ball_vel", "<f8", (3,)), ("ball_spin", "<f8", (3,)),
             ("bat_pos", "<f8", (2, 3)), ("bat_quat", "<f8", (2, 4)), ("bat_vel", "<f8", (2, 3)),
             ("bat_ang_vel", "<f8", (2, 3)), ("input_seq", "<u8", (2,)), ("rally", "<u4"), ("score", "<u2", (2,)),
-            ("games_won", "u1", (2,)), ("phase", "u1"), ("server", "u1"), ("striker", "u1"), ("winner", "i1")]
+            ("games_won", "u1", (2,)), ("phase", "u1"), ("server", "u1"), ("striker", "u1"), ("winner", "i1"),
+            ("realtime_factor", "<f4")]
     enums = {"phase": Phase}
 
     @staticmethod
@@ -309,6 +318,9 @@ class Snapshot(_Spec):
         _within("snapshot.server", int(rec["server"]), 0, 1)
         _within("snapshot.striker", int(rec["striker"]), 0, 1)
         _within("snapshot.winner", int(rec["winner"]), -1, 1)
+        if not 0.0 <= float(rec["realtime_factor"]) <= MAX_REALTIME_FACTOR:
+            raise OutOfRange(f"snapshot.realtime_factor: must be in 0..{MAX_REALTIME_FACTOR:g}, "
+                             f"got {float(rec['realtime_factor'])}")
 
 
 class Event(_Spec):

@@ -44,9 +44,9 @@ class Clock:
 class Rig:
     """A Gateway on a random port of 127.0.0.1, its clients, and a physics record to serve."""
 
-    def __init__(self, zctx, remote=(Slot.A, Slot.B), seat_store=None, **config):
+    def __init__(self, zctx, remote=(Slot.A, Slot.B), seat_store=None, clock=None, **config):
         self.zctx = zctx
-        self.clock = Clock()
+        self.clock = Clock() if clock is None else clock
         self.posted = []
         settings = dict(bind="tcp://127.0.0.1:0", snapshot_hz=1000, heartbeat_s=1.0, timeout_s=5.0, grace_s=30.0)
         settings.update(config)
@@ -238,6 +238,57 @@ def test_heartbeats_keep_a_session_alive_both_ways(rig):
         before = r.gateway.counts["heartbeats_received"]
         r.settle(lambda: r.gateway.counts["heartbeats_received"] > before)
     assert r.gateway.counts["timeouts"] == 0 and len(r.gateway.sessions) == 1
+
+
+@pytest.mark.timeout(60)
+def test_heartbeats_come_from_their_own_thread_while_the_loop_stands(rig):
+    # The worker's loop may wait (a busy machine, a copy of the physics' state): with
+    # start_heartbeats the heartbeats keep coming although nothing calls the gateway any more.
+    r = rig(clock=time.monotonic, heartbeat_s=0.1, timeout_s=60.0)
+    player = r.client()
+    r.join(player)
+    r.gateway.start_heartbeats()
+    seqs, deadline = [], time.monotonic() + 30.0
+    while len(seqs) < 5 and time.monotonic() < deadline:  # this thread never calls the gateway again
+        message = player.recv(100)
+        if message is not None and message.kind == Kind.HEARTBEAT:
+            seqs.append(message.seq)
+    assert len(seqs) == 5, f"{len(seqs)} heartbeats in 30 s with the loop standing"
+    assert seqs == sorted(set(seqs))
+
+
+@pytest.mark.timeout(60)
+def test_snapshots_follow_the_match_clock_and_say_how_fast_it_runs(rig):
+    # 100 Hz and 1 ms ticks: one snapshot every 10 ticks of match time. The match runs at half
+    # the wall clock's speed, then at its speed, then stands: the snapshots come every 10 ticks
+    # (so at 50 Hz, then 100 Hz), then repeat the same tick at 100 Hz, and realtime_factor says
+    # 0.5, 1, 0. Tolerance 0.002: a tick of 500 in the 1 s window the factor is measured over.
+    r = rig(remote=(Slot.A,), snapshot_hz=100, timeout_s=60.0)
+    player = r.client()
+    r.join(player)
+    assert r.gateway.snapshot_ticks == 10
+    world = r.record["world"]
+    phases = {"half": [], "full": [], "stand": []}
+    tick = 0
+    for phase, ms, advance in (("half", 3000, 0.5), ("full", 2000, 1.0), ("stand", 2000, 0.0)):
+        start = tick
+        for k in range(1, ms + 1):
+            r.clock.now += 0.001
+            tick = start + int(k * advance)
+            world["tick"], world["time"] = tick, tick * 0.001
+            r.gateway.poll(0)
+            r.gateway.service(r.record)
+            while (message := player.recv(0)) is not None:
+                if message.kind == Kind.SNAPSHOT:
+                    phases[phase].append((message.tick, float(message["realtime_factor"])))
+    for phase, expected_hz, factor in (("half", 50, 0.5), ("full", 100, 1.0), ("stand", 100, 0.0)):
+        ticks = [t for t, _ in phases[phase]]
+        steps = set(np.diff(ticks[1:]))
+        assert steps == ({0} if phase == "stand" else {10}), (phase, sorted(steps))
+        seconds = {"half": 3, "full": 2, "stand": 2}[phase]
+        assert abs(len(ticks) - expected_hz * seconds) <= 2, (phase, len(ticks))
+        late = [f for _, f in phases[phase][len(ticks) // 2:]]  # after a full window in the phase
+        assert max(abs(f - factor) for f in late) <= 0.002, (phase, late[:3])
 
 
 def _good_input(seq=1):

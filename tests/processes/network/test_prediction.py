@@ -162,7 +162,7 @@ def _snapshot(tick, rally=0):
         wire.Kind.SNAPSHOT, tick=tick, ball_pos=ball_pos, ball_vel=ball_vel, ball_spin=np.zeros(3), bat_pos=bat_pos,
         bat_quat=bat_quat, bat_vel=bat_vel, bat_ang_vel=np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 5.0]]),
         input_seq=np.zeros(2, np.uint64), rally=rally, score=np.zeros(2, np.uint16), games_won=np.zeros(2, np.uint8),
-        phase=2, server=0, striker=0, winner=-1))
+        phase=2, server=0, striker=0, winner=-1, realtime_factor=1.0))
 
 
 def test_hermite_and_slerp_reproduce_constant_acceleration_and_uniform_turning():
