@@ -45,7 +45,7 @@ theirs on the session (two sends, and a player's snapshots are counted per sessi
   hello again (a player with its token, within the grace).
 - snapshots follow the match clock: one every 1/snapshot_hz s of match time (snapshot_ticks),
   at most snapshot_hz a wall second, the same tick again each period while the clock stands;
-  each says the realtime factor measured over the last RATE_WINDOW_S.
+  each says the realtime factor measured over the last second (network.pacing).
 - a snapshot of tick T says in input_seq the inputs applied before the step into T (the
   physics writes them per tick into the remote_acks ring before publishing T), so a client
   rewinds to T and replays exactly its later inputs. The gateway only forwards inputs: the
@@ -70,7 +70,7 @@ import secrets
 import struct
 import threading
 import time
-from collections import Counter, deque
+from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
@@ -78,6 +78,7 @@ import zmq
 
 from processes.network import wire
 from processes.network.feed import NetFeed, feed_socket
+from processes.network.pacing import SnapshotPacer
 from processes.network.seats import SeatStore
 from processes.network.wire import GoodbyeReason, InputMode, Kind, RejectReason, Role, Slot
 
@@ -91,7 +92,6 @@ MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messa
 MAX_FRAME_BYTES = 4096  # libzmq disconnects a peer sending a bigger frame (MAXMSGSIZE)
 SWEEPS_PER_HEARTBEAT = 10  # passes over every session (timeouts, heartbeats) per heartbeat period
 STATS_EVERY_S = 1.0  # the worker writes its counters to GatewayConfig.stats_path this often
-RATE_WINDOW_S = 1.0  # snapshot.realtime_factor: the match time run over this much wall time
 NO_TOKEN = bytes(wire.TOKEN_SIZE)
 # A session's heartbeat, the message a thousand spectators send twice a second: magic, version,
 # kind, flags 0 and the size say it all (its only body field, ack, is any u64), so it is taken by
@@ -198,7 +198,6 @@ class Gateway:
         self.drops = wire.DropCounter()
         self.tick = 0
         self.shutting_down = False
-        self._next_snapshot = 0.0
         self._next_sweep = 0.0
         self._points_seen: int | None = None
         self._games_seen = (0, 0)
@@ -206,12 +205,7 @@ class Gateway:
         self._strangers_told: set[bytes] = set()
         self.net = NetFeed(net_grid, config.snapshot_hz) if net_grid is not None else None
         # one snapshot per 1/snapshot_hz of match time (and at most snapshot_hz a wall second)
-        self.snapshot_ticks = max(1, round(1.0 / (config.snapshot_hz * dt)))
-        self._snapshot_tick: int | None = None  # the tick of the last snapshot sent
-        self._snapshot_due = 0  # the tick from which the next one is due (a grid in match time)
-        self._snapshot_wall = 0.0  # when the last one was sent (clock s)
-        self._rate: deque[tuple[float, float]] = deque()  # (wall s, match s) over the last RATE_WINDOW_S
-        self.realtime_factor = 0.0
+        self.pacer = SnapshotPacer(config.snapshot_hz, dt)
         self.lock = threading.Lock()  # with start_heartbeats: held around every other call
         self._sweeper: threading.Thread | None = None
         self._stop_sweeps = threading.Event()
@@ -549,25 +543,10 @@ class Gateway:
         if record is None:
             return
         self.tick = int(record["world"]["tick"])
-        self._measure_rate(now, float(record["world"]["time"]))
         if points is not None:
             self._events(record, points)
-        if now < self._next_snapshot:
-            return
-        tick, last = self.tick, self._snapshot_tick
-        if last is not None and last < tick < self._snapshot_due:
-            return  # the match clock has not yet reached the next one's tick (a slow server)
-        if tick == last and now - self._snapshot_wall < 0.99 / self.config.snapshot_hz:  # 0.99: clock rounding
-            return  # a clock slower than a tick per period has not stood a whole period yet
-        # on fixed grids (no drift from the poll loop's latency), in wall time and in match time;
-        # after a stall, restarted from now; a standing clock repeats its tick on the wall grid
-        self._next_snapshot = max(self._next_snapshot + 1.0 / self.config.snapshot_hz, now)
-        if last is not None and tick < last:
-            self._snapshot_due = tick + self.snapshot_ticks  # the clock went back (a restarted physics)
-        elif tick != last:
-            self._snapshot_due = max(self._snapshot_due + self.snapshot_ticks, tick + 1)
-        self._snapshot_tick, self._snapshot_wall = tick, now
-        self.broadcast_snapshot(record, input_seq)
+        if self.pacer.due(now, self.tick, float(record["world"]["time"])):
+            self.broadcast_snapshot(record, input_seq)
 
     def sweep(self, now: float) -> None:
         """Every session's timeout and heartbeat, when due: a few times per heartbeat period, not
@@ -608,18 +587,6 @@ class Gateway:
                 self._sweeper.join(5.0)
             self._sweeper = None
 
-    def _measure_rate(self, now: float, match_s: float) -> None:
-        """snapshot.realtime_factor: match seconds run per wall second over RATE_WINDOW_S."""
-        rate = self._rate
-        if rate and match_s < rate[-1][1]:
-            rate.clear()  # the clock went back (a restarted physics resumed earlier): start over
-        rate.append((now, match_s))
-        while len(rate) > 2 and now - rate[1][0] >= RATE_WINDOW_S:
-            rate.popleft()
-        wall = now - rate[0][0]
-        if wall >= RATE_WINDOW_S / 4:
-            self.realtime_factor = (match_s - rate[0][1]) / wall
-
     def net_due(self) -> bool:
         return self.net is not None and self.net.due(self.clock())
 
@@ -639,7 +606,7 @@ class Gateway:
     def broadcast_snapshot(self, record, input_seq=(0, 0)) -> None:
         try:
             data = wire.snapshot_from_physics(record, seq=0, input_seq=input_seq,
-                                              realtime_factor=self.realtime_factor)
+                                              realtime_factor=self.pacer.realtime_factor)
         except wire.WireError as err:
             self.counts["snapshots_unencodable"] += 1  # e.g. a bat beyond the wire's ranges
             self.counts[f"snapshots_unencodable.{err.reason}"] += 1

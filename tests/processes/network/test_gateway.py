@@ -266,7 +266,7 @@ def test_snapshots_follow_the_match_clock_and_say_how_fast_it_runs(rig):
     r = rig(remote=(Slot.A,), snapshot_hz=100, timeout_s=60.0)
     player = r.client()
     r.join(player)
-    assert r.gateway.snapshot_ticks == 10
+    assert r.gateway.pacer.ticks == 10
     world = r.record["world"]
     phases = {"half": [], "full": [], "stand": []}
     tick = 0

@@ -1,0 +1,59 @@
+"""SnapshotPacer: when the gateway's next snapshot is due, on the match clock, and how fast that
+clock runs against the wall clock (snapshot.realtime_factor)."""
+from __future__ import annotations
+
+from collections import deque
+
+RATE_WINDOW_S = 1.0  # snapshot.realtime_factor: the match time run over this much wall time
+
+
+class SnapshotPacer:
+    """One snapshot every 1/snapshot_hz s of match time (`ticks`, on a grid of ticks, so the
+    poll loop's latency does not drift it), at most snapshot_hz a wall second (a grid of wall
+    times, restarted from now after a stall); while the clock stands, its tick again each wall
+    period. A server slower than realtime thus sends them as often in match time and less often
+    in wall time.
+
+    Args:
+        snapshot_hz: snapshots per second of match time. dt: s, the tick.
+    """
+
+    def __init__(self, snapshot_hz: int, dt: float):
+        self.period_s = 1.0 / snapshot_hz
+        self.ticks = max(1, round(self.period_s / dt))
+        self.realtime_factor = 0.0  # match s per wall s over RATE_WINDOW_S; 0 until measured
+        self._next_wall = 0.0
+        self._last_tick: int | None = None  # the tick of the last snapshot sent
+        self._last_wall = 0.0  # when it was sent
+        self._due_tick = 0  # from this tick on the next one is due
+        self._samples: deque[tuple[float, float]] = deque()  # (wall s, match s)
+
+    def due(self, now: float, tick: int, match_s: float) -> bool:
+        """Measure the clock at `now` (s) and say whether the snapshot of `tick` (at match_s s)
+        is due; if it is, it counts as sent."""
+        self._measure(now, match_s)
+        if now < self._next_wall:
+            return False
+        last = self._last_tick
+        if last is not None and last < tick < self._due_tick:
+            return False  # the match clock has not yet reached the next one's tick (a slow server)
+        if tick == last and now - self._last_wall < 0.99 * self.period_s:  # 0.99: a float clock's rounding
+            return False  # a clock slower than a tick per period has not stood a whole period yet
+        self._next_wall = max(self._next_wall + self.period_s, now)
+        if last is not None and tick < last:
+            self._due_tick = tick + self.ticks  # the clock went back (a restarted physics)
+        elif tick != last:
+            self._due_tick = max(self._due_tick + self.ticks, tick + 1)
+        self._last_tick, self._last_wall = tick, now
+        return True
+
+    def _measure(self, now: float, match_s: float) -> None:
+        samples = self._samples
+        if samples and match_s < samples[-1][1]:
+            samples.clear()  # the clock went back: start over
+        samples.append((now, match_s))
+        while len(samples) > 2 and now - samples[1][0] >= RATE_WINDOW_S:
+            samples.popleft()
+        wall = now - samples[0][0]
+        if wall >= RATE_WINDOW_S / 4:
+            self.realtime_factor = (match_s - samples[0][1]) / wall
