@@ -314,6 +314,22 @@ def _leave32(knot_state, knot_inv_mass, net32):
                 v[c] = np.float64(v32[c + 1]) if free else v[c]
 
 
+@njit(inline="always")
+def _steps32(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, net32):
+    """step_grid32's body: its row blocks in parallel where the caller is parallel, in turn where not."""
+    if n_steps <= 0:
+        return
+    rows, cols = knot_state.shape[2], knot_state.shape[3]
+    blocks = net32[_WORK].shape[0]
+    _enter32(knot_state, grid_params, gravity, drag, h, net32)
+    for _ in range(n_steps):
+        for b in prange(blocks):
+            _edge32(net32, cols, b, b * rows // blocks)
+        for b in prange(blocks):
+            _block32(net32, cols, b, b * rows // blocks, (b + 1) * rows // blocks)
+    _leave32(knot_state, knot_inv_mass, net32)
+
+
 # No parfor fusion: numba cannot see the first phase's writes through net32 (a tuple) and would
 # fuse the two phases' loops into one, racing the edge bands it exists to order.
 @njit(cache=True, parallel={"fusion": False}, fastmath=False, error_model="numpy")
@@ -329,33 +345,13 @@ def step_grid32(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_step
         knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps: as step_grid.
         net32: grid32_work's tuple for this net (its scratch blocks: the row blocks).
     """
-    if n_steps <= 0:
-        return
-    rows, cols = knot_state.shape[2], knot_state.shape[3]
-    blocks = net32[_WORK].shape[0]
-    _enter32(knot_state, grid_params, gravity, drag, h, net32)
-    for _ in range(n_steps):
-        for b in prange(blocks):
-            _edge32(net32, cols, b, b * rows // blocks)
-        for b in prange(blocks):
-            _block32(net32, cols, b, b * rows // blocks, (b + 1) * rows // blocks)
-    _leave32(knot_state, knot_inv_mass, net32)
+    _steps32(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, net32)
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
 def step_grid32_serial(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, net32):
     """step_grid32 on one thread (the same blocks and phases in turn, same bits). Args as step_grid32."""
-    if n_steps <= 0:
-        return
-    rows, cols = knot_state.shape[2], knot_state.shape[3]
-    blocks = net32[_WORK].shape[0]
-    _enter32(knot_state, grid_params, gravity, drag, h, net32)
-    for _ in range(n_steps):
-        for b in range(blocks):
-            _edge32(net32, cols, b, b * rows // blocks)
-        for b in range(blocks):
-            _block32(net32, cols, b, b * rows // blocks, (b + 1) * rows // blocks)
-    _leave32(knot_state, knot_inv_mass, net32)
+    _steps32(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, net32)  # prange is range here
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
