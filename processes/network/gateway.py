@@ -633,21 +633,21 @@ class Gateway:
             self._points_seen = total  # a gateway (re)started mid-match announces only new points
             self._games_seen = tuple(int(g) for g in rally["games_won"])
         games = tuple(int(g) for g in rally["games_won"])
+        # point i of the log decided rally i + 1, the number its snapshots carried (wire.Snapshot)
         for i in range(self._points_seen, min(total, len(points))):
-            row = points[i]
-            self._event(wire.EventKind.POINT, row, games, rally)
+            self._event(wire.EventKind.POINT, points[i], games, i + 1)
         if total > self._points_seen and games != self._games_seen and total <= len(points):
-            self._event(wire.EventKind.GAME, points[total - 1], games, rally)
+            self._event(wire.EventKind.GAME, points[total - 1], games, total)
         self._points_seen, self._games_seen = total, games
         if int(rally["winner"]) >= 0 and not self._match_sent and total >= 1 and total <= len(points):
             self._match_sent = True
-            self._event(wire.EventKind.MATCH, points[total - 1], games, rally)
+            self._event(wire.EventKind.MATCH, points[total - 1], games, total)
 
-    def _event(self, kind, row, games, rally) -> None:
+    def _event(self, kind, row, games, rally: int) -> None:
         try:
             data = wire.encode(Kind.EVENT, tick=self.tick, event=kind, winner=int(row["winner"]),
                                reason=int(row["reason"]), game=int(row["game"]), score=row["score_after"],
-                               games_won=games, shots=int(row["shots"]), rally=int(rally["rally"]))
+                               games_won=games, shots=int(row["shots"]), rally=rally)
         except wire.WireError:
             self.counts["events_unencodable"] += 1
             return

@@ -200,12 +200,13 @@ def encode(kind, *, seq: int = 0, tick: int = 0, flags: int = 0, **fields) -> by
 # --- helpers for the gateway ----------------------------------------------------------------------
 def snapshot_from_physics(record, *, seq: int, input_seq=(0, 0), realtime_factor: float = 1.0) -> bytes:
     """A snapshot message from one engine.dtypes.physics_snapshot_dtype(2) record (and the
-    realtime factor its sender measured; a replay's is 1)."""
+    realtime factor its sender measured; a replay's is 1). The wire numbers rallies from 1 (the
+    first is tossed as the match begins); the engine's counter, from 0, counts those decided."""
     ball, bats, world, rally = record["ball"], record["bats"], record["world"], record["rally"]
     return encode(Kind.SNAPSHOT, seq=seq, tick=int(world["tick"]), ball_pos=ball["pos"], ball_vel=ball["vel"],
                   ball_spin=ball["spin"], bat_pos=bats["pos"], bat_quat=bats["quat"], bat_vel=bats["vel"],
                   bat_ang_vel=bats["ang_vel"], input_seq=np.asarray(input_seq, np.uint64),
-                  rally=int(rally["rally"]), score=rally["score"], games_won=rally["games_won"],
+                  rally=int(rally["rally"]) + 1, score=rally["score"], games_won=rally["games_won"],
                   phase=int(rally["phase"]), server=int(rally["server"]), striker=int(rally["striker"]),
                   winner=int(rally["winner"]), realtime_factor=min(max(realtime_factor, 0.0), MAX_REALTIME_FACTOR))
 

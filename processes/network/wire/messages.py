@@ -283,7 +283,8 @@ class Snapshot(_Spec):
         304    16  input_seq    <u8[2]     seq of the last input applied to bat A, B before the step
                                            into this tick (0: none): the snapshot shows the effect
                                            of exactly the inputs up to it (client reconciliation)
-        320     4  rally        <u4        rallies started since the match began
+        320     4  rally        <u4        the rally in play: rallies started (tossed) since the match
+                                           began, so 1 during the first
         324     4  score        <u2[2]     points of A, B in the current game
         328     2  games_won    u1[2]      games won by A, B, <= 5
         330     1  phase        u1         engine.rules.Phase, 0..5
@@ -338,7 +339,7 @@ class Event(_Spec):
          28     4  score      <u2[2]  points of A, B after the rally (the game's final score)
          32     2  games_won  u1[2]   games won by A, B after the rally, <= 5
          34     2  shots      <u2     strikes in the deciding rally, the service included
-         36     4  rally      <u4     rallies started since the match began
+         36     4  rally      <u4     the rally it decided: the number its snapshots carried
     """
 
     kind = Kind.EVENT

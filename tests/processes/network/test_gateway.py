@@ -291,6 +291,44 @@ def test_snapshots_follow_the_match_clock_and_say_how_fast_it_runs(rig):
         assert max(abs(f - factor) for f in late) <= 0.002, (phase, late[:3])
 
 
+@pytest.mark.timeout(180)
+def test_the_rally_number_is_the_rally_in_play_and_an_event_carries_the_rally_it_decided(rig):
+    # A whole best-of-1 match in process, served tick by tick as the gateway worker serves it:
+    # the first rally is number 1 from its toss on, every point event carries the number the
+    # snapshots carried while it was played, and the match event the last rally's.
+    from engine.dtypes import POINT_DTYPE
+    from engine.match import Match, point_row
+
+    from dataclasses import replace
+
+    scene = load_scene("match_rigid")
+    match = Match(replace(scene, match=replace(scene.match, best_of=1)), seed=3)
+    r = rig(remote=(Slot.A,), snapshot_hz=100, timeout_s=600.0)  # the fake clock runs the whole match
+    watcher = r.client()  # a player's session gets events and snapshots (no feed)
+    r.join(watcher)
+    points = np.zeros(len(match.referee.points) + 64, POINT_DTYPE)
+    playing, decided = {}, []
+    for _ in range(400_000):
+        if match.referee.match_over:
+            break
+        match.tick(10)  # up to a snapshot's 10 ticks (the same match for any chunk: Match.tick)
+        for k in range(int(match.state.record[0]["rally"]["points_total"])):
+            points[k] = point_row(match.referee.points[k], 0)
+        r.clock.now += 0.001 * match.ticks_done
+        r.gateway.service(match.state.record[0], points=points)
+        while (message := watcher.recv(0)) is not None:
+            if message.kind == Kind.SNAPSHOT:
+                playing.setdefault(int(message["rally"]), []).append(message.tick)
+            elif message.kind == Kind.EVENT:
+                decided.append((int(message["event"]), int(message["rally"])))
+    assert match.referee.match_over
+    n = len(match.referee.points)
+    assert min(playing) == 1 and sorted(playing) == list(range(1, n + 1))  # 1 from the first toss on
+    point_rallies = [rally for event, rally in decided if event == wire.EventKind.POINT]
+    assert point_rallies == list(range(1, n + 1))  # each point: the rally it decided
+    assert [rally for event, rally in decided if event == wire.EventKind.MATCH] == [n]
+
+
 def _good_input(seq=1):
     return bytearray(wire.encode(Kind.INPUT, seq=seq, tick=1, slot=Slot.A, mode=wire.InputMode.FORCE,
                                  force=[1.0, 0, 0], torque=[0, 0, 0], target_pos=[0, 0, 0],
