@@ -192,7 +192,6 @@ class Players(dict):
         super().__init__(seats)
         self.players = np.array(list(seats), dtype=np.int64)
         self.ctl = ctl
-        self._raw = []  # seats playing raw forces at the last control
         self._bats = None  # the bats array last seen, and its float64 view
         self._floats = None
 

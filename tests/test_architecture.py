@@ -11,7 +11,7 @@ ALLOWED = {
     "net_kernel": {"numpy", "numba", "net_kernel"},
     # engine: no sockets, processes or zmq; net_kernel below it is fine; matplotlib draws the
     # replay's picture (engine/render.py), which the Gymnasium environment (engine/env.py) renders.
-    "engine": {"numpy", "numba", "engine", "net_kernel", "matplotlib"},
+    "engine": {"numpy", "numba", "engine", "net_kernel", "matplotlib", "gymnasium"},
 }
 
 

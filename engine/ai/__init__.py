@@ -1,6 +1,6 @@
 """Bat AI: predicts the ball with the engine itself, aims, solves the stroke, plays it through the arm."""
 from engine.ai.aim import shoot, shot_and_stroke, stroke
-from engine.ai.player import AIPlayers, BatAI, Plan, Segment
+from engine.ai.player import BatAI, Plan, Segment
 from engine.ai.predict import (HALF_LENGTH, HALF_WIDTH, MEMO_SIZE, NO_STRIKE, PAUSED, STOP_CONTACT, STOP_EVENTS,
                                STOP_RETURN_STRIKE, STOP_SERVE_STRIKE, free_flight_marks, predict_flight,
                                predict_span, reset_memo, strike_index)
@@ -13,7 +13,7 @@ from engine.arm import (BAT_ANG_VEL, BAT_FLOATS, BAT_POS, BAT_QUAT, BAT_VEL, CTL
 
 __all__ = [
     # player
-    "AIPlayers", "BatAI", "Plan", "Segment",
+    "BatAI", "Plan", "Segment",
     # skill
     "SKILLS", "Skill",
     # predict

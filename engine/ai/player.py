@@ -1,4 +1,4 @@
-"""The bat AI's player: BatAI thinks a stroke out and plans the bat's path to it; AIPlayers drives several."""
+"""The bat AI's player: BatAI thinks a stroke out and plans the bat's path to it."""
 from __future__ import annotations
 
 import math
@@ -16,7 +16,7 @@ from engine.ai.skill import Skill
 from engine.arm import (BAT_FLOATS, BAT_POS, BAT_VEL, CTL_D_ANGLE, CTL_HOLD, CTL_INERTIA, CTL_K_ANGLE, CTL_KD,
                         CTL_KP, CTL_MASS, CTL_MAX_FORCE, CTL_MAX_SPEED, CTL_MAX_TORQUE, CTL_N_SEGMENTS, CTL_NORMAL,
                         CTL_SEGMENTS, CTL_SIZE, MAX_SEGMENTS, SEG_P0, SEG_P1, SEG_T0, SEG_T1, SEG_V0, SEG_V1,
-                        SEG_WIDTH, bat_control, control_bats)
+                        SEG_WIDTH, bat_control)
 from engine.collision import ERR_SUBSTEPS, EVENT_ROW, E_BODY, E_POS, E_TIME, MAX_IMPACTS_PER_TICK, SCRATCH_SHAPE
 from engine.dtypes import BAT_DTYPE
 from engine.geometry import Body
@@ -604,55 +604,3 @@ class BatAI:
         floats = np.frombuffer(bat, np.float64)
         floats.flags.writeable = False  # as a record's: one numba specialisation
         return floats
-
-
-class AIPlayers(dict):
-    """{player: BatAI} whose control runs for all of them in one numba call (control_bats):
-    their bat_control arrays (BatAI._ctl) are the rows of one array."""
-
-    def __init__(self, ais: dict[int, "BatAI"]):
-        super().__init__(ais)
-        self.players = np.array(list(ais), dtype=np.int64)
-        self.ctl = np.array([ai._ctl for ai in ais.values()]).reshape(len(ais), CTL_SIZE)
-        for k, ai in enumerate(ais.values()):
-            ai._ctl = self.ctl[k]
-        self._bats = None  # the bats array last seen, and its float64 view
-        self._floats = None
-
-    def bat_floats(self, bats: np.ndarray) -> np.ndarray:
-        """(n_bats, BAT_FLOATS) float64 view of a BAT_DTYPE array (made once for the same array)."""
-        if bats is not self._bats:
-            if bats.dtype != BAT_DTYPE or bats.ndim != 1 or not bats.flags.c_contiguous:
-                raise TypeError(f"AIPlayers: bats must be a contiguous 1-D engine.dtypes.BAT_DTYPE array, got "
-                                f"dtype {bats.dtype}, shape {bats.shape}")
-            self._floats = bats.view(np.float64).reshape(len(bats), BAT_FLOATS)
-            self._bats = bats
-        return self._floats
-
-    def control(self, now: float, ball_flat: np.ndarray, bats: np.ndarray, rally_key, to_strike: int, serve: bool,
-                out: np.ndarray) -> None:
-        """Every AI's force and torque into out[player] (see BatAI.control); to_strike: the player
-        whose ball it is to strike next."""
-        floats = self.bat_floats(bats)
-        for player, ai in self.items():
-            ai.decide(now, ball_flat, floats[player], rally_key, to_strike == player, serve, -1 if player == 0 else 1)
-        control_bats(now, floats, self.ctl, self.players, out)
-
-    def wakes(self) -> tuple[float, float]:
-        """(due, end) s: the earliest of every AI's BatAI.wakes (inf: none)."""
-        due = end = math.inf
-        for ai in self.values():
-            ai_due, ai_end = ai.wakes()
-            due, end = min(due, ai_due), min(end, ai_end)
-        return due, end
-
-    def warm_up(self) -> None:
-        """BatAI.warm_up of each, and control_bats."""
-        for ai in self.values():
-            ai.warm_up()
-        bats = np.zeros(max(self, default=0) + 1, BAT_DTYPE)
-        bats["quat"] = (1.0, 0.0, 0.0, 0.0)
-        ctl = self.ctl.copy()
-        ctl[:, CTL_NORMAL] = 1.0
-        control_bats(0.0, bats.view(np.float64).reshape(len(bats), BAT_FLOATS), ctl, self.players,
-                     np.zeros((len(bats), 6)))

@@ -63,6 +63,11 @@ def test_match_with_a_bad_player_exits_2_with_the_reason(player, message):
     assert done.returncode == 2 and message in done.stderr, done.stderr
 
 
+def test_serve_refuses_a_bot_for_a_remote_seat():
+    done = pingpong("serve", "--players", "1", "--a", str(EXAMPLES / "block.py") + ":Block", "--ticks", "2")
+    assert done.returncode == 2 and "--a: bat A is played remotely with --players 1" in done.stderr, done.stderr
+
+
 def test_replay_two_ticks(tmp_path):
     path = tmp_path / "short.replay"
     done = pingpong("match", "--ticks", "40", "--replay", str(path), "--json")

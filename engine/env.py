@@ -1,0 +1,313 @@
+"""The Gymnasium environments: one bat of an in-process match as the agent, through the bot API.
+
+    import gymnasium
+    import engine.env  # registers pingpong/Return-v0 and pingpong/Rally-v0
+
+    env = gymnasium.make("pingpong/Return-v0")            # or Rally-v0, opponent="novice"
+    obs, info = env.reset(seed=0)
+
+"engine.env:pingpong/Return-v0" imports the module itself (what a vector environment's worker
+processes need). gymnasium.vector.AsyncVectorEnv steps N of them in N processes; use its
+context="forkserver" (numba's threads make fork() after a kernel has run unsafe).
+
+The agent is a bot (engine.bot.Bot) in an engine.match.Match, at its end's seat: each step is
+one control period; its action is an ACTION_DTYPE record made from the action vector, checked
+and played exactly as a bot's (engine.players.Seat), and the observation vector is the bot's
+OBSERVATION_DTYPE record, field by field (OBSERVATION_NAMES). Rewards and ends come from the
+referee: the agent's strikes, its returns bouncing on the opponent's court, the point.
+
+- Return-v0: return the opponent's service or drive. An episode starts with the opponent's
+  service, or (half of them, drawn from the seed) with a drive: an AI of the opponent's profile
+  plays the agent's end until the opponent strikes a return, then the agent takes over. Reward
+  RETURN_STRIKE for striking the ball, RETURN_LANDED when the return bounces on the opponent's
+  court, which ends the episode; it also ends when the rally is decided otherwise.
+- Rally-v0: a rally against the opponent from its service: RETURN_LANDED for each return that
+  bounces on its court, then +1 for the point won, -1 for the point lost.
+
+The rigid net by default; net="cloth" plays the cloth net in this process (the default match's
+85 x 8 knots). render_mode "rgb_array" draws the episode as the replay's picture
+(engine.render.rgb); write_replay(path) writes it as a replay file for `pingpong replay FILE
+--html PAGE` (the browser's 3D replay) or `--png`/`--gif`.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import gymnasium
+import numpy as np
+from gymnasium import spaces
+
+from engine import render
+from engine import replay as replay_file
+from engine.ai import SKILLS
+from engine.ai.bot import ProfileBot
+from engine.bot import Bot, force, hold, new_action, target
+from engine.dtypes import CONTACT_DTYPE, OBSERVATION_DTYPE, POINT_DTYPE, physics_snapshot_dtype
+from engine.match import Match, control_period, match_scene, point_row
+from engine.players import decision_key
+from engine.rules import Phase
+from engine.scene import load_scene
+
+RETURN_STRIKE = 0.2  # reward for striking the ball
+RETURN_LANDED = 1.0  # reward for a return that bounces on the opponent's court
+FRAME_EVERY = 10  # ticks between the episode's kept frames (render, write_replay)
+SCENES = {"rigid": "match_rigid", "cloth": "match"}
+ACTIONS = ("hold", "target", "force")
+
+
+def _observation_layout():
+    """(name, low, high) of each number of the observation vector, in OBSERVATION_DTYPE's order."""
+    big = np.inf
+    bat = [("pos", 8.0, 3), ("quat", 1.0, 4), ("vel", 100.0, 3), ("ang_vel", 2000.0, 3)]
+    rows = [("tick", 0.0, big)] + [("time", 0.0, big)]
+    rows += [(f"ball.{name}[{i}]", -bound, bound) for name, bound in (("pos", 8.0), ("vel", 100.0), ("spin", 2000.0))
+             for i in range(3)]
+    rows += [(f"{who}.{name}[{i}]", -bound, bound) for who in ("own", "other") for name, bound, n in bat
+             for i in range(n)]
+    rows += [(f"{name}[{i}]", 0.0, big) for name in ("score", "games_won") for i in range(2)]
+    rows += [("phase", 0.0, float(Phase.OVER)), ("server", 0.0, 1.0), ("to_strike", -1.0, 1.0), ("shots", 0.0, big),
+             ("rally", 0.0, big)]
+    return rows
+
+
+_LAYOUT = _observation_layout()
+OBSERVATION_NAMES = tuple(name for name, _, _ in _LAYOUT)  # the observation vector's entries
+_FLOATS_AT = OBSERVATION_DTYPE.fields["time"][1]  # time, ball, own, other: 36 float64 words from here
+
+
+def observation_space() -> spaces.Box:
+    """The observation vector's space: OBSERVATION_DTYPE's fields flattened (OBSERVATION_NAMES)."""
+    low = np.array([lo for _, lo, _ in _LAYOUT])
+    high = np.array([hi for _, _, hi in _LAYOUT])
+    return spaces.Box(low, high, dtype=np.float64)
+
+
+def flatten(observation, out: np.ndarray) -> np.ndarray:
+    """An OBSERVATION_DTYPE record into the observation vector `out` (len(OBSERVATION_NAMES),)."""
+    out[0] = observation["tick"]
+    out[1:37] = observation.reshape(1).view(np.uint8)[_FLOATS_AT:_FLOATS_AT + 36 * 8].view(np.float64)
+    out[37:39], out[39:41] = observation["score"], observation["games_won"]
+    out[41], out[42], out[43] = observation["phase"], observation["server"], observation["to_strike"]
+    out[44], out[45] = observation["shots"], observation["rally"]
+    return out
+
+
+def action_space(action_type: str, arm: str = "pro") -> spaces.Box:
+    """The action vector's space. hold: the pose (m, inside the playing space) and the face normal
+    (any non-zero vector; normalised) of engine.bot.hold; target: those, then the velocity (m/s)
+    to reach the pose with and in how long (s) (engine.bot.target, then holding the pose; the same
+    vector again keeps the path planned when it was first given, so that the path is played);
+    force: force (N) and torque (N m), each component within the arm's limit over sqrt(3), so
+    every vector is within the arm's limits."""
+    if action_type in ("hold", "target"):
+        low = [-3.0, -2.0, -0.5, -1.0, -1.0, -1.0]
+        high = [3.0, 2.0, 1.5, 1.0, 1.0, 1.0]
+        if action_type == "target":
+            low, high = low + [-20.0, -20.0, -20.0, 0.0], high + [20.0, 20.0, 20.0, 1.0]
+        return spaces.Box(np.array(low), np.array(high), dtype=np.float64)
+    skill = SKILLS[arm]
+    high = np.array([skill.max_force_n] * 3 + [skill.max_torque_nm] * 3) / np.sqrt(3.0)
+    return spaces.Box(-high, high, dtype=np.float64)
+
+
+class Agent(Bot):
+    """The environment's bot: it plays the action the environment was last given, or, while
+    `stand_in` is set, lets that engine AI play (the lead-in of a drive)."""
+
+    budget_s = float("inf")  # the agent's decision is the environment's (and a stand-in's, the AI's): no budget
+
+    def setup(self, end, scene):
+        self.action = new_action()
+        hold(scene.bats[end].pos, self.normal, self.action)  # where the bat starts, until the first action
+        self.stand_in: ProfileBot | None = None
+
+    def act(self, observation):
+        if self.stand_in is not None:
+            return self.stand_in.act(observation)
+        return self.action
+
+
+class PingPongEnv(gymnasium.Env):
+    """One bat of a match as a Gymnasium environment (see the module's docstring).
+
+    Args:
+        task: "return" (Return-v0) or "rally" (Rally-v0). opponent: its AI profile.
+        player: the agent's end, 0 (A) or 1 (B). net: "rigid" or "cloth".
+        action_type: "hold" or "force" (action_space); the agent's arm is Agent.arm's (pro).
+        max_seconds: simulated seconds before an episode is truncated.
+        render_mode: None or "rgb_array". record: keep the episode's frames and contacts for
+            write_replay (always with rgb_array).
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 100 // FRAME_EVERY}
+
+    def __init__(self, task: str = "return", opponent: str = "pro", player: int = 1, net: str = "rigid",
+                 action_type: str = "hold", max_seconds: float | None = None,
+                 render_mode: str | None = None, record: bool = False):
+        if task not in ("return", "rally"):
+            raise ValueError(f"task: must be return or rally, got {task!r}")
+        if opponent not in SKILLS:
+            raise ValueError(f"opponent: an AI profile out of {', '.join(SKILLS)}, got {opponent!r}")
+        if player not in (0, 1) or net not in SCENES or action_type not in ACTIONS:
+            raise ValueError(f"player 0 or 1, net rigid or cloth, action_type hold or force; got {player!r}, "
+                             f"{net!r}, {action_type!r}")
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode: None or rgb_array, got {render_mode!r}")
+        self.task, self.opponent, self.player, self.net = task, opponent, player, net
+        self.action_type, self.render_mode = action_type, render_mode
+        self.record = record or render_mode == "rgb_array"
+        self.max_seconds = (3.0 if task == "return" else 20.0) if max_seconds is None else max_seconds
+        self.base = load_scene(SCENES[net])
+        self.observation_space = observation_space()
+        self.action_space = action_space(action_type, Agent.arm)
+        self._obs = np.zeros(len(OBSERVATION_NAMES))
+        self.match: Match | None = None
+        self.seed_of_match = 0
+        self._warm = False
+
+    # --- episodes ---------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        drive = self.task == "return" and bool(self.np_random.integers(0, 2))
+        while True:  # a drive's lead-in whose game ends before the opponent returned once is played anew
+            self._new_match(int(self.np_random.integers(0, 2**31 - 1)), drive)
+            if not drive or self._lead_in():
+                break
+        self._steps = 0
+        self._last_action = None
+        return self._observe(), {"drive": drive, "match_seed": self.seed_of_match}
+
+    def _new_match(self, seed: int, drive: bool) -> None:
+        """A best-of-1 match of the agent against the opponent, its first server the opponent (or,
+        for a drive, the agent's end)."""
+        agent_spec = f"{__name__}:Agent"
+        ends = (agent_spec, self.opponent) if self.player == 0 else (self.opponent, agent_spec)
+        scene = match_scene(self.base, *ends, best_of=1)
+        server = self.player if drive else 1 - self.player
+        scene = replace(scene, match=replace(scene.match, first_server="ab"[server]))
+        self.seed_of_match = seed
+        self.match = Match(scene, seed=seed)
+        self.every = control_period(scene)
+        self.seat = self.match.ais[self.player]
+        self.agent: Agent = self.seat.bot
+        self.frames: list = []
+        self.events: list = []
+        self._keep_frame()
+        if not self._warm:  # load (or compile) the AI's kernels before the first decision, not inside it
+            self.match.ais.warm_up()
+            self._warm = True
+
+    def _lead_in(self) -> bool:
+        """The opponent's profile plays the agent's end until the opponent drives the ball back;
+        whether it did before the match ended."""
+        match = self.match
+        stand_in = ProfileBot(match.model, self.player, SKILLS[self.opponent], self.opponent,
+                              seed=self.seed_of_match * 1000 + 7, control_every=self.every)
+        stand_in.player, stand_in.end_sign, stand_in.normal = self.agent.player, self.agent.end_sign, self.agent.normal
+        self.agent.stand_in = stand_in
+        while not self._opponent_drove():
+            if match.over:
+                return False
+            self._advance()
+        self.agent.stand_in = None
+        return True
+
+    def _opponent_drove(self) -> bool:
+        """The opponent has struck a return that the agent must now play (a new rally is tried
+        again if the lead-in's rally was decided first)."""
+        ref = self.match.referee
+        return ref.shots >= 2 and ref.striker == 1 - self.player and ref.phase in (Phase.STRUCK, Phase.BOUNCED)
+
+    def step(self, action):
+        if self.match is None:
+            raise RuntimeError("PingPongEnv.step: call reset() first")
+        if self.match.over:
+            raise RuntimeError("PingPongEnv.step: the match is over; call reset()")
+        a = np.asarray(action, dtype=np.float64)
+        if self.action_type == "force":
+            force(a[0:3], a[3:6], self.agent.action)
+        else:
+            normal = a[3:6] if np.linalg.norm(a[3:6]) > 1e-9 else self.agent.normal
+            if self.action_type == "hold":
+                hold(a[0:3], normal, self.agent.action)
+            elif self._last_action is None or not np.array_equal(a, self._last_action):  # a new path
+                view = self.seat.view  # the observation the agent was last shown
+                at = float(view["time"]) + float(a[9])
+                target(view, a[0:3], normal, vel=a[6:9], at=at, out=self.agent.action)
+            self._last_action = a.copy()
+        match, ref, me = self.match, self.match.referee, self.player
+        reward = 0.0
+        terminated = False
+        points_before = len(ref.points)
+        shots, phase, striker = ref.shots, ref.phase, ref.striker
+        stop_at = int(match.state.world[0]["tick"]) + self.every
+        while int(match.state.world[0]["tick"]) < stop_at and not terminated:
+            self._advance(stop_at)
+            if ref.shots > shots and ref.striker == me:
+                reward += RETURN_STRIKE
+            if len(ref.points) > points_before:  # the rally was decided (the next one is tossed already)
+                terminated = True
+                if self.task == "rally":
+                    reward += 1.0 if ref.points[-1].winner == me else -1.0 if ref.points[-1].winner >= 0 else 0.0
+            elif ref.phase == Phase.BOUNCED and ref.striker == me and not (phase == Phase.BOUNCED and striker == me):
+                reward += RETURN_LANDED  # the agent's return bounced on the opponent's court
+                terminated = self.task == "return"
+            shots, phase, striker = ref.shots, ref.phase, ref.striker
+        self._steps += 1
+        truncated = not terminated and self._steps * self.every * match.scene.dt >= self.max_seconds
+        info = {"points": len(ref.points), "bot_errors": list(match.bot_errors)}
+        return self._observe(), reward, terminated, truncated, info
+
+    def _advance(self, target: int | None = None) -> None:
+        """Match.tick to the next control tick (or `target`), keeping the episode's frames and events."""
+        match = self.match
+        tick = int(match.state.world[0]["tick"])
+        limit = (tick // self.every + 1) * self.every if target is None else target
+        match.tick(min(limit - tick, FRAME_EVERY - tick % FRAME_EVERY))
+        if match.n_events:
+            self.events.extend(match.events[: match.n_events].copy())
+        if int(match.state.world[0]["tick"]) % FRAME_EVERY == 0:
+            self._keep_frame()
+
+    def _keep_frame(self) -> None:
+        if not self.record:
+            return
+        record = np.zeros(1, physics_snapshot_dtype(len(self.match.scene.bats)))
+        self.match.save(record)
+        self.frames.append(record[0])
+
+    def _observe(self) -> np.ndarray:
+        """The agent's observation vector of the state now (the one its next decision is shown)."""
+        match = self.match
+        state = match.state
+        world = state.world[0]
+        floats = match.ais.bat_floats(state.bats)
+        view = self.seat.observe(int(world["tick"]), float(world["time"]), state.ball_flat, floats,
+                                 match.rally_record, decision_key(match.rally_record))
+        return flatten(view, self._obs).copy()
+
+    # --- pictures and replays -----------------------------------------------------------------
+    def render(self):
+        if self.render_mode != "rgb_array" or self.match is None:
+            return None
+        frames = np.array(self.frames)
+        events = np.array(self.events, CONTACT_DTYPE) if self.events else np.zeros(0, CONTACT_DTYPE)
+        return render.rgb(frames, events, f"pingpong/{self.task}: agent at {'AB'[self.player]} against "
+                                          f"{self.opponent}, step {self._steps}")
+
+    def write_replay(self, path) -> None:
+        """The episode so far as a replay file (`pingpong replay FILE --html PAGE` plays it in a browser)."""
+        match = self.match
+        points = match.referee.points
+        replay_file.write(path, scene_name=match.scene.name, scene_text="", seed=self.seed_of_match,
+                          dt=match.scene.dt, frame_every=FRAME_EVERY, frames=np.array(self.frames),
+                          events=np.array(self.events, CONTACT_DTYPE) if self.events else np.zeros(0, CONTACT_DTYPE),
+                          points=np.array([point_row(p, 0) for p in points]) if points else
+                          np.zeros(0, POINT_DTYPE),
+                          summary={"task": self.task, "opponent": self.opponent, "agent": "ab"[self.player]})
+
+
+gymnasium.register("pingpong/Return-v0", entry_point=f"{__name__}:PingPongEnv", kwargs={"task": "return"},
+                   max_episode_steps=None)
+gymnasium.register("pingpong/Rally-v0", entry_point=f"{__name__}:PingPongEnv", kwargs={"task": "rally"},
+                   max_episode_steps=None)

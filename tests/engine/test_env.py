@@ -1,0 +1,124 @@
+"""The Gymnasium environments: the checker, seeded episodes bit for bit, rewards from the referee,
+the replay's picture and file, vector environments."""
+import multiprocessing
+
+import gymnasium
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import engine.env  # noqa: F401 - registers pingpong/Return-v0 and pingpong/Rally-v0
+from engine.ai import SKILLS
+from engine.ai.bot import ProfileBot
+from engine.env import OBSERVATION_NAMES, RETURN_LANDED, RETURN_STRIKE, PingPongEnv
+from engine.replay import read
+
+
+@pytest.mark.parametrize("env_id", ["pingpong/Return-v0", "pingpong/Rally-v0"])
+def test_the_environments_pass_gymnasiums_checker(env_id):
+    env = gymnasium.make(env_id, render_mode="rgb_array")
+    check_env(env.unwrapped, skip_render_check=False)
+    assert env.observation_space.shape == (len(OBSERVATION_NAMES),)
+
+
+def _episode(env, seed: int, steps: int = 400):
+    """Observations and rewards of one episode with seeded random actions."""
+    obs, info = env.reset(seed=seed)
+    env.action_space.seed(seed)
+    seen, rewards = [obs], []
+    for _ in range(steps):
+        obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+        seen.append(obs)
+        rewards.append(reward)
+        if terminated or truncated:
+            break
+    return np.array(seen), np.array(rewards), info
+
+
+@pytest.mark.parametrize("task, action_type", [("return", "hold"), ("rally", "force")])
+def test_reset_with_a_seed_gives_the_same_episode_bit_for_bit(task, action_type):
+    env = PingPongEnv(task=task, action_type=action_type)
+    first = _episode(env, 11)
+    _episode(env, 12)  # another episode between them changes nothing
+    again = _episode(env, 11)
+    assert first[0].tobytes() == again[0].tobytes() and first[1].tobytes() == again[1].tobytes()
+    assert len(first[0]) > 10
+
+
+def _played_by(env: PingPongEnv, skill: str) -> None:
+    """Let an AI profile play the agent's end (the agent's stand-in, as in a drive's lead-in)."""
+    stand_in = ProfileBot(env.match.model, env.player, SKILLS[skill], skill, seed=5, control_every=env.every)
+    agent = env.agent
+    stand_in.player, stand_in.end_sign, stand_in.normal = agent.player, agent.end_sign, agent.normal
+    agent.stand_in = stand_in
+
+
+def test_a_return_that_lands_is_rewarded_and_ends_the_episode():
+    env = PingPongEnv(task="return", opponent="novice")
+    for seed in range(20):
+        env.reset(seed=seed)
+        _played_by(env, "pro")
+        total, done = 0.0, False
+        while not done:
+            _, reward, terminated, truncated, info = env.step(env.action_space.sample())
+            total += reward
+            done = terminated or truncated
+        if total == pytest.approx(RETURN_STRIKE + RETURN_LANDED):  # struck once, landed once
+            assert terminated and info["points"] == 0  # ended by the landing, no point decided yet
+            return
+    pytest.fail("pro never returned novice's ball onto its court in 20 episodes")
+
+
+def test_a_rally_ends_with_the_point_and_its_sign():
+    env = PingPongEnv(task="rally", opponent="novice", max_seconds=30.0)
+    env.reset(seed=2)
+    _played_by(env, "pro")
+    rewards, done = [], False
+    while not done:
+        _, reward, terminated, truncated, info = env.step(env.action_space.sample())
+        rewards.append(reward)
+        done = terminated or truncated
+    assert terminated and info["points"] == 1
+    point = env.match.referee.points[-1]
+    sign = 1.0 if point.winner == env.player else -1.0
+    strikes = point.shots // 2  # the opponent served: the agent struck every second ball
+    landed = round((sum(rewards) - sign - strikes * RETURN_STRIKE) / RETURN_LANDED)
+    assert strikes >= 1 and landed in (strikes - 1, strikes)  # each return landed but perhaps the last
+    assert sum(rewards) == pytest.approx(sign + strikes * RETURN_STRIKE + landed * RETURN_LANDED)
+
+
+def test_render_is_the_replays_picture_and_the_episode_is_a_replay_file(tmp_path):
+    env = PingPongEnv(render_mode="rgb_array")
+    _episode(env, 3, steps=60)
+    picture = env.render()
+    assert picture.shape == (700, 900, 3) and picture.dtype == np.uint8 and picture.std() > 0
+    env.write_replay(tmp_path / "episode.replay")
+    replay = read(tmp_path / "episode.replay")
+    assert len(replay.frames) == len(env.frames) > 10
+    assert replay.frames[-1].tobytes() == env.frames[-1].tobytes()
+
+
+def test_the_cloth_net_is_there_when_asked_for():
+    env = PingPongEnv(net="cloth")
+    assert env.base.net_kind == "cloth" and env.base.cloth is not None
+    seen, _, _ = _episode(env, 4, steps=50)
+    assert np.isfinite(seen).all()
+
+
+def test_async_vector_env_steps_the_same_episodes_as_single_environments():
+    make = [lambda: gymnasium.make("engine.env:pingpong/Return-v0") for _ in range(2)]  # imports engine.env
+    vector = gymnasium.vector.AsyncVectorEnv(make, context="forkserver")
+    try:
+        obs, _ = vector.reset(seed=[21, 22])
+        actions = np.stack([vector.single_action_space.sample() * 0.0 + [1.6, 0.0, 0.2, -1.0, 0.0, 0.2]] * 2)
+        for _ in range(5):
+            obs, rewards, terminated, truncated, _ = vector.step(actions)
+    finally:
+        vector.close()
+    for k, seed in enumerate((21, 22)):
+        single = PingPongEnv()
+        expected, _ = single.reset(seed=seed)
+        for _ in range(5):
+            expected, *_ = single.step(actions[k])
+        assert obs[k].tobytes() == expected.tobytes()
+    assert multiprocessing.active_children() == []
