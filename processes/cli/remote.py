@@ -184,7 +184,11 @@ def _play(client: Client, welcome: wire.Message, args: argparse.Namespace, keybo
 
 
 def serve_command(args: argparse.Namespace) -> int:
-    """`pingpong serve`: a match in realtime worker processes, served through the gateway."""
+    """`pingpong serve`: a match in realtime worker processes, served through the gateway.
+
+    SIGINT (Ctrl-C) and SIGTERM both stop it cleanly, in the foreground or not: every client is
+    told goodbye shutdown, the workers and their memory go, and it prints its summary."""
+    import signal
     import tempfile
     from dataclasses import replace
 
@@ -232,11 +236,15 @@ def serve_command(args: argparse.Namespace) -> int:
                 if args.web:
                     bridges.append(_web_bridge(endpoint, args))
 
+            # A shell starts a background job with SIGINT ignored: listen to it all the same
+            # (Supervisor.run turns SIGTERM into SystemExit(143)).
+            signal.signal(signal.SIGINT, signal.default_int_handler)
             try:
                 result = supervisor.run(on_ready=ready)
-            except KeyboardInterrupt:
-                _interrupted(args, stats_path)
-                return 130
+            except (KeyboardInterrupt, SystemExit) as stop:
+                name = "SIGINT" if isinstance(stop, KeyboardInterrupt) else "SIGTERM"
+                _interrupted(args, stats_path, name)
+                return 130 if name == "SIGINT" else 143
             except WorkerFailed as exc:
                 first = str(exc).splitlines()[0]
                 if args.json:
@@ -329,18 +337,18 @@ def _serving_line(scene_name: str, endpoint: str, players: int) -> str:
             f"starts once every remote seat is taken")
 
 
-def _interrupted(args: argparse.Namespace, stats_path: str) -> None:
-    """Ctrl-C on `pingpong serve`: the gateway's last counters (it wrote them as it stopped)."""
+def _interrupted(args: argparse.Namespace, stats_path: str, signal_name: str) -> None:
+    """SIGINT or SIGTERM on `pingpong serve`: the gateway's last counters (written as it stopped)."""
     try:
         with open(stats_path) as f:
             stats = json.load(f)
     except (OSError, ValueError):
         stats = {}
     if args.json:
-        print(json.dumps({"interrupted": True, "gateway": stats}), flush=True)
+        print(json.dumps({"interrupted": True, "signal": signal_name, "gateway": stats}), flush=True)
     elif stats:
         print("gateway: " + ", ".join(f"{k} {v}" for k, v in stats.items()))
-    print("pingpong serve: interrupted; every client was told goodbye", file=sys.stderr)
+    print(f"pingpong serve: stopped by {signal_name}; every client was told goodbye", file=sys.stderr)
 
 
 def watch_command(args: argparse.Namespace) -> int:

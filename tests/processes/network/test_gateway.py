@@ -874,6 +874,33 @@ def test_ctrl_c_on_the_server_says_goodbye_and_leaves_nothing_behind(served, zct
     assert not shm.leftover_segments(hello["run_id"])
 
 
+@pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_serve_in_the_background_stops_cleanly_on_sigint_and_sigterm(served, zctx, signum, code):
+    # Started as a shell starts a background job (SIGINT ignored): either signal stops it, every
+    # client is told goodbye shutdown, the summary is printed, nothing is left behind.
+    server = subprocess.Popen([sys.executable, "-m", "processes.cli", "serve", "--players", "0", "--ticks", "600000",
+                               "--json"], cwd=ROOT, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True, start_new_session=True,
+                              preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    served.append(server)
+    hello = json.loads(line(server, "the server's listening line"))
+    watcher = Client(hello["listening"], "spectator", "sp", zctx=zctx)
+    try:
+        watcher.join(DEADLINE_S)
+        workers = _descendants(server.pid)
+        os.kill(server.pid, signum)
+        goodbye, _ = _until_goodbye(watcher)
+        assert goodbye is not None and goodbye["reason"] == GoodbyeReason.SHUTDOWN
+    finally:
+        watcher.close()
+    assert server.wait(DEADLINE_S) == code
+    summary = json.loads(rest(server, "the server's summary").strip().splitlines()[-1])
+    assert summary["interrupted"] and summary["signal"] == signal.Signals(signum).name
+    assert summary["gateway"]["goodbyes_at_end"] == 1 and summary["gateway"]["end"] == "shutdown"
+    assert _await_gone(workers) == []
+    assert not shm.leftover_segments(hello["run_id"])
+
+
 def test_serve_tells_how_to_join_what_it_serves():
     from processes.cli.remote import _serving_line
 
