@@ -63,6 +63,14 @@ def test_match_with_a_bad_player_exits_2_with_the_reason(player, message):
     assert done.returncode == 2 and message in done.stderr, done.stderr
 
 
+def test_serve_plays_a_bot_in_an_ai_seat_two_ticks():
+    done = pingpong("serve", "--scene", "match_rigid", "--players", "0", "--a", str(EXAMPLES / "block.py") + ":Block",
+                    "--ticks", "2", "--json")
+    assert done.returncode == 0, done.stderr
+    summary = json.loads(done.stdout.splitlines()[-1])
+    assert summary["ticks"] == 2 and summary["bot_errors"] == [] and "ai" in summary["workers"]
+
+
 def test_serve_refuses_a_bot_for_a_remote_seat():
     done = pingpong("serve", "--players", "1", "--a", str(EXAMPLES / "block.py") + ":Block", "--ticks", "2")
     assert done.returncode == 2 and "--a: bat A is played remotely with --players 1" in done.stderr, done.stderr
