@@ -148,9 +148,12 @@ def net_snapshot_dtype(n_knots: int) -> np.dtype:
     """The cloth net's whole state at one tick, as one record (the net worker publishes it).
 
     tick: physics ticks done when this state holds (the net steps tick `tick - 1` to get here);
-    sleeping, quiet_ticks: net_kernel.NetSim's sleep state; pos, vel: m, m/s per knot.
+    sleeping, quiet_ticks: net_kernel.NetSim's sleep state; tail: -1, or the ticks the net's
+    linear tail has run (net_kernel/tail.py): then pos, vel and quiet_ticks are the state it
+    started from (tick - tail) and the net's state at `tick` is the tail's at that many ticks;
+    pos, vel: m, m/s per knot.
     """
-    return np.dtype([("tick", "<i8"), ("sleeping", "<i8"), ("quiet_ticks", "<i8"),
+    return np.dtype([("tick", "<i8"), ("sleeping", "<i8"), ("quiet_ticks", "<i8"), ("tail", "<i8"),
                      ("pos", "<f8", (n_knots, 3)), ("vel", "<f8", (n_knots, 3))])
 
 

@@ -32,7 +32,7 @@ SKILL_NAMES = ("pro", "club", "novice")
 NET_KINDS = ("rigid", "cloth")
 # [net] keys for a cloth net: the fields of net_kernel.NetSpec (validated there).
 CLOTH_FLOATS = ("knot_mass", "spring_k", "spring_c", "mesh_tension", "cord_k", "cord_tension", "hem_tension", "hem_gap",
-                "air_damping")
+                "air_damping", "tail_energy")
 CLOTH_INTS = ("cols", "rows")
 # [net] resolution = [cols, rows]: the net the other [net] keys describe, on that grid of knots
 # (net_kernel.topology.resolution_spec keeps its continuum: mass per area, prestress, stiffness).

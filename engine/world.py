@@ -327,7 +327,7 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
     the net was stepped with the ball (STOP_NET, unless another reason): a caller that publishes
     its state after each call then always has a state the net's agrees with, which a restarted
     net or physics worker resumes from exactly. `state.net_sim` is a NetSim, or anything with
-    its `sleeping`, `step` and `step_free` (processes.workers.net.RemoteNet).
+    its `sleeping`, `in_tail`, `step` and `step_free` (processes.workers.hub.RemoteNet).
     """
     net = state.net_sim
     y = state.ball_flat
@@ -345,12 +345,15 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
                 return done, n, reason
             continue
         w = model.cloth_watch
-        if net.sleeping and not _in_box(w, y):
-            # Far from a sleeping net: nothing to do for it; run until the ball comes near.
+        if (net.sleeping or net.in_tail) and not _in_box(w, y):
+            # Far from a sleeping net, or from one whose ring is in closed form (its knots stay
+            # within the watched box): nothing to do for it but count the ticks (a sleeping net
+            # ignores them); run until the ball comes near.
             ticks, n, reason = advance(model, _without_cloth(state), n_max - done, inputs, events, h, gone_radius,
                                        gone_z, deadline, watch=w)
             inputs = None
             done += ticks
+            net.step_free(ticks)
             if reason != STOP_WATCH:
                 return done, n, reason
             continue

@@ -26,6 +26,7 @@ from net_kernel.kernels import (  # noqa: F401  (shared)
     TABLE_Z,
 )
 from net_kernel.kernels.grid32 import LANES as GRID32_LANES
+from net_kernel.kernels.modal import FREE_TAIL
 
 
 def _slot_owner(adj_start):
@@ -467,3 +468,100 @@ def _ball_substeps(step, knot_state, knot_inv_mass, grid_params, gravity, drag, 
         ball[0] = ball[2]
         step(knot_state, knot_inv_mass, grid_params, gravity, drag, h, 1, grid_work)
     return toi
+
+
+def potential_energy(knot_pos, knot_mass, knot_inv_mass, spring_ij, spring_rest, spring_k, gravity):
+    """Numpy twin of kernels.potential_energy (to rounding: the sums run in numpy's order)."""
+    d = knot_pos[spring_ij[:, 1]] - knot_pos[spring_ij[:, 0]]
+    stretch = np.sqrt(np.einsum("ij,ij->i", d, d)) - spring_rest
+    free = knot_inv_mass != 0.0
+    return float(np.sum(0.5 * spring_k * stretch * stretch) + np.sum(knot_mass[free] * gravity * knot_pos[free, 2]))
+
+
+def motion_energy(knot_pos, knot_vel, knot_mass, knot_inv_mass, spring_ij, spring_rest, spring_k, gravity,
+                  rest_energy, limit):
+    """Numpy twin of kernels.motion_energy."""
+    free = knot_inv_mass != 0.0
+    kinetic = float(np.sum(0.5 * knot_mass[free] * np.einsum("ij,ij->i", knot_vel[free], knot_vel[free])))
+    if kinetic > limit:
+        return kinetic
+    return kinetic + potential_energy(knot_pos, knot_mass, knot_inv_mass, spring_ij, spring_rest, spring_k,
+                                      gravity) - rest_energy
+
+
+def step_grid_free_tail(knot_state, grid_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks,
+                        sleep_speed, sleep_ticks, quiet_ticks, reach, box, knot_mass, knot_inv_mass, spring_ij,
+                        spring_rest, spring_k, rest_energy, tail_energy):
+    """Numpy twin of kernels.step_grid_free_tail."""
+    pos = knot_state[0].reshape(3, -1).T
+    vel = knot_state[1].reshape(3, -1).T
+    taken = 0
+    while taken < ticks:
+        t, quiet_ticks, status = step_grid_free(knot_state, grid_inv_mass, grid_params, gravity, drag, h, substeps,
+                                                grid_work, 1, sleep_speed, sleep_ticks, quiet_ticks, reach, box)
+        taken += t
+        if status != FREE_AWAKE:
+            return taken, quiet_ticks, status
+        if motion_energy(pos, vel, knot_mass, knot_inv_mass, spring_ij, spring_rest, spring_k, gravity, rest_energy,
+                         tail_energy) <= tail_energy:
+            return taken, quiet_ticks, FREE_TAIL
+    return taken, quiet_ticks, FREE_AWAKE
+
+
+def modal_coefficients(knot_pos, knot_vel, rest_pos, free, out_proj, out_e, in_proj, in_inverse, out_c, in_w,
+                       in_scratch):
+    """Numpy twin of kernels.modal_coefficients (to rounding)."""
+    q = out_proj @ (knot_pos[free, 0] - rest_pos[free, 0])
+    p = out_proj @ knot_vel[free, 0]
+    out_c[:] = 0.5 * q + 1j * (0.5 * q * out_e.real - 0.5 * p) / out_e.imag
+    k = in_proj.shape[0]
+    in_scratch[:k] = in_proj @ (knot_pos[free, 1:] - rest_pos[free, 1:]).ravel()
+    in_scratch[k:] = in_proj @ knot_vel[free, 1:].ravel()
+    in_w[:] = in_inverse @ in_scratch
+
+
+def _modal_powers(ticks, out_c, out_log_r, out_theta, in_w, in_log_r, in_theta):
+    z = out_c * np.exp(ticks * out_log_r) * (np.cos(ticks * out_theta) + 1j * np.sin(ticks * out_theta))
+    xi = in_w * np.exp(ticks * in_log_r) * (np.cos(ticks * in_theta) + 1j * np.sin(ticks * in_theta))
+    return z, xi
+
+
+def modal_state(ticks, rest_pos, free, out_shape, out_c, out_e, out_log_r, out_theta, in_pos, in_vel, in_w,
+                in_log_r, in_theta, q, p, xi, knot_pos, knot_vel):
+    """Numpy twin of kernels.modal_state (to rounding)."""
+    z, xi[:] = _modal_powers(ticks, out_c, out_log_r, out_theta, in_w, in_log_r, in_theta)
+    q[:] = 2.0 * z.real
+    p[:] = 2.0 * (z * out_e).real
+    knot_pos[:] = rest_pos
+    knot_vel[:] = 0.0
+    knot_pos[free, 0] += out_shape.T @ q
+    knot_vel[free, 0] += out_shape.T @ p
+    knot_pos[free, 1:] += (in_pos.T @ xi).real.reshape(-1, 2)
+    knot_vel[free, 1:] += (in_vel.T @ xi).real.reshape(-1, 2)
+
+
+def modal_bounds(out_shape_abs, out_c, out_e, in_pos_abs, in_vel_abs, in_w, disp, speed):
+    """Numpy twin of kernels.modal_bounds (to rounding)."""
+    disp[:, 0] = out_shape_abs.T @ (2.0 * np.abs(out_c))
+    speed[:, 0] = out_shape_abs.T @ (2.0 * np.abs(out_c * out_e))
+    disp[:, 1:] = (in_pos_abs.T @ np.abs(in_w)).reshape(-1, 2)
+    speed[:, 1:] = (in_vel_abs.T @ np.abs(in_w)).reshape(-1, 2)
+
+
+def quiet_from(sleep_speed, max_ticks, out_log_r, in_log_r, speed):
+    """Numpy twin of kernels.quiet_from (the same bisection on the same bounds)."""
+    r_out, r_in = min(float(out_log_r.max()), 0.0), min(float(in_log_r.max()), 0.0)
+
+    def loud(n):
+        scale = np.array([math.exp(n * r_out), math.exp(n * r_in), math.exp(n * r_in)])
+        return bool((np.einsum("ij,ij->i", speed * scale, speed * scale) >= sleep_speed * sleep_speed).any())
+
+    lo, hi = 0, 1
+    while loud(hi):
+        if hi >= max_ticks:
+            return max_ticks
+        lo, hi = hi, min(2 * hi, max_ticks)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        lo, hi = (mid, hi) if loud(mid) else (lo, mid)
+    return hi

@@ -1,4 +1,4 @@
-"""The net simulation: owns the knot state, substeps under the stability bound, sleeps and wakes."""
+"""The net simulation: owns the knot state, substeps under the stability bound, rings down in closed form, sleeps and wakes."""
 import math
 from typing import NamedTuple
 
@@ -18,6 +18,9 @@ from net_kernel.kernels import (
     SPRING_WORK_COLS,
     STEP_WORK_ROWS,
 )
+from net_kernel.kernels.modal import FREE_TAIL
+from net_kernel.modes import NetModes, linear_tail_refusal, net_modes
+from net_kernel.tail import LinearTail
 from net_kernel.topology import FLOAT32, IMPLICIT, NetTopology
 
 # One switch picks the backend; both modules expose the same kernel names and signatures.
@@ -45,6 +48,10 @@ WAKE_MARGIN = 0.05  # m
 # an awake net can be without looking at it, which lets the engine step the net without the ball
 # while the ball is out of that reach (step_free).
 NET_REACH = 0.25  # m
+# m: a linear tail's box (every knot's place from the switch on) stays within this of the built
+# box: the engine steps the ball tick by tick near a tail or a sleeping net only within the built
+# box grown by WAKE_MARGIN (engine.world's cloth_watch), so a tail reaching farther stays awake.
+TAIL_BOX_MARGIN = 0.5 * WAKE_MARGIN
 NOT_FINITE = "a knot position or velocity is not finite after the net's tick"
 # Ball-knot contact defaults: a net thread is about 1 mm thick; the cloth's give comes from
 # its springs, so each knot-ball impact is taken as perfectly inelastic.
@@ -88,6 +95,13 @@ class NetSim:
     the current state. `kernel_calls` counts every kernel invocation (steps, rest checks, contact
     sweeps), so a sleeping net can be shown to cost none; `awake_ticks` counts the ticks it was
     stepped (awake), which is what a match pays for the net.
+
+    Three states (each switch decided from the state): awake, the full kernel substep by
+    substep; the linear tail (`tail`, net_kernel/tail.py), entered at the end of a tick with
+    the ball far once the motion's energy is at most NetSpec.tail_energy, in which the knots
+    are modal coordinates advanced in closed form (`tail_ticks` counts those ticks) and are
+    rebuilt when someone reads knot_pos or knot_vel, or exactly at the tick the ball comes
+    within the tail's box, from where the full kernel goes on; asleep, frozen.
     """
 
     def __init__(self, topo: NetTopology, dt: float, substeps: int | None = None, backend: str = "numba",
@@ -151,6 +165,7 @@ class NetSim:
         self._speed = mod.knot_speed_max
         self._collide = mod.collide_ball_near
         self._step_grid_ball = mod.step_grid_ball
+        self._motion_energy = mod.motion_energy
         # Free ticks in one call, on one thread (a parallel net steps them one step() at a time).
         self._step_grid_free = mod.step_grid_free if self.grid and not parallel else None
         n = topo.n_knots
@@ -187,6 +202,7 @@ class NetSim:
         # (2, 3) m, lo and hi corners of the knots' box: of the shape it froze in while the net
         # sleeps, of the tick's start shape while it is awake (net_box).
         self.box = net_box(topo.rest_pos)
+        self._built = self.box.copy()
         self._reach = self.box + np.array([[-NET_REACH], [NET_REACH]])  # (2, 3) m, the built box grown
         self._probe = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(3), np.zeros(3))
         self.kernel_calls = 0
@@ -196,20 +212,60 @@ class NetSim:
         self.quiet_ticks = 0  # ticks in a row with every knot below SLEEP_SPEED (state: a restart restores it)
         self.knot_radius = KNOT_RADIUS
         self.restitution = NET_RESTITUTION
+        # The linear tail: on for a net whose spec asks for it and whose modes exist
+        # (net_kernel.modes.linear_tail_refusal); its modes are computed at the first switch.
+        self.tail_energy = spec.tail_energy if spec is not None else 0.0
+        self.tail_refusal = linear_tail_refusal(topo) if self.tail_energy > 0 else "NetSpec.tail_energy is 0"
+        self._tail_holder: LinearTail | None = None
+        self.tail: LinearTail | None = None  # the linear state, while it holds the net
+        self._shown = -1  # the tail tick whose state knot_pos and knot_vel hold (-1: none)
+        self.tail_ticks = 0
+        self._step_free_tail = (mod.step_grid_free_tail if self._step_grid_free is not None and self.tail_refusal is None
+                                else None)
 
     @property
     def knot_pos(self) -> np.ndarray:
-        """(n_knots, 3) m, the current knot positions (a view; valid until the next step)."""
+        """(n_knots, 3) m, the current knot positions (a view; valid until the next step). In the
+        linear tail they are rebuilt from the modes on reading; a caller that moves a knot then
+        calls wake()."""
+        self._show_tail()
         return self._pos[self._cur]
 
     @property
     def knot_vel(self) -> np.ndarray:
-        """(n_knots, 3) m/s, the current knot velocities."""
+        """(n_knots, 3) m/s, the current knot velocities (rebuilt in the tail, as knot_pos)."""
+        self._show_tail()
         return self._vel[self._cur]
 
+    @property
+    def in_tail(self) -> bool:
+        """True while the linear tail holds the net (its ticks cost a count, as a sleeping net's cost nothing)."""
+        return self.tail is not None
+
+    def load_state(self, knot_pos, knot_vel, sleeping: bool, quiet_ticks: int, tail_ticks: int = -1) -> None:
+        """Take a saved state (a restart): knot_pos, knot_vel (n_knots, 3) m, m/s; with
+        tail_ticks >= 0, they are the switch state of a linear tail that has run that many ticks
+        (quiet_ticks its sleep count at the switch)."""
+        self.tail = None
+        self._pos[self._cur][:] = knot_pos
+        self._vel[self._cur][:] = knot_vel
+        self.sleeping = bool(sleeping)
+        self.quiet_ticks = int(quiet_ticks)
+        net_box(self._pos[self._cur], out=self.box)
+        if tail_ticks >= 0:
+            self.resume_tail(quiet_ticks, tail_ticks)
+
+    def _show_tail(self) -> None:
+        tail = self.tail
+        if tail is not None and self._shown != tail.ticks:
+            tail.state(tail.ticks, self._pos[self._cur], self._vel[self._cur])
+            self._shown = tail.ticks
+
     def ball_far(self, ball_pos, ball_vel, ball_radius: float) -> bool:
-        """True when the ball cannot touch the net within this tick (ball_far_from_box on self.box)."""
-        return ball_far_from_box(self.box, self.sleeping, self.knot_radius, self.dt, ball_pos, ball_vel, ball_radius)
+        """True when the ball cannot touch the net within this tick (ball_far_from_box on self.box;
+        the tail's box holds all its knots' motion, so it needs no margin, as a frozen net's)."""
+        return ball_far_from_box(self.box, self.sleeping or self.tail is not None, self.knot_radius, self.dt, ball_pos,
+                                 ball_vel, ball_radius)
 
     def touches(self, ball_pos, ball_vel, ball_radius: float, ball_inv_mass: float) -> bool:
         """Would the ball, moving straight over this tick, touch the net frozen as it is now?
@@ -228,7 +284,9 @@ class NetSim:
         return hit != NO_CONTACT
 
     def wake(self) -> None:
-        """Wake the net (contact, or the caller moved a knot)."""
+        """Wake the net (contact, or the caller moved a knot): out of sleep or the tail, into the full kernel."""
+        if self.tail is not None:
+            self._leave_tail()
         self.sleeping = False
         self.quiet_ticks = 0
 
@@ -263,6 +321,12 @@ class NetSim:
         self._impulse[:] = 0.0
         self._offset[:] = 0.0
         far = self.ball_far(ball_pos, ball_vel, ball_radius)
+        if self.tail is not None:
+            if far:
+                self._advance_tail(1)
+                return NetContact(NO_CONTACT, self._impulse, self._offset)
+            self._leave_tail()  # the ball within the tail's box: the full kernel from this tick's state
+            far = self.ball_far(ball_pos, ball_vel, ball_radius)
         if self.sleeping:
             if far or not self.touches(ball_pos, ball_vel, ball_radius, ball_inv_mass):
                 return NetContact(NO_CONTACT, self._impulse, self._offset)
@@ -338,7 +402,83 @@ class NetSim:
         box = net_box(self.knot_pos, out=self.box)
         if (box[0] < self._reach[0]).any() or (box[1] > self._reach[1]).any():
             raise FloatingPointError(self._out_of_reach())
+        if far and not self.sleeping and self.tail_refusal is None and self._has_modes() and self._calm():
+            self._start_tail()
         return NetContact(toi, self._impulse, self._offset)
+
+    def _calm(self) -> bool:
+        """Is the motion's energy at most tail_energy (kernels.modal.motion_energy)?"""
+        topo = self.topo
+        self.kernel_calls += 1
+        return self._motion_energy(self.knot_pos, self.knot_vel, topo.knot_mass, topo.knot_inv_mass, topo.spring_ij,
+                                   topo.spring_rest, topo.spring_k, self.gravity, self.modes().rest_energy,
+                                   self.tail_energy) <= self.tail_energy
+
+    def _has_modes(self) -> bool:
+        """Are the net's modes there (computed or loaded now if need be)? A net whose scheme has a
+        mode that is not an oscillation (net_modes) gets no tail from then on: tail_refusal says why."""
+        if self._tail_holder is None:
+            try:
+                self.modes()
+            except ValueError as exc:
+                self.tail_refusal = str(exc)
+                self._step_free_tail = None
+                return False
+        return True
+
+    def modes(self) -> NetModes:
+        """The net's modes (net_kernel.modes.net_modes), computed or loaded at the first call; ValueError
+        if the net has no tail (tail_refusal)."""
+        if self._tail_holder is None:
+            self._tail_holder = LinearTail(net_modes(self.topo, self.dt, self.substeps), BACKENDS[self.backend])
+        return self._tail_holder.modes
+
+    def _start_tail(self, quiet_ticks: int | None = None, ticks: int = 0) -> bool:
+        """Hand the net over to the linear tail from its current state (quiet_ticks: the sleep count
+        at the switch, default the current one; ticks: already since the switch, for a restart).
+        False, and still awake, when the tail's bounds let a knot reach the table."""
+        self.modes()
+        tail = self._tail_holder
+        self.kernel_calls += 1
+        if not tail.start(self.knot_pos, self.knot_vel, self.quiet_ticks if quiet_ticks is None else quiet_ticks,
+                          SLEEP_SPEED, SLEEP_TICKS):
+            return False
+        if (tail.box[0] < self._built[0] - TAIL_BOX_MARGIN).any() or (tail.box[1] > self._built[1] + TAIL_BOX_MARGIN).any():
+            return False  # the engine watches the ball tick by tick within WAKE_MARGIN of the built box
+        self.tail = tail
+        self._shown = 0
+        self.box[:] = tail.box
+        if ticks:
+            self._advance_tail(ticks)
+        return True
+
+    def resume_tail(self, quiet_ticks: int, ticks: int) -> None:
+        """A restart: the tail that started from the current knot state (the switch state, with
+        that sleep count) `ticks` ticks ago. Raises RuntimeError if it cannot hold it."""
+        if not self._start_tail(quiet_ticks, ticks):
+            raise RuntimeError("the linear tail cannot hold this state (its bounds reach the table)")
+
+    def _advance_tail(self, ticks: int) -> None:
+        """`ticks` ticks in the tail: nothing but a count, unless the net falls asleep in them."""
+        tail = self.tail
+        ahead = min(ticks, tail.sleep_at - tail.ticks)
+        tail.ticks += ahead
+        self.tail_ticks += ahead
+        if tail.ticks >= tail.sleep_at:
+            self._show_tail()
+            self.tail = None
+            self._vel[self._cur][:] = 0.0
+            self.sleeping = True
+            self.quiet_ticks = tail.sleep_quiet
+            net_box(self._pos[self._cur], out=self.box)
+
+    def _leave_tail(self) -> None:
+        """Out of the tail into the full kernel, from the tail's state at this tick (the sleep
+        count starts again: the tail knows no tick's speeds)."""
+        self._show_tail()
+        self.tail = None
+        self.quiet_ticks = 0
+        net_box(self._pos[self._cur], out=self.box)
 
     def _out_of_reach(self) -> str:
         return (f"a knot of the net is more than NET_REACH = {NET_REACH} m outside the box it was built in (knots now "
@@ -351,26 +491,38 @@ class NetSim:
         The caller vouches that the ball stays out of reach: farther from the box the net was built
         in than NET_REACH plus the awake net's margin (WAKE_MARGIN and the radii) over every tick.
         """
-        if ticks <= 0 or self.sleeping:
-            return
-        if self._step_grid_free is None:
-            for _ in range(ticks):
-                if self.sleeping:
-                    return
+        ticks = int(ticks)
+        while ticks > 0 and not self.sleeping:
+            if self.tail is not None:
+                self._advance_tail(ticks)
+                return
+            if self._step_grid_free is None:
                 self.step()
-            return
-        topo = self.topo
-        taken, self.quiet_ticks, status = self._step_grid_free(
-            self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag, self.h, self.substeps,
-            self._grid_work, int(ticks), SLEEP_SPEED, SLEEP_TICKS, self.quiet_ticks, self._reach, self.box)
-        self.kernel_calls += 1
-        self.awake_ticks += taken
-        if status == FREE_NOT_FINITE:
-            raise FloatingPointError(NOT_FINITE)
-        if status == FREE_OUT_OF_REACH:
-            raise FloatingPointError(self._out_of_reach())
-        if status == FREE_ASLEEP:
-            self.sleeping = True
+                ticks -= 1
+                continue
+            topo = self.topo
+            if self._step_free_tail is not None and self._has_modes():
+                taken, self.quiet_ticks, status = self._step_free_tail(
+                    self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag, self.h,
+                    self.substeps, self._grid_work, ticks, SLEEP_SPEED, SLEEP_TICKS, self.quiet_ticks, self._reach,
+                    self.box, topo.knot_mass, topo.knot_inv_mass, topo.spring_ij, topo.spring_rest, topo.spring_k,
+                    self.modes().rest_energy, self.tail_energy)
+            else:
+                taken, self.quiet_ticks, status = self._step_grid_free(
+                    self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag, self.h,
+                    self.substeps, self._grid_work, ticks, SLEEP_SPEED, SLEEP_TICKS, self.quiet_ticks, self._reach,
+                    self.box)
+            self.kernel_calls += 1
+            self.awake_ticks += taken
+            ticks -= taken
+            if status == FREE_NOT_FINITE:
+                raise FloatingPointError(NOT_FINITE)
+            if status == FREE_OUT_OF_REACH:
+                raise FloatingPointError(self._out_of_reach())
+            if status == FREE_ASLEEP:
+                self.sleeping = True
+            elif status == FREE_TAIL:
+                self._start_tail()  # a tick that cannot start it (its bounds reach the table) stays awake
 
 
 def contact_substeps(ball_vel, knot_speed: float, dt: float, substeps: int) -> int:
@@ -385,15 +537,25 @@ def contact_substeps(ball_vel, knot_speed: float, dt: float, substeps: int) -> i
 
 def compile_kernels(topo: NetTopology, dt: float) -> None:
     """Compile (or load from numba's cache) every kernel a NetSim of `topo` calls in a match, on a
-    throwaway NetSim: a tick with the ball within reach, one without it, a run of free ticks and
+    throwaway NetSim: a tick with the ball within reach, one without it, a run of free ticks of
+    a moving net, the linear tail's start, rebuild and end (its modes computed or loaded), and
     the probe of a sleeping net. A worker calls it before it says it is ready: a kernel compiled
     mid-run would leave it silent for as long as that takes (tens of seconds on a loaded
     machine), which the supervisor takes for a stall."""
     sim = NetSim(topo, dt)
     ball, still = topo.knot_pos[0], np.zeros(3)
     sim.step(ball, still)
+    sim.wake()
+    sim.knot_vel[:] = (topo.knot_inv_mass > 0)[:, None]  # 1 m/s: far above any tail's energy
     sim.step()
     sim.step_free(1)
+    if sim.tail_refusal is None:
+        sim.knot_pos[:] = sim.modes().rest_pos
+        sim.knot_vel[:] = 0.0
+        sim.step()  # at rest: the tail takes over
+        sim.step_free(1)
+        sim.knot_pos  # noqa: B018  (the tail's rebuild)
+        sim.step(ball, still)  # the ball within the tail's box: back to the full kernel
     sim.touches(ball, still, BALL_RADIUS, 1.0 / BALL_MASS)
 
 

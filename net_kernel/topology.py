@@ -80,6 +80,9 @@ class NetSpec:
             AIR_DAMPING_PHYSICAL. It sets how long a struck net rings and so what it costs: the
             out-of-plane modes decay at air_damping / 2 (`pingpong bench ringdown` and `bench
             match --scene match,match_air` show 5/s beside the air's own drag).
+        tail_energy: J, the energy of the net's motion (kinetic plus potential above rest) below
+            which its ring is held as modes of the linearised scheme and advanced in closed form
+            (net_kernel/tail.py) instead of stepped; 0 steps every awake tick.
         fix_posts: the first and last columns are tied to the posts.
         fix_table: the bottom row is tied to the table (at z = 0) instead of hanging on the
             bottom cord: a net held up by its columns in compression, which buckles.
@@ -134,6 +137,9 @@ class NetSpec:
     # carry its knots (the peak deflection), where the net is when the next ball arrives, and so
     # the match's outcome.
     air_damping: float = 5.0
+    # Chosen from `pingpong bench accuracy`'s tail rows: seeded strikes at 5-60 m/s stay within the
+    # 50 um budget (a tenth of a knot's radius) of the full kernel over their whole ring.
+    tail_energy: float = 20e-6
     fix_posts: bool = True
     fix_table: bool = False
     solver: str = SEMI_IMPLICIT
@@ -207,7 +213,8 @@ def validate_spec(spec: NetSpec) -> None:
         value = getattr(spec, name)
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
             raise _fail(name, value, "a finite number > 0")
-    for name in ("spring_c", "mesh_tension", "cord_tension", "hem_tension", "hem_gap", "air_damping", "gravity"):
+    for name in ("spring_c", "mesh_tension", "cord_tension", "hem_tension", "hem_gap", "air_damping", "tail_energy",
+                 "gravity"):
         value = getattr(spec, name)
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
             raise _fail(name, value, "a finite number >= 0")

@@ -309,7 +309,8 @@ class Supervisor:
                 **({k: w.report[k] for k in ("think_s", "late_thoughts", "late_thinking_s", "turns", "longest_turn_s",
                                              "bot_faults") if k in w.report} if w.kind == "ai" else {}),
                 # the cloth net's ticks stepped awake (its cost: a sleeping net's ticks cost nothing)
-                **({"awake_ticks": w.report["awake_ticks"]} if w.kind == "net" and "awake_ticks" in w.report else {}),
+                # and held in its linear tail (a count each)
+                **({k: w.report[k] for k in ("awake_ticks", "tail_ticks") if k in w.report} if w.kind == "net" else {}),
             }
             for w in self._workers
         }

@@ -3,7 +3,8 @@
 One module per layout or concern: csr (knot steps over the CSR adjacency, any topology), grid
 (the same step on a regular grid, fused row by row), grid32 (the grid step in float32 on offsets
 from the built grid, a NetSpec option), implicit (backward Euler by conjugate
-gradients), contact (the ball against the knots), scatter (the textbook per-spring scatter
+gradients), contact (the ball against the knots), modal (the linear tail in closed form: the
+motion's energy, modal coordinates, the state at a tick, the sleep bound), scatter (the textbook per-spring scatter
 loop, a baseline for the profile, not used by NetSim). Numba only; the numpy twins are in
 net_kernel/reference.py.
 
@@ -65,6 +66,16 @@ from net_kernel.kernels.grid32 import (
     step_grid32_serial,
 )
 from net_kernel.kernels.implicit import KNOT_WORK_ROWS, SPRING_WORK_COLS, step_knots_implicit
+from net_kernel.kernels.modal import (
+    FREE_TAIL,
+    modal_bounds,
+    modal_coefficients,
+    modal_state,
+    motion_energy,
+    potential_energy,
+    quiet_from,
+    step_grid_free_tail,
+)
 from net_kernel.kernels.scatter import step_knots_scatter
 from net_kernel.kernels.table import TABLE_Z
 
@@ -73,6 +84,7 @@ __all__ = [
     "FREE_AWAKE",
     "FREE_NOT_FINITE",
     "FREE_OUT_OF_REACH",
+    "FREE_TAIL",
     "GRID32_EXACT",
     "GRID32_FMA",
     "GRID_CLASSES",
@@ -92,6 +104,12 @@ __all__ = [
     "collide_ball_near",
     "grid32_work",
     "knot_speed_max",
+    "modal_bounds",
+    "modal_coefficients",
+    "modal_state",
+    "motion_energy",
+    "potential_energy",
+    "quiet_from",
     "step_grid",
     "step_grid32",
     "step_grid32_ball",
@@ -99,6 +117,7 @@ __all__ = [
     "step_grid32_serial",
     "step_grid_ball",
     "step_grid_free",
+    "step_grid_free_tail",
     "step_grid_serial",
     "step_knots",
     "step_knots_implicit",

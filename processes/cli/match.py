@@ -284,7 +284,11 @@ def _bench_scene(name: str, args: argparse.Namespace) -> dict:
                        "ai_seconds": reference["ai_seconds"],
                        "us_per_tick": 1e6 * reference["wall_seconds"] / max(reference["ticks"], 1),
                        **({"net_awake_ticks": net.awake_ticks,
-                           "net_awake_share": net.awake_ticks / max(reference["ticks"], 1)} if net is not None else {})},
+                           "net_awake_share": net.awake_ticks / max(reference["ticks"], 1),
+                           "net_tail_ticks": net.tail_ticks,
+                           "net_tail_share": net.tail_ticks / max(reference["ticks"], 1),
+                           "net_asleep_share": max(reference["ticks"] - net.awake_ticks - net.tail_ticks, 0)
+                           / max(reference["ticks"], 1)} if net is not None else {})},
         "target": "a best-of-5 match at >= 100x realtime, headless lockstep (issue 6)",
         # The cloth net's chosen damping (NetSpec.air_damping; scenes/match_air.toml: the air's own drag).
         "air_damping_per_s": scene.cloth.air_damping if scene.cloth is not None else None,
@@ -346,6 +350,8 @@ def _print_bench(report: dict, first: dict) -> None:
     for kind, info in p["workers"].items():
         awake = info.get("awake_ticks")
         awake_text = f", {awake} ticks awake ({1e6 * info['busy_s'] / awake:.0f} us each)" if awake else ""
+        if "tail_ticks" in info:
+            awake_text += f", {info['tail_ticks']} in its linear tail"
         print(f"    {kind:<8} own work {info['busy_s']:.2f} s, hand-offs {info['handoff_s']:.2f} s{awake_text}")
     share = f", net awake {r['net_awake_share']:.0%} of ticks" if "net_awake_share" in r else ""
     print(f"  in-process reference:        {r['wall_seconds']:.2f} s wall, {r['realtime_factor']:.1f}x realtime, "

@@ -5,7 +5,10 @@ acknowledges (remote_acks), and posts the remote players' inputs to the locked r
 mailbox that the physics drains before each tick. In a run with a net worker (a scene with a
 cloth net: processes.workers.workers_for; build_layout then makes the net_even/net_odd blocks)
 it also reads the net's newest published state, never torn (SnapshotBlock.snapshot) and only
-when a net message is due, for the clients' view of the net (network.feed.NetFeed).
+when a net message is due, for the clients' view of the net (network.feed.NetFeed). A net in
+its linear tail publishes where the tail started and how long it has run (net_snapshot_dtype):
+NetView rebuilds the knots at the tick of the newest physics snapshot, which the net worker
+itself has no reason to step to while the ball is away.
 """
 from __future__ import annotations
 
@@ -15,6 +18,7 @@ import numpy as np
 import zmq
 
 from engine.dtypes import net_snapshot_dtype, physics_snapshot_dtype
+from net_kernel import NetSim, build_topology
 from processes.network.gateway import STATS_EVERY_S, Gateway, GatewayConfig
 from processes.network.seats import SeatStore
 from processes.network.wire import GoodbyeReason, Slot
@@ -37,6 +41,36 @@ def _consistent_snapshot(snapshots, acks: np.ndarray, record: np.ndarray, tries:
         if ack is not None:
             return rec, ack
     return record[0], None
+
+
+class NetView:
+    """The net as clients see it: the published state, or a linear tail's rebuilt at a later tick.
+
+    Args:
+        scene: the run's scene (its cloth net and tick).
+    """
+
+    def __init__(self, scene):
+        self.sim = NetSim(build_topology(scene.cloth), scene.dt)
+        if self.sim.tail_refusal is None:
+            self.sim.modes()  # computed or loaded now, not when the first tail is shown
+        self.start = None  # the tick at which the tail shown started
+        self.at = 0  # the tick self.sim holds
+
+    def show(self, state, tick: int) -> tuple[int, bool, np.ndarray]:
+        """(tick, asleep, knot_pos (n_knots, 3) m) to show of the published net `state` (a
+        net_snapshot_dtype record) with the physics at `tick`."""
+        tail = int(state["tail"])
+        if tail < 0:
+            return int(state["tick"]), bool(state["sleeping"]), state["pos"]
+        start = int(state["tick"]) - tail
+        if start != self.start or self.at > max(tick, int(state["tick"])):
+            self.sim.load_state(state["pos"], state["vel"], False, int(state["quiet_ticks"]), tail)
+            self.start, self.at = start, int(state["tick"])
+        target = max(tick, self.at)
+        self.sim.step_free(target - self.at)
+        self.at = target
+        return target, self.sim.sleeping, self.sim.knot_pos
 
 
 def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
@@ -77,6 +111,7 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
         net_grid = (spec.cols, spec.rows, spec.width, spec.height)
         blocks = net_blocks(arena)
         knots = np.zeros(1, net_snapshot_dtype(spec.cols * spec.rows))
+        view = NetView(scene)
     gateway = Gateway(zctx, config, scene_name=scene.name, best_of=scene.match.best_of, dt=scene.dt,
                       remote_slots=remote, post_input=post_input, seat_store=seat_store,
                       net_grid=net_grid)
@@ -108,9 +143,9 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
             with lock:
                 gateway.service(rec, ack, points)
             if blocks is not None and gateway.net_due() and newest_state(blocks, knots):
-                state = knots[0]
+                shown = view.show(knots[0], gateway.tick)
                 with lock:
-                    gateway.service_net(int(state["tick"]), bool(state["sleeping"]), state["pos"])
+                    gateway.service_net(*shown)
             if start_event is not None and gateway.seats_filled != start_event.is_set():
                 if gateway.seats_filled:
                     start_event.set()  # the physics plays

@@ -58,6 +58,7 @@ NET_IO_DTYPE = np.dtype([
     ("radius", "<f8"), ("inv_mass", "<f8"),  # m, 1/kg
     ("toi", "<f8"), ("impulse", "<f8", 3), ("offset", "<f8", 3),  # NetSim.step's answer
     ("sleeping", "<i8"),  # the net sleeps after this step
+    ("tail_until", "<i8"),  # -1, or the tick at which the linear tail holding the net after this step falls asleep
     ("box", "<f8", (2, 3)),  # m, lo and hi corners of the knots' box after this step (NetSim.box)
     ("granted", "<i8"),  # the physics: the net may step every tick below this without the ball
     ("turn", "<i8"),  # the physics: two a ball tick, odd while its fields are written (a repeated turn counts again)

@@ -31,7 +31,7 @@ import numpy as np
 
 from engine.dtypes import net_snapshot_dtype
 from net_kernel import NetSim, build_topology
-from net_kernel.sim import compile_kernels, net_box
+from net_kernel.sim import compile_kernels
 from processes.runtime.handoff import HandoffTimeout
 from processes.runtime.shm import Arena
 from processes.runtime.control import Control, crash
@@ -64,11 +64,7 @@ def newest_state(blocks, out: np.ndarray, at_most: int | None = None) -> bool:
 
 
 def _load(sim: NetSim, state) -> None:
-    sim.knot_pos[:] = state["pos"]
-    sim.knot_vel[:] = state["vel"]
-    sim.sleeping = bool(state["sleeping"])
-    sim.quiet_ticks = int(state["quiet_ticks"])
-    net_box(sim.knot_pos, out=sim.box)
+    sim.load_state(state["pos"], state["vel"], bool(state["sleeping"]), int(state["quiet_ticks"]), int(state["tail"]))
 
 
 def _publish(sim: NetSim, tick: int, state: np.ndarray, blocks) -> None:
@@ -78,15 +74,29 @@ def _publish(sim: NetSim, tick: int, state: np.ndarray, blocks) -> None:
     row = state[0]
     row["tick"] = tick
     row["sleeping"] = sim.sleeping
-    row["quiet_ticks"] = sim.quiet_ticks
-    row["pos"] = sim.knot_pos
-    row["vel"] = sim.knot_vel
+    tail = sim.tail
+    if tail is None:
+        row["tail"] = -1
+        row["quiet_ticks"] = sim.quiet_ticks
+        row["pos"] = sim.knot_pos
+        row["vel"] = sim.knot_vel
+    else:  # the tail's start and its ticks: the state at `tick` follows from them alone
+        row["tail"] = tail.ticks
+        row["quiet_ticks"] = tail.quiet_ticks
+        row["pos"] = tail.start_pos
+        row["vel"] = tail.start_vel
     blocks[tick % 2].publish(state, tick)
+
+
+def tail_until(sim: NetSim, net_tick: int) -> int:
+    """-1, or the tick (physics ticks done) at which the linear tail holding `sim` at `net_tick` falls asleep."""
+    return -1 if sim.tail is None else net_tick - sim.tail.ticks + sim.tail.sleep_at
 
 
 def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
     """options: net_baton (processes.runtime.handoff.Baton); crash_at_tick, crash_kind (tests: end this process
-    after publishing that ball tick's state and before saying it is done, the hardest moment);
+    after publishing that ball tick's state and before saying it is done, the hardest moment, or
+    after publishing a run of free ticks that holds it: a net in its linear tail, say);
     slow_turn_s (tests: answer each ball tick that much later)."""
     topo = build_topology(scene.cloth)
     sim = NetSim(topo, scene.dt)
@@ -117,6 +127,7 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
                 continue
             t0 = time.perf_counter()
             # First the free ticks granted so far (a nudge, or the ones before a ball tick).
+            free_from = net_tick
             while net_tick < int(row["granted"]):
                 run = min(int(row["granted"]) - net_tick, FREE_BEAT_TICKS)
                 sim.step_free(run)
@@ -126,6 +137,8 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
             if published != net_tick:
                 _publish(sim, net_tick, state, blocks)
                 published = net_tick
+            if options.crash_at_tick is not None and free_from <= options.crash_at_tick < net_tick:
+                crash(options.crash_kind, options.crash_at_tick)  # a free tick's turn: after publishing it
             if stop:
                 busy += time.perf_counter() - t0
                 break
@@ -160,8 +173,11 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
                 newest_state(blocks, state, at_most=tick)
                 _load(sim, state[0])
             elif net_tick < tick:
-                # Ticks the physics skipped because it knew the net asleep: it stays as it is.
-                if not sim.sleeping:
+                # Ticks the physics skipped because it knew the net asleep (it stays as it is) or in
+                # its linear tail with the ball far from the tail's box (they count, as in NetSim.step).
+                if sim.in_tail:
+                    sim.step_free(tick - net_tick)
+                elif not sim.sleeping:
                     raise RuntimeError(f"net worker: asked for tick {tick} at tick {net_tick} while awake; the "
                                        "ticks between were neither granted free nor given")
             contact = sim.step(ball[0], ball[1], radius, inv_mass)
@@ -172,6 +188,7 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
             row["box"] = sim.box
             net_tick = tick + 1
             answered = tick
+            row["tail_until"] = tail_until(sim, net_tick)
             _publish(sim, net_tick, state, blocks)
             published = net_tick
             row["served"] = served
@@ -183,6 +200,7 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
                 crash(options.crash_kind, tick)
             baton.done(tick)
             control.beat(tick)
-        control.finish(busy, 0.0, {"tick": net_tick, "busy_s": busy, "steps": steps, "awake_ticks": sim.awake_ticks})
+        control.finish(busy, 0.0, {"tick": net_tick, "busy_s": busy, "steps": steps, "awake_ticks": sim.awake_ticks,
+                                       "tail_ticks": sim.tail_ticks})
     finally:
         del row, blocks

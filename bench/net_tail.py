@@ -1,0 +1,227 @@
+"""What the net's linear tail costs in accuracy and saves in time: seeded strikes, full kernel against the tail.
+
+Each strike throws a ball into the default match's net (scenes/match.toml: 85 x 8 knots, the
+hanging net) at 5-60 m/s, into the middle, near a post, at the top cord and at the hem, and
+lets the net ring until it sleeps; some strikes send a second ball 3 s later, while the struck
+net is in its tail, towards the top of the net (over it or into it). Every strike runs with
+the full float64 kernel on every awake tick (NetSpec.tail_energy = 0, the reference) and with
+the tail at each energy asked for, and reports: the knots' largest distance from the
+reference's over the whole ring (sampled every SAMPLE_TICKS ticks and at the second ball's
+ticks), the second ball's outcome (over the net or not, its speed after the net, where it
+comes down to the playing surface's height), the tick each net falls asleep, the ticks it spent
+awake and in its tail, and the CPU time per strike (a run of its own without reading the
+knots, which would rebuild the tail's state). The budget: 50 um for the knots (a tenth of a
+knot's radius, net_kernel.sim.KNOT_RADIUS), 1 % for the rebound speed and 1 mm for the
+landing point of the second ball.
+
+    python -m bench.net_tail [--quick] [--energies 5e-6,20e-6,50e-6] [--json]
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import time
+
+import numpy as np
+
+from engine.scene import load_scene
+from net_kernel import NetSim, build_topology
+from net_kernel.sim import BALL_MASS, BALL_RADIUS
+
+DT = 1e-3  # s: the match's tick (scenes/match.toml)
+GRAVITY = 9.81
+SAMPLE_TICKS = 10
+MAX_TICKS = 12_000  # 12 s: every net here sleeps well before
+SECOND_BALL_TICK = 3000  # 3 s after the strike: every strike's net is in its tail by then
+SPEEDS = (5.0, 10.0, 20.0, 30.0, 40.0, 60.0)
+# (y, z) m aimed at: the middle of the mesh, near a post, the top cord, the hem
+POINTS = {"middle": (0.0, 0.08), "post": (0.8, 0.08), "top cord": (0.1, 0.148), "hem": (-0.2, 0.012)}
+ENERGIES = (5e-6, 20e-6, 50e-6)
+BUDGET_M = 50e-6
+BUDGET_SPEED = 0.01
+BUDGET_LANDING_M = 1e-3
+
+
+def strikes(quick: bool = False, seed: int = 0) -> list[dict]:
+    """The seeded strikes: every speed at every point, aimed within 5 mm of it, at up to 10 degrees
+    off the table's axis; a second ball for the 10 and 30 m/s strikes (0.13-0.17 m high, 8-14 m/s)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for where, (y, z) in POINTS.items():
+        for speed in SPEEDS:
+            angle = math.radians(rng.uniform(-10.0, 10.0))
+            shot = {"point": where, "speed": speed, "pos": [-0.06, y + rng.uniform(-5e-3, 5e-3),
+                                                            z + rng.uniform(-5e-3, 5e-3)],
+                    "vel": [speed * math.cos(angle), speed * math.sin(angle), 0.0]}
+            if speed in (10.0, 30.0):
+                second_speed = rng.uniform(8.0, 14.0)
+                shot["second"] = {"pos": [-0.3, rng.uniform(-0.5, 0.5), rng.uniform(0.13, 0.17)],
+                                  "vel": [second_speed, 0.0, 0.5]}
+            out.append(shot)
+    if quick:
+        out = [s for s in out if s["point"] == "middle" and s["speed"] in (10.0, 30.0)]
+    return out
+
+
+def _landing(pos: np.ndarray, vel: np.ndarray) -> np.ndarray:
+    """(x, y) m where a ball at pos with vel comes down to the height of its radius above the table (ballistic)."""
+    a, b, c = -0.5 * GRAVITY, vel[2], pos[2] - BALL_RADIUS
+    t = (-b - math.sqrt(max(b * b - 4 * a * c, 0.0))) / (2 * a)
+    return pos[:2] + vel[:2] * t
+
+
+def run_strike(topo, shot: dict, trace: bool) -> dict:
+    """One strike on a net built from `topo`: its sleep tick, ticks awake and in the tail, CPU
+    seconds, the second ball's outcome, and with `trace` the sampled knot positions."""
+    sim = NetSim(topo, DT)
+    balls = [[np.array(shot["pos"], float), np.array(shot["vel"], float), 0]]
+    second = shot.get("second")
+    samples, sample_ticks = [], []
+    outcome = None
+    asleep = None
+    started = time.process_time()
+    for t in range(MAX_TICKS):
+        if second is not None and t == SECOND_BALL_TICK:
+            balls.append([np.array(second["pos"], float), np.array(second["vel"], float), 0])
+        ball = balls[-1] if len(balls) == 2 or t < 400 else None
+        if ball is None:
+            sim.step_free(1)
+        else:
+            pos, vel = ball[0], ball[1]
+            contact = sim.step(pos, vel)
+            pos += vel * DT + contact.offset
+            vel += contact.impulse / BALL_MASS
+            vel[2] -= GRAVITY * DT
+            ball[2] += 1
+            if len(balls) == 2 and (abs(pos[0]) > 0.25 or pos[2] < BALL_RADIUS):
+                outcome = {"over": bool(pos[0] > 0.0), "speed": float(np.linalg.norm(vel)),
+                           "landing": _landing(pos, vel).tolist()}
+                balls.pop()
+                second = None
+        if trace and (t % SAMPLE_TICKS == 0 or len(balls) == 2):
+            samples.append(sim.knot_pos.copy())
+            sample_ticks.append(t)
+        if sim.sleeping and asleep is None and (second is None or t > SECOND_BALL_TICK):
+            asleep = t + 1
+            if not trace:
+                break
+        if asleep is not None and trace and t >= asleep + SAMPLE_TICKS and len(balls) < 2:
+            break
+    return {"sleep_tick": asleep, "awake_ticks": sim.awake_ticks, "tail_ticks": sim.tail_ticks,
+            "cpu_s": time.process_time() - started, "second": outcome,
+            "samples": np.array(samples) if trace else None, "sample_ticks": sample_ticks}
+
+
+def _error(ref: dict, run: dict) -> float:
+    """m: the largest knot distance between two traced runs at the ticks both sampled (a net that
+    slept holds its frozen shape: compared as it stands)."""
+    ticks = {t: i for i, t in enumerate(run["sample_ticks"])}
+    worst = 0.0
+    last = None
+    for i, t in enumerate(ref["sample_ticks"]):
+        j = ticks.get(t)
+        if j is None:
+            j = last
+        if j is None:
+            continue
+        last = j
+        worst = max(worst, float(np.linalg.norm(ref["samples"][i] - run["samples"][j], axis=1).max()))
+    return worst
+
+
+def study(quick: bool = False, energies=ENERGIES, progress=None) -> dict:
+    """The table: one row per strike and tail energy, with the reference's sleep tick and CPU."""
+    cloth = load_scene("match").cloth
+    reference_topo = build_topology(dataclasses.replace(cloth, tail_energy=0.0))
+    topos = {e: build_topology(dataclasses.replace(cloth, tail_energy=e)) for e in energies}
+    NetSim(topos[energies[0]], DT).modes()  # computed or loaded before any timing
+    run_strike(reference_topo, strikes(True)[0], False)  # kernels compiled or loaded before any timing
+    rows = []
+    for shot in strikes(quick):
+        if progress:
+            progress(f"{shot['speed']:g} m/s at the {shot['point']}")
+        ref_timed = run_strike(reference_topo, shot, False)
+        ref = run_strike(reference_topo, shot, True)
+        for energy, topo in topos.items():
+            timed = run_strike(topo, shot, False)
+            traced = run_strike(topo, shot, True)
+            row = {"point": shot["point"], "speed_m_s": shot["speed"], "tail_energy_J": energy,
+                   "knot_error_m": _error(ref, traced), "sleep_tick": timed["sleep_tick"],
+                   "reference_sleep_tick": ref_timed["sleep_tick"], "awake_ticks": timed["awake_ticks"],
+                   "tail_ticks": timed["tail_ticks"], "reference_awake_ticks": ref_timed["awake_ticks"],
+                   "cpu_s": timed["cpu_s"], "reference_cpu_s": ref_timed["cpu_s"]}
+            if ref["second"] is not None:
+                a, b = ref["second"], traced["second"]
+                row["second_ball"] = {
+                    "over": a["over"], "same_side": b is not None and a["over"] == b["over"],
+                    "speed_error": abs(b["speed"] - a["speed"]) / a["speed"] if b else math.inf,
+                    "landing_error_m": float(np.hypot(*np.subtract(b["landing"], a["landing"]))) if b else math.inf}
+            rows.append(row)
+    return {"net": f"{cloth.cols} x {cloth.rows}", "dt_s": DT, "sample_ticks": SAMPLE_TICKS, "rows": rows,
+            "summary": summarise(rows, energies)}
+
+
+def summarise(rows: list[dict], energies) -> list[dict]:
+    """Per tail energy: the worst knot error, the second balls' worst errors, the share of awake
+    ticks and of CPU against the reference, whether it keeps every budget."""
+    out = []
+    for energy in energies:
+        mine = [r for r in rows if r["tail_energy_J"] == energy]
+        balls = [r["second_ball"] for r in mine if "second_ball" in r]
+        worst = max(r["knot_error_m"] for r in mine)
+        speed = max((b["speed_error"] for b in balls), default=0.0)
+        landing = max((b["landing_error_m"] for b in balls), default=0.0)
+        same = all(b["same_side"] for b in balls)
+        out.append({"tail_energy_J": energy, "strikes": len(mine), "worst_knot_error_m": worst,
+                    "second_balls": len(balls), "second_same_side": same, "worst_speed_error": speed,
+                    "worst_landing_error_m": landing,
+                    "awake_share": sum(r["awake_ticks"] for r in mine) / sum(r["reference_awake_ticks"] for r in mine),
+                    "cpu_share": sum(r["cpu_s"] for r in mine) / sum(r["reference_cpu_s"] for r in mine),
+                    "sleep_later_ticks_median": float(np.median([r["sleep_tick"] - r["reference_sleep_tick"]
+                                                                 for r in mine])),
+                    "within_budget": bool(worst <= BUDGET_M and same and speed <= BUDGET_SPEED
+                                          and landing <= BUDGET_LANDING_M)})
+    return out
+
+
+def markdown(result: dict) -> str:
+    """The summary as a Markdown table."""
+    lines = ["| tail energy | strikes | worst knot error | second balls: same side, speed, landing | "
+             "awake ticks | CPU | sleeps later (median) | within budget |",
+             "|---|---|---|---|---|---|---|---|"]
+    for s in result["summary"]:
+        lines.append(f"| {s['tail_energy_J'] * 1e6:g} uJ | {s['strikes']} | {s['worst_knot_error_m'] * 1e6:.1f} um | "
+                     f"{s['second_balls']}: {'yes' if s['second_same_side'] else 'NO'}, "
+                     f"{s['worst_speed_error'] * 100:.3f} %, {s['worst_landing_error_m'] * 1e3:.3f} mm | "
+                     f"{s['awake_share'] * 100:.0f} % | {s['cpu_share'] * 100:.0f} % | "
+                     f"{s['sleep_later_ticks_median'] * DT:.2f} s | {'yes' if s['within_budget'] else 'no'} |")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0],
+                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser.add_argument("--quick", action="store_true", help="two strikes (smoke runs)")
+    parser.add_argument("--energies", default=",".join(f"{e:g}" for e in ENERGIES),
+                        help="tail energies (J), comma-separated")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    args = parser.parse_args(argv)
+    try:
+        energies = tuple(float(e) for e in args.energies.split(","))
+    except ValueError:
+        parser.error(f"--energies {args.energies!r}: give numbers in J, e.g. 5e-6,20e-6")
+    if not energies or any(not (math.isfinite(e) and e > 0) for e in energies):
+        parser.error(f"--energies {args.energies!r}: every energy must be a finite number of J > 0")
+    result = study(args.quick, energies, progress=None if args.json else print)
+    if args.json:
+        print(json.dumps(result, default=lambda v: None))
+    else:
+        print(f"net {result['net']}, tick {result['dt_s'] * 1e3:g} ms, knots sampled every {result['sample_ticks']} ticks")
+        print(markdown(result))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,240 @@
+"""The net's linear tail in closed form: energy, modal coordinates, the state at any tick, sleep.
+
+net_kernel/modes.py derives the modes; these kernels use them. Symbols: n_out out-of-plane
+modes, each with tick eigenvalue mu = exp(log_r + i theta) and eigenvector (1, e) on
+(q, q'), its state after n ticks q(n) = 2 Re(c mu^n), q'(n) = 2 Re(c e mu^n); 2K in-plane
+eigenvalues mu_k with coefficients w_k, the in-plane state u_yz(n) = Re(P (w mu^n)),
+v_yz(n) = Re(V (w mu^n)). Shapes are stored mode-major ((modes, dofs), C order) so each
+mode adds a contiguous row. Serial loops in a fixed order, fastmath off: the same bits in every
+process. No kernel allocates.
+"""
+import math
+
+from numba import njit
+
+from net_kernel.kernels.grid import FREE_AWAKE, step_grid_free
+
+
+@njit(cache=True, fastmath=False)
+def potential_energy(knot_pos, knot_mass, knot_inv_mass, spring_ij, spring_rest, spring_k, gravity):
+    """J: sum of 0.5 k (|L| - L_rest)^2 over the springs plus m g z over the free knots.
+
+    knot_pos: (n_knots, 3) m (any strides). Serial, in spring then knot order.
+    """
+    e = 0.0
+    for s in range(spring_ij.shape[0]):
+        i, j = spring_ij[s, 0], spring_ij[s, 1]
+        d0 = knot_pos[j, 0] - knot_pos[i, 0]
+        d1 = knot_pos[j, 1] - knot_pos[i, 1]
+        d2 = knot_pos[j, 2] - knot_pos[i, 2]
+        stretch = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2) - spring_rest[s]
+        e += 0.5 * spring_k[s] * stretch * stretch
+    for i in range(knot_pos.shape[0]):
+        if knot_inv_mass[i] != 0.0:
+            e += knot_mass[i] * gravity * knot_pos[i, 2]
+    return e
+
+
+@njit(cache=True, fastmath=False)
+def motion_energy(knot_pos, knot_vel, knot_mass, knot_inv_mass, spring_ij, spring_rest, spring_k, gravity,
+                  rest_energy, limit):
+    """J: kinetic energy plus potential energy above `rest_energy`, the energy of the net's motion.
+
+    The kinetic part is summed first: when it alone exceeds `limit` (J) the potential part is
+    not computed and the kinetic part is returned (the caller asks "is it below limit?").
+    """
+    kinetic = 0.0
+    for i in range(knot_pos.shape[0]):
+        if knot_inv_mass[i] != 0.0:
+            kinetic += 0.5 * knot_mass[i] * (knot_vel[i, 0] * knot_vel[i, 0] + knot_vel[i, 1] * knot_vel[i, 1]
+                                             + knot_vel[i, 2] * knot_vel[i, 2])
+    if kinetic > limit:
+        return kinetic
+    return kinetic + potential_energy(knot_pos, knot_mass, knot_inv_mass, spring_ij, spring_rest, spring_k,
+                                      gravity) - rest_energy
+
+
+@njit(cache=True, fastmath=False)
+def modal_coefficients(knot_pos, knot_vel, rest_pos, free, out_proj, out_e, in_proj, in_inverse, out_c, in_w,
+                       in_scratch):
+    """The modal coefficients of a state: out_c (n_out,) complex and in_w (2K,) complex, written.
+
+    knot_pos, knot_vel: (n_knots, 3) m, m/s. out_proj: (n_out, n_free); in_proj: (K, 2 n_free);
+    in_inverse: (2K, 2K) complex; in_scratch: (2K,) float.
+    """
+    n_out, n_free = out_proj.shape
+    for m in range(n_out):
+        q = 0.0
+        p = 0.0
+        for a in range(n_free):
+            j = free[a]
+            q += out_proj[m, a] * (knot_pos[j, 0] - rest_pos[j, 0])
+            p += out_proj[m, a] * knot_vel[j, 0]
+        e = out_e[m]
+        re = 0.5 * q
+        out_c[m] = complex(re, (re * e.real - 0.5 * p) / e.imag)
+    k = in_proj.shape[0]
+    for m in range(k):
+        a_m = 0.0
+        b_m = 0.0
+        for a in range(n_free):
+            j = free[a]
+            for axis in range(2):
+                w = in_proj[m, 2 * a + axis]
+                a_m += w * (knot_pos[j, 1 + axis] - rest_pos[j, 1 + axis])
+                b_m += w * knot_vel[j, 1 + axis]
+        in_scratch[m] = a_m
+        in_scratch[k + m] = b_m
+    for r in range(2 * k):
+        acc = 0j
+        for m in range(2 * k):
+            acc += in_inverse[r, m] * in_scratch[m]
+        in_w[r] = acc
+
+
+@njit(cache=True, fastmath=False)
+def _powers(ticks, out_c, out_e, out_log_r, out_theta, in_w, in_log_r, in_theta, q, p, xi):
+    """Modal state after `ticks` ticks: q, p (n_out,) float and xi (2K,) complex, written."""
+    for m in range(out_c.shape[0]):
+        r = math.exp(ticks * out_log_r[m])
+        angle = ticks * out_theta[m]
+        z = out_c[m] * complex(r * math.cos(angle), r * math.sin(angle))
+        q[m] = 2.0 * z.real
+        p[m] = 2.0 * (z * out_e[m]).real
+    for m in range(in_w.shape[0]):
+        r = math.exp(ticks * in_log_r[m])
+        angle = ticks * in_theta[m]
+        xi[m] = in_w[m] * complex(r * math.cos(angle), r * math.sin(angle))
+
+
+@njit(cache=True, fastmath=False)
+def modal_state(ticks, rest_pos, free, out_shape, out_c, out_e, out_log_r, out_theta, in_pos, in_vel, in_w,
+                in_log_r, in_theta, q, p, xi, knot_pos, knot_vel):
+    """The linear state `ticks` ticks after the coefficients' state, into knot_pos and knot_vel.
+
+    out_shape: (n_out, n_free) m; in_pos, in_vel: (2K, 2 n_free) complex (mode-major);
+    q, p: (n_out,) and xi: (2K,) complex scratch. Fixed knots get their rest place and no velocity.
+    """
+    _powers(ticks, out_c, out_e, out_log_r, out_theta, in_w, in_log_r, in_theta, q, p, xi)
+    for j in range(knot_pos.shape[0]):
+        for axis in range(3):
+            knot_pos[j, axis] = rest_pos[j, axis]
+            knot_vel[j, axis] = 0.0
+    n_free = free.shape[0]
+    for m in range(out_shape.shape[0]):
+        qm = q[m]
+        pm = p[m]
+        for a in range(n_free):
+            knot_pos[free[a], 0] += out_shape[m, a] * qm
+            knot_vel[free[a], 0] += out_shape[m, a] * pm
+    for m in range(xi.shape[0]):
+        xr = xi[m].real
+        xm = xi[m].imag
+        for a in range(n_free):
+            j = free[a]
+            for axis in range(2):
+                c = 2 * a + axis
+                knot_pos[j, 1 + axis] += in_pos[m, c].real * xr - in_pos[m, c].imag * xm
+                knot_vel[j, 1 + axis] += in_vel[m, c].real * xr - in_vel[m, c].imag * xm
+
+
+@njit(cache=True, fastmath=False)
+def modal_bounds(out_shape_abs, out_c, out_e, in_pos_abs, in_vel_abs, in_w, disp, speed):
+    """Per free knot and axis, bounds on the tail's displacement (disp) and velocity (speed) at
+    the coefficients' tick, (n_free, 3) m and m/s, written: sums of |shape| |coefficient| over
+    the modes (the triangle inequality). Every mode decays (|mu| <= 1), so a bound times the
+    slowest mode's decay after n ticks bounds the motion from then on. *_abs: the modes' shapes'
+    absolute values (NetModes)."""
+    n_free = disp.shape[0]
+    for a in range(n_free):
+        for axis in range(3):
+            disp[a, axis] = 0.0
+            speed[a, axis] = 0.0
+    for m in range(out_shape_abs.shape[0]):
+        cq = 2.0 * abs(out_c[m])
+        cp = 2.0 * abs(out_c[m] * out_e[m])
+        for a in range(n_free):
+            disp[a, 0] += out_shape_abs[m, a] * cq
+            speed[a, 0] += out_shape_abs[m, a] * cp
+    for m in range(in_w.shape[0]):
+        w = abs(in_w[m])
+        for a in range(n_free):
+            for axis in range(2):
+                disp[a, 1 + axis] += in_pos_abs[m, 2 * a + axis] * w
+                speed[a, 1 + axis] += in_vel_abs[m, 2 * a + axis] * w
+
+
+@njit(cache=True, fastmath=False)
+def quiet_from(sleep_speed, max_ticks, out_log_r, in_log_r, speed):
+    """The first tick n >= 1 (after the coefficients' state) from which no knot of the tail can be
+    as fast as sleep_speed again, by the bounds (speed: modal_bounds' (n_free, 3) m/s, decaying
+    at the slowest mode's rate of each plane), found by bisection; max_ticks if not before it.
+    """
+    r_out = -math.inf
+    for m in range(out_log_r.shape[0]):
+        r_out = max(r_out, out_log_r[m])
+    r_in = -math.inf
+    for m in range(in_log_r.shape[0]):
+        r_in = max(r_in, in_log_r[m])
+    r_out = min(r_out, 0.0)
+    r_in = min(r_in, 0.0)
+    limit2 = sleep_speed * sleep_speed
+    lo, hi = 0, 1  # bound(lo) loud or lo = 0; probe hi
+    while True:
+        if not _loud(speed, math.exp(hi * r_out), math.exp(hi * r_in), limit2):
+            break
+        if hi >= max_ticks:
+            return max_ticks
+        lo, hi = hi, min(2 * hi, max_ticks)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if _loud(speed, math.exp(mid * r_out), math.exp(mid * r_in), limit2):
+            lo = mid
+        else:
+            hi = mid
+    return hi
+
+
+@njit(cache=True, fastmath=False)
+def _loud(speed, decay_out, decay_in, limit2):
+    """Can any knot be as fast as sqrt(limit2) m/s, its bounds decayed by these factors?"""
+    for a in range(speed.shape[0]):
+        bx = speed[a, 0] * decay_out
+        by = speed[a, 1] * decay_in
+        bz = speed[a, 2] * decay_in
+        if bx * bx + by * by + bz * bz >= limit2:
+            return True
+    return False
+
+
+# step_grid_free_tail's status beyond kernels.grid's FREE_*: the motion's energy fell to the tail's.
+FREE_TAIL = 4
+
+
+@njit(cache=True, fastmath=False, error_model="numpy")
+def step_grid_free_tail(knot_state, grid_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks,
+                        sleep_speed, sleep_ticks, quiet_ticks, reach, box, knot_mass, knot_inv_mass, spring_ij,
+                        spring_rest, spring_k, rest_energy, tail_energy):
+    """kernels.grid.step_grid_free, tick by tick, stopping also after the first tick whose motion
+    energy (motion_energy) is at most tail_energy J (status FREE_TAIL): the same ticks and bits.
+
+    Args beyond step_grid_free's: knot_mass, knot_inv_mass (n_knots,) kg, 1/kg in knot order;
+    spring_ij, spring_rest, spring_k: the topology's springs; rest_energy: J (NetModes).
+
+    Returns:
+        (ticks taken, quiet_ticks after them, FREE_* or FREE_TAIL status).
+    """
+    n = knot_state.shape[2] * knot_state.shape[3]
+    pos = knot_state[0].reshape(3, n).T
+    vel = knot_state[1].reshape(3, n).T
+    taken = 0
+    while taken < ticks:
+        t, quiet_ticks, status = step_grid_free(knot_state, grid_inv_mass, grid_params, gravity, drag, h, substeps,
+                                                grid_work, 1, sleep_speed, sleep_ticks, quiet_ticks, reach, box)
+        taken += t
+        if status != FREE_AWAKE:
+            return taken, quiet_ticks, status
+        if motion_energy(pos, vel, knot_mass, knot_inv_mass, spring_ij, spring_rest, spring_k, gravity, rest_energy,
+                         tail_energy) <= tail_energy:
+            return taken, quiet_ticks, FREE_TAIL
+    return taken, quiet_ticks, FREE_AWAKE
