@@ -25,8 +25,9 @@ in-plane modes) is stiff and strongly damped by the dashpots; the tail starts on
 energy that bounds what they can carry.
 
 These are the sim's own scheme's modes, not the continuous system's (expm of the ODE drifts
-further from what NetSim steps). They are computed once per (net, tick, substeps) and kept in
-memory and on disk beside numba's cache, so every process of a run uses the same bytes.
+further from what NetSim steps). They are computed once per (net, tick, substeps) on one BLAS
+thread (LAPACK's bits depend on the thread count) and kept in memory and on disk beside
+numba's cache, so every process of a run uses the same bytes.
 """
 from __future__ import annotations
 
@@ -37,6 +38,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from net_kernel.kernels.modal import potential_energy
 from net_kernel.kernels.table import TABLE_Z
@@ -57,7 +59,7 @@ _REST_FORCE_TOL = 1e-9
 # m: a rest shape whose knots leave the plane x = 0 by more than this is not flat (a buckled or
 # custom net): its planes couple at first order, and it gets no tail.
 _FLAT_TOL = 1e-12
-_CACHE_VERSION = 1
+_CACHE_VERSION = 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -70,12 +72,13 @@ class NetModes:
         rest_energy: J, the potential energy (springs and gravity) at rest_pos (kernels.modal).
         out_shape: (n_out, n_free) m per unit modal coordinate, mode-major: u_x = out_shape.T @ q;
             out_shape_abs its absolute values (the tail's bounds, kernels.modal.modal_bounds).
-        out_proj: (n_out, n_free): q = out_proj @ u_x (the mass-weighted inverse of out_shape.T).
+        out_proj: (n_free, n_out), knot-major: q = out_proj.T @ u_x (the mass-weighted inverse of out_shape.T).
         out_log_r, out_theta: (n_out,) ln |mu| and arg mu of each out-of-plane mode's tick eigenvalue.
         out_e: (n_out,) complex, the eigenvector's velocity component (its position component is 1).
-        in_proj: (K, 2 n_free): a = in_proj @ u_yz, u_yz the (y, z) of each free knot in turn.
-        in_pos, in_vel: (2K, 2 n_free) complex, mode-major: u_yz(n) = Re(in_pos.T @ (w mu^n)), v_yz
-            likewise; in_pos_abs, in_vel_abs their absolute values.
+        in_proj: (2 n_free, K), knot-major: a = in_proj.T @ u_yz, u_yz the (y, z) of each free knot in turn.
+        in_pos, in_vel: (2, 2K, 2 n_free), the real and imaginary parts of the in-plane shapes P and
+            V, mode-major: u_yz(n) = Re(P.T @ (w mu^n)), v_yz likewise; in_pos_abs, in_vel_abs
+            (2K, 2 n_free) their absolute values.
         in_inverse: (2K, 2K) complex: w = in_inverse @ (a, a') at the start.
         in_log_r, in_theta: (2K,) ln |mu| and arg mu of the in-plane tick eigenvalues.
         dt, substeps: the tick (s) and its substeps these modes step.
@@ -149,7 +152,10 @@ def net_modes(topo: NetTopology, dt: float, substeps: int) -> NetModes:
         modes = _load(path, dt, substeps) if path is not None else None
         if modes is None:
             try:
-                modes = build_modes(topo, dt, substeps)
+                # One BLAS thread: LAPACK's results depend on how many threads share the work, and
+                # every process of a run must hold the same bits.
+                with threadpool_limits(limits=1, user_api="blas"):
+                    modes = build_modes(topo, dt, substeps)
             except ValueError as exc:
                 modes = str(exc)
             if path is not None and not isinstance(modes, str):
@@ -197,15 +203,16 @@ def build_modes(topo: NetTopology, dt: float, substeps: int) -> NetModes:
     vals, vecs = np.linalg.eig(np.linalg.matrix_power(step, substeps))
     in_shape = psi / root2[:, None]
     out_shape = (phi / root[:, None]).T
-    in_pos, in_vel = (in_shape @ vecs[:k]).T, (in_shape @ vecs[k:]).T
+    in_pos, in_vel = (in_shape @ vecs[:k]).T, (in_shape @ vecs[k:]).T  # (2K, 2 n_free) complex
     return NetModes(
         rest_pos=_read_only(x0), free=_read_only(free),
         rest_energy=float(potential_energy(x0, topo.knot_mass, topo.knot_inv_mass, topo.spring_ij, topo.spring_rest,
                                            topo.spring_k, topo.spec.gravity)),
-        out_shape=_read_only(out_shape), out_shape_abs=_read_only(np.abs(out_shape)), out_proj=_read_only(phi.T * root[None, :]),
+        out_shape=_read_only(out_shape), out_shape_abs=_read_only(np.abs(out_shape)), out_proj=_read_only(phi * root[:, None]),
         out_log_r=_read_only(np.log(np.abs(mu_tick))), out_theta=_read_only(np.angle(mu_tick)),
-        out_e=_read_only(out_e), in_proj=_read_only(psi.T * root2[None, :]),
-        in_pos=_read_only(in_pos), in_vel=_read_only(in_vel), in_pos_abs=_read_only(np.abs(in_pos)),
+        out_e=_read_only(out_e), in_proj=_read_only(psi * root2[:, None]),
+        in_pos=_read_only(np.stack([in_pos.real, in_pos.imag])), in_vel=_read_only(np.stack([in_vel.real, in_vel.imag])),
+        in_pos_abs=_read_only(np.abs(in_pos)),
         in_vel_abs=_read_only(np.abs(in_vel)),
         in_inverse=_read_only(np.linalg.inv(vecs)), in_log_r=_read_only(np.log(np.abs(vals))),
         in_theta=_read_only(np.angle(vals)), dt=float(dt), substeps=int(substeps))

@@ -508,44 +508,40 @@ def step_grid_free_tail(knot_state, grid_inv_mass, grid_params, gravity, drag, h
     return taken, quiet_ticks, FREE_AWAKE
 
 
-def modal_coefficients(knot_pos, knot_vel, rest_pos, free, out_proj, out_e, in_proj, in_inverse, out_c, in_w,
-                       in_scratch):
+def modal_coefficients(knot_pos, knot_vel, rest_pos, free, out_proj, out_e, in_proj, in_inverse, out_c, in_w, q, p,
+                       in_scratch, dofs):
     """Numpy twin of kernels.modal_coefficients (to rounding)."""
-    q = out_proj @ (knot_pos[free, 0] - rest_pos[free, 0])
-    p = out_proj @ knot_vel[free, 0]
+    q[:] = out_proj.T @ (knot_pos[free, 0] - rest_pos[free, 0])
+    p[:] = out_proj.T @ knot_vel[free, 0]
     out_c[:] = 0.5 * q + 1j * (0.5 * q * out_e.real - 0.5 * p) / out_e.imag
-    k = in_proj.shape[0]
-    in_scratch[:k] = in_proj @ (knot_pos[free, 1:] - rest_pos[free, 1:]).ravel()
-    in_scratch[k:] = in_proj @ knot_vel[free, 1:].ravel()
+    k = in_proj.shape[1]
+    in_scratch[:k] = in_proj.T @ (knot_pos[free, 1:] - rest_pos[free, 1:]).ravel()
+    in_scratch[k:] = in_proj.T @ knot_vel[free, 1:].ravel()
     in_w[:] = in_inverse @ in_scratch
 
 
-def _modal_powers(ticks, out_c, out_log_r, out_theta, in_w, in_log_r, in_theta):
-    z = out_c * np.exp(ticks * out_log_r) * (np.cos(ticks * out_theta) + 1j * np.sin(ticks * out_theta))
-    xi = in_w * np.exp(ticks * in_log_r) * (np.cos(ticks * in_theta) + 1j * np.sin(ticks * in_theta))
-    return z, xi
-
-
 def modal_state(ticks, rest_pos, free, out_shape, out_c, out_e, out_log_r, out_theta, in_pos, in_vel, in_w,
-                in_log_r, in_theta, q, p, xi, knot_pos, knot_vel):
+                in_log_r, in_theta, q, p, xi, dofs, knot_pos, knot_vel):
     """Numpy twin of kernels.modal_state (to rounding)."""
-    z, xi[:] = _modal_powers(ticks, out_c, out_log_r, out_theta, in_w, in_log_r, in_theta)
+    z = out_c * np.exp(ticks * out_log_r) * (np.cos(ticks * out_theta) + 1j * np.sin(ticks * out_theta))
+    w = in_w * np.exp(ticks * in_log_r) * (np.cos(ticks * in_theta) + 1j * np.sin(ticks * in_theta))
     q[:] = 2.0 * z.real
     p[:] = 2.0 * (z * out_e).real
+    xi[0], xi[1] = w.real, w.imag
     knot_pos[:] = rest_pos
     knot_vel[:] = 0.0
     knot_pos[free, 0] += out_shape.T @ q
     knot_vel[free, 0] += out_shape.T @ p
-    knot_pos[free, 1:] += (in_pos.T @ xi).real.reshape(-1, 2)
-    knot_vel[free, 1:] += (in_vel.T @ xi).real.reshape(-1, 2)
+    knot_pos[free, 1:] += (in_pos[0].T @ xi[0] - in_pos[1].T @ xi[1]).reshape(-1, 2)
+    knot_vel[free, 1:] += (in_vel[0].T @ xi[0] - in_vel[1].T @ xi[1]).reshape(-1, 2)
 
 
 def modal_bounds(out_shape_abs, out_c, out_e, in_pos_abs, in_vel_abs, in_w, disp, speed):
     """Numpy twin of kernels.modal_bounds (to rounding)."""
-    disp[:, 0] = out_shape_abs.T @ (2.0 * np.abs(out_c))
-    speed[:, 0] = out_shape_abs.T @ (2.0 * np.abs(out_c * out_e))
-    disp[:, 1:] = (in_pos_abs.T @ np.abs(in_w)).reshape(-1, 2)
-    speed[:, 1:] = (in_vel_abs.T @ np.abs(in_w)).reshape(-1, 2)
+    disp[0] = out_shape_abs.T @ (2.0 * np.abs(out_c))
+    speed[0] = out_shape_abs.T @ (2.0 * np.abs(out_c * out_e))
+    disp[1:] = (in_pos_abs.T @ np.abs(in_w)).reshape(-1, 2).T
+    speed[1:] = (in_vel_abs.T @ np.abs(in_w)).reshape(-1, 2).T
 
 
 def quiet_from(sleep_speed, max_ticks, out_log_r, in_log_r, speed):
@@ -553,8 +549,8 @@ def quiet_from(sleep_speed, max_ticks, out_log_r, in_log_r, speed):
     r_out, r_in = min(float(out_log_r.max()), 0.0), min(float(in_log_r.max()), 0.0)
 
     def loud(n):
-        scale = np.array([math.exp(n * r_out), math.exp(n * r_in), math.exp(n * r_in)])
-        return bool((np.einsum("ij,ij->i", speed * scale, speed * scale) >= sleep_speed * sleep_speed).any())
+        scaled = speed * np.array([[math.exp(n * r_out)], [math.exp(n * r_in)], [math.exp(n * r_in)]])
+        return bool((np.einsum("ij,ij->j", scaled, scaled) >= sleep_speed * sleep_speed).any())
 
     lo, hi = 0, 1
     while loud(hi):

@@ -49,8 +49,9 @@ class LinearTail:
         self._in_w = np.zeros(k2, dtype=np.complex128)
         self._in_scratch = np.zeros(k2)
         self._q, self._p = np.zeros(n_out), np.zeros(n_out)
-        self._xi = np.zeros(k2, dtype=np.complex128)
-        self._disp, self._speed = np.zeros((n_free, 3)), np.zeros((n_free, 3))
+        self._xi = np.zeros((2, k2))
+        self._dofs = np.zeros((4, 2 * n_free))
+        self._disp, self._speed = np.zeros((3, n_free)), np.zeros((3, n_free))
         self.start_pos, self.start_vel = np.zeros((n_knots, 3)), np.zeros((n_knots, 3))
         self.box = np.zeros((2, 3))
         self.ticks = 0
@@ -67,14 +68,15 @@ class LinearTail:
         self.start_vel[:] = knot_vel
         k = self._kernels
         k.modal_coefficients(self.start_pos, self.start_vel, m.rest_pos, m.free, m.out_proj, m.out_e, m.in_proj,
-                           m.in_inverse, self._out_c, self._in_w, self._in_scratch)
+                             m.in_inverse, self._out_c, self._in_w, self._q, self._p, self._in_scratch, self._dofs)
         k.modal_bounds(m.out_shape_abs, self._out_c, m.out_e, m.in_pos_abs, m.in_vel_abs, self._in_w, self._disp,
                      self._speed)
         rest = m.rest_pos[m.free]
-        if float((rest[:, 2] - self._disp[:, 2]).min()) <= TABLE_Z:
+        disp = self._disp.T
+        if float((rest[:, 2] - disp[:, 2]).min()) <= TABLE_Z:
             return False
-        np.minimum((rest - self._disp).min(axis=0), m.rest_pos.min(axis=0), out=self.box[0])
-        np.maximum((rest + self._disp).max(axis=0), m.rest_pos.max(axis=0), out=self.box[1])
+        np.minimum((rest - disp).min(axis=0), m.rest_pos.min(axis=0), out=self.box[0])
+        np.maximum((rest + disp).max(axis=0), m.rest_pos.max(axis=0), out=self.box[1])
         quiet = k.quiet_from(sleep_speed, MAX_TAIL_TICKS, m.out_log_r, m.in_log_r, self._speed)
         if quiet == 1:  # quiet from the first tick on: the count goes on from the switch's
             self.sleep_at = max(1, sleep_ticks - quiet_ticks)
@@ -90,5 +92,5 @@ class LinearTail:
         """The tail's knot state `ticks` ticks after the switch, into knot_pos and knot_vel ((n_knots, 3) views)."""
         m = self.modes
         self._kernels.modal_state(int(ticks), m.rest_pos, m.free, m.out_shape, self._out_c, m.out_e, m.out_log_r, m.out_theta,
-                    m.in_pos, m.in_vel, self._in_w, m.in_log_r, m.in_theta, self._q, self._p, self._xi, knot_pos,
-                    knot_vel)
+                                  m.in_pos, m.in_vel, self._in_w, m.in_log_r, m.in_theta, self._q, self._p, self._xi,
+                                  self._dofs, knot_pos, knot_vel)

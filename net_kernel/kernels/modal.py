@@ -55,36 +55,49 @@ def motion_energy(knot_pos, knot_vel, knot_mass, knot_inv_mass, spring_ij, sprin
 
 
 @njit(cache=True, fastmath=False)
-def modal_coefficients(knot_pos, knot_vel, rest_pos, free, out_proj, out_e, in_proj, in_inverse, out_c, in_w,
-                       in_scratch):
+def _gather(knot_pos, knot_vel, rest_pos, free, dofs):
+    """The free knots' displacement and velocity into dofs (4, 2 n_free): rows u_x, v_x (first
+    n_free columns), u_yz, v_yz ((y, z) of each free knot in turn)."""
+    for a in range(free.shape[0]):
+        j = free[a]
+        dofs[0, a] = knot_pos[j, 0] - rest_pos[j, 0]
+        dofs[1, a] = knot_vel[j, 0]
+        for axis in range(2):
+            dofs[2, 2 * a + axis] = knot_pos[j, 1 + axis] - rest_pos[j, 1 + axis]
+            dofs[3, 2 * a + axis] = knot_vel[j, 1 + axis]
+
+
+@njit(cache=True, fastmath=False)
+def modal_coefficients(knot_pos, knot_vel, rest_pos, free, out_proj, out_e, in_proj, in_inverse, out_c, in_w, q, p,
+                       in_scratch, dofs):
     """The modal coefficients of a state: out_c (n_out,) complex and in_w (2K,) complex, written.
 
-    knot_pos, knot_vel: (n_knots, 3) m, m/s. out_proj: (n_out, n_free); in_proj: (K, 2 n_free);
-    in_inverse: (2K, 2K) complex; in_scratch: (2K,) float.
+    knot_pos, knot_vel: (n_knots, 3) m, m/s. out_proj: (n_free, n_out) knot-major; in_proj:
+    (2 n_free, K); in_inverse: (2K, 2K) complex. Scratch: q, p (n_out,), in_scratch (2K,),
+    dofs (4, 2 n_free). Each knot adds its row in turn (a contiguous pass over the modes).
     """
-    n_out, n_free = out_proj.shape
+    n_free, n_out = out_proj.shape
+    k = in_proj.shape[1]
+    _gather(knot_pos, knot_vel, rest_pos, free, dofs)
+    q[:] = 0.0
+    p[:] = 0.0
+    for a in range(n_free):
+        u = dofs[0, a]
+        v = dofs[1, a]
+        for m in range(n_out):
+            q[m] += out_proj[a, m] * u
+            p[m] += out_proj[a, m] * v
     for m in range(n_out):
-        q = 0.0
-        p = 0.0
-        for a in range(n_free):
-            j = free[a]
-            q += out_proj[m, a] * (knot_pos[j, 0] - rest_pos[j, 0])
-            p += out_proj[m, a] * knot_vel[j, 0]
         e = out_e[m]
-        re = 0.5 * q
-        out_c[m] = complex(re, (re * e.real - 0.5 * p) / e.imag)
-    k = in_proj.shape[0]
-    for m in range(k):
-        a_m = 0.0
-        b_m = 0.0
-        for a in range(n_free):
-            j = free[a]
-            for axis in range(2):
-                w = in_proj[m, 2 * a + axis]
-                a_m += w * (knot_pos[j, 1 + axis] - rest_pos[j, 1 + axis])
-                b_m += w * knot_vel[j, 1 + axis]
-        in_scratch[m] = a_m
-        in_scratch[k + m] = b_m
+        re = 0.5 * q[m]
+        out_c[m] = complex(re, (re * e.real - 0.5 * p[m]) / e.imag)
+    in_scratch[:] = 0.0
+    for r in range(2 * n_free):
+        u = dofs[2, r]
+        v = dofs[3, r]
+        for m in range(k):
+            in_scratch[m] += in_proj[r, m] * u
+            in_scratch[k + m] += in_proj[r, m] * v
     for r in range(2 * k):
         acc = 0j
         for m in range(2 * k):
@@ -94,7 +107,7 @@ def modal_coefficients(knot_pos, knot_vel, rest_pos, free, out_proj, out_e, in_p
 
 @njit(cache=True, fastmath=False)
 def _powers(ticks, out_c, out_e, out_log_r, out_theta, in_w, in_log_r, in_theta, q, p, xi):
-    """Modal state after `ticks` ticks: q, p (n_out,) float and xi (2K,) complex, written."""
+    """Modal state after `ticks` ticks: q, p (n_out,) float and xi (2, 2K) float (real, imaginary), written."""
     for m in range(out_c.shape[0]):
         r = math.exp(ticks * out_log_r[m])
         angle = ticks * out_theta[m]
@@ -104,70 +117,77 @@ def _powers(ticks, out_c, out_e, out_log_r, out_theta, in_w, in_log_r, in_theta,
     for m in range(in_w.shape[0]):
         r = math.exp(ticks * in_log_r[m])
         angle = ticks * in_theta[m]
-        xi[m] = in_w[m] * complex(r * math.cos(angle), r * math.sin(angle))
+        z = in_w[m] * complex(r * math.cos(angle), r * math.sin(angle))
+        xi[0, m] = z.real
+        xi[1, m] = z.imag
 
 
 @njit(cache=True, fastmath=False)
 def modal_state(ticks, rest_pos, free, out_shape, out_c, out_e, out_log_r, out_theta, in_pos, in_vel, in_w,
-                in_log_r, in_theta, q, p, xi, knot_pos, knot_vel):
+                in_log_r, in_theta, q, p, xi, dofs, knot_pos, knot_vel):
     """The linear state `ticks` ticks after the coefficients' state, into knot_pos and knot_vel.
 
-    out_shape: (n_out, n_free) m; in_pos, in_vel: (2K, 2 n_free) complex (mode-major);
-    q, p: (n_out,) and xi: (2K,) complex scratch. Fixed knots get their rest place and no velocity.
+    out_shape: (n_out, n_free) m; in_pos, in_vel: (2, 2K, 2 n_free), the real and imaginary
+    parts of the in-plane shapes (mode-major). Scratch: q, p (n_out,), xi (2, 2K), dofs
+    (4, 2 n_free). Each mode adds its contiguous row in turn. Fixed knots get their rest place
+    and no velocity.
     """
     _powers(ticks, out_c, out_e, out_log_r, out_theta, in_w, in_log_r, in_theta, q, p, xi)
-    for j in range(knot_pos.shape[0]):
-        for axis in range(3):
-            knot_pos[j, axis] = rest_pos[j, axis]
-            knot_vel[j, axis] = 0.0
     n_free = free.shape[0]
+    dofs[:] = 0.0
     for m in range(out_shape.shape[0]):
         qm = q[m]
         pm = p[m]
         for a in range(n_free):
-            knot_pos[free[a], 0] += out_shape[m, a] * qm
-            knot_vel[free[a], 0] += out_shape[m, a] * pm
-    for m in range(xi.shape[0]):
-        xr = xi[m].real
-        xm = xi[m].imag
-        for a in range(n_free):
-            j = free[a]
-            for axis in range(2):
-                c = 2 * a + axis
-                knot_pos[j, 1 + axis] += in_pos[m, c].real * xr - in_pos[m, c].imag * xm
-                knot_vel[j, 1 + axis] += in_vel[m, c].real * xr - in_vel[m, c].imag * xm
+            dofs[0, a] += out_shape[m, a] * qm
+            dofs[1, a] += out_shape[m, a] * pm
+    for m in range(xi.shape[1]):
+        xr = xi[0, m]
+        xm = xi[1, m]
+        for r in range(2 * n_free):
+            dofs[2, r] += in_pos[0, m, r] * xr - in_pos[1, m, r] * xm
+            dofs[3, r] += in_vel[0, m, r] * xr - in_vel[1, m, r] * xm
+    for j in range(knot_pos.shape[0]):
+        for axis in range(3):
+            knot_pos[j, axis] = rest_pos[j, axis]
+            knot_vel[j, axis] = 0.0
+    for a in range(n_free):
+        j = free[a]
+        knot_pos[j, 0] += dofs[0, a]
+        knot_vel[j, 0] += dofs[1, a]
+        for axis in range(2):
+            knot_pos[j, 1 + axis] += dofs[2, 2 * a + axis]
+            knot_vel[j, 1 + axis] += dofs[3, 2 * a + axis]
 
 
 @njit(cache=True, fastmath=False)
 def modal_bounds(out_shape_abs, out_c, out_e, in_pos_abs, in_vel_abs, in_w, disp, speed):
-    """Per free knot and axis, bounds on the tail's displacement (disp) and velocity (speed) at
-    the coefficients' tick, (n_free, 3) m and m/s, written: sums of |shape| |coefficient| over
+    """Per axis and free knot, bounds on the tail's displacement (disp) and velocity (speed) at
+    the coefficients' tick, (3, n_free) m and m/s, written: sums of |shape| |coefficient| over
     the modes (the triangle inequality). Every mode decays (|mu| <= 1), so a bound times the
     slowest mode's decay after n ticks bounds the motion from then on. *_abs: the modes' shapes'
-    absolute values (NetModes)."""
-    n_free = disp.shape[0]
-    for a in range(n_free):
-        for axis in range(3):
-            disp[a, axis] = 0.0
-            speed[a, axis] = 0.0
+    absolute values (NetModes); in_*_abs (2K, 2 n_free)."""
+    n_free = disp.shape[1]
+    disp[:] = 0.0
+    speed[:] = 0.0
     for m in range(out_shape_abs.shape[0]):
         cq = 2.0 * abs(out_c[m])
         cp = 2.0 * abs(out_c[m] * out_e[m])
         for a in range(n_free):
-            disp[a, 0] += out_shape_abs[m, a] * cq
-            speed[a, 0] += out_shape_abs[m, a] * cp
+            disp[0, a] += out_shape_abs[m, a] * cq
+            speed[0, a] += out_shape_abs[m, a] * cp
     for m in range(in_w.shape[0]):
         w = abs(in_w[m])
         for a in range(n_free):
             for axis in range(2):
-                disp[a, 1 + axis] += in_pos_abs[m, 2 * a + axis] * w
-                speed[a, 1 + axis] += in_vel_abs[m, 2 * a + axis] * w
+                disp[1 + axis, a] += in_pos_abs[m, 2 * a + axis] * w
+                speed[1 + axis, a] += in_vel_abs[m, 2 * a + axis] * w
 
 
 @njit(cache=True, fastmath=False)
 def quiet_from(sleep_speed, max_ticks, out_log_r, in_log_r, speed):
     """The first tick n >= 1 (after the coefficients' state) from which no knot of the tail can be
-    as fast as sleep_speed again, by the bounds (speed: modal_bounds' (n_free, 3) m/s, decaying
+    as fast as sleep_speed again, by the bounds (speed: modal_bounds' (3, n_free) m/s, decaying
     at the slowest mode's rate of each plane), found by bisection; max_ticks if not before it.
     """
     r_out = -math.inf
@@ -198,10 +218,10 @@ def quiet_from(sleep_speed, max_ticks, out_log_r, in_log_r, speed):
 @njit(cache=True, fastmath=False)
 def _loud(speed, decay_out, decay_in, limit2):
     """Can any knot be as fast as sqrt(limit2) m/s, its bounds decayed by these factors?"""
-    for a in range(speed.shape[0]):
-        bx = speed[a, 0] * decay_out
-        by = speed[a, 1] * decay_in
-        bz = speed[a, 2] * decay_in
+    for a in range(speed.shape[1]):
+        bx = speed[0, a] * decay_out
+        by = speed[1, a] * decay_in
+        bz = speed[2, a] * decay_in
         if bx * bx + by * by + bz * bz >= limit2:
             return True
     return False

@@ -13,13 +13,17 @@ SCENE = load_scene("match")
 TICKS = 12_000
 
 
-def reference_trace(seed, ticks):
+def reference_trace(seed, ticks, tail=None):
+    """(match, trace) of the in-process match; `tail`, a (ticks + 1,) bool array if given, gets
+    whether its cloth net was in its linear tail after each tick."""
     match = Match(SCENE, seed=seed)
     trace = np.zeros(ticks + 1, physics_snapshot_dtype(len(SCENE.bats)))
     match.save(trace, 0)
     for k in range(ticks):
         match.tick()
         match.save(trace, k + 1)
+        if tail is not None:
+            tail[k + 1] = match.state.net_sim.in_tail
     return match, trace
 
 
@@ -66,6 +70,26 @@ def test_net_worker_killed_mid_match_resumes_and_stays_exact(no_leftovers):
                         crash_worker="net").run()
     assert result.workers["net"]["restarts"] == 1
     assert first_difference(result.trace, trace) is None
+
+
+# Seed 2's net is struck early and holds its ring in its linear tail from about tick 2700 to 5000.
+TAIL_KILL, TAIL_TICKS = 4_000, 5_200
+
+
+def test_net_worker_killed_in_its_linear_tail_resumes_and_stays_exact(no_leftovers):
+    # The tail's state is a function of its start and its ticks alone: the net worker restarted
+    # from the tail it published goes on with the same bits, and so does the whole match.
+    tail = np.zeros(TAIL_TICKS + 1, bool)
+    reference, trace = reference_trace(2, TAIL_TICKS, tail)
+    assert tail[TAIL_KILL] and reference.state.net_sim.tail_ticks > 0, "the net was not in its tail at the kill"
+    plain = Supervisor(SCENE, TAIL_TICKS, "lockstep", trace=True, seed=2).run()
+    assert first_difference(plain.trace, trace) is None
+    assert plain.workers["net"]["tail_ticks"] == reference.state.net_sim.tail_ticks
+    assert plain.workers["net"]["awake_ticks"] == reference.state.net_sim.awake_ticks
+    killed = Supervisor(SCENE, TAIL_TICKS, "lockstep", trace=True, seed=2, crash_at_tick=TAIL_KILL,
+                        crash_worker="net").run()
+    assert killed.workers["net"]["restarts"] == 1
+    assert first_difference(killed.trace, trace) is None
 
 
 def test_ai_worker_killed_mid_match_is_restarted_and_the_match_goes_on(no_leftovers):
