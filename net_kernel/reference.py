@@ -489,16 +489,15 @@ def motion_energy(knot_pos, knot_vel, knot_mass, knot_inv_mass, spring_ij, sprin
                                       gravity) - rest_energy
 
 
-def step_grid_free_tail(knot_state, grid_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks,
-                        sleep_speed, sleep_ticks, quiet_ticks, reach, box, knot_mass, knot_inv_mass, spring_ij,
-                        spring_rest, spring_k, rest_energy, tail_energy):
-    """Numpy twin of kernels.step_grid_free_tail."""
+def _free_tail(free, knot_state, grid_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks, sleep_speed,
+               sleep_ticks, quiet_ticks, reach, box, knot_mass, knot_inv_mass, spring_ij, spring_rest, spring_k,
+               rest_energy, tail_energy):
     pos = knot_state[0].reshape(3, -1).T
     vel = knot_state[1].reshape(3, -1).T
     taken = 0
     while taken < ticks:
-        t, quiet_ticks, status = step_grid_free(knot_state, grid_inv_mass, grid_params, gravity, drag, h, substeps,
-                                                grid_work, 1, sleep_speed, sleep_ticks, quiet_ticks, reach, box)
+        t, quiet_ticks, status = free(knot_state, grid_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, 1,
+                                      sleep_speed, sleep_ticks, quiet_ticks, reach, box)
         taken += t
         if status != FREE_AWAKE:
             return taken, quiet_ticks, status
@@ -506,6 +505,16 @@ def step_grid_free_tail(knot_state, grid_inv_mass, grid_params, gravity, drag, h
                          tail_energy) <= tail_energy:
             return taken, quiet_ticks, FREE_TAIL
     return taken, quiet_ticks, FREE_AWAKE
+
+
+def step_grid_free_tail(*args):
+    """Numpy twin of kernels.step_grid_free_tail."""
+    return _free_tail(step_grid_free, *args)
+
+
+def step_grid32_free_tail(*args):
+    """Numpy twin of kernels.step_grid32_free_tail."""
+    return _free_tail(step_grid32_free, *args)
 
 
 def modal_coefficients(knot_pos, knot_vel, rest_pos, free, out_proj, out_e, in_proj, in_inverse, out_c, in_w, q, p,

@@ -220,8 +220,9 @@ class NetSim:
         self.tail: LinearTail | None = None  # the linear state, while it holds the net
         self._shown = -1  # the tail tick whose state knot_pos and knot_vel hold (-1: none)
         self.tail_ticks = 0
-        self._step_free_tail = (mod.step_grid_free_tail if self._step_grid_free is not None and self.tail_refusal is None
-                                else None)
+        free_tail = mod.step_grid32_free_tail if spec is not None and spec.kernel_precision == FLOAT32 else \
+            mod.step_grid_free_tail
+        self._step_free_tail = free_tail if self._step_grid_free is not None and self.tail_refusal is None else None
 
     @property
     def knot_pos(self) -> np.ndarray:

@@ -74,6 +74,7 @@ from net_kernel.kernels.modal import (
     motion_energy,
     potential_energy,
     quiet_from,
+    step_grid32_free_tail,
     step_grid_free_tail,
 )
 from net_kernel.kernels.scatter import step_knots_scatter
@@ -117,6 +118,7 @@ __all__ = [
     "step_grid32_serial",
     "step_grid_ball",
     "step_grid_free",
+    "step_grid32_free_tail",
     "step_grid_free_tail",
     "step_grid_serial",
     "step_knots",

@@ -13,6 +13,7 @@ import math
 from numba import njit
 
 from net_kernel.kernels.grid import FREE_AWAKE, step_grid_free
+from net_kernel.kernels.grid32 import step_grid32_free
 
 
 @njit(cache=True, fastmath=False)
@@ -231,6 +232,27 @@ def _loud(speed, decay_out, decay_in, limit2):
 FREE_TAIL = 4
 
 
+@njit(inline="always")
+def _free_tail(free, knot_state, grid_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks, sleep_speed,
+               sleep_ticks, quiet_ticks, reach, box, knot_mass, knot_inv_mass, spring_ij, spring_rest, spring_k,
+               rest_energy, tail_energy):
+    """`free` (a step_grid_free kernel) tick by tick, stopping also after a tick whose motion energy is at most tail_energy."""
+    n = knot_state.shape[2] * knot_state.shape[3]
+    pos = knot_state[0].reshape(3, n).T
+    vel = knot_state[1].reshape(3, n).T
+    taken = 0
+    while taken < ticks:
+        t, quiet_ticks, status = free(knot_state, grid_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, 1,
+                                      sleep_speed, sleep_ticks, quiet_ticks, reach, box)
+        taken += t
+        if status != FREE_AWAKE:
+            return taken, quiet_ticks, status
+        if motion_energy(pos, vel, knot_mass, knot_inv_mass, spring_ij, spring_rest, spring_k, gravity, rest_energy,
+                         tail_energy) <= tail_energy:
+            return taken, quiet_ticks, FREE_TAIL
+    return taken, quiet_ticks, FREE_AWAKE
+
+
 @njit(cache=True, fastmath=False, error_model="numpy")
 def step_grid_free_tail(knot_state, grid_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks,
                         sleep_speed, sleep_ticks, quiet_ticks, reach, box, knot_mass, knot_inv_mass, spring_ij,
@@ -244,17 +266,16 @@ def step_grid_free_tail(knot_state, grid_inv_mass, grid_params, gravity, drag, h
     Returns:
         (ticks taken, quiet_ticks after them, FREE_* or FREE_TAIL status).
     """
-    n = knot_state.shape[2] * knot_state.shape[3]
-    pos = knot_state[0].reshape(3, n).T
-    vel = knot_state[1].reshape(3, n).T
-    taken = 0
-    while taken < ticks:
-        t, quiet_ticks, status = step_grid_free(knot_state, grid_inv_mass, grid_params, gravity, drag, h, substeps,
-                                                grid_work, 1, sleep_speed, sleep_ticks, quiet_ticks, reach, box)
-        taken += t
-        if status != FREE_AWAKE:
-            return taken, quiet_ticks, status
-        if motion_energy(pos, vel, knot_mass, knot_inv_mass, spring_ij, spring_rest, spring_k, gravity, rest_energy,
-                         tail_energy) <= tail_energy:
-            return taken, quiet_ticks, FREE_TAIL
-    return taken, quiet_ticks, FREE_AWAKE
+    return _free_tail(step_grid_free, knot_state, grid_inv_mass, grid_params, gravity, drag, h, substeps, grid_work,
+                      ticks, sleep_speed, sleep_ticks, quiet_ticks, reach, box, knot_mass, knot_inv_mass, spring_ij,
+                      spring_rest, spring_k, rest_energy, tail_energy)
+
+
+@njit(cache=True, fastmath=False, error_model="numpy")
+def step_grid32_free_tail(knot_state, grid_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks,
+                          sleep_speed, sleep_ticks, quiet_ticks, reach, box, knot_mass, knot_inv_mass, spring_ij,
+                          spring_rest, spring_k, rest_energy, tail_energy):
+    """step_grid_free_tail with kernels.grid32.step_grid32_free's ticks (a float32 net). Args and returns as it."""
+    return _free_tail(step_grid32_free, knot_state, grid_inv_mass, grid_params, gravity, drag, h, substeps, grid_work,
+                      ticks, sleep_speed, sleep_ticks, quiet_ticks, reach, box, knot_mass, knot_inv_mass, spring_ij,
+                      spring_rest, spring_k, rest_energy, tail_energy)

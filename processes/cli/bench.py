@@ -1,7 +1,7 @@
 """`pingpong bench STUDY`: thin front end to the studies in bench/ (parse, call, format), and to
 the match benchmark (processes.cli.match).
 
-The studies live in bench/accuracy.py, bench/effects.py, bench/net_resolution.py and bench/ringdown.py,
+The studies live in bench/accuracy.py, bench/effects.py, bench/net_resolution.py, bench/net_tail.py and bench/ringdown.py,
 next to the pytest-benchmark suite, and need a source checkout (bench/ is not an installed package) and the dev extras (scipy).
 """
 from __future__ import annotations
@@ -184,6 +184,14 @@ def _study_command(args) -> int:
         else:
             _print_net_resolution(study, result)
         return 0
+    if args.what == "net-tail":
+        study = load_study("net_tail")
+        result = study.study(quick=quick, progress=_progress(as_json))
+        if as_json:
+            print(json.dumps(finite_json(result)))
+        else:
+            print(study.text(result))
+        return 0
     if args.what == "ringdown":
         study = load_study("ringdown")
         result = study.study(quick=quick, progress=_progress(as_json))
@@ -219,7 +227,8 @@ def _print_ringdown(study, result: dict) -> None:
 def add_commands(sub) -> None:
     """`pingpong bench STUDY`."""
     bench = sub.add_parser("bench", help="measured answers to 'what does it cost'", formatter_class=FORMATTER)
-    bench.add_argument("what", choices=["accuracy", "effects", "handoff", "match", "net-resolution", "ringdown"],
+    bench.add_argument("what", choices=["accuracy", "effects", "handoff", "match", "net-resolution", "net-tail",
+                                        "ringdown"],
                        help="which study to run")
     bench.add_argument("--best-of", type=int, default=5, help="match: games in the benchmarked match")
     bench.add_argument("--scene", default="match",
