@@ -10,6 +10,7 @@ import re
 import shutil
 import subprocess
 import threading
+import time
 import urllib.error
 import urllib.request
 
@@ -83,12 +84,12 @@ def test_a_browser_gets_the_welcome_then_the_feeds_own_snapshot_bytes(bridged):
         first = wire.decode(browser.recv(timeout=DEADLINE_S))
         assert first.kind == Kind.WELCOME and first["scene"] == "match_rigid"
         forwarded = None
-        tick = 0
+        tick, clock = 0, _wall_clock(rig)
         deadline = Deadline()
         while not deadline.expired():  # serve ticks until a snapshot reaches the browser
             tick += 1
             rig.record["world"]["tick"] = tick
-            rig.clock.now += 0.002
+            clock()
             rig.gateway.poll(1)
             rig.gateway.service(rig.record)
             try:
@@ -240,11 +241,11 @@ def test_the_live_page_draws_a_cloth_nets_knots_in_place_of_the_panel(bridged, b
     stop = threading.Event()
 
     def serve():
-        tick = 0
+        tick, clock = 0, _wall_clock(rig)
         while not stop.is_set():
             tick += 1
             rig.record["world"]["tick"] = tick
-            rig.clock.now += 0.001
+            clock()
             rig.gateway.poll(1)
             rig.gateway.service(rig.record)
             if rig.gateway.net_due():
@@ -295,16 +296,31 @@ def test_the_replay_page_plays_offline_from_one_file(browser, tmp_path):
     assert _errors(browser) == [] and state["errors"] == []
 
 
+def _wall_clock(rig):
+    """A function that sets the rig's clock to where the wall clock says, from now on.
+
+    The bridge's client gives the gateway up when its session is silent for the welcome's timeout
+    of wall-clock time, and the gateway heartbeats by its own clock: a serving loop that stepped
+    that clock by 1 ms a turn ran it slower than the wall on a busy machine, and the bridge gave
+    the gateway up before its first heartbeat."""
+    base, start = rig.clock.now, time.monotonic()
+
+    def advance():
+        rig.clock.now = base + (time.monotonic() - start)
+
+    return advance
+
+
 def _serving(rig, stop, held=None):
     """The gateway serves its record until `stop` (a thread): a ball flying along the table, or
     standing where the last entry of the list `held` says."""
     def serve():
-        tick = 0
+        tick, clock = 0, _wall_clock(rig)
         while not stop.is_set():
             tick += 1
             rig.record["world"]["tick"] = tick
             rig.record["ball"]["pos"] = held[-1] if held else (-1.2 + 2.4 * ((tick // 10) % 100) / 100.0, 0.1, 0.25)
-            rig.clock.now += 0.001
+            clock()
             rig.gateway.poll(1)
             rig.gateway.service(rig.record)
 
