@@ -240,7 +240,6 @@ def test_heartbeats_keep_a_session_alive_both_ways(rig):
     assert r.gateway.counts["timeouts"] == 0 and len(r.gateway.sessions) == 1
 
 
-@pytest.mark.timeout(60)
 def test_heartbeats_come_from_their_own_thread_while_the_loop_stands(rig):
     # The worker's loop may wait (a busy machine, a copy of the physics' state): with
     # start_heartbeats the heartbeats keep coming although nothing calls the gateway any more.
@@ -248,16 +247,15 @@ def test_heartbeats_come_from_their_own_thread_while_the_loop_stands(rig):
     player = r.client()
     r.join(player)
     r.gateway.start_heartbeats()
-    seqs, deadline = [], time.monotonic() + 30.0
-    while len(seqs) < 5 and time.monotonic() < deadline:  # this thread never calls the gateway again
+    seqs, deadline = [], Deadline()
+    while len(seqs) < 5 and not deadline.expired():  # this thread never calls the gateway again
         message = player.recv(100)
         if message is not None and message.kind == Kind.HEARTBEAT:
             seqs.append(message.seq)
-    assert len(seqs) == 5, f"{len(seqs)} heartbeats in 30 s with the loop standing"
+    assert len(seqs) == 5, f"{len(seqs)} heartbeats in {DEADLINE_S:.0f} s with the loop standing"
     assert seqs == sorted(set(seqs))
 
 
-@pytest.mark.timeout(60)
 def test_snapshots_follow_the_match_clock_and_say_how_fast_it_runs(rig):
     # 100 Hz and 1 ms ticks: one snapshot every 10 ticks of match time. The match runs at half
     # the wall clock's speed, then at its speed, then stands: the snapshots come every 10 ticks
@@ -291,7 +289,6 @@ def test_snapshots_follow_the_match_clock_and_say_how_fast_it_runs(rig):
         assert max(abs(f - factor) for f in late) <= 0.002, (phase, late[:3])
 
 
-@pytest.mark.timeout(180)
 def test_the_rally_number_is_the_rally_in_play_and_an_event_carries_the_rally_it_decided(rig):
     # A whole best-of-1 match in process, served tick by tick as the gateway worker serves it:
     # the first rally is number 1 from its toss on, every point event carries the number the
