@@ -7,8 +7,9 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 ALLOWED = {
-    # net_kernel needs only numpy and numba (and the standard library).
-    "net_kernel": {"numpy", "numba", "net_kernel"},
+    # net_kernel needs only numpy and numba (and the standard library), and threadpoolctl to hold
+    # the net's modes to one BLAS thread (net_kernel/modes.py: the same bits in every process).
+    "net_kernel": {"numpy", "numba", "net_kernel", "threadpoolctl"},
     # engine: no sockets, processes or zmq; net_kernel below it is fine; matplotlib draws the
     # replay's picture (engine/render.py), which the Gymnasium environment (engine/env.py) renders.
     "engine": {"numpy", "numba", "engine", "net_kernel", "matplotlib", "gymnasium"},

@@ -3,7 +3,8 @@ from dataclasses import replace
 
 import pytest
 
-from net_kernel.topology import NetSpec, gauge_depression, resolution_spec
+from net_kernel.gauge import gauge_depression
+from net_kernel.topology import NetSpec, resolution_spec
 
 
 @pytest.mark.xfail(strict=True, reason="the default top cord (20 N) is too slack for the gauge: under its 100 g the "
@@ -21,5 +22,5 @@ def test_the_net_gauge_sinks_the_default_top_by_at_most_one_centimetre(cols, row
 def test_a_40_newton_top_cord_meets_the_net_gauge():
     depression = gauge_depression(resolution_spec(85, 8, replace(NetSpec(), cord_tension=40.0)))
     assert depression > 0.0, depression  # the gauge's load pulls the top down, never up
-    # The gauge is a maximum, not a target: a tighter net passes (topology.GAUGE_LOAD's comment).
+    # The gauge is a maximum, not a target: a tighter net passes (gauge.GAUGE_LOAD's comment).
     assert depression <= 0.010, depression  # "maximal 10 mm absinken ... mit 100 Gramm" (net tension rule); ITTF T5
