@@ -6,13 +6,16 @@ lets the net ring until it sleeps; some strikes send a second ball 3 s later, wh
 net is in its tail, towards the top of the net (over it or into it). Every strike runs with
 the full float64 kernel on every awake tick (NetSpec.tail_energy = 0, the reference) and with
 the tail at each energy asked for, and reports: the knots' largest distance from the
-reference's over the whole ring (sampled every SAMPLE_TICKS ticks and at the second ball's
-ticks), the second ball's outcome (over the net or not, its speed after the net, where it
+reference's over the whole ring of the strike (sampled every SAMPLE_TICKS ticks, up to a second
+ball), the second ball's outcome (over the net or not, its speed after the net, where it
 comes down to the playing surface's height), the tick each net falls asleep, the ticks it spent
 awake and in its tail, and the CPU time per strike (a run of its own without reading the
 knots, which would rebuild the tail's state). The budget: 50 um for the knots (a tenth of a
 knot's radius, net_kernel.sim.KNOT_RADIUS), 1 % for the rebound speed and 1 mm for the
-landing point of the second ball.
+landing point of the second ball. The knots after a second ball are reported, not budgeted: a
+struck net amplifies any difference of its state about ten-million-fold within 0.3 s (float64
+against itself with every knot moved by 1 nm differs by millimetres after a 20 m/s ball,
+tests/net_kernel/test_grid32.py), so what a second ball can be held to is its outcome.
 
     pingpong bench net-tail [--quick] [--json]
     python -m bench.net_tail [--quick] [--energies 5e-6,20e-6,50e-6] [--json] [--readme README.md]
@@ -47,7 +50,8 @@ BUDGET_LANDING_M = 1e-3
 
 def strikes(quick: bool = False, seed: int = 0) -> list[dict]:
     """The seeded strikes: every speed at every point, aimed within 5 mm of it, at up to 10 degrees
-    off the table's axis; a second ball for the 10 and 30 m/s strikes (0.13-0.17 m high, 8-14 m/s)."""
+    off the table's axis; a second ball for the 10 and 30 m/s strikes (20 cm before the net,
+    0.13-0.17 m high, 8-14 m/s)."""
     rng = np.random.default_rng(seed)
     out = []
     for where, (y, z) in POINTS.items():
@@ -58,7 +62,7 @@ def strikes(quick: bool = False, seed: int = 0) -> list[dict]:
                     "vel": [speed * math.cos(angle), speed * math.sin(angle), 0.0]}
             if speed in (10.0, 30.0):
                 second_speed = rng.uniform(8.0, 14.0)
-                shot["second"] = {"pos": [-0.3, rng.uniform(-0.5, 0.5), rng.uniform(0.13, 0.17)],
+                shot["second"] = {"pos": [-0.2, rng.uniform(-0.5, 0.5), rng.uniform(0.13, 0.17)],
                                   "vel": [second_speed, 0.0, 0.5]}
             out.append(shot)
     if quick:
@@ -96,7 +100,7 @@ def run_strike(topo, shot: dict, trace: bool) -> dict:
             vel += contact.impulse / BALL_MASS
             vel[2] -= GRAVITY * DT
             ball[2] += 1
-            if len(balls) == 2 and (abs(pos[0]) > 0.25 or pos[2] < BALL_RADIUS):
+            if len(balls) == 2 and (pos[0] > 0.25 or pos[0] < -0.25 or pos[2] < BALL_RADIUS):  # past the net, back, or down
                 outcome = {"over": bool(pos[0] > 0.0), "speed": float(np.linalg.norm(vel)),
                            "landing": _landing(pos, vel).tolist()}
                 balls.pop()
@@ -115,13 +119,15 @@ def run_strike(topo, shot: dict, trace: bool) -> dict:
             "samples": np.array(samples) if trace else None, "sample_ticks": sample_ticks}
 
 
-def _error(ref: dict, run: dict) -> float:
-    """m: the largest knot distance between two traced runs at the ticks both sampled (a net that
-    slept holds its frozen shape: compared as it stands)."""
+def _error(ref: dict, run: dict, start: int = 0, end: int = MAX_TICKS) -> float:
+    """m: the largest knot distance between two traced runs at the ticks in [start, end) both
+    sampled (a net that slept holds its frozen shape: compared as it stands)."""
     ticks = {t: i for i, t in enumerate(run["sample_ticks"])}
     worst = 0.0
     last = None
     for i, t in enumerate(ref["sample_ticks"]):
+        if not start <= t < end:
+            continue
         j = ticks.get(t)
         if j is None:
             j = last
@@ -149,13 +155,15 @@ def study(quick: bool = False, energies=ENERGIES, progress=None) -> dict:
             timed = run_strike(topo, shot, False)
             traced = run_strike(topo, shot, True)
             row = {"point": shot["point"], "speed_m_s": shot["speed"], "tail_energy_J": energy,
-                   "knot_error_m": _error(ref, traced), "sleep_tick": timed["sleep_tick"],
+                   "knot_error_m": _error(ref, traced, 0, SECOND_BALL_TICK if "second" in shot else MAX_TICKS),
+                   "sleep_tick": timed["sleep_tick"],
                    "reference_sleep_tick": ref_timed["sleep_tick"], "awake_ticks": timed["awake_ticks"],
                    "tail_ticks": timed["tail_ticks"], "reference_awake_ticks": ref_timed["awake_ticks"],
                    "cpu_s": timed["cpu_s"], "reference_cpu_s": ref_timed["cpu_s"]}
             if ref["second"] is not None:
                 a, b = ref["second"], traced["second"]
                 row["second_ball"] = {
+                    "knot_error_m": _error(ref, traced, SECOND_BALL_TICK),
                     "over": a["over"], "same_side": b is not None and a["over"] == b["over"],
                     "speed_error": abs(b["speed"] - a["speed"]) / a["speed"] if b else math.inf,
                     "landing_error_m": float(np.hypot(*np.subtract(b["landing"], a["landing"]))) if b else math.inf}
@@ -175,9 +183,10 @@ def summarise(rows: list[dict], energies) -> list[dict]:
         speed = max((b["speed_error"] for b in balls), default=0.0)
         landing = max((b["landing_error_m"] for b in balls), default=0.0)
         same = all(b["same_side"] for b in balls)
+        after = max((b["knot_error_m"] for b in balls), default=0.0)
         out.append({"tail_energy_J": energy, "strikes": len(mine), "worst_knot_error_m": worst,
                     "second_balls": len(balls), "second_same_side": same, "worst_speed_error": speed,
-                    "worst_landing_error_m": landing,
+                    "worst_landing_error_m": landing, "worst_knot_error_after_second_m": after,
                     "awake_share": sum(r["awake_ticks"] for r in mine) / sum(r["reference_awake_ticks"] for r in mine),
                     "cpu_share": sum(r["cpu_s"] for r in mine) / sum(r["reference_cpu_s"] for r in mine),
                     "sleep_later_ticks_median": float(np.median([r["sleep_tick"] - r["reference_sleep_tick"]
@@ -189,13 +198,14 @@ def summarise(rows: list[dict], energies) -> list[dict]:
 
 def markdown(result: dict) -> str:
     """The summary as a Markdown table."""
-    lines = ["| tail energy | strikes | worst knot error | second balls: same side, speed, landing | "
-             "awake ticks | CPU | sleeps later (median) | within budget |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = ["| tail energy | strikes | worst knot error over the ring | second balls: same side, speed, landing "
+             "| knots after a second ball | awake ticks | CPU | sleeps later (median) | within budget |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for s in result["summary"]:
         lines.append(f"| {s['tail_energy_J'] * 1e6:g} uJ | {s['strikes']} | {s['worst_knot_error_m'] * 1e6:.1f} um | "
                      f"{s['second_balls']}: {'yes' if s['second_same_side'] else 'NO'}, "
                      f"{s['worst_speed_error'] * 100:.3f} %, {s['worst_landing_error_m'] * 1e3:.3f} mm | "
+                     f"{s['worst_knot_error_after_second_m'] * 1e3:.1f} mm | "
                      f"{s['awake_share'] * 100:.0f} % | {s['cpu_share'] * 100:.0f} % | "
                      f"{s['sleep_later_ticks_median'] * DT:.2f} s | {'yes' if s['within_budget'] else 'no'} |")
     return "\n".join(lines)
@@ -210,9 +220,11 @@ def text(result: dict) -> str:
     return (f"Measured by `pingpong bench net-tail`: {len(result['rows']) // max(len(result['summary']), 1)} seeded "
             f"strikes on the {result['net']} net of scenes/match.toml (5-60 m/s into the middle, near a post, the top "
             f"cord and the hem; second balls 3 s later towards the top of the net), the full kernel against the "
-            f"linear tail at each energy; knots compared every {result['sample_ticks']} ms and at every tick of a "
-            f"second ball. Budget: 50 um for the knots, 1 % for a second ball's speed after the net, 1 mm for where "
-            f"it comes down; CPU is the net's alone, the tail's against the full kernel's in the same run.\n\n"
+            f"linear tail at each energy; knots compared every {result['sample_ticks']} ms over each strike's ring. "
+            f"Budget: 50 um for the knots, 1 % for a second ball's speed after the net, 1 mm for where it comes "
+            f"down; the knots after a second ball are shown, not budgeted (a struck net amplifies any difference of "
+            f"its state some ten-million-fold within 0.3 s, bench/net_tail.py); CPU is the net's alone, the tail's "
+            f"against the full kernel's in the same run.\n\n"
             + markdown(result))
 
 
