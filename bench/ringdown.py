@@ -90,7 +90,8 @@ def _shot(topo, speed: float, y: float, z: float, max_ticks: int = MAX_TICKS) ->
     return {"speed_m_s": speed, "sleep_s": ticks * DT if sim.sleeping else math.inf, "peak_deflection_m": peak,
             "energy_absorbed_J": energy_in - energy_out, "energy_in_J": energy_in, "ring_frequency_hz": freq,
             "damping_ratio": zeta, "damping_ratio_model": model, "thrown_back": bool(vel[0] < 0),
-            "stepped_s": ticks * DT, "awake_ticks": sim.awake_ticks, "net_cpu_s": cpu}
+            "stepped_s": ticks * DT, "awake_ticks": sim.awake_ticks,
+            "tail_ticks": sim.tail_ticks, "net_cpu_s": cpu}
 
 
 def study(quick: bool = False, progress=None) -> dict:
