@@ -3,7 +3,8 @@
 Run as `python -m processes.stress.swarm SPEC_JSON` (launch() starts it); prints JSON lines on
 stdout: {"event": "ready", ...} once its clients are in, {"event": "progress", ...} now and then,
 and a final {"event": "report", ...}. Tasks (SPEC "task"): watch (spectators and players take
-every message), churn (join and leave in a loop), malformed (bad messages of every class).
+every message, swarm.spec.WatchSpec), churn (join and leave in a loop), malformed (bad messages of
+every class).
 """
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import zmq
 
 from processes.network import wire
 from processes.stress.harness import Child
+from processes.stress.swarm.spec import WatchSpec
 
 PER_SWARM = 250  # clients per swarm process (each one socket, two descriptors)
 NO_TOKEN = bytes(wire.TOKEN_SIZE)
@@ -30,14 +32,15 @@ def context(n_sockets: int, io_threads: int = 1) -> zmq.Context:
     return zctx
 
 
-def launch(spec: dict, name: str) -> Child:
-    """A swarm process running the task `spec` describes."""
-    return Child(["-m", "processes.stress.swarm", json.dumps(spec)], name)
+def launch(spec: dict | WatchSpec, name: str) -> Child:
+    """A swarm process running the task `spec` describes (a WatchSpec, or a churn or malformed dict)."""
+    return Child(["-m", "processes.stress.swarm", json.dumps(spec.to_json() if isinstance(spec, WatchSpec) else spec)],
+                 name)
 
 
-def watch_spec(endpoint, n_spec, n_play, name, record=None, **kw) -> dict:
-    return {"task": "watch", "address": endpoint, "spectators": n_spec, "players": n_play, "name": name,
-            "record": record, **kw}
+def watch_spec(endpoint, n_spec, n_play, name, record=None, **kw) -> WatchSpec:
+    """A watch swarm of n_spec spectators and n_play players on endpoint; kw: WatchSpec's other fields."""
+    return WatchSpec(address=endpoint, spectators=n_spec, players=n_play, name=name, record=record, **kw)
 
 
 def split(n: int) -> list[int]:

@@ -8,9 +8,15 @@ import sys
 from processes.stress.swarm import emit
 from processes.stress.swarm.churn import churn
 from processes.stress.swarm.malformed import malformed
+from processes.stress.swarm.spec import WatchSpec
 from processes.stress.swarm.watch import watch
 
-TASKS = {"watch": watch, "churn": churn, "malformed": malformed}
+
+def _watch(spec: dict) -> dict:
+    return watch(WatchSpec.from_json(spec))
+
+
+TASKS = {"watch": _watch, "churn": churn, "malformed": malformed}
 
 
 def main(argv: list[str]) -> int:
