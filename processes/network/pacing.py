@@ -12,7 +12,8 @@ class SnapshotPacer:
     poll loop's latency does not drift it), at most snapshot_hz a wall second (a grid of wall
     times, restarted from now after a stall); while the clock stands, its tick again each wall
     period. A server slower than realtime thus sends them as often in match time and less often
-    in wall time.
+    in wall time. A clock that stops between two ticks of the grid (a paused match) has its
+    standing tick sent once it stood a whole period, and again each period after.
 
     Args:
         snapshot_hz: snapshots per second of match time. dt: s, the tick.
@@ -26,23 +27,28 @@ class SnapshotPacer:
         self._last_tick: int | None = None  # the tick of the last snapshot sent
         self._last_wall = 0.0  # when it was sent
         self._due_tick = 0  # from this tick on the next one is due
+        self._seen_tick: int | None = None  # the tick of the latest call
+        self._seen_since = 0.0  # since when the clock has stood at it
         self._samples: deque[tuple[float, float]] = deque()  # (wall s, match s)
 
     def due(self, now: float, tick: int, match_s: float) -> bool:
         """Measure the clock at `now` (s) and say whether the snapshot of `tick` (at match_s s)
         is due; if it is, it counts as sent."""
         self._measure(now, match_s)
+        if tick != self._seen_tick:
+            self._seen_tick, self._seen_since = tick, now
         if now < self._next_wall:
             return False
         last = self._last_tick
-        if last is not None and last < tick < self._due_tick:
+        standing = now - self._seen_since >= 0.99 * self.period_s  # 0.99: a float clock's rounding
+        if last is not None and last < tick < self._due_tick and not standing:
             return False  # the match clock has not yet reached the next one's tick (a slow server)
-        if tick == last and now - self._last_wall < 0.99 * self.period_s:  # 0.99: a float clock's rounding
+        if tick == last and now - self._last_wall < 0.99 * self.period_s:
             return False  # a clock slower than a tick per period has not stood a whole period yet
         self._next_wall = max(self._next_wall + self.period_s, now)
         if last is not None and tick < last:
             self._due_tick = tick + self.ticks  # the clock went back (a restarted physics)
-        elif tick != last:
+        elif tick != last and tick >= self._due_tick:  # (a standing tick off the grid keeps it)
             self._due_tick = max(self._due_tick + self.ticks, tick + 1)
         self._last_tick, self._last_wall = tick, now
         return True
