@@ -125,9 +125,11 @@ class Client:
         self.timeout_s = 5.0
         self.max_seq_in = 0
 
-    def send(self, kind, **fields) -> None:
+    def send(self, kind, header_tick: int | None = None, **fields) -> None:
+        """One message, header tick our estimate of the server's (or header_tick)."""
         self.seq += 1
-        self.sock.send(wire.encode(kind, seq=self.seq, tick=self.tick, **fields), flags=zmq.NOBLOCK)
+        tick = self.tick if header_tick is None else header_tick
+        self.sock.send(wire.encode(kind, seq=self.seq, tick=tick, **fields), flags=zmq.NOBLOCK)
 
     def send_raw(self, data: bytes) -> None:
         """Bytes as they are (tests of the gateway's validation)."""
@@ -136,8 +138,8 @@ class Client:
     def hello(self) -> None:
         """Ask for a seat (or to watch); the answer comes as a welcome or a reject (see accept)."""
         token = self.token if self.role == Role.PLAYER else NO_TOKEN
-        self.send(Kind.HELLO, role=self.role, slot=self.wanted if self.role == Role.PLAYER else Slot.NONE,
-                  name=self.name, token=token)
+        self.send(Kind.HELLO, header_tick=0, role=self.role,  # a hello's header tick is 0, also on a rejoin
+                  slot=self.wanted if self.role == Role.PLAYER else Slot.NONE, name=self.name, token=token)
 
     def accept(self, message: wire.Message) -> bool:
         """Take the server's answer to the hello: True on a welcome, Rejected on a reject,

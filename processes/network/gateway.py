@@ -92,6 +92,7 @@ MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messa
 MAX_FRAME_BYTES = 4096  # libzmq disconnects a peer sending a bigger frame (MAXMSGSIZE)
 SWEEPS_PER_HEARTBEAT = 10  # passes over every session (timeouts, heartbeats) per heartbeat period
 STATS_EVERY_S = 1.0  # the worker writes its counters to GatewayConfig.stats_path this often
+STOP_DRAIN_S = 0.2  # s after its goodbyes a stopping gateway still answers (a hello: reject shutting_down)
 NO_TOKEN = bytes(wire.TOKEN_SIZE)
 # A session's heartbeat, the message a thousand spectators send twice a second: magic, version,
 # kind, flags 0 and the size say it all (its only body field, ack, is any u64), so it is taken by
@@ -663,6 +664,20 @@ class Gateway:
             told += 1
             self.sessions.pop(session.identity, None)
         return told
+
+    def drain(self, seconds: float = STOP_DRAIN_S) -> None:
+        """After shutdown(): go on answering for `seconds` of wall time, so that a hello which
+        arrives while the server stops is rejected shutting_down rather than left unanswered
+        (a later one finds the socket closed and ends in its sender's bounded wait). Anything
+        else is the last of sessions already told goodbye: read and let go, not counted."""
+        end = time.monotonic() + seconds
+        while (left := end - time.monotonic()) > 0:
+            if not self.router.poll(max(1, int(left * 1000)), zmq.POLLIN):
+                continue
+            frames = self.router.recv_multipart(flags=zmq.NOBLOCK, copy=True)
+            if len(frames) == 2 and frames[1][:len(_HELLO_PREFIX)] == _HELLO_PREFIX:
+                self.handle(frames)
+            # else: the last heartbeats and goodbyes of sessions already told goodbye
 
     def close(self, linger_ms: int = 500) -> None:
         """Close the sockets; what is still queued (the goodbyes of shutdown) gets up to linger_ms

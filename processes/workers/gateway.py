@@ -169,6 +169,8 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
         raise
     finally:
         told = gateway.shutdown(reason) if reason is not None else 0
+        if reason is not None:
+            gateway.drain()  # hellos meanwhile are told shutting_down
         stats = gateway.stats()
         stats["goodbyes_at_end"] = told
         gateway.write_stats({"goodbyes_at_end": told, "end": "restart" if reason is None else reason.name.lower(),

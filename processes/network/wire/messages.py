@@ -120,7 +120,8 @@ class _Spec:
 
 
 class Hello(_Spec):
-    """hello, client -> server: asks for a seat or to watch. Header tick: 0.
+    """hello, client -> server: asks for a seat or to watch. Header tick: 0 (a hello with
+    another is rejected bad_request).
 
     Layout, 74 bytes:
         off  size  field  type      unit / meaning
@@ -140,6 +141,8 @@ class Hello(_Spec):
 
     @staticmethod
     def check(rec):
+        if rec["tick"] != 0:
+            raise OutOfRange(f"hello: header tick {int(rec['tick'])}, a hello's is 0")
         if rec["role"] == Role.SPECTATOR and rec["slot"] != Slot.NONE:
             raise OutOfRange(f"hello.slot: a spectator asks for no slot, got {int(rec['slot'])}")
         if rec["role"] == Role.SPECTATOR and rec["token"].any():
@@ -227,7 +230,10 @@ class Input(_Spec):
     input whose slot is not the session's own; the physics lets go of it if no other input
     follows within input_hold_s (0.1 s of match time by default) and then brakes the bat to
     rest itself, every tick (engine.arm.brake_force). Mode 2 (target) is
-    reserved: valid on the wire, refused by a protocol-3 gateway like another bat's input.
+    reserved: valid on the wire, refused by this gateway like another bat's input. No input is
+    answered: one that breaks a field's rule below (a force-mode input whose target fields are
+    not all zero, say) is dropped and counted as a bad message, a refused one is counted as
+    refused, and snapshot.input_seq keeps naming the input that holds.
 
     Layout, 130 bytes:
         off  size  field        type      unit / meaning

@@ -325,7 +325,11 @@ def test_the_rally_number_is_the_rally_in_play_and_an_event_carries_the_rally_it
             points[k] = point_row(match.referee.points[k], 0)
         r.clock.now += 0.001 * match.ticks_done
         r.gateway.service(match.state.record[0], points=points)
-        while (message := watcher.recv(0)) is not None:
+        session = next(iter(r.gateway.sessions.values()))
+        deadline = Deadline()  # read every message sent so far: none is lost to the socket's high-water mark
+        while watcher.max_seq_in < session.seq_out and not deadline.expired():
+            if (message := watcher.recv(100)) is None:
+                continue
             if message.kind == Kind.SNAPSHOT:
                 playing.setdefault(int(message["rally"]), []).append(message.tick)
             elif message.kind == Kind.EVENT:
@@ -537,6 +541,16 @@ def test_shutdown_says_goodbye_to_everyone_and_refuses_newcomers(rig):
     assert refused.value.reason == RejectReason.SHUTTING_DOWN
 
 
+def test_a_stopping_gateway_tells_a_hello_that_comes_after_its_goodbyes_it_is_shutting_down(rig):
+    r = rig()
+    r.gateway.shutdown()
+    late = r.client()
+    late.hello()  # in the socket before the gateway's last answers
+    r.gateway.drain()
+    message = r.until(late, lambda m: m.kind == Kind.REJECT)
+    assert message["reason"] == RejectReason.SHUTTING_DOWN
+
+
 def test_a_malformed_hello_is_rejected_bad_request_with_the_decoders_reason(rig):
     r = rig()
     hello = wire.encode(Kind.HELLO, role=Role.PLAYER, slot=Slot.NONE, name="ann", token=bytes(16))
@@ -573,6 +587,20 @@ def test_target_mode_is_refused_counted_and_kicks_like_any_bad_message(rig):
     assert goodbye["reason"] == GoodbyeReason.KICKED
     assert r.gateway.counts["refused.target_mode"] == MAX_BAD and r.gateway.counts["kicked"] == 1
     assert r.posted == []  # no target reached the bat
+
+
+def test_a_force_input_with_target_fields_is_dropped_and_counted_as_a_bad_message(rig):
+    r = rig()
+    player = r.client()
+    r.join(player)
+    data = bytearray(wire.encode(Kind.INPUT, slot=Slot.A, mode=wire.InputMode.FORCE, force=[1.0, 0, 0],
+                                 torque=[0, 0, 0], target_pos=[0, 0, 0], target_quat=[0, 0, 0, 0]))
+    at = wire.SPECS[Kind.INPUT].dtype.fields["target_pos"][1]
+    data[at:at + 8] = np.float64(0.5).tobytes()  # target_pos.x, which force mode keeps zero
+    player.send_raw(bytes(data))
+    r.settle(lambda: r.gateway.drops.by_reason["out_of_range"] == 1)
+    assert r.posted == [] and [s.bad for s in r.gateway.sessions.values()] == [1]  # not applied; one bad
+    assert player.recv(100) is None  # and not answered
 
 
 def test_a_token_expires_with_the_grace_and_the_seat_is_anyones(rig):
