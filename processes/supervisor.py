@@ -280,6 +280,10 @@ class Supervisor:
             self.layout.close()
             signal.signal(signal.SIGTERM, previous_term)
 
+    def raised(self) -> dict[str, int]:
+        """Per worker kind, the exceptions its workers shipped back so far (each restarted it)."""
+        return {w.kind: w.raised for w in self._workers}
+
     def _collect(self, wall: float, startup: float) -> ProcessRunResult:
         final = np.zeros(1, physics_snapshot_dtype(len(self.scene.bats)))
         self.arena["physics"].snapshot(final)

@@ -10,20 +10,13 @@ average it saw.
 from __future__ import annotations
 
 import argparse
-import ctypes
 import os
 import signal
 import subprocess
 import sys
 import time
 
-HOG = "while True: pass"
-PR_SET_PDEATHSIG = 1  # prctl(2)
-
-
-def _die_with_parent() -> None:
-    """In the hog, before it runs: SIGKILL when the process that started it ends, however it ends."""
-    ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+from processes.stress.hogs import CpuHogs
 
 
 def _terminated(signum, frame):
@@ -42,26 +35,21 @@ def main(argv: list[str] | None = None) -> int:
     if not command:
         parser.error("no command: python -m tests.hogs 2 -- make test")
     signal.signal(signal.SIGTERM, _terminated)
-    hogs = []
+    hogs = CpuHogs(args.hogs)
     try:
-        for _ in range(args.hogs):
-            hogs.append(subprocess.Popen([sys.executable, "-c", HOG], stdin=subprocess.DEVNULL,
-                                         preexec_fn=_die_with_parent))
-        print(f"hogs: {len(hogs)} running (pids {' '.join(str(h.pid) for h in hogs)}): {' '.join(command)}",
+        hogs.start()
+        print(f"hogs: {hogs.n} running (pids {' '.join(str(p) for p in hogs.pids)}): {' '.join(command)}",
               file=sys.stderr, flush=True)
         start = time.monotonic()
         status = subprocess.call(command)
         print(f"hogs: the command ended with status {status} after {time.monotonic() - start:.0f} s beside "
-              f"{len(hogs)} hogs; load average {' '.join(f'{x:.1f}' for x in os.getloadavg())}",
+              f"{hogs.n} hogs; load average {' '.join(f'{x:.1f}' for x in os.getloadavg())}",
               file=sys.stderr, flush=True)
         return status
     except KeyboardInterrupt:
         return 130
     finally:
-        for hog in hogs:
-            hog.kill()
-        for hog in hogs:
-            hog.wait()
+        hogs.stop()
 
 
 if __name__ == "__main__":

@@ -5,7 +5,7 @@ import argparse
 import json
 import sys
 
-SCENARIOS = ("load", "churn", "cable", "kill", "malformed", "web")
+SCENARIOS = ("load", "churn", "cable", "kill", "malformed", "web", "busy")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -21,6 +21,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="load: spectators' snapshots from the gateway's PUB feed, or one send per session "
                              "(protocol 1's fan-out, to compare)")
     parser.add_argument("--browsers", type=int, default=50, help="web: WebSocket browsers on one web bridge")
+    parser.add_argument("--hogs", type=int, default=2, help="busy: CPU hogs spinning beside the served cloth match")
+    parser.add_argument("--busy-spectators", type=int, default=20, help="busy: spectators of the served cloth match")
+    parser.add_argument("--busy-browsers", type=int, default=5, help="busy: WebSocket browsers on its web bridge")
     parser.add_argument("--churn", type=int, default=10_000, help="churn: join/leave cycles")
     parser.add_argument("--churn-places", type=int, default=64, help="churn: spectator places, filled after it")
     parser.add_argument("--churn-seconds", type=float, default=600.0, help="churn: give up after this long")
@@ -65,9 +68,15 @@ def stress_command(args: argparse.Namespace) -> int:
         print("pingpong stress: --swarm-only or --server-only (one of them) run the load scenario alone: "
               "add --scenario load", file=sys.stderr)
         return 2
-    for flag in ("spectators", "churn", "malformed", "kill", "hz"):
+    for flag in ("hogs", "busy_browsers"):
+        if getattr(args, flag) < 0:
+            print(f"pingpong stress: --{flag.replace('_', '-')} must be 0 or more, got {getattr(args, flag)}",
+                  file=sys.stderr)
+            return 2
+    for flag in ("spectators", "busy_spectators", "churn", "malformed", "kill", "hz"):
         if getattr(args, flag) < 1:
-            print(f"pingpong stress: --{flag} must be at least 1, got {getattr(args, flag)}", file=sys.stderr)
+            print(f"pingpong stress: --{flag.replace('_', '-')} must be at least 1, got {getattr(args, flag)}",
+                  file=sys.stderr)
             return 2
     results = []
     for name in names:

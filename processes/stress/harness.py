@@ -119,9 +119,12 @@ class Child:
                 pass
 
 
+BOT_JOIN_TIMEOUT_S = 300.0  # a bound, not a guess: on a busy machine the welcome may take many seconds
+
+
 def bot(endpoint: str, seconds: float, seed: int) -> Child:
     return Child(["-m", "processes.cli", "join", endpoint, "--as", "player", "--bot", "--json", "--seconds",
-                  str(seconds), "--seed", str(seed)], f"bot{seed}")
+                  str(seconds), "--seed", str(seed), "--join-timeout", str(BOT_JOIN_TIMEOUT_S)], f"bot{seed}")
 
 
 def until(predicate, timeout: float, poll_s: float = 0.1) -> bool:

@@ -3,7 +3,7 @@ plus a tick clock that publishes when each physics tick came out; and Server, th
 
 Run as `python -m processes.stress.server SPEC_JSON` (Server starts it). It prints JSON lines:
   {"listening": endpoint, "run_id", "pids": {kind: pid}, "server_pid"}    once every worker is ready
-  {"pids": {...}, "restarts": {...}, "tick": n}                            for each "pids" line on stdin
+  {"pids": {...}, "restarts": {...}, "raised": {...}, "tick": n}           for each "pids" line on stdin
   {"end": "match_over"|"stopped", "summary": {...}, "gateway": {...}, "points": [...], "final": {...}}
 ("gateway": its counters, from the supervisor at a match's end, else from the file the gateway
 writes when it stops, SPEC "gateway_stats").
@@ -136,14 +136,15 @@ class Server(Child):
 
     def __init__(self, tmp: str, players: int = 2, snapshot_hz: int = 120, heartbeat_s: float = 0.5,
                  timeout_s: float = 5.0, grace_s: float = 30.0, max_spectators: int = 64, seconds: float = 3600.0,
-                 best_of: int = 9, feed: bool = True, bind: str = "tcp://127.0.0.1:0", players_timeout: float = 300.0):
+                 best_of: int = 9, feed: bool = True, bind: str = "tcp://127.0.0.1:0", players_timeout: float = 300.0,
+                 scene: str = "match_rigid"):
         stamp = time.monotonic_ns()
         self.tick_log = os.path.join(tmp, f"ticks-{stamp}.npz")
         self.spec = {"players": players, "snapshot_hz": snapshot_hz, "heartbeat_s": heartbeat_s,
                      "timeout_s": timeout_s, "grace_s": grace_s, "max_spectators": max_spectators,
                      "ticks": int(seconds * 1000), "best_of": best_of, "tick_log": self.tick_log, "feed": feed,
                      "gateway_stats": os.path.join(tmp, f"gateway-{stamp}.json"), "bind": bind,
-                     "players_timeout": players_timeout}
+                     "players_timeout": players_timeout, "scene": scene}
         super().__init__(["-m", "processes.stress.server", json.dumps(self.spec)], "server")
         hello = self.expect(lambda o: "listening" in o, 120, "listening line")
         self.endpoint, self.run_id, self.pids, self.dt = hello["listening"], hello["run_id"], hello["pids"], hello["dt"]
@@ -210,7 +211,7 @@ def main(argv: list[str]) -> int:
     from processes.supervisor import Supervisor
 
     # The rigid-net match by default: the stress tool loads the gateway, and a cloth net's worker
-    # would only share its cores.
+    # would only share its cores (the busy scenario asks for the cloth match: SPEC "scene").
     scene = with_remote_players(load_scene(spec.get("scene", "match_rigid")), spec["players"])
     if spec.get("best_of"):
         scene = replace(scene, match=replace(scene.match, best_of=spec["best_of"]))
@@ -226,7 +227,7 @@ def main(argv: list[str]) -> int:
     def commands() -> None:  # "pids" on stdin: the current worker pids (a restarted worker has a new one)
         for line in sys.stdin:
             if line.strip() == "pids" and clock:
-                _print(clock[0].state_now())
+                _print({**clock[0].state_now(), "raised": supervisor.raised()})
 
     def ready(reports: dict) -> None:
         clock.append(TickClock(supervisor.arena.layout(), list(supervisor.kinds)))
