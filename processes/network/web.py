@@ -69,6 +69,7 @@ class WebBridge:
         self.socket_options = dict(socket_options or {})
         self.client = Client(address, "spectator", name, socket_options=socket_options)
         self.url = ""
+        self.join_timeout_s = JOIN_TIMEOUT_S  # s: the welcome's bound, the bridge's and a browser player's
         self.counts = {"forwarded": 0, "browsers": 0, "browsers_now": 0, "snapshots": 0, "events": 0, "nets": 0}
         self.ended = threading.Event()  # the session is over (goodbye, server lost, or stop())
         self.end_reason = ""
@@ -93,6 +94,7 @@ class WebBridge:
             Rejected, TimeoutError: the gateway did not take the session. OSError: the web
             address could not be bound.
         """
+        self.join_timeout_s = join_timeout_s
         welcome = self.client.join(join_timeout_s)
         self._welcome = self.client.last_data
         self.counts["scene"] = welcome["scene"]
@@ -324,7 +326,7 @@ class BrowserPlayer:
         client = Client(bridge.address, "player", "browser", self.wanted, socket_options=bridge.socket_options)
         try:
             try:
-                welcome = client.join(JOIN_TIMEOUT_S)
+                welcome = client.join(bridge.join_timeout_s)
             except (Rejected, TimeoutError) as err:
                 reason = err.reason.name.lower() if isinstance(err, Rejected) else "timeout"
                 bridge.send_text(self.websocket, {"rejected": reason, "detail": str(err)})
