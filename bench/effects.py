@@ -22,6 +22,8 @@ import tomllib
 import numpy as np
 from numba import njit
 
+from bench.study import Study, quick_only
+from bench.study import run as run_study
 from engine.bat import bat_step
 from engine.collision import EVENT_ROW, MAX_IMPACTS_PER_TICK, ball_tick
 from engine.match import Match
@@ -296,3 +298,37 @@ def study(quick: bool = False, repeats: int | None = None, progress=None) -> dic
         "absent_check": absent,
         "quick": quick,
     }
+
+
+def _report(result: dict) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    console.print(f"[bold]Effect costs[/bold], scene {result['scene']}: numba tick loop over {result['sim_seconds']:g} "
+                  f"simulated s, median of {result['repeats']} interleaved rounds; kernels compiled in "
+                  f"{result['compile_seconds']:.1f} s, apart. Same-run A/A check of the baseline: "
+                  f"{result['noise']['aa_ratio']:.3f} (median spread between rounds {result['noise']['spread'] * 100:.0f} %).")
+    table = Table("effect", "without s/sim s", "with s/sim s", "with / without", "fastest rounds", "absent compiled out")
+    notes = []
+    for row in result["effects"]:
+        if not row["available"] or row.get("skipped"):
+            table.add_row(row["effect"], "-", "-", "-", "-", "-")
+            notes.append(f"{row['effect']}: {'not available: ' if not row['available'] else ''}{row['note']}")
+            continue
+        fastest = row.get("ratio_fastest_rounds")
+        compiled = {True: "yes", False: "no", None: "-"}[row.get("compiled_out")]
+        table.add_row(row["effect"], f"{row['without_s_per_sim_s']:.2e}", f"{row['with_s_per_sim_s']:.2e}",
+                      f"{row['ratio']:.2f}", "-" if fastest is None else f"{fastest:.2f}", compiled)
+        notes.append(f"{row['effect']}: {row['note']}")
+    console.print(table)
+    for note in notes:
+        console.print(f"  {note}")
+    if result.get("absent_check"):
+        console.print(f"absent costs nothing: {result['absent_check']['text']}")
+
+
+STUDY = Study(run=quick_only(study), report=_report, quick="a shorter simulated time and one round")
+
+if __name__ == "__main__":
+    raise SystemExit(run_study(STUDY, None, "python -m bench.effects", "effects"))

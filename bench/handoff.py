@@ -13,13 +13,14 @@ Each method does N round trips between this process and one child:
 """
 from __future__ import annotations
 
-import json
 import multiprocessing
 import statistics
 import time
 
 import numpy as np
 
+from bench.study import Study
+from bench.study import run as run_study
 from engine.dtypes import physics_snapshot_dtype
 from engine.world import copy_record
 from processes.runtime.handoff import TICK_SLOT_DTYPE, Baton
@@ -175,12 +176,11 @@ def _measure_handoff(ctx, n: int) -> float:
     return us
 
 
-def handoff_command(args) -> int:
-    n = 500 if args.quick else 5000
-    report = measure(n, 1 if args.quick else 3)
-    if args.json:
-        print(json.dumps(report))
-        return 0
+def _run(args, progress=None) -> dict:
+    return measure(500 if args.quick else 5000, 1 if args.quick else 3)
+
+
+def _report(report: dict) -> None:
     us = report["us_per_round_trip"]
     print(f"hand-off cost, median of {report['repeats']} x {report['round_trips']} round trips (µs):")
     for key, label in (("semaphore", "semaphore ping-pong (raw wake-up)"), ("shm_spin", "shared-memory spin ping-pong"),
@@ -188,4 +188,9 @@ def handoff_command(args) -> int:
         low, high = report["spread_us"][key]
         print(f"  {label:<48} {us[key]:8.2f}   [{low:.2f} .. {high:.2f}]")
     print(f"  hand-off / semaphore ping-pong: {report['handoff_over_semaphore']:.2f}x (target <= 2.5x)")
-    return 0
+
+
+STUDY = Study(run=_run, report=_report, quick="500 round trips, one round")
+
+if __name__ == "__main__":
+    raise SystemExit(run_study(STUDY, None, "python -m bench.handoff", "handoff"))

@@ -29,8 +29,8 @@ if __name__ == "__main__" and "--zmm" in sys.argv:  # before numba reads its con
 import numpy as np  # noqa: E402
 from numba import njit  # noqa: E402
 
+from bench import net_costs as net_profile  # noqa: E402
 from net_kernel import kernels  # noqa: E402
-from net_kernel import profile as net_profile  # noqa: E402
 from net_kernel.assembly import vector_report  # noqa: E402
 from net_kernel.kernels import grid  # noqa: E402
 from net_kernel.topology import build_topology, grid_spec  # noqa: E402

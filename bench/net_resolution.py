@@ -29,6 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bench.study import Study
+from bench.study import run as run_study
 from net_kernel import NO_CONTACT, NetSim, NetSpec, build_topology
 from net_kernel.sim import BALL_MASS, BALL_RADIUS, KNOT_RADIUS
 from net_kernel.topology import net_continuum, resolution_spec
@@ -468,31 +470,55 @@ def summary_lines(result: dict) -> list[str]:
     return out
 
 
-def main() -> None:
-    import argparse
-    import json
-    import sys
+def _parse_sizes(text: str | None):
+    """[(cols, rows), ...] from "COLSxROWS,..." or None; a bad entry exits with a message naming it."""
+    if text is None:
+        return None
+    sizes = []
+    for item in text.split(","):
+        parts = item.strip().lower().split("x")
+        if len(parts) != 2 or not all(p.isdigit() for p in parts) or min(int(p) for p in parts) < 2:
+            raise ValueError(f"--sizes entry {item!r} is not COLSxROWS with "
+                             "integers >= 2 (e.g. --sizes 70x7,92x8,184x16)")
+        sizes.append((int(parts[0]), int(parts[1])))
+    if len(sizes) < 2:
+        raise ValueError("--sizes needs at least two nets (the finest is the reference)")
+    return sizes
 
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    parser.add_argument("--quick", action="store_true", help="three coarse nets, three impacts, short ring-downs")
-    parser.add_argument("--sizes", default=None, help="nets, COLSxROWS comma-separated (the finest is the reference)")
+
+def _arguments(parser) -> None:
+    parser.add_argument("--sizes", default=None,
+                        help="nets as COLSxROWS, comma-separated (the finest is the reference)")
     parser.add_argument("--impacts", type=int, default=None, help="number of impacts")
-    parser.add_argument("--json", action="store_true")
-    args = parser.parse_args()
-    sizes = [tuple(int(v) for v in s.lower().split("x")) for s in args.sizes.split(",")] if args.sizes else None
-    result = study(quick=args.quick, sizes=sizes, n_impacts=args.impacts,
-                   progress=lambda m: print(f"  {m}", file=sys.stderr, flush=True))
-    if args.json:
-        print(json.dumps(result))
-        return
-    print(markdown_table(result))
-    for line in summary_lines(result):
-        print(f"- {line}")
 
+
+def _run(args, progress=None) -> dict:
+    """The study for --sizes and --impacts; ValueError names a bad flag (or a net that cannot build)."""
+    sizes = _parse_sizes(args.sizes)
+    if args.impacts is not None and args.impacts < 1:
+        raise ValueError(f"--impacts {args.impacts} must be >= 1")
+    return study(quick=args.quick, sizes=sizes, n_impacts=args.impacts, progress=progress)
+
+
+def _report(result: dict) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    console.print(f"[bold]Net resolution: accuracy against cost[/bold] (the same physical net on each grid, "
+                  f"net_kernel.topology.resolution_spec; errors against {result['reference']}; every column in "
+                  "--json and in bench/net_resolution.py's Markdown table; sub: substeps a tick, !: the ball fits through a "
+                  "cell; errors: median exit velocity error, mean differences of speed, first contact and bulge)")
+    table = Table(*COMPACT_COLUMNS)
+    for cells in compact_rows(result):
+        table.add_row(*cells)
+    console.print(table)
+    for line in summary_lines(result):
+        console.print(f"- {line}")
+
+
+STUDY = Study(run=_run, report=_report, add_arguments=_arguments,
+              quick="three coarse nets, three impacts, short ring-downs")
 
 if __name__ == "__main__":
-    import pathlib
-    import sys
-
-    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent.parent))
-    main()
+    raise SystemExit(run_study(STUDY, None, "python -m bench.net_resolution", "net-resolution"))

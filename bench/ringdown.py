@@ -24,6 +24,8 @@ from dataclasses import replace
 import numpy as np
 
 from net_kernel import NetSim, build_topology
+from bench.study import Study, quick_only
+from bench.study import run as run_study
 from net_kernel.sim import BALL_MASS, compile_kernels
 from net_kernel.topology import AIR_DAMPING_PHYSICAL, resolution_spec
 
@@ -158,3 +160,30 @@ def summary_lines(result: dict) -> list[str]:
                  f"{c['peak_deflection_ratio']:.2f}x the peak deflection, {c['energy_absorbed_ratio']:.2f}x the "
                  f"energy absorbed ({c['asleep'][1]} of {c['shots']} asleep, against {c['asleep'][0]})")
     return lines
+
+
+def _report(result: dict) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console(width=max(Console().width, 140))  # twelve columns: wider than a pipe's default 80
+    table = Table("net", "air 1/s", "point", "m/s", "asleep s", "awake ticks", "net CPU s", "peak mm", "absorbed mJ",
+                  "ring Hz", "zeta", "zeta model")
+    for name, net in result["nets"].items():
+        for shot in net["shots"]:
+            asleep = f"{shot['sleep_s']:.2f}" if math.isfinite(shot["sleep_s"]) else f"> {shot['stepped_s']:g}"
+            table.add_row(name, f"{net['air_damping_per_s']:g}", shot["point"], f"{shot['speed_m_s']:g}", asleep,
+                          str(shot["awake_ticks"]), f"{shot['net_cpu_s']:.2f}",
+                          f"{shot['peak_deflection_m'] * 1e3:.1f}", f"{shot['energy_absorbed_J'] * 1e3:.1f}",
+                          f"{shot['ring_frequency_hz']:.1f}", f"{shot['damping_ratio']:.4f}",
+                          f"{shot['damping_ratio_model']:.4f}")
+    console.print(table)
+    console.print(f"kernels compiled or loaded in {result['compile_s']:.1f} s, apart from every shot's net CPU")
+    for line in summary_lines(result):
+        console.print(f"- {line}")
+
+
+STUDY = Study(run=quick_only(study), report=_report, quick="fewer shots, the air-damped net stopped awake")
+
+if __name__ == "__main__":
+    raise SystemExit(run_study(STUDY, None, "python -m bench.ringdown", "ringdown"))

@@ -64,6 +64,23 @@ class ProcessRunResult:
     points: np.ndarray | None = None  # POINT_DTYPE log of a match
     frames: np.ndarray | None = None  # decimated snapshots for a replay
 
+    def match_summary(self, seed: int) -> dict:
+        """The run as engine.match.MatchResult.summary() reports an in-process match, with the
+        workers' own figures beside it (mode, startup, per worker, a bot's errors, a stop)."""
+        from engine.match import MatchResult, point_from_row
+        from engine.rules import Referee
+
+        points = [point_from_row(row) for row in self.points]
+        spec = self.scene.match
+        referee = Referee.restore(self.final["rally"], spec.best_of, "ab".index(spec.first_server), points)
+        summary = MatchResult(self.scene, seed, referee, self.ticks, self.ticks * self.scene.dt, self.wall_seconds,
+                              self.startup_seconds, 0.0).summary()
+        physics = self.workers.get("physics", {})
+        summary.update(mode=self.mode, processes=True, startup_seconds=self.startup_seconds,
+                       workers=self.workers, compile_seconds=None, ai_seconds=None,
+                       bot_errors=physics.get("bot_errors", []), stopped=physics.get("stopped"))
+        return summary
+
 
 class _Worker:
     def __init__(self, kind: str, index: int):

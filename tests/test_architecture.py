@@ -34,7 +34,7 @@ def test_package_imports_only_what_it_may(package):
         assert not extra, f"{path.relative_to(ROOT)} imports {sorted(extra)}"
 
 
-PACKAGES = ("engine", "net_kernel", "processes")
+PACKAGES = ("engine", "net_kernel", "processes", "bench")
 MAX_MODULE_LINES = 700
 # processes/ holds its layers as subpackages; directly in it only the package, its entry point
 # and the supervisor.

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from processes.cli import bench, match, profile_net, remote, run, stress, sweep, tournament
+from processes.cli import bench, match, remote, run, stress, sweep, tournament
 
 EPILOG = """examples:
   pingpong match                          a best-of-5 AI match in worker processes, live score
@@ -24,7 +24,7 @@ EPILOG = """examples:
   pingpong sweep match --set match.ai_hz=100,250   one scene key's values, each cell's matches as tasks
 `pingpong COMMAND --help` describes each command."""
 
-FAMILIES = (run, match, bench, profile_net, remote, stress, tournament, sweep)
+FAMILIES = (run, match, bench, remote, stress, tournament, sweep)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -38,7 +38,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    # A command whose flags are another parser's (`pingpong profile-net`) takes the rest unparsed.
+    args, unparsed = parser.parse_known_args(argv)
+    if unparsed and not getattr(args, "takes_unparsed", False):
+        parser.error(f"unrecognized arguments: {' '.join(unparsed)}")
+    args.unparsed = unparsed
     return int(args.func(args) or 0)
 
 

@@ -56,22 +56,6 @@ class _Scoreboard:
         self.live.update(self._render(record))
 
 
-def summary_from_processes(scene, seed, result) -> dict:
-    from engine.match import MatchResult, point_from_row
-    from engine.rules import Referee
-
-    points = [point_from_row(row) for row in result.points]
-    spec = scene.match
-    referee = Referee.restore(result.final["rally"], spec.best_of, "ab".index(spec.first_server), points)
-    summary = MatchResult(scene, seed, referee, result.ticks, result.ticks * scene.dt, result.wall_seconds,
-                          result.startup_seconds, 0.0).summary()
-    physics = result.workers.get("physics", {})
-    summary.update(mode=result.mode, processes=True, startup_seconds=result.startup_seconds,
-                   workers=result.workers, compile_seconds=None, ai_seconds=None,
-                   bot_errors=physics.get("bot_errors", []), stopped=physics.get("stopped"))
-    return summary
-
-
 def _print_summary(summary: dict) -> None:
     winner = summary["winner"]
     games = ", ".join(f"{a}-{b}" for a, b in summary["games"])
@@ -139,7 +123,7 @@ def match_command(args: argparse.Namespace) -> int:
                     result = supervisor.run(progress=board.update)
             else:
                 result = supervisor.run()
-            summary = summary_from_processes(scene, args.seed, result)
+            summary = result.match_summary(args.seed)
             points, frame_array, event_array = result.points, result.frames, result.events
     except (SceneError, SimulationError, ValueError) as exc:
         print(f"pingpong: {exc}", file=sys.stderr)
@@ -248,114 +232,6 @@ def replay_command(args: argparse.Namespace) -> int:
             if kind in summary:
                 print(f"{kind} written to {summary[kind]}")
     return 0
-
-
-def _bench_scene(name: str, args: argparse.Namespace) -> dict:
-    """One scene's `pingpong bench match` report: the match in worker processes (lockstep) and
-    in-process (same seed, so the same match); raises SceneError for a scene it cannot play."""
-    from dataclasses import replace
-
-    from engine.match import Match
-    from engine.scene import SceneError, load_scene
-    from processes.supervisor import Supervisor
-
-    scene = load_scene(name)
-    if scene.match is None:
-        raise SceneError(f"scene {scene.name!r} has no [match] section (and no referee); "
-                         "use a match scene such as 'match', 'match_air' or 'match_rigid'")
-    scene = replace(scene, match=replace(scene.match, best_of=args.best_of if not args.quick else 1))
-    ticks = args.ticks if args.ticks is not None else scene.ticks if not args.quick else 20_000
-    result = Supervisor(scene, ticks, "lockstep", seed=args.seed).run()
-    multi = summary_from_processes(scene, args.seed, result)
-    match = Match(scene, seed=args.seed)
-    reference = match.play(max_ticks=ticks).summary()
-    net = match.state.net_sim  # the cloth net's awake ticks: what it cost, to set beside the net worker's
-    return {
-        "scene": scene.name,
-        "net": scene.net_kind,
-        "best_of": scene.match.best_of,
-        "seed": args.seed,
-        "same_match": multi["games"] == reference["games"] and multi["points"] == reference["points"],
-        "sim_seconds": multi["sim_seconds"],
-        "processes": {"wall_seconds": multi["wall_seconds"], "realtime_factor": multi["realtime_factor"],
-                      "startup_seconds": result.startup_seconds, "workers": result.workers,
-                      "us_per_tick": 1e6 * multi["wall_seconds"] / max(multi["ticks"], 1)},
-        "in_process": {"wall_seconds": reference["wall_seconds"], "realtime_factor": reference["realtime_factor"],
-                       "ai_seconds": reference["ai_seconds"],
-                       "us_per_tick": 1e6 * reference["wall_seconds"] / max(reference["ticks"], 1),
-                       **({"net_awake_ticks": net.awake_ticks,
-                           "net_awake_share": net.awake_ticks / max(reference["ticks"], 1),
-                           "net_tail_ticks": net.tail_ticks,
-                           "net_tail_share": net.tail_ticks / max(reference["ticks"], 1),
-                           "net_asleep_share": max(reference["ticks"] - net.awake_ticks - net.tail_ticks, 0)
-                           / max(reference["ticks"], 1)} if net is not None else {})},
-        "target": "a best-of-5 match at >= 100x realtime, headless lockstep (issue 6)",
-        # The cloth net's chosen damping (NetSpec.air_damping; scenes/match_air.toml: the air's own drag).
-        "air_damping_per_s": scene.cloth.air_damping if scene.cloth is not None else None,
-        "outcome": {key: multi[key] for key in ("winner", "games", "points", "points_won", "mean_rally_shots",
-                                                "point_reasons")},
-    }
-
-
-def bench_match_command(args: argparse.Namespace) -> int:
-    """`pingpong bench match`: a headless lockstep match, its realtime factor and time per worker,
-    against the in-process reference in the same run (same seed, so the same match). Several scenes
-    (--scene a,b,...) run back to back: the first's report is the top-level object, the others go
-    in its "beside" list with their realtime factors as ratios to the first's."""
-    from engine.scene import SceneError
-
-    names = [name.strip() for name in args.scene.split(",")]
-    if not all(names):
-        print(f"pingpong bench match: --scene {args.scene!r} has an empty name; give scenes as NAME[,NAME...]",
-              file=sys.stderr)
-        return 2
-    if args.ticks is not None and args.ticks < 1:
-        print(f"pingpong bench match: --ticks {args.ticks} must be >= 1", file=sys.stderr)
-        return 2
-    reports = []
-    for name in names:
-        try:
-            reports.append(_bench_scene(name, args))
-        except SceneError as exc:
-            print(f"pingpong bench match: {exc}", file=sys.stderr)
-            return 2
-    report = reports[0]
-    if len(reports) > 1:
-        for other in reports[1:]:
-            other["realtime_factor_ratio"] = {
-                where: other[where]["realtime_factor"] / report[where]["realtime_factor"]
-                for where in ("processes", "in_process")}
-        report["beside"] = reports[1:]
-    if args.json:
-        print(json.dumps(report))
-        return 0
-    for one in reports:
-        _print_bench(one, report)
-    return 0
-
-
-def _print_bench(report: dict, first: dict) -> None:
-    p, r, o = report["processes"], report["in_process"], report["outcome"]
-    air = f", air damping {report['air_damping_per_s']:g}/s" if report["air_damping_per_s"] is not None else ""
-    print(f"match {report['scene']} ({report['net']} net{air}), best of {report['best_of']}, seed {report['seed']}: "
-          f"{report['sim_seconds']:.1f} s simulated, "
-          f"same match in both runs: {report['same_match']}")
-    games = ", ".join(f"{a}-{b}" for a, b in o["games"])
-    print(f"  outcome: winner {(o['winner'] or '-').upper()}, games {games or '-'}, {o['points']} points, "
-          f"rally shots mean {o['mean_rally_shots']:.1f}")
-    ratio = report.get("realtime_factor_ratio")
-    beside = f" ({ratio['processes']:.2f}x {first['scene']}'s)" if ratio else ""
-    print(f"  worker processes (lockstep): {p['wall_seconds']:.2f} s wall, {p['realtime_factor']:.1f}x realtime{beside}, "
-          f"{p['us_per_tick']:.1f} us/tick, startup {p['startup_seconds']:.2f} s")
-    for kind, info in p["workers"].items():
-        awake = info.get("awake_ticks")
-        awake_text = f", {awake} ticks awake ({1e6 * info['busy_s'] / awake:.0f} us each)" if awake else ""
-        if "tail_ticks" in info:
-            awake_text += f", {info['tail_ticks']} in its linear tail"
-        print(f"    {kind:<8} own work {info['busy_s']:.2f} s, hand-offs {info['handoff_s']:.2f} s{awake_text}")
-    share = f", net awake {r['net_awake_share']:.0%} of ticks" if "net_awake_share" in r else ""
-    print(f"  in-process reference:        {r['wall_seconds']:.2f} s wall, {r['realtime_factor']:.1f}x realtime, "
-          f"{r['us_per_tick']:.1f} us/tick (AI {r['ai_seconds']:.2f} s){share}")
 
 
 def add_commands(sub) -> None:

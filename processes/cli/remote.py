@@ -195,7 +195,6 @@ def serve_command(args: argparse.Namespace) -> int:
     from engine.scene import SceneError, load_scene, with_remote_players
     from engine.world import SimulationError
     from processes.cli.common import bot_budget_s, with_players
-    from processes.cli.match import summary_from_processes
     from processes.network.client import load_curve_key
     from processes.network.gateway import GatewayConfig
     from processes.supervisor import Supervisor, WorkerFailed
@@ -258,7 +257,7 @@ def serve_command(args: argparse.Namespace) -> int:
     except (SceneError, SimulationError, ValueError) as exc:
         print(f"pingpong: {exc}", file=sys.stderr)
         return 2
-    summary = summary_from_processes(scene, args.seed, result)
+    summary = result.match_summary(args.seed)
     summary["gateway"] = result.workers.get("gateway", {}).get("gateway", {})
     if args.json:
         print(json.dumps(summary))

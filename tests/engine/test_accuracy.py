@@ -1,4 +1,4 @@
-"""The accuracy study (bench/accuracy.py): its reference, the shots, and the orders it measures."""
+"""The accuracy study (bench/accuracy.py, bench/trajectories.py): its reference, the shots, the orders."""
 import json
 import math
 import os
@@ -11,7 +11,9 @@ import numpy as np
 import pytest
 
 from bench import accuracy
-from bench.accuracy import SHOTS, Case, compare, fitted_order, reference_shot, run_case, shot_scene
+from bench.accuracy import fitted_order
+from bench.study import write_block
+from bench.trajectories import SHOTS, Case, compare, reference_shot, run_case, shot_scene
 from engine.collision import CONTACT_TOL
 from engine.integrators import ORDERS
 from engine.world import build_model
@@ -124,7 +126,7 @@ def test_net_substepped_at_its_stability_bound_matches_the_reference_peak():
 def test_readme_block_replaces_only_the_block(tmp_path):
     readme = tmp_path / "README.md"
     readme.write_text("head\n<!-- accuracy:begin (note) -->\nold\n<!-- accuracy:end -->\ntail\n")
-    accuracy.write_readme(readme, "new table")
+    write_block(readme, "accuracy", "new table")
     assert readme.read_text() == "head\n<!-- accuracy:begin (note) -->\nnew table\n<!-- accuracy:end -->\ntail\n"
 
 

@@ -1,10 +1,10 @@
-"""Profile of the net step: compile time, time per step, springs per second, bandwidth share.
+"""The net step's costs: compile time, time per step, springs per second, bandwidth share.
 
 Beside the kernels: the textbook per-spring scatter loop timed on the same net in the same run
 (the ratios), the grid kernel's passes timed apart (grid_passes), and the vector width of each
 kernel's loops (kernel_vectors, from numba's assembly).
 
-Plain dicts out (stdlib + numpy + numba only); processes/cli/profile_net.py formats them.
+Plain dicts out; bench/profile_net.py (`pingpong profile-net`) runs and formats them.
 
 Kernel paths: "csr", the general per-knot gather over the CSR adjacency (kernels.step_knots,
 one step a call), and "grid", the structured-grid kernel (kernels.step_grid, NetSim's path for
@@ -51,7 +51,7 @@ from net_kernel.assembly import vector_report
 from net_kernel.kernels import grid as grid_kernels
 from net_kernel.kernels import grid32 as grid32_kernels
 from net_kernel.sim import SAFETY, NetSim
-from net_kernel.topology import FLOAT32, NetSpec, build_topology, grid_spec, resolution_spec
+from net_kernel.topology import FLOAT32, build_topology, grid_spec, resolution_spec
 
 BYTES_PER_KNOT = 160
 BYTES_PER_SPRING = 104
@@ -85,15 +85,7 @@ def copy_bandwidth(n_bytes: int = COPY_BYTES, repeats: int = REPEATS) -> dict:
     return {"gb_per_s": statistics.median(rates), "min": min(rates), "max": max(rates), "bytes": 2 * src.nbytes}
 
 
-def parse_knots(text: str) -> tuple[int, int]:
-    """(cols, rows) from "COLSxROWS"; ValueError with the expected form otherwise."""
-    parts = text.lower().split("x")
-    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
-        raise ValueError(f"--knots {text!r}: expected COLSxROWS, e.g. 184x16")
-    return int(parts[0]), int(parts[1])
-
-
-def _state(topo, seed=0):
+def moving_state(topo, seed=0):
     """A perturbed, moving state (so no branch is trivially skipped) and output buffers."""
     rng = np.random.default_rng(seed)
     free = (topo.knot_inv_mass > 0)[:, None]
@@ -126,7 +118,7 @@ def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True
     if path not in PATHS + (TEXTBOOK,):
         raise ValueError(f"path {path!r} is not one of {', '.join(PATHS + (TEXTBOOK,))}")
     mod = kernels if backend == "numba" else reference
-    pos, vel, out_pos, out_vel = _state(topo)
+    pos, vel, out_pos, out_vel = moving_state(topo)
     h = 0.5 * topo.h_max
     grid = path == "grid" or path in GRID32_PATHS
     if grid:
@@ -301,112 +293,6 @@ def _layer() -> str:
         return str(numba.threading_layer())
     except ValueError:
         return "not started"
-
-
-# ---------------------------------------------------------------------------------------------
-# Tick costs: a whole NetSim tick (kernels plus NetSim's Python), as the net worker pays it.
-NEAR_BALL_POS = (-0.03, 0.0, 0.08)  # m: 3 cm in front of the net's plane at mid-height: near, not touching
-NEAR_BALL_VEL = (0.0, 2.0, 0.0)  # m/s: along the net, so it stays near without contact
-IMPACT_BALL_POS = (-0.05, 0.0, 0.08)  # m: bench/net.py's standard impact
-IMPACT_BALL_VEL = (15.0, 0.0, 0.0)  # m/s
-IMPACT_TICKS = 20
-BALL_MASS = 2.7e-3  # kg, ITTF 2.3
-
-
-def _net_sim(cols: int, rows: int, sweep: str):
-    """A perturbed, moving NetSim of a cols x rows default-cloth net (knot_mass = 0.05 kg / knots).
-
-    sweep: "netsim", NetSim as it is; "full" / "culled", NetSim's per-substep loop with
-    kernels.collide_ball / collide_ball_near (private hooks set here: a benchmark's baselines,
-    whichever contact call NetSim itself makes).
-    """
-    topo = build_topology(NetSpec(cols=cols, rows=rows, knot_mass=0.05 / (cols * rows)))
-    sim = NetSim(topo, dt=TICK_S)
-    pos, vel, _, _ = _state(topo)
-    sim.knot_pos[:] = pos
-    sim.knot_vel[:] = vel
-    if sweep == "netsim":
-        return sim
-    passes_near = hasattr(sim, "_near")  # NetSim already hands collide_ball_near its scratch
-    sim._step_grid_ball = None  # noqa: SLF001 (the per-substep loop, not a one-call tick)
-    if sweep == "culled":
-        near = np.zeros(topo.n_knots, dtype=np.int64)
-        sim._collide = (kernels.collide_ball_near if passes_near  # noqa: SLF001
-                        else lambda *args: kernels.collide_ball_near(*args, near))
-    else:
-        sim._collide = (lambda *args: kernels.collide_ball(*args[:13])) if passes_near else kernels.collide_ball  # noqa: SLF001
-    return sim
-
-
-def _time_ticks(sim, case: str, ticks: int, clock=time.perf_counter) -> float:
-    """s per tick of `ticks` ticks of one case: "awake" (no ball), "near" (ball near, no contact), "impact"."""
-    start_state = (sim.knot_pos.copy(), sim.knot_vel.copy())
-    if case == "impact":
-        total = 0.0
-        for _ in range(max(1, ticks // IMPACT_TICKS)):
-            sim.knot_pos[:], sim.knot_vel[:] = start_state
-            bp, bv = np.array(IMPACT_BALL_POS), np.array(IMPACT_BALL_VEL)
-            t0 = clock()
-            for _ in range(IMPACT_TICKS):
-                contact = sim.step(bp, bv, 0.02, 1.0 / BALL_MASS)
-                bp = bp + bv * TICK_S + contact.offset
-                bv = bv + contact.impulse / BALL_MASS
-            total += clock() - t0
-        return total / (max(1, ticks // IMPACT_TICKS) * IMPACT_TICKS)
-    bp, bv = np.array(NEAR_BALL_POS), np.array(NEAR_BALL_VEL)
-    t0 = clock()
-    for _ in range(ticks):
-        sim.wake()  # measured awake: the sleep rules are NetSim's
-        if case == "near":
-            sim.step(bp, bv, 0.02, 1.0 / BALL_MASS)
-        else:
-            sim.step()
-    return (clock() - t0) / ticks
-
-
-SWEEPS = ("full", "culled", "netsim")
-
-
-def tick_costs(sizes=((184, 16), (92, 8), (70, 7)), ticks: int = 200, repeats: int = REPEATS,
-               clock: str = "thread") -> dict:
-    """µs per NetSim tick (1 ms) for each net size: awake with the ball away, ball near, an impact.
-
-    Three ways to sweep the ball's contact (_net_sim): NetSim's per-substep loop with the full
-    sweep ("full") or the culled one ("culled"), and NetSim as it is ("netsim").
-
-    clock: "thread" (CPU time of this thread, time.thread_time: what the tick costs its core,
-    steadier on a shared machine, where waiting for a core is not the net's cost; NetSim below
-    PARALLEL_MIN_KNOTS knots runs on this one thread) or "wall" (time.perf_counter).
-
-    Every case runs `repeats` times, interleaved between the two sweeps, each from the same
-    perturbed state after an untimed warm-up run (kernels compiled or loaded first); the median is
-    reported. "near": the ball 3 cm in front of the net, running along it (a contact sweep
-    every substep, no contact); "impact": bench/net.py's 15 m/s ball into the net's centre,
-    IMPACT_TICKS ticks from 5 cm away.
-    """
-    if clock not in ("thread", "wall"):
-        raise ValueError(f"clock {clock!r} is not 'thread' or 'wall'")
-    timer = time.thread_time if clock == "thread" else time.perf_counter
-    rows_out = []
-    for cols, rows in sizes:
-        sims = {sweep: _net_sim(cols, rows, sweep) for sweep in SWEEPS}
-        entry = {"cols": cols, "rows": rows, "knots": cols * rows, "substeps": sims["full"].substeps}
-        for case in ("awake", "near", "impact"):
-            runs = {sweep: [] for sweep in SWEEPS}
-            for sweep, sim in sims.items():
-                state = (sim.knot_pos.copy(), sim.knot_vel.copy())
-                _time_ticks(sim, case, min(ticks, IMPACT_TICKS))  # warm-up
-                sim.knot_pos[:], sim.knot_vel[:] = state
-            for _ in range(repeats):
-                for sweep, sim in sims.items():
-                    state = (sim.knot_pos.copy(), sim.knot_vel.copy())
-                    runs[sweep].append(_time_ticks(sim, case, ticks, timer))
-                    sim.knot_pos[:], sim.knot_vel[:] = state
-            for sweep in runs:
-                entry[f"{case}_{sweep}_us"] = statistics.median(runs[sweep]) * 1e6
-        rows_out.append(entry)
-    return {"tick_s": TICK_S, "ticks": ticks, "repeats": repeats, "clock": clock, "load_avg": os.getloadavg()[0],
-            "rows": rows_out}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -623,7 +509,7 @@ def awake_tick_costs(cols: int = 85, rows: int = 8, target_s: float = 1.0, repea
     for name, fields in AWAKE_KERNELS.items():
         spec = replace(resolution_spec(cols, rows), **fields)
         sim = NetSim(build_topology(spec), dt=TICK_S)
-        pos, vel, _, _ = _state(sim.topo)
+        pos, vel, _, _ = moving_state(sim.topo)
         sims[name] = (sim, pos, vel)
     runs = {name: [] for name in sims}
     for name, (sim, pos, vel) in sims.items():  # compile or load, and size the runs

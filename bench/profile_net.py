@@ -1,33 +1,43 @@
-"""`pingpong profile-net`: the net kernel's cost against this machine's copy bandwidth."""
-import argparse
-import json
-import sys
+"""`pingpong profile-net`: the net kernel's cost against this machine's copy bandwidth.
 
-from processes.cli.common import FORMATTER
+The study's flags, run and report; the measuring (bench/net_costs.py, numba) is imported when it
+runs, so `pingpong profile-net --help` loads none of it.
+"""
+from bench.study import Study
+from bench.study import run as run_study
 
 
-def profile_net_command(args: argparse.Namespace) -> int:
-    """Run the profile for args.knots/steps/backend; print a table, or one JSON object with --json.
+def parse_knots(text: str) -> tuple[int, int]:
+    """(cols, rows) from "COLSxROWS"; ValueError with the expected form otherwise."""
+    parts = text.lower().split("x")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise ValueError(f"--knots {text!r}: expected COLSxROWS, e.g. 184x16")
+    return int(parts[0]), int(parts[1])
 
-    Returns:
-        0, or 2 when --knots or --steps is malformed or the net cannot be built.
-    """
-    from net_kernel.profile import PATHS, parse_knots, profile_net
 
-    try:
-        cols, rows = parse_knots(args.knots)
-        if args.steps is not None and args.steps < 1:
-            raise ValueError(f"--steps {args.steps}: must be >= 1")
-        backends = ("numba", "reference") if args.backend == "both" else (args.backend,)
-        path = args.path
-        paths = PATHS if path == "all" else (path,)
-        report = profile_net(cols, rows, steps=args.steps, backends=backends, paths=paths)
-    except ValueError as exc:
-        print(f"pingpong profile-net: {exc}", file=sys.stderr)
-        return 2
-    if args.json:
-        print(json.dumps(report))
-        return 0
+def _arguments(parser) -> None:
+    parser.add_argument("--knots", default="184x16", help="knot grid, COLUMNSxROWS")
+    parser.add_argument("--steps", type=int, default=None, help="timed steps (default: sized to ~1 s per backend)")
+    parser.add_argument("--backend", choices=["numba", "reference", "both"], default="both")
+    parser.add_argument("--path", choices=["grid", "grid32", "grid32_fma", "csr", "all"], default="all",
+                        help="kernel path: the grid kernel NetSim uses (float64), its float32 variants, the general "
+                             "CSR kernel, or all")
+
+
+def _run(args, progress=None) -> dict:
+    """The profile for args.knots/steps/backend/path; ValueError names a malformed flag."""
+    from bench.net_costs import PATHS, profile_net
+
+    cols, rows = parse_knots(args.knots)
+    if args.steps is not None and args.steps < 1:
+        raise ValueError(f"--steps {args.steps}: must be >= 1")
+    backends = ("numba", "reference") if args.backend == "both" else (args.backend,)
+    paths = PATHS if args.path == "all" else (args.path,)
+    return profile_net(cols, rows, steps=args.steps, backends=backends, paths=paths)
+
+
+def print_profile(report: dict) -> None:
+    """The profile as a table, then the grid kernel's anatomy."""
     print(f"net {report['cols']} x {report['rows']}: {report['knots']} knots, {report['springs']} springs "
           f"(structural + shear), h = {report['h_s']:.3g} s ({report['substeps_per_tick']} substeps a 1 ms tick)")
     print(f"numba threads: {report['threads']} ({report['threading_layer']}); load average "
@@ -54,20 +64,6 @@ def profile_net_command(args: argparse.Namespace) -> int:
           "loop (kernels.step_knots_scatter), serial, one step per call; x textbook: its cpu µs/step over the "
           "row's (µs/step for parallel rows), same net, same run")
     _print_anatomy(report)
-    return 0
-
-
-def add_commands(sub) -> None:
-    """`pingpong profile-net`."""
-    profile = sub.add_parser("profile-net", help="profile the net kernel", formatter_class=FORMATTER)
-    profile.add_argument("--knots", default="184x16", help="knot grid, COLUMNSxROWS")
-    profile.add_argument("--steps", type=int, default=None, help="timed steps (default: sized to ~1 s per backend)")
-    profile.add_argument("--backend", choices=["numba", "reference", "both"], default="both")
-    profile.add_argument("--path", choices=["grid", "grid32", "grid32_fma", "csr", "all"], default="all",
-                         help="kernel path: the grid kernel NetSim uses (float64), its float32 variants, the general "
-                              "CSR kernel, or all")
-    profile.add_argument("--json", action="store_true", help="print one JSON object")
-    profile.set_defaults(func=profile_net_command)
 
 
 def _ratio(r: dict) -> str:
@@ -104,3 +100,9 @@ def _print_anatomy(report: dict) -> None:
               f"{awake['ticks']} ticks, interleaved): µs per tick, and float64's over it")
         for name, us in awake["us"].items():
             print(f"  {name:<12} {us:>8.1f} µs {awake['ratio'][name]:>6.2f}x")
+
+
+STUDY = Study(run=_run, report=print_profile, add_arguments=_arguments, quick=None)
+
+if __name__ == "__main__":
+    raise SystemExit(run_study(STUDY, None, "python -m bench.profile_net", "profile-net"))

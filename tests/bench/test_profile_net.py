@@ -5,7 +5,7 @@ import sys
 
 import pytest
 
-from net_kernel.profile import parse_knots
+from bench.profile_net import parse_knots
 from tests.waits import DEADLINE_S
 
 
@@ -51,7 +51,7 @@ def test_profile_net_text_and_bad_knots():
 
 
 def test_tick_costs_small_net():
-    from net_kernel.profile import tick_costs
+    from bench.net_tick import tick_costs
 
     report = tick_costs(sizes=((20, 8),), ticks=2, repeats=1)
     (row,) = report["rows"]
