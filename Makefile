@@ -52,9 +52,9 @@ test-long: install
 bench: install bench-accuracy
 	$(BIN)/python -m pytest bench --benchmark-enable -q || test $$? -eq 5
 
-# The work-precision study: rewrites README.md's accuracy block and bench/accuracy.png (a few minutes).
+# The work-precision study: rewrites docs/accuracy.md's accuracy block and bench/accuracy.png (a few minutes).
 bench-accuracy: install
-	$(BIN)/python -m bench.accuracy --png bench/accuracy.png --readme README.md
+	$(BIN)/python -m bench.accuracy --png bench/accuracy.png --readme docs/accuracy.md
 
 # The protocol document's generated tables (layouts, enums, limits), from the wire's code.
 protocol: install
