@@ -18,7 +18,7 @@ against itself with every knot moved by 1 nm differs by millimetres after a 20 m
 tests/net_kernel/test_grid32.py), so what a second ball can be held to is its outcome.
 
     pingpong bench net-tail [--quick] [--json]
-    python -m bench.net_tail [--quick] [--energies 5e-6,20e-6,50e-6] [--json] [--readme docs/accuracy.md]
+    python -m bench.net_tail [--quick] [--energies 20e-6,30e-6,40e-6,50e-6] [--json] [--readme docs/accuracy.md]
 """
 from __future__ import annotations
 
@@ -42,7 +42,7 @@ SECOND_BALL_TICK = 3000  # 3 s after the strike: every strike's net is in its ta
 SPEEDS = (5.0, 10.0, 20.0, 30.0, 40.0, 60.0)
 # (y, z) m aimed at: the middle of the mesh, near a post, the top cord, the hem
 POINTS = {"middle": (0.0, 0.08), "post": (0.8, 0.08), "top cord": (0.1, 0.148), "hem": (-0.2, 0.012)}
-ENERGIES = (5e-6, 20e-6, 50e-6)
+ENERGIES = (20e-6, 30e-6, 40e-6, 50e-6)
 BUDGET_M = 50e-6
 BUDGET_SPEED = 0.01
 BUDGET_LANDING_M = 1e-3

@@ -24,6 +24,27 @@ raised to the tick's s and diagonalised once (numpy.linalg.eig). What is left ou
 in-plane modes) is stiff and strongly damped by the dashpots; the tail starts only below an
 energy that bounds what they can carry.
 
+The pretensioned mesh stiffens as it rings: a spring whose ends part by a out of plane is
+stretched by a^2 / 2L, and its tension k a^2 / 2L stiffens every out-of-plane mode (the
+geometric nonlinearity of a string, Kirchhoff-Carrier; Nayfeh & Mook, Nonlinear Oscillations,
+1979, ch. 4 and 7), the more so as the mesh's pre-strain T / kL is ~1e-4. So each out-of-plane
+mode's frequency is corrected for the amplitudes at the switch, to first order (Lindstedt-
+Poincare averaging over independent phases). With s_j = a_j^2 / 2L_j per spring and the
+in-plane displacement at its static response to those stretches, the motion's quartic energy
+is V4 = 1/2 s.Q.s, Q = diag(kappa) - kappa D S_yz^-1 D^T kappa (kappa = k - T/L per spring, D
+the springs' in-plane directions); averaged over the phases, mode m's stiffness rises by
+
+    d lam_m = (M a)_m + 1/2 M_mm a_m + 2 sum_(n != m) P_mn a_n,    a_n = A_n^2 (A_n its amplitude),
+
+M_mn = sum_jl G_jm^2 Q_jl G_ln^2 / 4 L_j L_l, P_mn = sum_jl G_jm G_jn Q_jl G_lm G_ln / 4 L_j L_l, G_jm
+the stretch of spring j out of plane in mode m. P is computed for the DETUNED_MODES lowest
+modes (which hold a ring's large amplitudes) and left out between the others. The shift in the
+scheme's own angle per tick is s h^2 / (2 sqrt(det A) sin theta_sub) d lam (theta_sub the
+substep's angle); it decays with the amplitude squared, at |mu|^2 a tick (kernels.modal).
+What it leaves out: energy exchange between modes of nearly equal frequency (the mesh's lowest
+ones are 0.5 Hz apart) and the in-plane motion's own dynamics (its lowest modes, tens of Hz,
+are not far above twice the lowest out-of-plane ones).
+
 These are the sim's own scheme's modes, not the continuous system's (expm of the ODE drifts
 further from what NetSim steps). They are computed once per (net, tick, substeps) on one BLAS
 thread (LAPACK's bits depend on the thread count) and kept in memory and on disk beside
@@ -59,7 +80,10 @@ _REST_FORCE_TOL = 1e-9
 # m: a rest shape whose knots leave the plane x = 0 by more than this is not flat (a buckled or
 # custom net): its planes couple at first order, and it gets no tail.
 _FLAT_TOL = 1e-12
-_CACHE_VERSION = 2
+# Out-of-plane modes, the lowest, whose pairwise detuning P_mn (see the module's docstring) is
+# computed (the pairs cost a quadratic form in the springs each; between others it is left out).
+DETUNED_MODES = 100
+_CACHE_VERSION = 3
 
 
 @dataclass(frozen=True, eq=False)
@@ -75,6 +99,9 @@ class NetModes:
         out_proj: (n_free, n_out), knot-major: q = out_proj.T @ u_x (the mass-weighted inverse of out_shape.T).
         out_log_r, out_theta: (n_out,) ln |mu| and arg mu of each out-of-plane mode's tick eigenvalue.
         out_e: (n_out,) complex, the eigenvector's velocity component (its position component is 1).
+        out_detune: (n_out, n_out) rad per tick per m^2: mode m's angle a tick rises by
+            sum_n out_detune[m, n] |c_n|^2 for coefficients c (the amplitude correction, above).
+        out_rate: (n_out,) rad, each mode's angle a tick as the substeps turn it (not aliased).
         in_proj: (2 n_free, K), knot-major: a = in_proj.T @ u_yz, u_yz the (y, z) of each free knot in turn.
         in_pos, in_vel: (2, 2K, 2 n_free), the real and imaginary parts of the in-plane shapes P and
             V, mode-major: u_yz(n) = Re(P.T @ (w mu^n)), v_yz likewise; in_pos_abs, in_vel_abs
@@ -93,6 +120,8 @@ class NetModes:
     out_log_r: np.ndarray
     out_theta: np.ndarray
     out_e: np.ndarray
+    out_detune: np.ndarray
+    out_rate: np.ndarray
     in_proj: np.ndarray
     in_pos: np.ndarray
     in_vel: np.ndarray
@@ -189,11 +218,16 @@ def build_modes(topo: NetTopology, dt: float, substeps: int) -> NetModes:
     mu = (tr + 1j * np.sqrt(-disc)) / 2.0
     out_e = (mu - (1.0 - h * h * lam)) / (h * (1.0 - h * g))
     mu_tick = mu ** substeps
+    out_shape = (phi / root[:, None]).T
+    theta_sub = np.angle(mu)
+    # d(angle a tick)/d lam: cos theta_sub = tr / (2 sqrt(det)), differentiated
+    dtheta = substeps * h * h / (2.0 * math.sqrt(det) * np.sin(theta_sub))
     # In plane: the lowest K modes of S_yz, the dashpots projected onto them.
     s_yz = stiff[:, 1:, :, 1:].reshape(2 * nf, 2 * nf)
     c_yz = damp[:, 1:, :, 1:].reshape(2 * nf, 2 * nf)
     root2 = np.repeat(root, 2)
     lam_in, psi = np.linalg.eigh(s_yz / np.outer(root2, root2))
+    out_detune = dtheta[:, None] * detuning(topo, x0, free, out_shape, lam, lam_in, psi)
     k = min(IN_PLANE_MODES, 2 * nf)
     psi = psi[:, :k]
     lam_in = lam_in[:k]
@@ -202,7 +236,6 @@ def build_modes(topo: NetTopology, dt: float, substeps: int) -> NetModes:
     step = np.block([[eye - h * h * np.diag(lam_in), h * (eye - h * d)], [-h * np.diag(lam_in), eye - h * d]])
     vals, vecs = np.linalg.eig(np.linalg.matrix_power(step, substeps))
     in_shape = psi / root2[:, None]
-    out_shape = (phi / root[:, None]).T
     in_pos, in_vel = (in_shape @ vecs[:k]).T, (in_shape @ vecs[k:]).T  # (2K, 2 n_free) complex
     return NetModes(
         rest_pos=_read_only(x0), free=_read_only(free),
@@ -210,12 +243,69 @@ def build_modes(topo: NetTopology, dt: float, substeps: int) -> NetModes:
                                            topo.spring_k, topo.spec.gravity)),
         out_shape=_read_only(out_shape), out_shape_abs=_read_only(np.abs(out_shape)), out_proj=_read_only(phi * root[:, None]),
         out_log_r=_read_only(np.log(np.abs(mu_tick))), out_theta=_read_only(np.angle(mu_tick)),
-        out_e=_read_only(out_e), in_proj=_read_only(psi * root2[:, None]),
+        out_e=_read_only(out_e), out_detune=_read_only(out_detune), out_rate=_read_only(substeps * theta_sub),
+        in_proj=_read_only(psi * root2[:, None]),
         in_pos=_read_only(np.stack([in_pos.real, in_pos.imag])), in_vel=_read_only(np.stack([in_vel.real, in_vel.imag])),
         in_pos_abs=_read_only(np.abs(in_pos)),
         in_vel_abs=_read_only(np.abs(in_vel)),
         in_inverse=_read_only(np.linalg.inv(vecs)), in_log_r=_read_only(np.log(np.abs(vals))),
         in_theta=_read_only(np.angle(vals)), dt=float(dt), substeps=int(substeps))
+
+
+def detuning(topo: NetTopology, pos: np.ndarray, free: np.ndarray, out_shape: np.ndarray, lam: np.ndarray,
+              in_lam: np.ndarray, in_psi: np.ndarray) -> np.ndarray:
+    """(n_out, n_out) 1/s^2 per m^2: mode m's stiffness d lam_m = sum_n detuning[m, n] |c_n|^2 for
+    modal coefficients c (amplitude A_n = 2 |c_n|), by the averaged quartic energy of the module's
+    docstring. out_shape (n_out, n_free): the mass-normalised out-of-plane shapes, lam their
+    stiffnesses (the lowest DETUNED_MODES get their pairs); in_lam, in_psi: every in-plane mode
+    of the mass-normalised S_yz (its inverse, M^-1/2 psi lam^-1 psi^T M^-1/2, relaxes the plane)."""
+    if float(in_lam.min()) <= 0.0:
+        raise ValueError(f"the in-plane stiffness is not positive (lowest {float(in_lam.min()):.3g} /s^2)")
+    index = np.full(topo.n_knots, -1)
+    index[free] = np.arange(free.size)
+    i, j = topo.spring_ij[:, 0].astype(np.int64), topo.spring_ij[:, 1].astype(np.int64)
+    d = pos[j] - pos[i]
+    length = np.sqrt((d * d).sum(axis=1))
+    unit = d / length[:, None]
+    kappa = topo.spring_k - topo.spring_k * (length - topo.spring_rest) / length
+    shape = np.zeros((out_shape.shape[0], topo.n_knots))
+    shape[:, free] = out_shape
+    stretch = (shape[:, j] - shape[:, i]).T  # G: (springs, modes), a spring's out-of-plane stretch per mode
+    # The in-plane force per unit G_j G_l on the free knots' (y, z), mass-normalised: each degree of
+    # freedom sums its springs' kappa / 2L along their directions (a spring's ends pull apart).
+    dof_spring, dof_weight = [[] for _ in range(2 * free.size)], [[] for _ in range(2 * free.size)]
+    root = np.sqrt(topo.knot_mass)
+    for spring in range(length.size):
+        for knot, sign in ((j[spring], 1.0), (i[spring], -1.0)):
+            if index[knot] >= 0:
+                for axis in range(2):
+                    dof_spring[2 * index[knot] + axis].append(spring)
+                    dof_weight[2 * index[knot] + axis].append(
+                        sign * unit[spring, 1 + axis] * kappa[spring] / (2.0 * length[spring]) / root[knot])
+    width = max(len(row) for row in dof_spring)
+    springs = np.array([row + [0] * (width - len(row)) for row in dof_spring])
+    weights = np.array([row + [0.0] * (width - len(row)) for row in dof_weight])
+    relax = in_psi.T / np.sqrt(in_lam)[:, None]
+
+    def quadratic(y):
+        """Per column of y (springs, pairs): y.Q~.y with Q~ = Q / 4 L L, Q of the module's docstring."""
+        force = sum(weights[:, k, None] * y[springs[:, k]] for k in range(width))
+        relaxed = relax @ force
+        return (kappa / (4.0 * length * length)) @ (y * y) - np.einsum("kp,kp->p", relaxed, relaxed)
+
+    sq = stretch * stretch
+    force = sum(weights[:, k, None] * sq[springs[:, k]] for k in range(width))
+    relaxed = relax @ force
+    m = sq.T @ ((kappa / (4.0 * length * length))[:, None] * sq) - relaxed.T @ relaxed
+    low = np.argsort(lam)[:DETUNED_MODES]
+    pair_m, pair_n = np.triu_indices(low.size, 1)
+    p = np.zeros_like(m)
+    for chunk in range(0, pair_m.size, 1024):
+        a, b = low[pair_m[chunk:chunk + 1024]], low[pair_n[chunk:chunk + 1024]]
+        p[a, b] = quadratic(stretch[:, a] * stretch[:, b])
+    p += p.T
+    # d lam = (M a) + 1/2 diag(M) a + 2 P a with a = A^2 = 4 |c|^2
+    return 4.0 * (m + 0.5 * np.diag(np.diag(m)) + 2.0 * p)
 
 
 def spring_jacobians(topo: NetTopology, pos: np.ndarray, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -248,7 +338,7 @@ def spring_jacobians(topo: NetTopology, pos: np.ndarray, free: np.ndarray) -> tu
     return out[0], out[1]
 
 
-def _forces(topo: NetTopology, pos: np.ndarray) -> np.ndarray:
+def static_forces(topo: NetTopology, pos: np.ndarray) -> np.ndarray:
     """(n_knots, 3) N: spring tensions plus gravity on each knot at rest at `pos`."""
     i, j = topo.spring_ij[:, 0].astype(np.int64), topo.spring_ij[:, 1].astype(np.int64)
     d = pos[j] - pos[i]
@@ -262,7 +352,7 @@ def _forces(topo: NetTopology, pos: np.ndarray) -> np.ndarray:
 
 
 def _residual(topo: NetTopology, pos: np.ndarray, free: np.ndarray) -> float:
-    return float(np.abs(_forces(topo, pos)[free]).max())
+    return float(np.abs(static_forces(topo, pos)[free]).max())
 
 
 def _read_only(a: np.ndarray) -> np.ndarray:
@@ -273,7 +363,7 @@ def _read_only(a: np.ndarray) -> np.ndarray:
 
 def _key(topo: NetTopology, dt: float, substeps: int) -> str:
     """A digest of everything the modes depend on: the net's arrays, the tick, the substeps."""
-    digest = hashlib.sha256(f"{_CACHE_VERSION} {dt!r} {substeps} {IN_PLANE_MODES} {topo.spec!r}".encode())
+    digest = hashlib.sha256(f"{_CACHE_VERSION} {dt!r} {substeps} {IN_PLANE_MODES} {DETUNED_MODES} {topo.spec!r}".encode())
     for a in (topo.rest_pos, topo.knot_mass, topo.knot_inv_mass, topo.spring_ij, topo.spring_rest, topo.spring_k,
               topo.spring_c):
         digest.update(np.ascontiguousarray(a).tobytes())

@@ -529,13 +529,22 @@ def modal_coefficients(knot_pos, knot_vel, rest_pos, free, out_proj, out_e, in_p
     in_w[:] = in_inverse @ in_scratch
 
 
-def modal_state(ticks, rest_pos, free, out_shape, out_c, out_e, out_log_r, out_theta, in_pos, in_vel, in_w,
-                in_log_r, in_theta, q, p, xi, dofs, knot_pos, knot_vel):
+def modal_detuning(out_detune, out_c, out_shift):
+    """Numpy twin of kernels.modal_detuning (to rounding)."""
+    out_shift[:] = out_detune @ (out_c.real ** 2 + out_c.imag ** 2)
+
+
+def modal_state(ticks, rest_pos, free, out_shape, out_c, out_e, out_log_r, out_theta, out_shift, out_rate, in_pos,
+                in_vel, in_w, in_log_r, in_theta, q, p, xi, dofs, knot_pos, knot_vel):
     """Numpy twin of kernels.modal_state (to rounding)."""
-    z = out_c * np.exp(ticks * out_log_r) * (np.cos(ticks * out_theta) + 1j * np.sin(ticks * out_theta))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        summed = np.where(out_log_r == 0.0, float(ticks), np.expm1(2.0 * ticks * out_log_r) / np.expm1(2.0 * out_log_r))
+    angle = ticks * out_theta + out_shift * summed
+    z = out_c * np.exp(ticks * out_log_r) * (np.cos(angle) + 1j * np.sin(angle))
+    scale = 1.0 + out_shift * np.exp(2.0 * ticks * out_log_r) / out_rate
     w = in_w * np.exp(ticks * in_log_r) * (np.cos(ticks * in_theta) + 1j * np.sin(ticks * in_theta))
     q[:] = 2.0 * z.real
-    p[:] = 2.0 * (z * out_e).real
+    p[:] = 2.0 * (z * (out_e.real + 1j * out_e.imag * scale)).real
     xi[0], xi[1] = w.real, w.imag
     knot_pos[:] = rest_pos
     knot_vel[:] = 0.0
@@ -545,10 +554,11 @@ def modal_state(ticks, rest_pos, free, out_shape, out_c, out_e, out_log_r, out_t
     knot_vel[free, 1:] += (in_vel[0].T @ xi[0] - in_vel[1].T @ xi[1]).reshape(-1, 2)
 
 
-def modal_bounds(out_shape_abs, out_c, out_e, in_pos_abs, in_vel_abs, in_w, disp, speed):
+def modal_bounds(out_shape_abs, out_c, out_e, out_shift, out_rate, in_pos_abs, in_vel_abs, in_w, disp, speed):
     """Numpy twin of kernels.modal_bounds (to rounding)."""
     disp[0] = out_shape_abs.T @ (2.0 * np.abs(out_c))
-    speed[0] = out_shape_abs.T @ (2.0 * np.abs(out_c * out_e))
+    fastest = out_e.real + 1j * out_e.imag * (1.0 + np.abs(out_shift) / out_rate)
+    speed[0] = out_shape_abs.T @ (2.0 * np.abs(out_c) * np.abs(fastest))
     disp[1:] = (in_pos_abs.T @ np.abs(in_w)).reshape(-1, 2).T
     speed[1:] = (in_vel_abs.T @ np.abs(in_w)).reshape(-1, 2).T
 

@@ -46,6 +46,7 @@ class LinearTail:
         n_out, k2 = modes.out_e.size, modes.in_log_r.size
         n_knots, n_free = modes.rest_pos.shape[0], modes.free.size
         self._out_c = np.zeros(n_out, dtype=np.complex128)
+        self._out_shift = np.zeros(n_out)
         self._in_w = np.zeros(k2, dtype=np.complex128)
         self._in_scratch = np.zeros(k2)
         self._q, self._p = np.zeros(n_out), np.zeros(n_out)
@@ -69,8 +70,9 @@ class LinearTail:
         k = self._kernels
         k.modal_coefficients(self.start_pos, self.start_vel, m.rest_pos, m.free, m.out_proj, m.out_e, m.in_proj,
                              m.in_inverse, self._out_c, self._in_w, self._q, self._p, self._in_scratch, self._dofs)
-        k.modal_bounds(m.out_shape_abs, self._out_c, m.out_e, m.in_pos_abs, m.in_vel_abs, self._in_w, self._disp,
-                     self._speed)
+        k.modal_detuning(m.out_detune, self._out_c, self._out_shift)
+        k.modal_bounds(m.out_shape_abs, self._out_c, m.out_e, self._out_shift, m.out_rate, m.in_pos_abs, m.in_vel_abs,
+                       self._in_w, self._disp, self._speed)
         rest = m.rest_pos[m.free]
         disp = self._disp.T
         if float((rest[:, 2] - disp[:, 2]).min()) <= TABLE_Z:
@@ -92,5 +94,5 @@ class LinearTail:
         """The tail's knot state `ticks` ticks after the switch, into knot_pos and knot_vel ((n_knots, 3) views)."""
         m = self.modes
         self._kernels.modal_state(int(ticks), m.rest_pos, m.free, m.out_shape, self._out_c, m.out_e, m.out_log_r, m.out_theta,
-                                  m.in_pos, m.in_vel, self._in_w, m.in_log_r, m.in_theta, self._q, self._p, self._xi,
+                                  self._out_shift, m.out_rate, m.in_pos, m.in_vel, self._in_w, m.in_log_r, m.in_theta, self._q, self._p, self._xi,
                                   self._dofs, knot_pos, knot_vel)

@@ -138,7 +138,7 @@ class NetSpec:
     air_damping: float = 5.0
     # Chosen from `pingpong bench accuracy`'s tail rows: seeded strikes at 5-60 m/s stay within the
     # 50 um budget (a tenth of a knot's radius) of the full kernel over their whole ring.
-    tail_energy: float = 20e-6
+    tail_energy: float = 30e-6
     fix_posts: bool = True
     fix_table: bool = False
     solver: str = SEMI_IMPLICIT

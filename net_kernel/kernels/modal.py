@@ -2,7 +2,11 @@
 
 net_kernel/modes.py derives the modes; these kernels use them. Symbols: n_out out-of-plane
 modes, each with tick eigenvalue mu = exp(log_r + i theta) and eigenvector (1, e) on
-(q, q'), its state after n ticks q(n) = 2 Re(c mu^n), q'(n) = 2 Re(c e mu^n); 2K in-plane
+(q, q'), its state after n ticks q(n) = 2 Re(c mu^n e^(i phi(n))), q'(n) = 2 Re(c e' mu^n e^(i phi(n))),
+where the amplitude correction (modes.py) turns the angle by delta = sum_k out_detune[m, k] |c_k|^2
+more a tick at the switch, decaying with the amplitudes squared: delta |mu|^(2k) at tick k, so
+phi(n) = delta (1 - |mu|^(2n)) / (1 - |mu|^2), and e' is e with its imaginary part (the
+frequency's) scaled by 1 + delta |mu|^(2n) / rate (rate the mode's angle a tick); 2K in-plane
 eigenvalues mu_k with coefficients w_k, the in-plane state u_yz(n) = Re(P (w mu^n)),
 v_yz(n) = Re(V (w mu^n)). Shapes are stored mode-major ((modes, dofs), C order) so each
 mode adds a contiguous row. Serial loops in a fixed order, fastmath off: the same bits in every
@@ -107,14 +111,36 @@ def modal_coefficients(knot_pos, knot_vel, rest_pos, free, out_proj, out_e, in_p
 
 
 @njit(cache=True, fastmath=False)
-def _powers(ticks, out_c, out_e, out_log_r, out_theta, in_w, in_log_r, in_theta, q, p, xi):
+def modal_detuning(out_detune, out_c, out_shift):
+    """Each out-of-plane mode's angle correction a tick at the switch, into out_shift (n_out,) rad:
+    out_detune (n_out, n_out) (NetModes) times |c|^2 of the coefficients out_c, row by row."""
+    for m in range(out_detune.shape[0]):
+        acc = 0.0
+        for k in range(out_detune.shape[1]):
+            c = out_c[k]
+            acc += out_detune[m, k] * (c.real * c.real + c.imag * c.imag)
+        out_shift[m] = acc
+
+
+@njit(cache=True, fastmath=False)
+def _detuned_phase(ticks, log_r, shift):
+    """(phi, delta now): the correction's angle summed over `ticks` ticks, and its rate at that tick (rad)."""
+    if log_r == 0.0:
+        return shift * ticks, shift
+    return shift * (math.expm1(2.0 * ticks * log_r) / math.expm1(2.0 * log_r)), shift * math.exp(2.0 * ticks * log_r)
+
+
+@njit(cache=True, fastmath=False)
+def _powers(ticks, out_c, out_e, out_log_r, out_theta, out_shift, out_rate, in_w, in_log_r, in_theta, q, p, xi):
     """Modal state after `ticks` ticks: q, p (n_out,) float and xi (2, 2K) float (real, imaginary), written."""
     for m in range(out_c.shape[0]):
         r = math.exp(ticks * out_log_r[m])
-        angle = ticks * out_theta[m]
+        phi, now = _detuned_phase(ticks, out_log_r[m], out_shift[m])
+        angle = ticks * out_theta[m] + phi
         z = out_c[m] * complex(r * math.cos(angle), r * math.sin(angle))
+        e = out_e[m]
         q[m] = 2.0 * z.real
-        p[m] = 2.0 * (z * out_e[m]).real
+        p[m] = 2.0 * (z * complex(e.real, e.imag * (1.0 + now / out_rate[m]))).real
     for m in range(in_w.shape[0]):
         r = math.exp(ticks * in_log_r[m])
         angle = ticks * in_theta[m]
@@ -124,16 +150,16 @@ def _powers(ticks, out_c, out_e, out_log_r, out_theta, in_w, in_log_r, in_theta,
 
 
 @njit(cache=True, fastmath=False)
-def modal_state(ticks, rest_pos, free, out_shape, out_c, out_e, out_log_r, out_theta, in_pos, in_vel, in_w,
-                in_log_r, in_theta, q, p, xi, dofs, knot_pos, knot_vel):
+def modal_state(ticks, rest_pos, free, out_shape, out_c, out_e, out_log_r, out_theta, out_shift, out_rate, in_pos,
+                in_vel, in_w, in_log_r, in_theta, q, p, xi, dofs, knot_pos, knot_vel):
     """The linear state `ticks` ticks after the coefficients' state, into knot_pos and knot_vel.
 
-    out_shape: (n_out, n_free) m; in_pos, in_vel: (2, 2K, 2 n_free), the real and imaginary
+    out_shape: (n_out, n_free) m; out_shift (n_out,) rad: modal_detuning's; in_pos, in_vel: (2, 2K, 2 n_free), the real and imaginary
     parts of the in-plane shapes (mode-major). Scratch: q, p (n_out,), xi (2, 2K), dofs
     (4, 2 n_free). Each mode adds its contiguous row in turn. Fixed knots get their rest place
     and no velocity.
     """
-    _powers(ticks, out_c, out_e, out_log_r, out_theta, in_w, in_log_r, in_theta, q, p, xi)
+    _powers(ticks, out_c, out_e, out_log_r, out_theta, out_shift, out_rate, in_w, in_log_r, in_theta, q, p, xi)
     n_free = free.shape[0]
     dofs[:] = 0.0
     for m in range(out_shape.shape[0]):
@@ -162,18 +188,20 @@ def modal_state(ticks, rest_pos, free, out_shape, out_c, out_e, out_log_r, out_t
 
 
 @njit(cache=True, fastmath=False)
-def modal_bounds(out_shape_abs, out_c, out_e, in_pos_abs, in_vel_abs, in_w, disp, speed):
+def modal_bounds(out_shape_abs, out_c, out_e, out_shift, out_rate, in_pos_abs, in_vel_abs, in_w, disp, speed):
     """Per axis and free knot, bounds on the tail's displacement (disp) and velocity (speed) at
     the coefficients' tick, (3, n_free) m and m/s, written: sums of |shape| |coefficient| over
-    the modes (the triangle inequality). Every mode decays (|mu| <= 1), so a bound times the
-    slowest mode's decay after n ticks bounds the motion from then on. *_abs: the modes' shapes'
-    absolute values (NetModes); in_*_abs (2K, 2 n_free)."""
+    the modes (the triangle inequality; a mode's velocity with the largest frequency correction,
+    the switch's). Every mode decays (|mu| <= 1), so a bound times the slowest mode's decay after
+    n ticks bounds the motion from then on. *_abs: the modes' shapes' absolute values (NetModes);
+    in_*_abs (2K, 2 n_free)."""
     n_free = disp.shape[1]
     disp[:] = 0.0
     speed[:] = 0.0
     for m in range(out_shape_abs.shape[0]):
+        e = out_e[m]
         cq = 2.0 * abs(out_c[m])
-        cp = 2.0 * abs(out_c[m] * out_e[m])
+        cp = cq * abs(complex(e.real, e.imag * (1.0 + abs(out_shift[m]) / out_rate[m])))
         for a in range(n_free):
             disp[0, a] += out_shape_abs[m, a] * cq
             speed[0, a] += out_shape_abs[m, a] * cp
