@@ -261,12 +261,7 @@ def detuning(topo: NetTopology, pos: np.ndarray, free: np.ndarray, out_shape: np
     of the mass-normalised S_yz (its inverse, M^-1/2 psi lam^-1 psi^T M^-1/2, relaxes the plane)."""
     if float(in_lam.min()) <= 0.0:
         raise ValueError(f"the in-plane stiffness is not positive (lowest {float(in_lam.min()):.3g} /s^2)")
-    index = np.full(topo.n_knots, -1)
-    index[free] = np.arange(free.size)
-    i, j = topo.spring_ij[:, 0].astype(np.int64), topo.spring_ij[:, 1].astype(np.int64)
-    d = pos[j] - pos[i]
-    length = np.sqrt((d * d).sum(axis=1))
-    unit = d / length[:, None]
+    index, i, j, length, unit = _spring_frame(topo, pos, free)
     kappa = topo.spring_k - topo.spring_k * (length - topo.spring_rest) / length
     shape = np.zeros((out_shape.shape[0], topo.n_knots))
     shape[:, free] = out_shape
@@ -312,12 +307,7 @@ def spring_jacobians(topo: NetTopology, pos: np.ndarray, free: np.ndarray) -> tu
     """(S, C): (n_free, 3, n_free, 3) N/m and N s/m, -dF/dx and -dF/dv of the spring forces on
     the free knots at `pos` with the knots at rest (the kernels' spring model: tension
     k (L - rest) and dashpot c (dL/dt) along the spring)."""
-    index = np.full(topo.n_knots, -1)
-    index[free] = np.arange(free.size)
-    i, j = topo.spring_ij[:, 0].astype(np.int64), topo.spring_ij[:, 1].astype(np.int64)
-    d = pos[j] - pos[i]
-    length = np.sqrt((d * d).sum(axis=1))
-    unit = d / length[:, None]
+    index, i, j, length, unit = _spring_frame(topo, pos, free)
     outer = unit[:, :, None] * unit[:, None, :]
     tension = topo.spring_k * (length - topo.spring_rest)
     k_e = topo.spring_k[:, None, None] * outer + (tension / length)[:, None, None] * (np.eye(3) - outer)
@@ -336,6 +326,17 @@ def spring_jacobians(topo: NetTopology, pos: np.ndarray, free: np.ndarray) -> tu
         mat = np.bincount(np.concatenate(flats), weights=np.concatenate(values), minlength=9 * nf * nf)
         out.append(mat.reshape(nf, 3, nf, 3))
     return out[0], out[1]
+
+
+def _spring_frame(topo: NetTopology, pos: np.ndarray, free: np.ndarray):
+    """(index, i, j, length, unit): each knot's place among the free ones (-1: fixed), the springs'
+    ends, their lengths (m) and unit directions from i to j at `pos`."""
+    index = np.full(topo.n_knots, -1)
+    index[free] = np.arange(free.size)
+    i, j = topo.spring_ij[:, 0].astype(np.int64), topo.spring_ij[:, 1].astype(np.int64)
+    d = pos[j] - pos[i]
+    length = np.sqrt((d * d).sum(axis=1))
+    return index, i, j, length, d / length[:, None]
 
 
 def static_forces(topo: NetTopology, pos: np.ndarray) -> np.ndarray:
