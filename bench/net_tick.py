@@ -39,7 +39,7 @@ def _net_sim(cols: int, rows: int, sweep: str):
     if sweep == "netsim":
         return sim
     passes_near = hasattr(sim, "_near")  # NetSim already hands collide_ball_near its scratch
-    sim._step_grid_ball = None  # noqa: SLF001 (the per-substep loop, not a one-call tick)
+    sim._step_grid_tick = None  # noqa: SLF001 (the per-substep loop, not a one-call tick)
     if sweep == "culled":
         near = np.zeros(topo.n_knots, dtype=np.int64)
         sim._collide = (kernels.collide_ball_near if passes_near  # noqa: SLF001

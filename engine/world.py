@@ -5,7 +5,7 @@ This single-process world is the reference the multi-process run must reproduce 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -287,6 +287,12 @@ def advance(model: Model, state: State, n_max: int, inputs: np.ndarray | None, e
         # variant too, which a worker would otherwise compile mid-run, silent for as long as
         # that takes (tens of seconds on a loaded machine: the supervisor took it for a stall).
         advance(model, state, n_max, None, events, h, gone_radius, gone_z, deadline, model.cloth_watch)
+    return _advance_kernel(model, state, n_max, inputs, events, h, gone_radius, gone_z, deadline, watch)
+
+
+def _advance_kernel(model: Model, state: State, n_max: int, inputs: np.ndarray | None, events: np.ndarray, h: float,
+                    gone_radius: float, gone_z: float, deadline: float, watch: np.ndarray | None) -> tuple[int, int, int]:
+    """advance()'s kernel call for the ball and bats alone (a cloth net, if any, is the caller's to step)."""
     has_bats = len(state.bats) > 0
     if inputs is not None and has_bats:
         _check_inputs(inputs, len(state.bats))
@@ -336,8 +342,8 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
     done = 0
     while done < n_max:
         if not _in_box(model.cloth_reach, y):
-            ticks, n, reason = advance(model, _without_cloth(state), n_max - done, inputs, events, h, gone_radius,
-                                       gone_z, deadline, watch=model.cloth_reach)
+            ticks, n, reason = _advance_kernel(model, state, n_max - done, inputs, events, h, gone_radius, gone_z,
+                                               deadline, model.cloth_reach)
             inputs = None
             done += ticks
             net.step_free(ticks)
@@ -349,8 +355,8 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
             # Far from a sleeping net, or from one whose ring is in closed form (its knots stay
             # within the watched box): nothing to do for it but count the ticks (a sleeping net
             # ignores them); run until the ball comes near.
-            ticks, n, reason = advance(model, _without_cloth(state), n_max - done, inputs, events, h, gone_radius,
-                                       gone_z, deadline, watch=w)
+            ticks, n, reason = _advance_kernel(model, state, n_max - done, inputs, events, h, gone_radius, gone_z,
+                                               deadline, w)
             inputs = None
             done += ticks
             net.step_free(ticks)
@@ -358,7 +364,7 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
                 return done, n, reason
             continue
         p0, v0 = y[0:3].copy(), y[3:6].copy()
-        ticks, n, reason = advance(model, _without_cloth(state), 1, inputs, events, h, gone_radius, gone_z, deadline)
+        ticks, n, reason = _advance_kernel(model, state, 1, inputs, events, h, gone_radius, gone_z, deadline, None)
         inputs = None
         done += ticks
         contact = net.step(p0, v0, radius, 1.0 / mass)
@@ -432,11 +438,6 @@ def _out_of_table(table: np.ndarray, y: np.ndarray, radius: float) -> None:
 def _in_box(box: np.ndarray, y: np.ndarray) -> bool:
     """Is the ball's centre (y[0:3]) inside the (6,) lo, hi box (the tick kernel's watch test)?"""
     return all(box[i] <= y[i] <= box[3 + i] for i in range(3))
-
-
-def _without_cloth(state: State) -> State:
-    """The same state seen by the kernel path (the net is stepped by the caller)."""
-    return replace(state, net_sim=None)
 
 
 def _net_event(state: State, events: np.ndarray, k: int, p0, v0, contact, h: float) -> None:

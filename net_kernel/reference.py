@@ -250,6 +250,12 @@ def step_grid32(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_step
 step_grid32_serial = step_grid32
 
 
+def grid_knots(knot_state, knot_pos, knot_vel):
+    """Numpy twin of kernels.grid_knots."""
+    knot_pos[:] = knot_state[0].reshape(3, -1).T
+    knot_vel[:] = knot_state[1].reshape(3, -1).T
+
+
 def step_grid32_free(knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks, sleep_speed,
                      sleep_ticks, quiet_ticks, reach, box):
     """Numpy twin of kernels.step_grid32_free (args and returns as step_grid_free)."""
@@ -468,6 +474,49 @@ def _ball_substeps(step, knot_state, knot_inv_mass, grid_params, gravity, drag, 
         ball[0] = ball[2]
         step(knot_state, knot_inv_mass, grid_params, gravity, drag, h, 1, grid_work)
     return toi
+
+
+def step_grid_tick(knot_state, knot_inv_mass, grid_params, gravity, drag, dt, substeps, grid_work, ball, ball_radius,
+                   ball_inv_mass, knot_radius, restitution, max_hits, near, travel, speed_max, quiet_ticks,
+                   sleep_speed, reach, box, out_impulse, out_offset):
+    """Numpy twin of kernels.step_grid_tick (args, in-place updates and returns identical)."""
+    return _tick(step_grid_ball, knot_state, knot_inv_mass, grid_params, gravity, drag, dt, substeps, grid_work, ball,
+                 ball_radius, ball_inv_mass, knot_radius, restitution, max_hits, near, travel, speed_max, quiet_ticks,
+                 sleep_speed, reach, box, out_impulse, out_offset)
+
+
+def step_grid32_tick(knot_state, knot_inv_mass, grid_params, gravity, drag, dt, substeps, net32, ball, ball_radius,
+                     ball_inv_mass, knot_radius, restitution, max_hits, near, travel, speed_max, quiet_ticks,
+                     sleep_speed, reach, box, out_impulse, out_offset):
+    """Numpy twin of kernels.step_grid32_tick."""
+    return _tick(step_grid32_ball, knot_state, knot_inv_mass, grid_params, gravity, drag, dt, substeps, net32, ball,
+                 ball_radius, ball_inv_mass, knot_radius, restitution, max_hits, near, travel, speed_max, quiet_ticks,
+                 sleep_speed, reach, box, out_impulse, out_offset)
+
+
+def _tick(ball_tick, knot_state, knot_inv_mass, grid_params, gravity, drag, dt, substeps, grid_work, ball, ball_radius,
+          ball_inv_mass, knot_radius, restitution, max_hits, near, travel, speed_max, quiet_ticks, sleep_speed, reach,
+          box, out_impulse, out_offset):
+    pos = knot_state[0].reshape(3, -1).T
+    vel = knot_state[1].reshape(3, -1).T
+    v0 = ball[5]
+    closing = math.sqrt(v0[0] * v0[0] + v0[1] * v0[1] + v0[2] * v0[2]) + knot_speed_max(pos, vel)
+    taken = max(substeps, math.ceil(min(closing, speed_max) * dt / travel))
+    ball[0:2] = ball[4:6]
+    toi = ball_tick(knot_state, knot_inv_mass, grid_params, gravity, drag, dt / taken, taken, grid_work, ball,
+                    ball_radius, ball_inv_mass, knot_radius, restitution, max_hits, near, out_impulse)
+    out_offset[:] = 0.0 if toi == NO_CONTACT else ball[0] - ball[4] - ball[5] * dt
+    if toi != NO_CONTACT:
+        quiet_ticks = 0
+    speed = knot_speed_max(pos, vel)
+    if not math.isfinite(speed):
+        return toi, taken, quiet_ticks, FREE_NOT_FINITE
+    pos.min(axis=0, out=box[0])
+    pos.max(axis=0, out=box[1])
+    quiet_ticks = quiet_ticks + 1 if speed < sleep_speed else 0
+    if (box[0] < reach[0]).any() or (box[1] > reach[1]).any():
+        return toi, taken, quiet_ticks, FREE_OUT_OF_REACH
+    return toi, taken, quiet_ticks, FREE_AWAKE
 
 
 def potential_energy(knot_pos, knot_mass, knot_inv_mass, spring_ij, spring_rest, spring_k, gravity):

@@ -17,6 +17,7 @@ from net_kernel.kernels import (
     NO_CONTACT,
     SPRING_WORK_COLS,
     STEP_WORK_ROWS,
+    TICK_BALL_ROWS,
 )
 from net_kernel.kernels.modal import FREE_TAIL
 from net_kernel.modes import NetModes, linear_tail_refusal, net_modes
@@ -164,8 +165,11 @@ class NetSim:
         self._implicit = mod.step_knots_implicit
         self._speed = mod.knot_speed_max
         self._collide = mod.collide_ball_near
-        self._step_grid_ball = mod.step_grid_ball
+        # A grid net's tick with the ball near, all of it in one call (one thread: the grid kernels
+        # give the same bits on any number).
+        self._step_grid_tick = mod.step_grid_tick if self.grid else None
         self._motion_energy = mod.motion_energy
+        self._grid_knots = mod.grid_knots
         # Free ticks in one call, on one thread (a parallel net steps them one step() at a time).
         self._step_grid_free = mod.step_grid_free if self.grid and not parallel else None
         n = topo.n_knots
@@ -183,7 +187,7 @@ class NetSim:
             self._grid_work = np.zeros((blocks, GRID_WORK_ROWS, cols))
             if spec.kernel_precision == FLOAT32:  # the float32 grid kernels (kernels.grid32), the same calls
                 self._step_grid = mod.step_grid32 if parallel else mod.step_grid32_serial
-                self._step_grid_ball = mod.step_grid32_ball
+                self._step_grid_tick = mod.step_grid32_tick
                 self._step_grid_free = mod.step_grid32_free if not parallel else None
                 self._grid_work = mod.grid32_work(topo.knot_pos.T.reshape(3, rows, cols).copy(), self._grid_inv_mass,
                                                   blocks, GRID32_FMA if spec.kernel_fma else GRID32_EXACT)
@@ -197,7 +201,12 @@ class NetSim:
         self._impulse = np.zeros(3)
         self._offset = np.zeros(3)
         self._hit_impulse = np.zeros(3)
-        self._ball = np.zeros((4, 3))  # ball position, velocity, position after a sweep, scratch
+        # ball position, velocity, position after a sweep, scratch; the tick's start position and velocity
+        self._ball = np.zeros((TICK_BALL_ROWS, 3))
+        # What a tick without contact returns (read-only zeros: a caller cannot spoil the next one).
+        self._no_contact = NetContact(NO_CONTACT, np.zeros(3), np.zeros(3))
+        self._no_contact.impulse.setflags(write=False)
+        self._no_contact.offset.setflags(write=False)
         self._near = np.zeros(n, dtype=np.int64)  # the contact sweep's list of knots within reach
         # (2, 3) m, lo and hi corners of the knots' box: of the shape it froze in while the net
         # sleeps, of the tick's start shape while it is awake (net_box).
@@ -255,6 +264,16 @@ class NetSim:
         net_box(self._pos[self._cur], out=self.box)
         if tail_ticks >= 0:
             self.resume_tail(quiet_ticks, tail_ticks)
+
+    def copy_state(self, knot_pos: np.ndarray, knot_vel: np.ndarray) -> None:
+        """The current knot positions and velocities (as knot_pos, knot_vel) into the given (n_knots, 3)
+        arrays (a snapshot's fields, say): for a grid net one kernel call instead of numpy's strided copy."""
+        self._show_tail()
+        if self.grid:
+            self._grid_knots(self._state, knot_pos, knot_vel)
+        else:
+            knot_pos[:] = self._pos[self._cur]
+            knot_vel[:] = self._vel[self._cur]
 
     def _show_tail(self) -> None:
         tail = self.tail
@@ -319,19 +338,24 @@ class NetSim:
             FloatingPointError: a knot position or velocity stopped being finite (the cheap
                 invariant checked after every tick).
         """
-        self._impulse[:] = 0.0
-        self._offset[:] = 0.0
         far = self.ball_far(ball_pos, ball_vel, ball_radius)
         if self.tail is not None:
             if far:
                 self._advance_tail(1)
-                return NetContact(NO_CONTACT, self._impulse, self._offset)
+                return self._no_contact
             self._leave_tail()  # the ball within the tail's box: the full kernel from this tick's state
             far = self.ball_far(ball_pos, ball_vel, ball_radius)
         if self.sleeping:
             if far or not self.touches(ball_pos, ball_vel, ball_radius, ball_inv_mass):
-                return NetContact(NO_CONTACT, self._impulse, self._offset)
+                return self._no_contact
             self.wake()
+        if far and self._step_grid_free is not None:
+            self._free_run(1)  # no contact to sweep: the tick as step_free takes it (the same bits)
+            return self._no_contact
+        if not far and self._step_grid_tick is not None:
+            return self._ball_tick(ball_pos, ball_vel, float(ball_radius), float(ball_inv_mass))
+        self._impulse[:] = 0.0
+        self._offset[:] = 0.0
         topo = self.topo
         toi = NO_CONTACT
         self.awake_ticks += 1
@@ -349,14 +373,6 @@ class NetSim:
             self._step_grid(self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag, self.h,
                             self.substeps, self._grid_work)
             self.kernel_calls += 1
-        elif self.grid and self._step_grid_ball is not None:
-            # The ball near: each substep's contact sweep then grid step, all in one call (the same
-            # bits as the loop below, which net_kernel.profile.tick_costs times against it).
-            toi = self._step_grid_ball(self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag,
-                                       h, substeps, self._grid_work, self._ball, float(ball_radius),
-                                       float(ball_inv_mass), self.knot_radius, self.restitution, MAX_HITS, self._near,
-                                       self._impulse)
-            self.kernel_calls += 2 * substeps
         else:
             for k in range(substeps):
                 if not far:
@@ -405,6 +421,27 @@ class NetSim:
             raise FloatingPointError(self._out_of_reach())
         if far and not self.sleeping and self.tail_refusal is None and self._has_modes() and self._calm():
             self._start_tail()
+        return NetContact(toi, self._impulse, self._offset)
+
+    def _ball_tick(self, ball_pos, ball_vel, ball_radius: float, ball_inv_mass: float) -> NetContact:
+        """step() of an awake grid net with the ball near: the whole tick in one kernel call
+        (kernels.step_grid_tick: the same bits as the per-substep loop of step(), which
+        bench.net_tick times against it)."""
+        self.awake_ticks += 1
+        ball = self._ball
+        ball[4] = ball_pos
+        ball[5] = ball_vel
+        topo = self.topo
+        toi, substeps, self.quiet_ticks, status = self._step_grid_tick(
+            self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag, self.dt, self.substeps,
+            self._grid_work, ball, ball_radius, ball_inv_mass, self.knot_radius, self.restitution, MAX_HITS,
+            self._near, CONTACT_TRAVEL, CONTACT_SPEED_MAX, self.quiet_ticks, SLEEP_SPEED, self._reach, self.box,
+            self._impulse, self._offset)
+        self.kernel_calls += 2 * substeps + 2  # as the loop counts: speed, a sweep and a step a substep, speed
+        if status == FREE_NOT_FINITE:
+            raise FloatingPointError(NOT_FINITE)
+        if status == FREE_OUT_OF_REACH:
+            raise FloatingPointError(self._out_of_reach())
         return NetContact(toi, self._impulse, self._offset)
 
     def _calm(self) -> bool:
@@ -501,29 +538,33 @@ class NetSim:
                 self.step()
                 ticks -= 1
                 continue
-            topo = self.topo
-            if self._step_free_tail is not None and self._has_modes():
-                taken, self.quiet_ticks, status = self._step_free_tail(
-                    self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag, self.h,
-                    self.substeps, self._grid_work, ticks, SLEEP_SPEED, SLEEP_TICKS, self.quiet_ticks, self._reach,
-                    self.box, topo.knot_mass, topo.knot_inv_mass, topo.spring_ij, topo.spring_rest, topo.spring_k,
-                    self.modes().rest_energy, self.tail_energy)
-            else:
-                taken, self.quiet_ticks, status = self._step_grid_free(
-                    self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag, self.h,
-                    self.substeps, self._grid_work, ticks, SLEEP_SPEED, SLEEP_TICKS, self.quiet_ticks, self._reach,
-                    self.box)
-            self.kernel_calls += 1
-            self.awake_ticks += taken
-            ticks -= taken
-            if status == FREE_NOT_FINITE:
-                raise FloatingPointError(NOT_FINITE)
-            if status == FREE_OUT_OF_REACH:
-                raise FloatingPointError(self._out_of_reach())
-            if status == FREE_ASLEEP:
-                self.sleeping = True
-            elif status == FREE_TAIL:
-                self._start_tail()  # a tick that cannot start it (its bounds reach the table) stays awake
+            ticks -= self._free_run(ticks)
+
+    def _free_run(self, ticks: int) -> int:
+        """Up to `ticks` free ticks of an awake grid net in one kernel call (step_free's); returns the ticks taken."""
+        topo = self.topo
+        if self._step_free_tail is not None and self._has_modes():
+            taken, self.quiet_ticks, status = self._step_free_tail(
+                self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag, self.h,
+                self.substeps, self._grid_work, ticks, SLEEP_SPEED, SLEEP_TICKS, self.quiet_ticks, self._reach,
+                self.box, topo.knot_mass, topo.knot_inv_mass, topo.spring_ij, topo.spring_rest, topo.spring_k,
+                self.modes().rest_energy, self.tail_energy)
+        else:
+            taken, self.quiet_ticks, status = self._step_grid_free(
+                self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag, self.h,
+                self.substeps, self._grid_work, ticks, SLEEP_SPEED, SLEEP_TICKS, self.quiet_ticks, self._reach,
+                self.box)
+        self.kernel_calls += 1
+        self.awake_ticks += taken
+        if status == FREE_NOT_FINITE:
+            raise FloatingPointError(NOT_FINITE)
+        if status == FREE_OUT_OF_REACH:
+            raise FloatingPointError(self._out_of_reach())
+        if status == FREE_ASLEEP:
+            self.sleeping = True
+        elif status == FREE_TAIL:
+            self._start_tail()  # a tick that cannot start it (its bounds reach the table) stays awake
+        return taken
 
 
 def contact_substeps(ball_vel, knot_speed: float, dt: float, substeps: int) -> int:
@@ -531,7 +572,8 @@ def contact_substeps(ball_vel, knot_speed: float, dt: float, substeps: int) -> i
     that ball and knots close in by at most CONTACT_TRAVEL in one. They close in at most at the sum
     of their speeds (a struck net's knots outrun the ball they have just slowed), taken up to
     CONTACT_SPEED_MAX; knot_speed: m/s, the fastest knot's (kernels.knot_speed_max)."""
-    closing = math.sqrt(float(ball_vel[0]) ** 2 + float(ball_vel[1]) ** 2 + float(ball_vel[2]) ** 2) + float(knot_speed)
+    v0, v1, v2 = float(ball_vel[0]), float(ball_vel[1]), float(ball_vel[2])
+    closing = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2) + float(knot_speed)  # kernels.step_grid_tick's arithmetic
     travel = min(closing, CONTACT_SPEED_MAX) * dt
     return max(substeps, math.ceil(travel / CONTACT_TRAVEL))
 

@@ -2,10 +2,11 @@
 
 One module per layout or concern: csr (knot steps over the CSR adjacency, any topology), grid
 (the same step on a regular grid, fused row by row), grid32 (the grid step in float32 on offsets
-from the built grid, a NetSpec option), implicit (backward Euler by conjugate
-gradients), contact (the ball against the knots), modal (the linear tail in closed form: the
-motion's energy, modal coordinates, the state at a tick, the sleep bound), scatter (the textbook per-spring scatter
-loop, a baseline for the profile, not used by NetSim). Numba only; the numpy twins are in
+from the built grid, a NetSpec option), implicit (backward Euler by conjugate gradients),
+contact (the ball against the knots, and a grid net's whole tick with the ball near), modal
+(the linear tail in closed form: the motion's energy, modal coordinates, the state at a tick,
+the sleep bound), scatter (the textbook per-spring scatter loop, a baseline for the profile,
+not used by NetSim). Numba only; the numpy twins are in
 net_kernel/reference.py.
 
 Model (issue 4, after Provot, "Deformation constraints in a mass-spring model", Graphics
@@ -35,10 +36,13 @@ Every kernel has a numpy twin with the same signature in net_kernel/reference.py
 from net_kernel.kernels.contact import (
     NEAR_SLACK,
     NO_CONTACT,
+    TICK_BALL_ROWS,
     collide_ball,
     collide_ball_near,
     step_grid32_ball,
+    step_grid32_tick,
     step_grid_ball,
+    step_grid_tick,
 )
 from net_kernel.kernels.csr import STEP_WORK_ROWS, knot_speed_max, step_knots, step_knots_serial
 from net_kernel.kernels.grid import (
@@ -53,6 +57,7 @@ from net_kernel.kernels.grid import (
     GRID_SHEAR,
     GRID_VERTICAL,
     GRID_WORK_ROWS,
+    grid_knots,
     step_grid,
     step_grid_free,
     step_grid_serial,
@@ -102,9 +107,11 @@ __all__ = [
     "SPRING_WORK_COLS",
     "STEP_WORK_ROWS",
     "TABLE_Z",
+    "TICK_BALL_ROWS",
     "collide_ball",
     "collide_ball_near",
     "grid32_work",
+    "grid_knots",
     "knot_speed_max",
     "modal_bounds",
     "modal_coefficients",
@@ -118,11 +125,13 @@ __all__ = [
     "step_grid32_ball",
     "step_grid32_free",
     "step_grid32_serial",
+    "step_grid32_tick",
     "step_grid_ball",
     "step_grid_free",
     "step_grid32_free_tail",
     "step_grid_free_tail",
     "step_grid_serial",
+    "step_grid_tick",
     "step_knots",
     "step_knots_implicit",
     "step_knots_scatter",

@@ -1,14 +1,16 @@
 """The ball's contact with the knots (swept spheres, full or culled), and a grid net's tick with the ball near.
 
-step_grid_ball lives here, not in grid.py: it is the contact sweep's loop over substeps, with
-one grid step between sweeps, so it depends on both and belongs to the layer above the grid.
+step_grid_ball and step_grid_tick live here, not in grid.py: they are the contact sweep's loop
+over substeps, with one grid step between sweeps, so they depend on both and belong to the
+layer above the grid.
 """
 import math
 
 import numpy as np
 from numba import njit
 
-from net_kernel.kernels.grid import step_grid_serial
+from net_kernel.kernels.csr import knot_speed_max
+from net_kernel.kernels.grid import FREE_AWAKE, FREE_NOT_FINITE, FREE_OUT_OF_REACH, in_reach, knot_checks, step_grid_serial
 from net_kernel.kernels.grid32 import step_grid32_serial
 
 NO_CONTACT = -1.0  # collide_ball's return when the ball touched no knot
@@ -377,3 +379,86 @@ def _ball_substeps(step, knot_state, knot_inv_mass, grid_params, gravity, drag, 
         bp[:] = ball[2]
         step(knot_state, knot_inv_mass, grid_params, gravity, drag, h, 1, grid_work)
     return toi
+
+
+# step_grid_tick's ball rows: 0-3 as step_grid_ball's ball, 4 and 5 the ball's position and
+# velocity at the tick's start (read only).
+TICK_BALL_ROWS = 6
+
+
+@njit(cache=True, fastmath=False, error_model="numpy")
+def step_grid_tick(knot_state, knot_inv_mass, grid_params, gravity, drag, dt, substeps, grid_work, ball, ball_radius,
+                   ball_inv_mass, knot_radius, restitution, max_hits, near, travel, speed_max, quiet_ticks,
+                   sleep_speed, reach, box, out_impulse, out_offset):
+    """A whole awake tick of a grid net with the ball near, as NetSim.step takes it, in one call.
+
+    The substeps: `substeps` (the stability bound's), or more so that ball and knots close in
+    by at most `travel` m in one, at the sum of the ball's and the fastest knot's speed taken up
+    to `speed_max` (net_kernel.sim.contact_substeps' arithmetic); then step_grid_ball over
+    dt / that many; the ball's offset from its free path where it touched; the knots' speed,
+    their finiteness, the sleep count (a contact wakes the net: it starts again from 0; with
+    the ball near the net never falls asleep), their box and its reach. The same bits as
+    NetSim's calls to knot_speed_max, step_grid_ball and its checks one after the other.
+
+    Args:
+        knot_state, knot_inv_mass, grid_params, gravity, drag, grid_work: as step_grid.
+        dt: s, the tick. substeps: the stability bound's steps per tick.
+        ball: (TICK_BALL_ROWS, 3): rows 0-3 as step_grid_ball's (rows 0 and 1 set to the tick's
+            start and advanced in place), rows 4, 5 the ball's position m and velocity m/s at
+            the tick's start.
+        ball_radius, ball_inv_mass, knot_radius, restitution, max_hits, near: as step_grid_ball.
+        travel: m, the closing distance a substep may take at most. speed_max: m/s, the closing
+            speed taken at most.
+        quiet_ticks: ticks in a row so far with every knot slower than sleep_speed (m/s).
+        reach: (2, 3) m, lo and hi corners no knot may pass.
+        box: (2, 3) m, written: the knots' box after the tick.
+        out_impulse: (3,) N s, written: the net's impulse on the ball.
+        out_offset: (3,) m, written: the ball's end position minus its free path's (0 without contact).
+
+    Returns:
+        (time of impact as step_grid_ball's or NO_CONTACT, substeps taken, quiet_ticks after
+        the tick, FREE_AWAKE, FREE_NOT_FINITE or FREE_OUT_OF_REACH).
+    """
+    return _tick(step_grid_serial, knot_state, knot_inv_mass, grid_params, gravity, drag, dt, substeps, grid_work, ball,
+                 ball_radius, ball_inv_mass, knot_radius, restitution, max_hits, near, travel, speed_max, quiet_ticks,
+                 sleep_speed, reach, box, out_impulse, out_offset)
+
+
+@njit(cache=True, fastmath=False, error_model="numpy")
+def step_grid32_tick(knot_state, knot_inv_mass, grid_params, gravity, drag, dt, substeps, net32, ball, ball_radius,
+                     ball_inv_mass, knot_radius, restitution, max_hits, near, travel, speed_max, quiet_ticks,
+                     sleep_speed, reach, box, out_impulse, out_offset):
+    """step_grid_tick with step_grid32_ball's substeps (a float32 net). Args and returns as step_grid_tick,
+    net32 in place of grid_work."""
+    return _tick(step_grid32_serial, knot_state, knot_inv_mass, grid_params, gravity, drag, dt, substeps, net32, ball,
+                 ball_radius, ball_inv_mass, knot_radius, restitution, max_hits, near, travel, speed_max, quiet_ticks,
+                 sleep_speed, reach, box, out_impulse, out_offset)
+
+
+@njit(inline="always")
+def _tick(step, knot_state, knot_inv_mass, grid_params, gravity, drag, dt, substeps, grid_work, ball, ball_radius,
+          ball_inv_mass, knot_radius, restitution, max_hits, near, travel, speed_max, quiet_ticks, sleep_speed, reach,
+          box, out_impulse, out_offset):
+    """step_grid_tick with `step` (a serial grid kernel of step_grid_serial's signature) as the grid step."""
+    n = knot_state.shape[2] * knot_state.shape[3]
+    knot_speed = knot_speed_max(knot_state[0].reshape(3, n).T, knot_state[1].reshape(3, n).T)
+    p0 = ball[4]
+    v0 = ball[5]
+    closing = math.sqrt(v0[0] * v0[0] + v0[1] * v0[1] + v0[2] * v0[2]) + knot_speed
+    taken = max(substeps, int(math.ceil((closing if closing < speed_max else speed_max) * dt / travel)))
+    for c in range(3):
+        ball[0, c] = p0[c]
+        ball[1, c] = v0[c]
+    toi = _ball_substeps(step, knot_state, knot_inv_mass, grid_params, gravity, drag, dt / taken, taken, grid_work,
+                         ball, ball_radius, ball_inv_mass, knot_radius, restitution, max_hits, near, out_impulse)
+    for c in range(3):
+        out_offset[c] = 0.0 if toi == NO_CONTACT else ball[0, c] - p0[c] - v0[c] * dt
+    if toi != NO_CONTACT:
+        quiet_ticks = 0
+    speed = knot_checks(knot_state, box)
+    if speed == math.inf:
+        return toi, taken, quiet_ticks, FREE_NOT_FINITE
+    quiet_ticks = quiet_ticks + 1 if speed < sleep_speed else 0
+    if not in_reach(box, reach):
+        return toi, taken, quiet_ticks, FREE_OUT_OF_REACH
+    return toi, taken, quiet_ticks, FREE_AWAKE

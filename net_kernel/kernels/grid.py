@@ -252,6 +252,20 @@ def step_grid_serial(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n
                         (b + 1) * rows // blocks)
 
 
+@njit(cache=True, fastmath=False)
+def grid_knots(knot_state, knot_pos, knot_vel):
+    """A grid net's state as knots: knot_pos, knot_vel (n_knots, 3) m, m/s, written from knot_state
+    (2, 3, rows, cols); knot (r, c) is knot r * cols + c. A plain copy (numpy's copy of the
+    transposed view is a strided loop several times slower)."""
+    rows, cols = knot_state.shape[2], knot_state.shape[3]
+    for r in range(rows):
+        for c in range(cols):
+            i = r * cols + c
+            for a in range(3):
+                knot_pos[i, a] = knot_state[0, a, r, c]
+                knot_vel[i, a] = knot_state[1, a, r, c]
+
+
 # step_grid_free's statuses: the net is still awake, fell asleep, went non-finite, left its reach.
 FREE_AWAKE, FREE_ASLEEP, FREE_NOT_FINITE, FREE_OUT_OF_REACH = 0, 1, 2, 3
 
@@ -285,33 +299,53 @@ def step_grid_free(knot_state, knot_inv_mass, grid_params, gravity, drag, h, sub
 def free_ticks(step, knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks, sleep_speed,
                sleep_ticks, quiet_ticks, reach, box):
     """step_grid_free's ticks with `step` (a serial grid kernel of step_grid_serial's signature) for their steps."""
+    v = knot_state[1]
+    for t in range(ticks):
+        step(knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work)
+        speed = knot_checks(knot_state, box)
+        if speed == math.inf:
+            return t + 1, quiet_ticks, FREE_NOT_FINITE
+        quiet_ticks = quiet_ticks + 1 if speed < sleep_speed else 0
+        if quiet_ticks >= sleep_ticks:
+            v[:] = 0.0
+        if not in_reach(box, reach):
+            return t + 1, quiet_ticks, FREE_OUT_OF_REACH
+        if quiet_ticks >= sleep_ticks:
+            return t + 1, quiet_ticks, FREE_ASLEEP
+    return ticks, quiet_ticks, FREE_AWAKE
+
+
+@njit(inline="always")
+def knot_checks(knot_state, box):
+    """m/s, the largest knot speed of a grid net's state (knot_speed_max's arithmetic; a max does not
+    depend on the order), or inf at the first knot whose position or velocity is not finite; the
+    knots' box (2, 3) m into `box` (lo, hi corners), complete when the speed is finite."""
     rows = knot_state.shape[2]
     cols = knot_state.shape[3]
     x = knot_state[0]
     v = knot_state[1]
-    for t in range(ticks):
-        step(knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work)
-        top = 0.0
-        for a in range(3):
-            box[0, a] = math.inf
-            box[1, a] = -math.inf
-        for r in range(rows):
-            for c in range(cols):
-                s = v[0, r, c] * v[0, r, c] + v[1, r, c] * v[1, r, c] + v[2, r, c] * v[2, r, c]
-                p = x[0, r, c] + x[1, r, c] + x[2, r, c]
-                if not (s < math.inf and p - p == 0.0):
-                    return t + 1, quiet_ticks, FREE_NOT_FINITE
-                if s > top:
-                    top = s
-                for a in range(3):
-                    box[0, a] = min(box[0, a], x[a, r, c])
-                    box[1, a] = max(box[1, a], x[a, r, c])
-        quiet_ticks = quiet_ticks + 1 if math.sqrt(top) < sleep_speed else 0
-        if quiet_ticks >= sleep_ticks:
-            v[:] = 0.0
-        for a in range(3):
-            if box[0, a] < reach[0, a] or box[1, a] > reach[1, a]:
-                return t + 1, quiet_ticks, FREE_OUT_OF_REACH
-        if quiet_ticks >= sleep_ticks:
-            return t + 1, quiet_ticks, FREE_ASLEEP
-    return ticks, quiet_ticks, FREE_AWAKE
+    top = 0.0
+    for a in range(3):
+        box[0, a] = math.inf
+        box[1, a] = -math.inf
+    for r in range(rows):
+        for c in range(cols):
+            s = v[0, r, c] * v[0, r, c] + v[1, r, c] * v[1, r, c] + v[2, r, c] * v[2, r, c]
+            p = x[0, r, c] + x[1, r, c] + x[2, r, c]
+            if not (s < math.inf and p - p == 0.0):
+                return math.inf
+            if s > top:
+                top = s
+            for a in range(3):
+                box[0, a] = min(box[0, a], x[a, r, c])
+                box[1, a] = max(box[1, a], x[a, r, c])
+    return math.sqrt(top)
+
+
+@njit(inline="always")
+def in_reach(box, reach):
+    """Does the box (2, 3) m lie within `reach` (2, 3) m (lo, hi corners)?"""
+    for a in range(3):
+        if box[0, a] < reach[0, a] or box[1, a] > reach[1, a]:
+            return False
+    return True

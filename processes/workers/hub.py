@@ -26,7 +26,7 @@ from processes.runtime.control import Control
 from processes.runtime.locks import LockTable
 from processes.runtime.mailbox import Mailbox
 from processes.runtime.shm import Arena
-from processes.workers.layout import REMOTE_INPUT_DTYPE, RUN_LOCK_NAMES, decision_key, write_ack
+from processes.workers.layout import REMOTE_INPUT_DTYPE, RUN_LOCK_NAMES, NetIO, decision_key, write_ack
 from processes.workers.options import RunOptions
 
 # A hand-off waits options.handoff_s, gives the turn again (a killed worker is being restarted)
@@ -284,7 +284,7 @@ class RemoteNet:
         self.world = world
         self.baton = options.net_baton.attach(arena["net_baton"].array)
         self.handoff_s = options.handoff_s
-        self.io = arena["net_io"].array
+        self.io = NetIO(arena["net_io"].array)
         self._none = np.zeros(3)
         self.waits = 0.0
         self.ball_ticks = 0  # ticks handed to the net worker with the ball (and waited for)
@@ -309,7 +309,7 @@ class RemoteNet:
     def step_free(self, ticks: int) -> None:
         """NetSim.step_free: grant the net the ticks just done (the world's tick is past them) and go on."""
         if ticks > 0:
-            self.io[0]["granted"] = int(self.world["tick"])
+            self.io.granted = int(self.world["tick"])
             self.baton.nudge()
             self.free_ticks += ticks
 
@@ -321,33 +321,33 @@ class RemoteNet:
         if (self._sleeping or tail or 0 <= self._tail_until <= tick) and ball_far_from_box(
                 self.box, True, local.knot_radius, local.dt, ball_pos, ball_vel, ball_radius):
             if tail:  # a tick of the tail: counted free (NetSim.step with the ball far)
-                self.io[0]["granted"] = tick + 1
+                self.io.granted = tick + 1
                 self.free_ticks += 1
             self._none[:] = 0.0
             return NetContact(NO_CONTACT, self._none, self._none)
         started = time.perf_counter()
-        row = self.io[0]
+        row = self.io
         # `turn` odd while the fields are written, even once they all are (see net_worker): the
         # worker may wake on an earlier post at any moment and must never read half of them.
-        row["turn"] = int(row["turn"]) // 2 * 2 + 1
-        row["tick"] = tick
-        row["ball"][0] = ball_pos
-        row["ball"][1] = ball_vel
-        row["radius"] = ball_radius
-        row["inv_mass"] = ball_inv_mass
-        row["turn"] += 1
+        row.turn = row.turn // 2 * 2 + 1
+        row.tick = tick
+        row.ball[0] = ball_pos
+        row.ball[1] = ball_vel
+        row.radius = ball_radius
+        row.inv_mass = ball_inv_mass
+        row.turn += 1
         self.baton.give(tick)
         # The net may still be stepping free ticks, or restarting: stay alive and ask again (a
         # new turn; net_io still holds the ball).
         self.baton.wait_done_or_retry(tick, self.handoff_s, NET_GIVE_UP_S, self._ask_again)
-        self._sleeping = bool(row["sleeping"])
-        self._tail_until = int(row["tail_until"])
-        self.box[:] = row["box"]
+        self._sleeping = bool(row.sleeping)
+        self._tail_until = row.tail_until
+        self.box[:] = row.box
         self.waits += time.perf_counter() - started
         self.ball_ticks += 1
-        return NetContact(float(row["toi"]), row["impulse"].copy(), row["offset"].copy())
+        return NetContact(row.toi, row.impulse.copy(), row.offset.copy())
 
     def _ask_again(self, tick: int) -> None:
         self.control.beat(tick)
         self.turns_again += 1
-        self.io[0]["turn"] += 2  # the same fields, a new turn (even: nothing is being written)
+        self.io.turn += 2  # the same fields, a new turn (even: nothing is being written)

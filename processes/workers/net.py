@@ -35,7 +35,7 @@ from net_kernel.sim import compile_kernels
 from processes.runtime.handoff import HandoffTimeout
 from processes.runtime.shm import Arena
 from processes.runtime.control import Control, crash
-from processes.workers.layout import NET_BLOCKS
+from processes.workers.layout import NET_BLOCKS, NetIO
 from processes.workers.options import RunOptions
 
 FREE_BEAT_TICKS = 256  # free ticks between two heartbeats: well inside the supervisor's stall timeout
@@ -78,8 +78,7 @@ def _publish(sim: NetSim, tick: int, state: np.ndarray, blocks) -> None:
     if tail is None:
         row["tail"] = -1
         row["quiet_ticks"] = sim.quiet_ticks
-        row["pos"] = sim.knot_pos
-        row["vel"] = sim.knot_vel
+        sim.copy_state(row["pos"], row["vel"])
     else:  # the tail's start and its ticks: the state at `tick` follows from them alone
         row["tail"] = tail.ticks
         row["quiet_ticks"] = tail.quiet_ticks
@@ -102,7 +101,7 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
     sim = NetSim(topo, scene.dt)
     compile_kernels(topo, scene.dt)  # before "ready": nothing compiles mid-run
     baton = options.net_baton.attach(arena["net_baton"].array)
-    row = arena["net_io"].array[0]
+    row = NetIO(arena["net_io"].array)
     blocks = net_blocks(arena)
     state = np.zeros(1, net_snapshot_dtype(topo.n_knots))
     ball = np.zeros((2, 3))  # the turn's ball, copied out of net_io: m, m/s
@@ -113,7 +112,7 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
         net_tick = 0
         _publish(sim, net_tick, state, blocks)
     published = net_tick  # the tick of the newest published state
-    served = int(row["served"])
+    served = row.served
     answered = None  # the tick of the answer in net_io, once this incarnation has written one
     control.start(net_tick)
     busy = 0.0
@@ -128,8 +127,8 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
             t0 = time.perf_counter()
             # First the free ticks granted so far (a nudge, or the ones before a ball tick).
             free_from = net_tick
-            while net_tick < int(row["granted"]):
-                run = min(int(row["granted"]) - net_tick, FREE_BEAT_TICKS)
+            while net_tick < row.granted:
+                run = min(row.granted - net_tick, FREE_BEAT_TICKS)
                 sim.step_free(run)
                 net_tick += run
                 steps += run
@@ -147,14 +146,14 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
             # after the fields were read, is an earlier post (a nudge, a turn given again) and the
             # turn's own post comes later. x86-64 keeps both orders (stores are seen in program
             # order, loads are not passed by later loads).
-            turn = int(row["turn"])
+            turn = row.turn
             if turn == served or turn % 2:  # a nudge, a turn already answered, or one being written
                 busy += time.perf_counter() - t0
                 continue
-            tick = int(row["tick"])
-            ball[:] = row["ball"]
-            radius, inv_mass = float(row["radius"]), float(row["inv_mass"])
-            if int(row["turn"]) != turn:
+            tick = row.tick
+            ball[:] = row.ball
+            radius, inv_mass = row.radius, row.inv_mass
+            if row.turn != turn:
                 busy += time.perf_counter() - t0
                 continue
             served = turn
@@ -163,7 +162,7 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
                 # answered last: net_io still holds that answer. Say so again, for a physics
                 # that still waits for it; one that took it and went on skips it (Baton.done).
                 # Past it (free ticks after it), the physics has taken it: nothing to answer.
-                row["served"] = served
+                row.served = served
                 if net_tick == tick + 1:
                     baton.done(tick)
                 busy += time.perf_counter() - t0
@@ -181,17 +180,17 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
                     raise RuntimeError(f"net worker: asked for tick {tick} at tick {net_tick} while awake; the "
                                        "ticks between were neither granted free nor given")
             contact = sim.step(ball[0], ball[1], radius, inv_mass)
-            row["toi"] = contact.toi
-            row["impulse"] = contact.impulse
-            row["offset"] = contact.offset
-            row["sleeping"] = sim.sleeping
-            row["box"] = sim.box
+            row.toi = contact.toi
+            row.impulse[:] = contact.impulse
+            row.offset[:] = contact.offset
+            row.sleeping = int(sim.sleeping)
+            row.box[:] = sim.box
             net_tick = tick + 1
             answered = tick
-            row["tail_until"] = tail_until(sim, net_tick)
+            row.tail_until = tail_until(sim, net_tick)
             _publish(sim, net_tick, state, blocks)
             published = net_tick
-            row["served"] = served
+            row.served = served
             steps += 1
             busy += time.perf_counter() - t0
             if options.slow_turn_s:
@@ -203,4 +202,5 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
         control.finish(busy, 0.0, {"tick": net_tick, "busy_s": busy, "steps": steps, "awake_ticks": sim.awake_ticks,
                                        "tail_ticks": sim.tail_ticks})
     finally:
-        del row, blocks
+        row.close()
+        del blocks

@@ -207,3 +207,60 @@ def test_fused_tick_equals_reference():
     np.testing.assert_allclose(runs[0][3], runs[1][3], rtol=0, atol=1e-12)  # same sums in the same order, to rounding
     for a, b in zip(runs[0][:3], runs[1][:3]):
         np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-12)  # collide's twin: numpy's sums round alike
+
+
+def _whole_ticks(topo, mod, ticks, speed):
+    """An impact tick by tick with mod.step_grid_tick: per tick (toi, substeps, quiet ticks, status,
+    box, impulse, offset), and the knot state after the last."""
+    spec = topo.spec
+    sim = NetSim(topo, dt=DT)  # for its substeps, reach and scratch only
+    state = sim._state.copy()  # noqa: SLF001 (the grid state NetSim steps)
+    work = np.zeros((1, kernels.GRID_WORK_ROWS, spec.cols))
+    ball, near = np.zeros((kernels.TICK_BALL_ROWS, 3)), np.zeros(topo.n_knots, dtype=np.int64)
+    box, impulse, offset = np.zeros((2, 3)), np.zeros(3), np.zeros(3)
+    pos, vel = np.array([-0.05, 0.0, 0.08]), np.array([speed, 0.0, 0.0])
+    quiet, out = 0, []
+    for _ in range(ticks):
+        ball[4], ball[5] = pos, vel
+        toi, taken, quiet, status = mod.step_grid_tick(
+            state, topo.knot_inv_mass.reshape(spec.rows, spec.cols), topo.grid_params, spec.gravity, spec.air_damping,
+            DT, sim.substeps, work, ball, BALL_RADIUS, 1.0 / BALL_MASS, sim.knot_radius, sim.restitution, 8, near,
+            1e-3, 120.0, quiet, 1e-3, sim._reach, box, impulse, offset)  # noqa: SLF001
+        out.append((toi, taken, quiet, status, box.copy(), impulse.copy(), offset.copy()))
+        pos = pos + vel * DT + offset
+        vel = vel + impulse / BALL_MASS
+    return out, state
+
+
+def test_whole_tick_kernel_equals_its_numpy_twin():
+    topo = build_topology(NetSpec(width=0.3, cols=31, rows=8, knot_mass=NetSpec().knot_mass * 16 / 8))
+    (fast, fast_state), (slow, slow_state) = (_whole_ticks(topo, mod, 6, 20.0) for mod in (kernels, reference))
+    assert sum(tick[0] >= 0.0 for tick in fast) >= 1  # the ball met the net
+    for a, b in zip(fast, slow):
+        assert a[1:4] == b[1:4]  # exact: substeps, quiet ticks, status
+        np.testing.assert_allclose(a[0], b[0], rtol=0, atol=1e-12)  # same sums in the same order, to rounding
+        for x, y in zip(a[4:], b[4:]):
+            np.testing.assert_allclose(x, y, rtol=1e-9, atol=1e-12)  # collide's twin: numpy's sums round alike
+    np.testing.assert_allclose(fast_state, slow_state, rtol=1e-9, atol=1e-12)  # as test_fused_tick_equals_reference
+
+
+def test_netsim_whole_tick_gives_the_per_substep_loops_bits():
+    """NetSim's one-call tick with the ball near against its per-substep loop (the profile's baseline):
+    the same knots, contacts, sleep counts and boxes, through an impact and the ring after it."""
+    topo = build_topology(NetSpec(width=0.5, cols=51, knot_mass=NetSpec().knot_mass))
+    sims = [NetSim(topo, dt=DT), NetSim(topo, dt=DT)]
+    sims[1]._step_grid_tick = None  # noqa: SLF001 (the per-substep loop)
+    runs = []
+    for sim in sims:
+        pos, vel = np.array([-0.05, 0.0, 0.08]), np.array([20.0, 0.0, 0.0])
+        ticks = []
+        for _ in range(40):  # contact, then the ball slowed and thrown back within reach
+            contact = sim.step(pos, vel, BALL_RADIUS, 1.0 / BALL_MASS)
+            ticks.append((contact.toi, contact.offset.tolist(), contact.impulse.tolist(), sim.quiet_ticks,
+                          sim.box.tolist()))
+            pos = pos + vel * DT + contact.offset
+            vel = vel + contact.impulse / BALL_MASS
+        runs.append((ticks, sim.knot_pos.copy(), sim.knot_vel.copy()))
+    assert sum(tick[0] >= 0.0 for tick in runs[0][0]) >= 3  # the ball met the net
+    assert runs[0][0] == runs[1][0]  # exact
+    assert np.array_equal(runs[0][1], runs[1][1]) and np.array_equal(runs[0][2], runs[1][2])  # exact
