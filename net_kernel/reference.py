@@ -476,22 +476,14 @@ def _ball_substeps(step, knot_state, knot_inv_mass, grid_params, gravity, drag, 
     return toi
 
 
-def step_grid_tick(knot_state, knot_inv_mass, grid_params, gravity, drag, dt, substeps, grid_work, ball, ball_radius,
-                   ball_inv_mass, knot_radius, restitution, max_hits, near, travel, speed_max, quiet_ticks,
-                   sleep_speed, reach, box, out_impulse, out_offset):
+def step_grid_tick(*args):
     """Numpy twin of kernels.step_grid_tick (args, in-place updates and returns identical)."""
-    return _tick(step_grid_ball, knot_state, knot_inv_mass, grid_params, gravity, drag, dt, substeps, grid_work, ball,
-                 ball_radius, ball_inv_mass, knot_radius, restitution, max_hits, near, travel, speed_max, quiet_ticks,
-                 sleep_speed, reach, box, out_impulse, out_offset)
+    return _tick(step_grid_ball, *args)
 
 
-def step_grid32_tick(knot_state, knot_inv_mass, grid_params, gravity, drag, dt, substeps, net32, ball, ball_radius,
-                     ball_inv_mass, knot_radius, restitution, max_hits, near, travel, speed_max, quiet_ticks,
-                     sleep_speed, reach, box, out_impulse, out_offset):
+def step_grid32_tick(*args):
     """Numpy twin of kernels.step_grid32_tick."""
-    return _tick(step_grid32_ball, knot_state, knot_inv_mass, grid_params, gravity, drag, dt, substeps, net32, ball,
-                 ball_radius, ball_inv_mass, knot_radius, restitution, max_hits, near, travel, speed_max, quiet_ticks,
-                 sleep_speed, reach, box, out_impulse, out_offset)
+    return _tick(step_grid32_ball, *args)
 
 
 def _tick(ball_tick, knot_state, knot_inv_mass, grid_params, gravity, drag, dt, substeps, grid_work, ball, ball_radius,
