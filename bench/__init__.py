@@ -11,6 +11,7 @@ from importlib import import_module
 STUDIES = {
     "accuracy": ("bench.accuracy:STUDY", "the ball integrators' errors against their cost (work-precision)"),
     "effects": ("bench.effects:STUDY", "what each effect of a scene costs, against the scene without it"),
+    "env": ("bench.env:STUDY", "Gymnasium steps/s: one environment, the native vector env, AsyncVectorEnv"),
     "handoff": ("bench.handoff:STUDY", "a lockstep hand-off between workers against a raw semaphore wake-up"),
     "match": ("bench.match:STUDY", "a headless match in worker processes against the in-process reference"),
     "net-resolution": ("bench.net_resolution:STUDY", "the net's grid: accuracy against cost"),

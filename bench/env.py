@@ -1,67 +1,113 @@
-"""What the training environment and the bot API cost: environment steps per second (one
-environment, the cloth net beside the rigid one, Gymnasium's AsyncVectorEnv of N), and the
-players' time per control tick, a bot's against the engine's AI's, in the same run.
+"""`pingpong bench env`: what the training environments and the bot API cost, in one run.
 
-- steps: Return-v0 against novice, `hold` actions at the ready pose (the agent never strikes, so
-  each episode runs to the opponent's point or its truncation); resets included, the first
-  episode (kernels loaded) not timed. AsyncVectorEnv: N environments in N processes
-  (forkserver), steps of all N counted.
+- steps: environment steps per second of Return-v0 against novice, `hold` actions at the ready
+  pose (the agent never strikes, so each episode runs to the opponent's point or its truncation),
+  rigid net and cloth net: one PingPongEnv; the native vector env (engine.vector_env, N tables in
+  this process) at N = --tables; Gymnasium's AsyncVectorEnv of N (N processes, forkserver) at N =
+  --async-tables. Every step of every table counts, autoresets included; the first steps (kernels
+  loaded, in each process) are not timed. Each figure's ratio is to the one environment's of the
+  same net.
+- physics share: the share of the one environment's step (CPU time) spent in the physics
+  (engine.world.advance, timed around each call: the numba tick kernel and, with the cloth net, the net's kernels): the
+  most that stepping a batch of tables' physics in one numba call could take away; the rest is the
+  referee's, the players' and the step's Python work.
 - players: the same in-process match (match_rigid, seed 0) with A played by `pro` and by
   examples/block.py:Block, B by novice, each --ticks ticks: engine.match.Match.ai_seconds (all
   the players' decisions and control laws) per control tick, and the bot's own act() (CPU) per
   decision.
-
-`python -m bench.env [--seconds 5] [--vector 8] [--ticks 60000] [--json]`
 """
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 
 import numpy as np
 
+from bench.study import Study
+from bench.study import run as run_study
+
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 READY = np.array([1.75, 0.0, 0.15, -1.0, 0.0, 0.0])  # a hold action: end B's ready pose
+WARM_STEPS = 30  # untimed vector steps first: every process's kernels loaded
+NETS = ("rigid", "cloth")
 
 
-def steps_per_second(seconds: float, net: str = "rigid") -> float:
-    """One environment's steps per second of wall time."""
+def _timed(step, n: int, seconds: float) -> float:
+    """Steps per second of wall time of `step()` (n environment steps each), after WARM_STEPS."""
+    for _ in range(WARM_STEPS):
+        step()
+    steps, started = 0, time.perf_counter()
+    while time.perf_counter() - started < seconds:
+        step()
+        steps += n
+    return steps / (time.perf_counter() - started)
+
+
+def single_steps_per_second(seconds: float, net: str) -> dict:
+    """One environment's steps per second, and the share of it in the physics."""
+    import engine.match
     from engine.env import PingPongEnv
 
     env = PingPongEnv(opponent="novice", net=net)
     env.reset(seed=0)
     done = False
-    while not done:  # the first episode loads the kernels
+    while not done:  # the first episode: every kernel loaded
         _, _, terminated, truncated, _ = env.step(READY)
         done = terminated or truncated
-    steps, started = 0, time.perf_counter()
-    while time.perf_counter() - started < seconds:
+    env.reset()
+
+    def step():
         _, _, terminated, truncated, _ = env.step(READY)
-        steps += 1
         if terminated or truncated:
             env.reset()
-    return steps / (time.perf_counter() - started)
+
+    physics = engine.match.advance
+    inside = [0.0]
+
+    def timed_physics(*args, **kwargs):
+        started = time.thread_time()
+        try:
+            return physics(*args, **kwargs)
+        finally:
+            inside[0] += time.thread_time() - started
+
+    rate = _timed(step, 1, seconds)
+    engine.match.advance = timed_physics
+    try:
+        started, cpu = time.perf_counter(), time.thread_time()
+        while time.perf_counter() - started < seconds / 2:
+            step()
+        share = inside[0] / (time.thread_time() - cpu)
+    finally:
+        engine.match.advance = physics
+    return {"steps_per_s": rate, "physics_share": share}
 
 
-def vector_steps_per_second(n: int, seconds: float) -> float:
-    """AsyncVectorEnv of n: environment steps (n a vector step) per second of wall time."""
+def native_steps_per_second(n: int, seconds: float, net: str) -> float:
+    """engine.vector_env.PingPongVectorEnv of n tables: environment steps per second."""
+    from engine.vector_env import PingPongVectorEnv
+
+    vector = PingPongVectorEnv(n, opponent="novice", net=net)
+    vector.reset(seed=0)
+    actions = np.stack([READY] * n)
+    try:
+        return _timed(lambda: vector.step(actions), n, seconds)
+    finally:
+        vector.close()
+
+
+def async_steps_per_second(n: int, seconds: float, net: str) -> float:
+    """gymnasium.vector.AsyncVectorEnv of n (n processes): environment steps per second."""
     import gymnasium
 
-    vector = gymnasium.vector.AsyncVectorEnv([lambda: gymnasium.make("engine.env:pingpong/Return-v0",
-                                                                     opponent="novice")] * n,
-                                             context="forkserver")
+    vector = gymnasium.vector.AsyncVectorEnv(
+        [lambda: gymnasium.make("engine.env:pingpong/Return-v0", opponent="novice", net=net)] * n,
+        context="forkserver")
     try:
         vector.reset(seed=list(range(n)))
         actions = np.stack([READY] * n)
-        for _ in range(300):  # past every worker's first episode (kernels loaded)
-            vector.step(actions)
-        steps, started = 0, time.perf_counter()
-        while time.perf_counter() - started < seconds:
-            vector.step(actions)  # an ended episode resets itself (autoreset)
-            steps += n
-        return steps / (time.perf_counter() - started)
+        return _timed(lambda: vector.step(actions), n, seconds)
     finally:
         vector.close()
 
@@ -85,29 +131,74 @@ def players_per_control_tick(ticks: int) -> dict:
     return out
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seconds", type=float, default=5.0, help="wall seconds of each steps/s measurement")
-    parser.add_argument("--vector", type=int, default=8, help="environments of the AsyncVectorEnv")
-    parser.add_argument("--ticks", type=int, default=60_000, help="ticks of each players' match")
-    parser.add_argument("--json", action="store_true")
-    args = parser.parse_args()
+def _counts(text: str, flag: str) -> list[int]:
+    try:
+        counts = [int(x) for x in text.split(",")]
+    except ValueError:
+        counts = []
+    if not counts or min(counts) < 1:
+        raise ValueError(f"{flag} {text!r}: give table counts >= 1 as N[,N...], e.g. 1,8,64")
+    return counts
+
+
+def _run(args: argparse.Namespace, progress=None) -> dict:
+    if args.seconds <= 0 or args.ticks < 1:
+        raise ValueError(f"--seconds {args.seconds} must be > 0 and --ticks {args.ticks} >= 1")
+    tables = _counts(args.tables, "--tables") if not args.quick else [1, 8]
+    async_tables = _counts(args.async_tables, "--async-tables") if not args.quick else [2]
+    seconds = args.seconds if not args.quick else 1.0
     with open("/proc/loadavg") as f:
         load_before = float(f.read().split()[0])
-    result = {
-        "steps_per_s_rigid": steps_per_second(args.seconds),
-        "steps_per_s_cloth": steps_per_second(args.seconds, "cloth"),
-        f"steps_per_s_async_{args.vector}": vector_steps_per_second(args.vector, args.seconds),
-        "players": players_per_control_tick(args.ticks),
-    }
+    result: dict = {"seconds": seconds, "nets": {}}
+    for net in NETS:
+        if progress is not None:
+            progress(f"{net} net: one environment, native vector env at {tables}, AsyncVectorEnv at {async_tables}")
+        single = single_steps_per_second(seconds, net)
+        rate = single["steps_per_s"]
+        native = {n: native_steps_per_second(n, seconds, net) for n in tables}
+        asynchronous = {n: async_steps_per_second(n, seconds, net) for n in async_tables}
+        result["nets"][net] = {
+            "single": single,
+            "native": {str(n): {"steps_per_s": r, "ratio": r / rate} for n, r in native.items()},
+            "async": {str(n): {"steps_per_s": r, "ratio": r / rate} for n, r in asynchronous.items()},
+        }
+    result["cloth_cost"] = result["nets"]["rigid"]["single"]["steps_per_s"] / result["nets"]["cloth"]["single"]["steps_per_s"]
+    if progress is not None:
+        progress(f"players: pro and the Block bot, {args.ticks} ticks each")
+    result["players"] = players_per_control_tick(args.ticks if not args.quick else 5_000)
     with open("/proc/loadavg") as f:
         result["loadavg_before_after"] = [load_before, float(f.read().split()[0])]
-    result["cloth_cost"] = result["steps_per_s_rigid"] / result["steps_per_s_cloth"]
-    if args.json:
-        print(json.dumps(result))
-    else:
-        print(json.dumps(result, indent=1))
+    return result
 
+
+def _report(result: dict) -> None:
+    print(f"environment steps per second (Return-v0 against novice, {result['seconds']:g} s each; "
+          f"ratio to one environment of the same net):")
+    for net, row in result["nets"].items():
+        single = row["single"]
+        print(f"  {net} net: one environment {single['steps_per_s']:.0f} steps/s "
+              f"({single['physics_share']:.0%} of it in the physics)")
+        for kind, label in (("native", "native vector env"), ("async", "AsyncVectorEnv")):
+            for n, r in row[kind].items():
+                print(f"    {label:<18} N = {n:>3}: {r['steps_per_s']:7.0f} steps/s  {r['ratio']:5.2f}x")
+    print(f"  the cloth net costs {result['cloth_cost']:.2f}x the rigid net's time per step (one environment)")
+    p = result["players"]
+    print(f"players per control tick (match_rigid, {p['pro']['ticks']} ticks): pro {p['pro']['ai_us_per_control_tick']:.1f} us, "
+          f"Block bot {p['block_bot']['ai_us_per_control_tick']:.1f} us ({p['ratio_bot_to_pro']:.2f}x), "
+          f"its act() {p['block_bot']['act_us_per_decision']:.1f} us a decision")
+    before, after = result["loadavg_before_after"]
+    print(f"load average before/after: {before:.2f} / {after:.2f}")
+
+
+def _arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--seconds", type=float, default=4.0, help="wall seconds of each steps/s measurement")
+    parser.add_argument("--tables", default="1,8,64", help="tables of the native vector env, N[,N...]")
+    parser.add_argument("--async-tables", default="1,8,64", help="processes of the AsyncVectorEnv, N[,N...]")
+    parser.add_argument("--ticks", type=int, default=60_000, help="ticks of each players' match")
+
+
+STUDY = Study(run=_run, report=_report, add_arguments=_arguments,
+              quick="N = 1, 8 native and 2 AsyncVectorEnv, 1 s each, 5000-tick players' matches")
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(run_study(STUDY, None, "python -m bench.env", "env"))

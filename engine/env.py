@@ -131,7 +131,8 @@ class PingPongEnv(gymnasium.Env):
     """One bat of a match as a Gymnasium environment (see the module's docstring).
 
     Args:
-        task: "return" (Return-v0) or "rally" (Rally-v0). opponent: its AI profile.
+        task: "return" (Return-v0) or "rally" (Rally-v0). opponent: its AI profile, or None: a
+            second agent at the other end (the two-bat rally of engine.parallel_env).
         player: the agent's end, 0 (A) or 1 (B). net: "rigid" or "cloth".
         action_type: "hold" or "force" (action_space); the agent's arm is Agent.arm's (pro).
         max_seconds: simulated seconds before an episode is truncated.
@@ -146,7 +147,7 @@ class PingPongEnv(gymnasium.Env):
                  render_mode: str | None = None, record: bool = False):
         if task not in ("return", "rally"):
             raise ValueError(f"task: must be return or rally, got {task!r}")
-        if opponent not in SKILLS:
+        if opponent not in SKILLS and not (opponent is None and task == "rally"):
             raise ValueError(f"opponent: an AI profile out of {', '.join(SKILLS)}, got {opponent!r}")
         if player not in (0, 1) or net not in SCENES or action_type not in ACTIONS:
             raise ValueError(f"player 0 or 1, net rigid or cloth, action_type hold or force; got {player!r}, "
@@ -160,6 +161,7 @@ class PingPongEnv(gymnasium.Env):
         self.base = load_scene(SCENES[net])
         self.observation_space = observation_space()
         self.action_space = action_space(action_type, Agent.arm)
+        self.ends = (player,) if opponent is not None else (0, 1)  # the agents' ends
         self._obs = np.zeros(len(OBSERVATION_NAMES))
         self.match: Match | None = None
         self.seed_of_match = 0
@@ -169,27 +171,31 @@ class PingPongEnv(gymnasium.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         drive = self.task == "return" and bool(self.np_random.integers(0, 2))
+        server = int(self.np_random.integers(0, 2)) if self.opponent is None else None  # two agents: drawn
         while True:  # a drive's lead-in whose game ends before the opponent returned once is played anew
-            self._new_match(int(self.np_random.integers(0, 2**31 - 1)), drive)
+            self._new_match(int(self.np_random.integers(0, 2**31 - 1)), drive, server)
             if not drive or self._lead_in():
                 break
         self._steps = 0
-        self._last_action = None
-        return self._observe(), {"drive": drive, "match_seed": self.seed_of_match}
+        return self._observe(), {"drive": drive, "match_seed": self.seed_of_match,
+                                 "server": self.match.scene.match.first_server}
 
-    def _new_match(self, seed: int, drive: bool) -> None:
+    def _new_match(self, seed: int, drive: bool, server: int | None = None) -> None:
         """A best-of-1 match of the agent against the opponent, its first server the opponent (or,
-        for a drive, the agent's end)."""
+        for a drive, the agent's end; or `server`)."""
         agent_spec = f"{__name__}:Agent"
-        ends = (agent_spec, self.opponent) if self.player == 0 else (self.opponent, agent_spec)
+        ends = [agent_spec if end in self.ends else self.opponent for end in (0, 1)]
         scene = match_scene(self.base, *ends, best_of=1)
-        server = self.player if drive else 1 - self.player
+        if server is None:
+            server = self.player if drive else 1 - self.player
         scene = replace(scene, match=replace(scene.match, first_server="ab"[server]))
         self.seed_of_match = seed
         self.match = Match(scene, seed=seed)
         self.every = control_period(scene)
-        self.seat = self.match.ais[self.player]
+        self.seats = {end: self.match.ais[end] for end in self.ends}
+        self.seat = self.seats[self.player]
         self.agent: Agent = self.seat.bot
+        self._last_actions: dict = {}
         self.frames: list = []
         self.events: list = []
         self._keep_frame()
@@ -223,40 +229,57 @@ class PingPongEnv(gymnasium.Env):
             raise RuntimeError("PingPongEnv.step: call reset() first")
         if self.match.over:
             raise RuntimeError("PingPongEnv.step: the match is over; call reset()")
-        a = np.asarray(action, dtype=np.float64)
+        self._act(self.player, action)
+        rewards, decided, landed = self._period()
+        terminated = decided or (self.task == "return" and landed[self.player])
+        self._steps += 1
+        truncated = not terminated and self._steps * self.every * self.match.scene.dt >= self.max_seconds
+        info = {"points": len(self.match.referee.points), "bot_errors": list(self.match.bot_errors)}
+        return self._observe(), rewards[self.player], terminated, truncated, info
+
+    def _act(self, end: int, action) -> None:
+        """The action vector into the action record of the agent at `end`."""
+        seat, a = self.seats[end], np.asarray(action, dtype=np.float64)
+        agent = seat.bot
         if self.action_type == "force":
-            force(a[0:3], a[3:6], self.agent.action)
-        else:
-            normal = a[3:6] if np.linalg.norm(a[3:6]) > 1e-9 else self.agent.normal
-            if self.action_type == "hold":
-                hold(a[0:3], normal, self.agent.action)
-            elif self._last_action is None or not np.array_equal(a, self._last_action):  # a new path
-                view = self.seat.view  # the observation the agent was last shown
-                at = float(view["time"]) + float(a[9])
-                target(view, a[0:3], normal, vel=a[6:9], at=at, out=self.agent.action)
-            self._last_action = a.copy()
-        match, ref, me = self.match, self.match.referee, self.player
-        reward = 0.0
-        terminated = False
+            force(a[0:3], a[3:6], agent.action)
+            return
+        normal = a[3:6] if np.linalg.norm(a[3:6]) > 1e-9 else agent.normal
+        last = self._last_actions.get(end)
+        if self.action_type == "hold":
+            hold(a[0:3], normal, agent.action)
+        elif last is None or not np.array_equal(a, last):  # a new path
+            view = seat.view  # the observation the agent was last shown
+            target(view, a[0:3], normal, vel=a[6:9], at=float(view["time"]) + float(a[9]), out=agent.action)
+        self._last_actions[end] = a.copy()
+
+    def _period(self) -> tuple[list[float], bool, list[bool]]:
+        """One control period of the match, stopped early by a decided rally or (Return-v0) the
+        agent's landed return: each end's reward (RETURN_STRIKE a strike, RETURN_LANDED a return
+        bouncing on the other court, Rally-v0: +1 or -1 the point), whether the rally was decided,
+        whether each end's return landed."""
+        match, ref = self.match, self.match.referee
+        rewards, landed, decided = [0.0, 0.0], [False, False], False
         points_before = len(ref.points)
         shots, phase, striker = ref.shots, ref.phase, ref.striker
         stop_at = int(match.state.world[0]["tick"]) + self.every
-        while int(match.state.world[0]["tick"]) < stop_at and not terminated:
+        while int(match.state.world[0]["tick"]) < stop_at and not decided:
             self._advance(stop_at)
-            if ref.shots > shots and ref.striker == me:
-                reward += RETURN_STRIKE
+            if ref.shots > shots:
+                rewards[ref.striker] += RETURN_STRIKE
             if len(ref.points) > points_before:  # the rally was decided (the next one is tossed already)
-                terminated = True
-                if self.task == "rally":
-                    reward += 1.0 if ref.points[-1].winner == me else -1.0 if ref.points[-1].winner >= 0 else 0.0
-            elif ref.phase == Phase.BOUNCED and ref.striker == me and not (phase == Phase.BOUNCED and striker == me):
-                reward += RETURN_LANDED  # the agent's return bounced on the opponent's court
-                terminated = self.task == "return"
+                decided = True
+                winner = ref.points[-1].winner
+                if self.task == "rally" and winner >= 0:
+                    rewards[winner] += 1.0
+                    rewards[1 - winner] -= 1.0
+            elif ref.phase == Phase.BOUNCED and not (phase == Phase.BOUNCED and striker == ref.striker):
+                rewards[ref.striker] += RETURN_LANDED  # the striker's return bounced on the other court
+                landed[ref.striker] = True
+                if self.task == "return" and ref.striker == self.player:
+                    break
             shots, phase, striker = ref.shots, ref.phase, ref.striker
-        self._steps += 1
-        truncated = not terminated and self._steps * self.every * match.scene.dt >= self.max_seconds
-        info = {"points": len(ref.points), "bot_errors": list(match.bot_errors)}
-        return self._observe(), reward, terminated, truncated, info
+        return rewards, decided, landed
 
     def _advance(self, target: int | None = None) -> None:
         """Match.tick to the next control tick (or `target`), keeping the episode's frames and events."""
@@ -276,13 +299,14 @@ class PingPongEnv(gymnasium.Env):
         self.match.save(record)
         self.frames.append(record[0])
 
-    def _observe(self) -> np.ndarray:
-        """The agent's observation vector of the state now (the one its next decision is shown)."""
+    def _observe(self, end: int | None = None) -> np.ndarray:
+        """The observation vector of the agent at `end` (None: the agent's) of the state now (the
+        one its next decision is shown)."""
         match = self.match
         state = match.state
         world = state.world[0]
         floats = match.ais.bat_floats(state.bats)
-        view = self.seat.observe(int(world["tick"]), float(world["time"]), state.ball_flat, floats,
+        view = self.seats[self.player if end is None else end].observe(int(world["tick"]), float(world["time"]), state.ball_flat, floats,
                                  match.rally_record, decision_key(match.rally_record))
         return flatten(view, self._obs).copy()
 
@@ -307,7 +331,6 @@ class PingPongEnv(gymnasium.Env):
                           summary={"task": self.task, "opponent": self.opponent, "agent": "ab"[self.player]})
 
 
-gymnasium.register("pingpong/Return-v0", entry_point=f"{__name__}:PingPongEnv", kwargs={"task": "return"},
-                   max_episode_steps=None)
-gymnasium.register("pingpong/Rally-v0", entry_point=f"{__name__}:PingPongEnv", kwargs={"task": "rally"},
-                   max_episode_steps=None)
+for _task, _id in (("return", "pingpong/Return-v0"), ("rally", "pingpong/Rally-v0")):
+    gymnasium.register(_id, entry_point=f"{__name__}:PingPongEnv", kwargs={"task": _task}, max_episode_steps=None,
+                       vector_entry_point="engine.vector_env:PingPongVectorEnv")

@@ -11,8 +11,9 @@ ALLOWED = {
     # the net's modes to one BLAS thread (net_kernel/modes.py: the same bits in every process).
     "net_kernel": {"numpy", "numba", "net_kernel", "threadpoolctl"},
     # engine: no sockets, processes or zmq; net_kernel below it is fine; matplotlib draws the
-    # replay's picture (engine/render.py), which the Gymnasium environment (engine/env.py) renders.
-    "engine": {"numpy", "numba", "engine", "net_kernel", "matplotlib", "gymnasium"},
+    # replay's picture (engine/render.py), which the Gymnasium environment (engine/env.py) renders;
+    # pettingzoo is the two-bat environment's API (engine/parallel_env.py).
+    "engine": {"numpy", "numba", "engine", "net_kernel", "matplotlib", "gymnasium", "pettingzoo"},
 }
 
 

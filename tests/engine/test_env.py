@@ -122,3 +122,18 @@ def test_async_vector_env_steps_the_same_episodes_as_single_environments():
             expected, *_ = single.step(actions[k])
         assert obs[k].tobytes() == expected.tobytes()
     assert multiprocessing.active_children() == []
+
+
+def test_a_drive_episode_starts_with_the_engine_ais_return_coming_at_the_agent():
+    env = PingPongEnv(task="return", opponent="novice")
+    kinds = set()
+    for seed in range(6):
+        _, info = env.reset(seed=seed)
+        ref, opponent = env.match.referee, 1 - env.player
+        kinds.add(info["drive"])
+        assert env.agent.stand_in is None and env.match.ais[opponent].profile  # the engine's AI plays the opponent
+        if info["drive"]:  # the opponent's AI struck a return (a drive), the agent's to play
+            assert ref.shots >= 2 and ref.striker == opponent and info["server"] == "ab"[env.player]
+        else:  # the opponent's AI serves
+            assert ref.shots == 0 and info["server"] == "ab"[opponent]
+    assert kinds == {True, False}

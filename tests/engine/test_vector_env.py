@@ -1,0 +1,96 @@
+"""The native vector environment: Gymnasium's VectorEnv API, NEXT_STEP autoreset, and each table's
+episodes bit for bit those of a single environment with the same seed."""
+import gymnasium
+import numpy as np
+import pytest
+
+import engine.env  # noqa: F401 - registers the ids and their vector entry point
+from engine.env import PingPongEnv
+from engine.vector_env import PingPongVectorEnv
+
+KWARGS = {"opponent": "novice", "max_seconds": 0.12}  # 12 control periods an episode: several autoresets
+
+
+def _actions(space, steps: int, seed: int) -> np.ndarray:
+    space.seed(seed)
+    return np.array([space.sample() for _ in range(steps)])
+
+
+def _single_next_step(seed: int, actions: np.ndarray, task: str):
+    """One PingPongEnv reset with `seed`, stepped with `actions` under Gymnasium's documented
+    NEXT_STEP autoreset: after an ended episode the next step resets (its action ignored) and
+    returns the reset's observation, reward 0, neither terminated nor truncated."""
+    env = PingPongEnv(task=task, **KWARGS)
+    obs, _ = env.reset(seed=seed)
+    rows, ended = [(obs, 0.0, False, False)], False
+    for action in actions:
+        if ended:
+            obs, _ = env.reset()
+            rows.append((obs, 0.0, False, False))
+            ended = False
+        else:
+            obs, reward, terminated, truncated, _ = env.step(action)
+            rows.append((obs, reward, terminated, truncated))
+            ended = terminated or truncated
+    return rows
+
+
+def _vector_rows(vector, seed, actions):
+    obs, _ = vector.reset(seed=seed)
+    rows = [(obs, np.zeros(vector.num_envs), np.zeros(vector.num_envs, bool), np.zeros(vector.num_envs, bool))]
+    for action in actions:
+        obs, reward, terminated, truncated, _ = vector.step(action)
+        rows.append((obs, reward, terminated, truncated))
+    return rows
+
+
+@pytest.mark.parametrize("task", ["return", "rally"])
+def test_each_table_is_the_single_environment_with_its_seed_bit_for_bit(task):
+    n, steps = 3, 40
+    vector = gymnasium.make_vec(f"pingpong/{task.capitalize()}-v0", num_envs=n,
+                                vectorization_mode="vector_entry_point", **KWARGS)
+    assert isinstance(vector, PingPongVectorEnv)
+    assert vector.metadata["autoreset_mode"] == gymnasium.vector.AutoresetMode.NEXT_STEP
+    actions = _actions(vector.action_space, steps, seed=4)
+    rows = _vector_rows(vector, 30, actions)  # an int seed: table k gets 30 + k
+    assert sum(int(r[3].sum() + r[2].sum()) for r in rows) >= n * 2  # every table ended episodes and went on
+    for k in range(n):
+        single = _single_next_step(30 + k, actions[:, k], task)
+        for got, expected in zip(rows, single, strict=True):
+            assert got[0][k].tobytes() == expected[0].tobytes()
+            assert (float(got[1][k]), bool(got[2][k]), bool(got[3][k])) == expected[1:]
+
+
+def test_the_same_steps_as_gymnasiums_sync_vector_env():
+    n, steps = 2, 30
+    native = PingPongVectorEnv(n, **KWARGS)
+    sync = gymnasium.vector.SyncVectorEnv([lambda: PingPongEnv(**KWARGS)] * n)
+    assert sync.metadata["autoreset_mode"] == native.metadata["autoreset_mode"]
+    actions = _actions(native.action_space, steps, seed=8)
+    for ours, theirs in zip(_vector_rows(native, [5, 9], actions), _vector_rows(sync, [5, 9], actions), strict=True):
+        for a, b in zip(ours, theirs, strict=True):
+            assert np.asarray(a).tobytes() == np.asarray(b).tobytes()
+
+
+def test_a_reset_mask_resets_only_the_masked_tables():
+    vector = PingPongVectorEnv(3, **KWARGS)
+    first, _ = vector.reset(seed=[1, 2, 3])
+    actions = np.stack([vector.single_action_space.sample() * 0.0 + [1.6, 0.0, 0.2, -1.0, 0.0, 0.2]] * 3)
+    moved, *_ = vector.step(actions)
+    obs, infos = vector.reset(seed=[1, 7, 3], options={"reset_mask": np.array([True, False, False])})
+    assert obs[0].tobytes() == first[0].tobytes()  # table 0 again from seed 1
+    assert obs[1:].tobytes() == moved[1:].tobytes()  # the others untouched
+    assert infos["_drive"].tolist() == [True, False, False]
+
+
+def test_bad_input_is_named():
+    with pytest.raises(ValueError, match="num_envs"):
+        PingPongVectorEnv(0)
+    vector = PingPongVectorEnv(2, **KWARGS)
+    with pytest.raises(ValueError, match="one seed per table"):
+        vector.reset(seed=[1, 2, 3])
+    vector.reset(seed=0)
+    with pytest.raises(ValueError, match="actions: shape"):
+        vector.step(np.zeros((3, 6)))
+    with pytest.raises(ValueError, match="reset_mask"):
+        vector.reset(options={"reset_mask": np.zeros(2, bool)})
