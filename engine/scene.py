@@ -301,13 +301,51 @@ def _flag(r: _Reader, data: dict, key: str, path: str) -> bool:
     return value
 
 
+TOP_KEYS = ("name", "description", "effects", "dt", "duration", "integrator", "rtol", "atol", "ball", "bats", "net",
+            "air", "materials", "match")
+
+
 def parse_scene(data: dict, source: str) -> Scene:
-    """Validate a parsed TOML document into a Scene; every error names `source` and the key."""
+    """Validate a parsed TOML document into a Scene; every error names `source` and the key.
+
+    The sections are read in a fixed order (effects, ball, bats, net, players, match, air and
+    materials, then the top-level numbers), so a document with several errors names the same one first.
+    """
     r = _Reader(source)
-    top = ("name", "description", "effects", "dt", "duration", "integrator", "rtol", "atol",
-           "ball", "bats", "net", "air", "materials", "match")
-    data = r.table(data, "", top)
-    effects_raw = data.get("effects")
+    data = r.table(data, "", TOP_KEYS)
+    effects = _read_effects(r, data.get("effects"))
+    ball = _read_ball(r, data.get("ball", {}))
+    bats = _read_bats(r, data, effects)
+    net_kind, cloth = _read_net(r, data, effects)
+    _check_players(r, bats, effects)
+    match = _read_match(r, data, effects, bats)
+    air = r.table(data.get("air", {}), "air", ("density", "drag_coefficient", "magnus_coefficient", "gravity"))
+    materials = _read_materials(r, data.get("materials", {}))
+    dt = r.number(data, "dt", "dt", 0.001, low=0.0, high=0.05, low_open=True)
+    if cloth is not None:
+        _check_net_substeps(r, cloth, dt)
+    return Scene(
+        name=r.string(data, "name", "name", Path(source).stem),
+        source=source,
+        description=r.string(data, "description", "description", ""),
+        effects=effects,
+        ball=ball,
+        dt=dt,
+        duration=r.number(data, "duration", "duration", 2.0, low=0.0, high=3600.0),
+        integrator=r.string(data, "integrator", "integrator", "verlet", tuple(METHODS)),
+        rtol=r.number(data, "rtol", "rtol", 1e-6, low=1e-14, high=1e-1),
+        atol=r.number(data, "atol", "atol", 1e-9, low=1e-16, high=1e-1),
+        bats=bats,
+        net_kind=net_kind,
+        cloth=cloth,
+        **_read_air(r, air),
+        materials=materials,
+        match=match,
+    )
+
+
+def _read_effects(r: _Reader, effects_raw: Any) -> frozenset[str]:
+    """effects = [...]: every name known and simulated by this version."""
     if not isinstance(effects_raw, list) or not all(isinstance(e, str) for e in effects_raw):
         raise r.fail("effects", f"is required: a list of effect names out of {', '.join(EFFECTS)}")
     for effect in effects_raw:
@@ -316,16 +354,22 @@ def parse_scene(data: dict, source: str) -> Scene:
                                     f"supported: {', '.join(EFFECTS)}")
         if effect not in EFFECTS:
             raise r.fail("effects", f"unknown effect {effect!r}; known: {', '.join(EFFECTS)}")
-    effects = frozenset(effects_raw)
+    return frozenset(effects_raw)
 
-    ball_data = r.table(data.get("ball", {}), "ball", ("pos", "vel", "spin"))
-    ball = BallSpec(
+
+def _read_ball(r: _Reader, data: Any) -> BallSpec:
+    """[ball]: its initial position (required), velocity and spin."""
+    ball_data = r.table(data, "ball", ("pos", "vel", "spin"))
+    return BallSpec(
         pos=r.vector(ball_data, "pos", "ball.pos", bound=10.0),
         vel=r.vector(ball_data, "vel", "ball.vel", (0.0, 0.0, 0.0), bound=equipment.BALL_SPEED_MAX),
         # 200 rev/s is beyond the fastest measured loops (~150 rev/s).
         spin=r.vector(ball_data, "spin", "ball.spin", (0.0, 0.0, 0.0), bound=2 * math.pi * 200),
     )
 
+
+def _read_bats(r: _Reader, data: dict, effects: frozenset[str]) -> tuple[BatSpec, ...]:
+    """[bats.a], [bats.b]: present exactly when the effect "bats" is listed."""
     bats: list[BatSpec] = []
     if "bats" in data:
         if "bats" not in effects:
@@ -334,20 +378,27 @@ def parse_scene(data: dict, source: str) -> Scene:
             bats.append(_read_bat(r, name, bat_data))
     if "bats" in effects and not bats:
         raise r.fail("effects", "effect 'bats' needs at least one [bats.a] or [bats.b] table")
+    return tuple(bats)
 
-    net_kind = "rigid"
-    cloth = None
-    if "net" in data:
-        if "net" not in effects:
-            raise r.fail("net", "a net is described but the effect 'net' is not listed in effects; add it or remove [net]")
-        net_data = r.table(data["net"], "net", ("kind", "solver", "kernel_precision", "kernel_fma", CLOTH_RESOLUTION)
-                           + CLOTH_FLOATS + CLOTH_INTS)
-        net_kind = r.string(net_data, "kind", "net.kind", "rigid", NET_KINDS)
-        cloth = _read_cloth(r, net_data) if net_kind == "cloth" else None
-        if net_kind == "rigid" and len(net_data) > ("kind" in net_data):
-            extra = sorted(set(net_data) - {"kind"})[0]
-            raise r.fail(f"net.{extra}", "describes a cloth net; set kind = \"cloth\" or remove it")
 
+def _read_net(r: _Reader, data: dict, effects: frozenset[str]) -> tuple[str, NetSpec | None]:
+    """[net]: the net's kind, and a cloth net's NetSpec (None for the rigid net)."""
+    if "net" not in data:
+        return "rigid", None
+    if "net" not in effects:
+        raise r.fail("net", "a net is described but the effect 'net' is not listed in effects; add it or remove [net]")
+    net_data = r.table(data["net"], "net", ("kind", "solver", "kernel_precision", "kernel_fma", CLOTH_RESOLUTION)
+                       + CLOTH_FLOATS + CLOTH_INTS)
+    net_kind = r.string(net_data, "kind", "net.kind", "rigid", NET_KINDS)
+    cloth = _read_cloth(r, net_data) if net_kind == "cloth" else None
+    if net_kind == "rigid" and len(net_data) > ("kind" in net_data):
+        extra = sorted(set(net_data) - {"kind"})[0]
+        raise r.fail(f"net.{extra}", "describes a cloth net; set kind = \"cloth\" or remove it")
+    return net_kind, cloth
+
+
+def _check_players(r: _Reader, bats: tuple[BatSpec, ...], effects: frozenset[str]) -> None:
+    """Each bat is played by the AI (skill, effect "ai"), remotely (effect "remote") or by nobody."""
     ai_bats = [b.name for b in bats if b.skill is not None]
     if ai_bats and "ai" not in effects:
         raise r.fail(f"bats.{ai_bats[0]}.skill", "a skill is given but the effect 'ai' is not listed in effects")
@@ -359,63 +410,56 @@ def parse_scene(data: dict, source: str) -> Scene:
         raise r.fail(f"bats.{remote_bats[0]}.remote", "a remote bat needs the effect 'remote' in effects")
     if "ai" in effects and not ai_bats:
         raise r.fail("effects", "effect 'ai' needs a bat with a skill (bats.a.skill = \"pro\", \"club\" or \"novice\")")
-    match = None
-    if "referee" in effects:
-        missing = [e for e in ("table", "net", "floor", "bats") if e not in effects]
-        if missing or len(bats) != 2:
-            raise r.fail("effects", f"effect 'referee' needs the table, net, floor and both bats; missing: "
-                                    f"{', '.join(missing) or 'a second bat'}")
-        m = r.table(data.get("match", {}), "match", ("best_of", "first_server", "ai_hz", "max_rally_s", "toss_speed"))
-        best_of = r.number(m, "best_of", "match.best_of", 5, low=1, high=9)
-        if best_of != int(best_of) or int(best_of) % 2 == 0:
-            raise r.fail("match.best_of", f"must be an odd whole number, got {best_of}")
-        match = MatchSpec(
-            best_of=int(best_of),
-            first_server=r.string(m, "first_server", "match.first_server", "a", BAT_NAMES),
-            ai_hz=r.number(m, "ai_hz", "match.ai_hz", 100.0, low=10.0, high=2000.0),
-            max_rally_s=r.number(m, "max_rally_s", "match.max_rally_s", 10.0, low=1.0, high=120.0),
-            toss_speed=r.number(m, "toss_speed", "match.toss_speed", 2.6, low=1.8, high=5.0),
-        )
-    elif "match" in data:
-        raise r.fail("match", "a [match] table needs the effect 'referee'")
-    if "remote" in effects and match is None:
-        raise r.fail("effects", "effect 'remote' (a match served to network clients) needs the effect 'referee'")
 
-    air = r.table(data.get("air", {}), "air", ("density", "drag_coefficient", "magnus_coefficient", "gravity"))
+
+def _read_match(r: _Reader, data: dict, effects: frozenset[str], bats: tuple[BatSpec, ...]) -> MatchSpec | None:
+    """[match] of a scene with the effect "referee" (None without it), which needs the whole table."""
+    if "referee" not in effects:
+        if "match" in data:
+            raise r.fail("match", "a [match] table needs the effect 'referee'")
+        if "remote" in effects:
+            raise r.fail("effects", "effect 'remote' (a match served to network clients) needs the effect 'referee'")
+        return None
+    missing = [e for e in ("table", "net", "floor", "bats") if e not in effects]
+    if missing or len(bats) != 2:
+        raise r.fail("effects", f"effect 'referee' needs the table, net, floor and both bats; missing: "
+                                f"{', '.join(missing) or 'a second bat'}")
+    m = r.table(data.get("match", {}), "match", ("best_of", "first_server", "ai_hz", "max_rally_s", "toss_speed"))
+    best_of = r.number(m, "best_of", "match.best_of", 5, low=1, high=9)
+    if best_of != int(best_of) or int(best_of) % 2 == 0:
+        raise r.fail("match.best_of", f"must be an odd whole number, got {best_of}")
+    return MatchSpec(
+        best_of=int(best_of),
+        first_server=r.string(m, "first_server", "match.first_server", "a", BAT_NAMES),
+        ai_hz=r.number(m, "ai_hz", "match.ai_hz", 100.0, low=10.0, high=2000.0),
+        max_rally_s=r.number(m, "max_rally_s", "match.max_rally_s", 10.0, low=1.0, high=120.0),
+        toss_speed=r.number(m, "toss_speed", "match.toss_speed", 2.6, low=1.8, high=5.0),
+    )
+
+
+def _read_materials(r: _Reader, data: Any) -> tuple[tuple[str, Material], ...]:
+    """[materials.BODY]: restitution and friction, each defaulting to the body's (DEFAULT_MATERIALS)."""
     materials = dict(DEFAULT_MATERIALS)
-    for body, mat in r.table(data.get("materials", {}), "materials", MATERIAL_BODIES).items():
+    for body, mat in r.table(data, "materials", MATERIAL_BODIES).items():
         mat = r.table(mat, f"materials.{body}", ("restitution", "friction"))
         base = materials[body]
         materials[body] = Material(
             restitution=r.number(mat, "restitution", f"materials.{body}.restitution", base.restitution, low=0.0, high=1.0),
             friction=r.number(mat, "friction", f"materials.{body}.friction", base.friction, low=0.0, high=2.0),
         )
+    return tuple(sorted(materials.items()))
 
-    dt = r.number(data, "dt", "dt", 0.001, low=0.0, high=0.05, low_open=True)
-    if cloth is not None:
-        _check_net_substeps(r, cloth, dt)
-    scene = Scene(
-        name=r.string(data, "name", "name", Path(source).stem),
-        source=source,
-        description=r.string(data, "description", "description", ""),
-        effects=effects,
-        ball=ball,
-        dt=dt,
-        duration=r.number(data, "duration", "duration", 2.0, low=0.0, high=3600.0),
-        integrator=r.string(data, "integrator", "integrator", "verlet", tuple(METHODS)),
-        rtol=r.number(data, "rtol", "rtol", 1e-6, low=1e-14, high=1e-1),
-        atol=r.number(data, "atol", "atol", 1e-9, low=1e-16, high=1e-1),
-        bats=tuple(bats),
-        net_kind=net_kind,
-        cloth=cloth,
-        gravity=r.number(air, "gravity", "air.gravity", equipment.GRAVITY, low=0.0, high=100.0),
-        air_density=r.number(air, "density", "air.density", equipment.AIR_DENSITY, low=0.0, high=10.0),
-        drag_coefficient=r.number(air, "drag_coefficient", "air.drag_coefficient", equipment.DRAG_COEFFICIENT, low=0.0, high=2.0),
-        magnus_coefficient=r.number(air, "magnus_coefficient", "air.magnus_coefficient", equipment.MAGNUS_COEFFICIENT, low=0.0, high=5.0),
-        materials=tuple(sorted(materials.items())),
-        match=match,
-    )
-    return scene
+
+def _read_air(r: _Reader, air: dict) -> dict[str, float]:
+    """[air] (already checked for unknown keys): Scene's gravity, air_density and the two coefficients."""
+    return {
+        "gravity": r.number(air, "gravity", "air.gravity", equipment.GRAVITY, low=0.0, high=100.0),
+        "air_density": r.number(air, "density", "air.density", equipment.AIR_DENSITY, low=0.0, high=10.0),
+        "drag_coefficient": r.number(air, "drag_coefficient", "air.drag_coefficient", equipment.DRAG_COEFFICIENT,
+                                     low=0.0, high=2.0),
+        "magnus_coefficient": r.number(air, "magnus_coefficient", "air.magnus_coefficient",
+                                       equipment.MAGNUS_COEFFICIENT, low=0.0, high=5.0),
+    }
 
 
 def load_scene(name_or_path: str | Path, overrides: dict[str, Any] | None = None) -> Scene:
