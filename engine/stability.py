@@ -33,7 +33,7 @@ from engine import equipment
 from engine.bat import face_normal
 from engine.geometry import NET_BOX, POST_BOXES, TABLE_BOX, Body, box_sdf, disc_sdf
 from engine.scene import SceneError, parse_scene
-from engine.world import SimulationError, build_model, initial_state, new_events, step
+from engine.world import Model, SimulationError, State, build_model, initial_state, new_events, step
 from net_kernel import IMPLICIT, NetSim, NetSpec, NetTopology, build_topology
 from net_kernel.sim import KNOT_RADIUS
 from net_kernel.topology import grid_spacings
@@ -305,19 +305,7 @@ def run_case(case: Case | NetCase) -> Outcome:
             y = state.ball_flat
             out.max_abs_state = max(out.max_abs_state, float(np.abs(y).max()))
             p = y[0:3]
-            gaps = [box_sdf(p, TABLE_BOX, normal) - R] if model.table is not None else []
-            if model.net is not None:
-                gaps.append(box_sdf(p, NET_BOX, normal) - R)
-            if model.posts is not None:
-                gaps += [box_sdf(p, post, normal) - R for post in POST_BOXES]
-            if model.floor_z is not None:
-                gaps.append(p[2] - model.floor_z - R)
-            if not case.bat_yields:
-                for b in range(len(state.bats)):
-                    axis = np.zeros(3)
-                    face_normal(state.bats["quat"][b], axis)
-                    gaps.append(disc_sdf(p, state.bats["pos"][b], axis, scene.bats[b].radius,
-                                         scene.bats[b].half_thickness, normal) - R)
+            gaps = _body_gaps(model, state, p, normal, with_bats=not case.bat_yields)
             if gaps:
                 out.max_penetration_m = max(out.max_penetration_m, -min(gaps))
             if net is not None:
@@ -354,11 +342,38 @@ def run_case(case: Case | NetCase) -> Outcome:
         return out
     out.energy_change = (energy() - e0) / max(abs(e0), 1e-12)
     out.final = state.ball_flat.copy()
+    if net is not None:
+        _settled_shape(out, shapes, net.knot_pos, rest_pos)
+    _judge(out, case, net, knot_penetration, unsettled)
+    out.wall_s = time.perf_counter() - started
+    return out
+
+
+def _body_gaps(model: Model, state: State, p: np.ndarray, normal: np.ndarray, with_bats: bool) -> list[float]:
+    """Gaps (m, negative inside) between the ball at p and each rigid body of the model, the bats'
+    faces too when with_bats; normal: (3,) scratch."""
+    gaps = [box_sdf(p, TABLE_BOX, normal) - R] if model.table is not None else []
+    if model.net is not None:
+        gaps.append(box_sdf(p, NET_BOX, normal) - R)
+    if model.posts is not None:
+        gaps += [box_sdf(p, post, normal) - R for post in POST_BOXES]
+    if model.floor_z is not None:
+        gaps.append(p[2] - model.floor_z - R)
+    if with_bats:
+        for b in range(len(state.bats)):
+            axis = np.zeros(3)
+            face_normal(state.bats["quat"][b], axis)
+            gaps.append(disc_sdf(p, state.bats["pos"][b], axis, model.scene.bats[b].radius,
+                                 model.scene.bats[b].half_thickness, normal) - R)
+    return gaps
+
+
+def _judge(out: Outcome, case: Case, net: NetSim | None, knot_penetration: float, unsettled: list[int]) -> None:
+    """Set out.result from a finished case's measures: "stable", or "failed: " and each problem."""
     problems = []
     if out.max_penetration_m > PENETRATION_TOL:
         problems.append(f"penetration {out.max_penetration_m:.2e} m > {PENETRATION_TOL:g}")
     if net is not None:
-        _settled_shape(out, shapes, net.knot_pos, rest_pos)
         knot_tol = FASTEST_BALL * net.h
         if knot_penetration > knot_tol:
             problems.append(f"a knot {knot_penetration:.2e} m inside the ball > {knot_tol:.2g} (60 m/s x substep)")
@@ -381,8 +396,6 @@ def run_case(case: Case | NetCase) -> Outcome:
         problems.append(expectation)
     if problems:
         out.result = "failed: " + "; ".join(problems)
-    out.wall_s = time.perf_counter() - started
-    return out
 
 
 _BALL_FAR = (-1.0, 0.0, R)  # m: at rest on the table, out of the net's reach

@@ -118,3 +118,30 @@ def test_no_module_over_700_lines():
 def test_processes_keeps_its_layers_in_subpackages():
     top = {p.name for p in (ROOT / "processes").glob("*.py")}
     assert top <= PROCESSES_TOP, f"modules directly in processes/ (move them into a layer): {sorted(top - PROCESSES_TOP)}"
+
+
+MAX_FUNCTION_LINES = 120
+# Numba kernels are exempt: a kernel is one compiled loop, and splitting it costs calls in the
+# hot path (their decorators: njit, or numba.njit / numba.jit).
+KERNEL_DECORATORS = {"njit", "jit"}
+
+
+def _is_kernel(node: ast.FunctionDef | ast.AsyncFunctionDef) -> bool:
+    for decorator in node.decorator_list:
+        target = decorator.func if isinstance(decorator, ast.Call) else decorator
+        name = target.attr if isinstance(target, ast.Attribute) else getattr(target, "id", "")
+        if name in KERNEL_DECORATORS:
+            return True
+    return False
+
+
+def test_no_function_over_120_lines_outside_numba_kernels():
+    long = {}
+    for package in ("engine", "processes", "bench"):
+        for path in sorted((ROOT / package).rglob("*.py")):
+            for node in ast.walk(ast.parse(path.read_text(), str(path))):
+                if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and not _is_kernel(node):
+                    lines = node.end_lineno - node.lineno + 1
+                    if lines > MAX_FUNCTION_LINES:
+                        long[f"{path.relative_to(ROOT)}:{node.lineno} {node.name}"] = lines
+    assert not long, f"functions over {MAX_FUNCTION_LINES} lines (split them by what they do): {long}"
