@@ -15,7 +15,9 @@ from __future__ import annotations
 
 import hashlib
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Protocol
 
 import numpy as np
 
@@ -129,20 +131,48 @@ def _rows(rows: list[int]):
     return np.array(rows, np.int64)
 
 
+# A fault of a player's decision: (player index, tick of the decision, engine.players fault name, detail).
+Fault = tuple[int, int, str, str]
+
+
+class PlayerDriver(Protocol):
+    """What drives a Match's AI players (its ai_driver): LocalAI here, or a stand-in that does the
+    same in another process and gives the same bits (the physics worker's, which asks the AI
+    worker). Any object with these members fits.
+
+    At each AI control tick the match calls collect(), then request(); a decision requested at
+    one control tick is collected, and applied, at the next.
+    """
+
+    def collect(self, match: Match) -> list[Fault]:
+        """Leave the decision of the previous control tick in match.ai_next; returns its faults."""
+
+    def request(self, match: Match, now: float) -> None:
+        """Start the players' decision from the match's state now (s of simulated time)."""
+
+    def resume(self, tick: int, period: int) -> None:
+        """After the match was restored at `tick` (control period `period` ticks): pick up the
+        decision that was in flight."""
+
+
 class LocalAI:
-    """The players in this process (the reference): each control tick they decide at once. The
-    faults of a decision reach the match with it, at the next control tick, as the AI worker's do."""
+    """The players in this process (the reference PlayerDriver): each control tick they decide at
+    once. The faults of a decision reach the match with it, at the next control tick, as the AI
+    worker's do."""
 
     def __init__(self, ais: Players):
         self.ais = ais
-        self.faults: list = []
+        self.faults: list[Fault] = []
 
-    def collect(self, match: "Match") -> list:
-        """request() already wrote match.ai_next; the faults of that decision [(player, tick, fault, detail)]."""
+    def collect(self, match: Match) -> list[Fault]:
+        """request() already wrote match.ai_next; the faults of that decision."""
         faults, self.faults = self.faults, []
         return faults
 
-    def request(self, match: "Match", now: float) -> None:
+    def resume(self, tick: int, period: int) -> None:
+        """Nothing was in flight: the players here decide within request()."""
+
+    def request(self, match: Match, now: float) -> None:
         tick = int(match._world_q[0])
         faults = ai_inputs(self.ais, tick, now, match.state.ball_flat, match.state.bats, match.rally_record,
                            match.ai_next)
@@ -155,9 +185,9 @@ class Match:
     At each AI control tick the match calls ai_driver.collect(match), which must leave in
     match.ai_next the AIs' decision from the previous control tick, applies it, then
     ai_driver.request(match, now), which starts the decision from the state now (to be collected
-    at the next control tick); collect returns the faults of the decision it collected. By
-    default the players run here (LocalAI, the reference); the physics worker passes a driver
-    that asks the AI worker.
+    at the next control tick); collect returns the faults of the decision it collected (the
+    contract: PlayerDriver). By default the players run here (LocalAI, the
+    reference); the physics worker passes a driver that asks the AI worker.
 
     A player's decision that goes wrong (engine.players: it raised, was malformed, non-finite,
     oversized or overran its budget_s of CPU) is recorded in bot_errors when it is collected;
@@ -165,7 +195,7 @@ class Match:
     the match there (stopped holds the BotError).
     """
 
-    def __init__(self, scene: Scene, seed: int = 0, ai_driver=None, on_bot_error: str = "point",
+    def __init__(self, scene: Scene, seed: int = 0, ai_driver: PlayerDriver | None = None, on_bot_error: str = "point",
                  budget_s: float | None = DEFAULT_BUDGET_S):
         if scene.match is None:
             raise ValueError(f"{scene.source}: scene {scene.name!r} has no referee; a match needs the effect 'referee'")
@@ -183,7 +213,7 @@ class Match:
         self.stopped: BotError | None = None
         self.has_ai = any(bat.skill is not None for bat in scene.bats)
         self.ais = make_ais(scene, self.model, seed, budget_s=budget_s) if ai_driver is None else {}
-        self.ai_driver = ai_driver or LocalAI(self.ais)
+        self.ai_driver: PlayerDriver = ai_driver or LocalAI(self.ais)
         self.ai_bats = [i for i, bat in enumerate(scene.bats) if bat.skill is not None]
         self._ai_rows = _rows(self.ai_bats)
         self.inputs = np.zeros((len(scene.bats), 6))  # held by the bats until the next control tick
@@ -235,7 +265,7 @@ class Match:
         """Resume from a saved record and the point log (a restarted physics worker).
 
         The AIs' decision in flight is not in the record: it belongs to the driver, whose
-        resume(tick) (if it has one) picks it up again (the AI worker keeps its last answer).
+        resume(tick, period) picks it up again (the AI worker keeps its last answer).
         """
         self.state.ball[0] = record["ball"]
         self.state.bats[:] = record["bats"]
@@ -249,9 +279,7 @@ class Match:
         self.rally = int(rally["rally"])
         self.rally_started = float(rally["rally_started"])
         self._sync_rally()
-        resume = getattr(self.ai_driver, "resume", None)
-        if resume is not None:
-            resume(int(self.state.world[0]["tick"]), self.ai_every)
+        self.ai_driver.resume(int(self.state.world[0]["tick"]), self.ai_every)
 
     def tick(self, max_ticks: int = 1) -> PointRecord | None:
         """Advance up to max_ticks ticks, stopping where the match must act; returns a point
@@ -307,7 +335,7 @@ class Match:
         """The match is won, or stopped by a bot's fault."""
         return self.referee.match_over or self.stopped is not None
 
-    def _faults(self, faults: list) -> None:
+    def _faults(self, faults: list[Fault]) -> None:
         """Record the faults of a decision; the point to the other player or the match stopped."""
         for player, tick, fault, detail in faults:
             bat = self.scene.bats[player]
@@ -326,7 +354,8 @@ class Match:
             self.rally += 1
             self.toss()
 
-    def play(self, max_ticks: int | None = None, on_point=None, on_tick=None, events_out: list | None = None) -> MatchResult:
+    def play(self, max_ticks: int | None = None, on_point: Callable[[Match, PointRecord], None] | None = None,
+             on_tick: Callable[[Match, int], None] | None = None, events_out: list | None = None) -> MatchResult:
         """Play until the match is won (or max_ticks).
 
         on_point(match, record) after each rally; on_tick(match, tick) after each tick; contact

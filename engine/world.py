@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -34,7 +35,7 @@ from engine.geometry import FLOOR_Z, NET_BOX, POST_BOXES, TABLE_BOX, Body, box_s
 from engine.integrators import METHODS, WORK_SHAPE
 from engine.scene import Scene, SceneError
 from engine.tick import ERR_BATS_AFTER, ERR_BATS_BEFORE, STOP_EVENT, STOP_LIMIT, STOP_NET, STOP_WATCH, advance_ticks
-from net_kernel import NO_CONTACT, NetSim, build_topology
+from net_kernel import NO_CONTACT, NetContact, NetSim, build_topology
 from net_kernel.sim import KNOT_RADIUS, NET_REACH, WAKE_MARGIN
 
 
@@ -150,6 +151,28 @@ def _check_start(model: Model) -> None:
                              f"{radius - distance:.4f} m); move it out")
 
 
+class NetStepper(Protocol):
+    """The cloth net as the engine steps it (_advance_with_cloth): net_kernel.NetSim, or a
+    stand-in that does the same in another process and gives the same bits (the physics
+    worker's, which asks the net worker). Any object with these members fits."""
+
+    @property
+    def sleeping(self) -> bool:
+        """Asleep after the ticks done: its knots do not move until the ball touches it."""
+
+    @property
+    def in_tail(self) -> bool:
+        """In its linear tail after the ticks done: its knots stay within the box it rings in."""
+
+    def step(self, ball_pos: np.ndarray, ball_vel: np.ndarray, ball_radius: float,
+             ball_inv_mass: float) -> NetContact:
+        """One tick of the net with the ball's contact, called after the ball's tick with the ball
+        at its start (pos m, vel m/s, radius m, 1/kg): NetSim.step's contract."""
+
+    def step_free(self, ticks: int) -> None:
+        """`ticks` ticks of the net without the ball, which stayed out of its reach in them."""
+
+
 @dataclass
 class State:
     """Dynamic state: structured arrays (engine/dtypes.py) plus the tick's preallocated scratch.
@@ -171,7 +194,8 @@ class State:
     adapt: np.ndarray
     event_rows: np.ndarray
     bat_tmp: np.ndarray
-    net_sim: NetSim | None = None  # the cloth net (a scene with net kind "cloth"), or a stand-in with its step
+    # The cloth net (a scene with net kind "cloth"): a NetSim (initial_state), or a stand-in.
+    net_sim: NetStepper | None = None
 
 
 def initial_state(scene: Scene) -> State:
@@ -332,10 +356,10 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
     there, so a worker's net may do them while the physics goes on. It returns after every tick
     the net was stepped with the ball (STOP_NET, unless another reason): a caller that publishes
     its state after each call then always has a state the net's agrees with, which a restarted
-    net or physics worker resumes from exactly. `state.net_sim` is a NetSim, or anything with
-    its `sleeping`, `in_tail`, `step` and `step_free` (processes.workers.hub.RemoteNet).
+    net or physics worker resumes from exactly. `state.net_sim` is a NetSim, or a stand-in with
+    its contract (NetStepper: the physics worker's, which asks the net worker).
     """
-    net = state.net_sim
+    net: NetStepper = state.net_sim
     y = state.ball_flat
     mass = float(model.ball_params[P_MASS])
     radius = float(model.ball_params[P_RADIUS])
