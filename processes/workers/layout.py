@@ -27,6 +27,7 @@ import shutil
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -42,6 +43,9 @@ from processes.runtime.handoff import TICK_SLOT_DTYPE, Baton
 from processes.runtime.locks import HOLDER_DTYPE, LockTable
 from processes.runtime.mailbox import MAILBOX_HEADER
 from processes.runtime.shm import Arena
+
+if TYPE_CHECKING:
+    from multiprocessing.synchronize import Event
 
 EVENT_LOG_CAPACITY = 1 << 16
 POINT_LOG_CAPACITY = 1 << 12  # a best-of-9 match has at most a few hundred rallies
@@ -175,7 +179,7 @@ class RunLayout:
     ai_baton: Baton | None = None
     net_baton: Baton | None = None
     lock_path: str | None = None
-    start_event: object | None = None
+    start_event: Event | None = None
     _lock_dir: str | None = None
 
     def stop_turns(self) -> None:

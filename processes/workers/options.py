@@ -2,10 +2,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 from engine.players import DEFAULT_BUDGET_S
 from processes.runtime.control import CRASH_KINDS
+
+if TYPE_CHECKING:  # for the annotations only: the options module stays cheap to import
+    from multiprocessing.synchronize import Event
+
+    from processes.network.gateway import GatewayConfig
+    from processes.runtime.handoff import Baton
 
 # A served match waits this long for its remote players to take their seats, then starts.
 PLAYERS_TIMEOUT_S = 300.0
@@ -23,8 +29,8 @@ class RunOptions:
             The supervisor sets it for one incarnation of one worker.
         seed: the match's seed. frame_every: keep a snapshot every this many ticks (replays), 0: none.
         players_timeout: s, a served match waits this long for its remote players, then starts.
-        gateway: processes.network.gateway.GatewayConfig of a scene with the effect "remote".
-        ai_baton, net_baton: the processes.runtime.handoff.Baton of the AI's and the net's turns
+        gateway: the gateway's configuration, for a scene with the effect "remote".
+        ai_baton, net_baton: the batons of the AI's and the net's turns
             (None: no such worker). lock_path: the run's lock table (a run with a gateway).
         start_event: set by the gateway while every remote seat is held (a run with a gateway).
         handoff_s: s, the physics waits this long for the AI's or the net's answer to a turn,
@@ -44,11 +50,11 @@ class RunOptions:
     seed: int = 0
     frame_every: int = 0
     players_timeout: float = PLAYERS_TIMEOUT_S
-    gateway: Any = None
-    ai_baton: Any = None
-    net_baton: Any = None
+    gateway: GatewayConfig | None = None
+    ai_baton: Baton | None = None
+    net_baton: Baton | None = None
     lock_path: str | None = None
-    start_event: Any = None
+    start_event: Event | None = None
     handoff_s: float = 1.0
     slow_turn_s: float = 0.0
     on_bot_error: str = "point"

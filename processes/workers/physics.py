@@ -10,7 +10,7 @@ import numpy as np
 
 from engine.dtypes import physics_snapshot_dtype
 from engine.match import Match, point_from_row, point_row
-from engine.world import build_model, copy_record, initial_state, new_events, step
+from engine.world import State, build_model, copy_record, initial_state, new_events, step
 from processes.runtime.control import Control, crash
 from processes.runtime.shm import Arena
 from processes.workers.hub import AIDriver, RemoteInputs, RemoteNet
@@ -109,7 +109,7 @@ def physics_worker(control: Control, arena: Arena, scene, options: RunOptions) -
     _finish(control, tick, busy, net, options)
 
 
-def _remote_net(control: Control, arena: Arena, options: RunOptions, state):
+def _remote_net(control: Control, arena: Arena, options: RunOptions, state: State) -> RemoteNet | None:
     """With a net worker: the state's cloth net becomes its stand-in (after any resume)."""
     if options.net_baton is None:
         return None
