@@ -58,7 +58,7 @@ bench-accuracy: install
 
 # The protocol document's generated tables (layouts, enums, limits), from the wire's code.
 protocol: install
-	$(BIN)/python -m processes.network.protocol docs/protocol.md
+	$(BIN)/python -m processes.network.wire.protocol docs/protocol.md
 
 clean:
 	rm -rf $(VENV) .pytest_cache .benchmarks

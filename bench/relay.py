@@ -9,7 +9,7 @@ each, in an order reversed every other round (ABC CBA) so that a drift of the ma
 weighs on every arm alike:
 - none: no subscriber (the gateway's own work: ticks read, snapshots encoded, published to nobody);
 - direct: the N subscribers on the gateway's feed;
-- relay: a `pingpong relay` process (processes.network.relay: libzmq's XSUB/XPUB proxy) is the
+- relay: a `pingpong relay` process (processes.network.server.relay: libzmq's XSUB/XPUB proxy) is the
   feed's one subscriber and the N subscribers are its.
 An arm's window opens once every subscriber has received a message (the subscriptions are live)
 and closes --seconds later; the CPU of the gateway worker, of the relay and of this process (the

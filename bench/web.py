@@ -25,7 +25,7 @@ import time
 
 import numpy as np
 
-from processes.network.client import Client
+from processes.network.client.client import Client
 from processes.network.wire import Kind
 from processes.stress.scenarios.web import browsers
 

@@ -27,7 +27,7 @@ import numpy as np
 from engine.dtypes import CONTACT_DTYPE, physics_snapshot_dtype
 from engine.players import DEFAULT_BUDGET_S
 from engine.scene import Scene
-from processes.network.gateway import GatewayConfig
+from processes.network.server.gateway import GatewayConfig
 from processes.runtime.control import READY_TIMEOUT_S, STARTUP_LIMIT_S, WorkerState, worker_main
 from processes.runtime.shm import Arena
 from processes.workers import (PLAYERS_TIMEOUT_S, RunLayout, RunOptions, build_layout, worker_modules, worker_target,
@@ -105,7 +105,7 @@ class Supervisor:
         crash_at_tick: fault injection for tests and `pingpong stress`: the first incarnation of
             `crash_worker` SIGKILLs itself at this tick.
         seed: the match's seed. frame_every: keep a snapshot every this many ticks (replays), 0: none.
-        gateway: processes.network.gateway.GatewayConfig for a scene with the effect "remote".
+        gateway: processes.network.server.gateway.GatewayConfig for a scene with the effect "remote".
         players_timeout: s, a served match waits this long for its remote players, then starts.
         crash_kind: how `crash_worker` ends at crash_at_tick: "kill" (SIGKILL) or "raise" (an exception).
         restart_budget: restarts of one worker allowed within RESTART_WINDOW_S; one more failure ends the run.

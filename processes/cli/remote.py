@@ -13,7 +13,7 @@ from processes.cli.common import FORMATTER, add_common, add_players
 
 if TYPE_CHECKING:
     from processes.network import wire
-    from processes.network.client import Client
+    from processes.network.client.client import Client
     from processes.network.wire import Slot
 
 # processes.workers.PLAYERS_TIMEOUT_S and processes.supervisor's restart budget, spelled out: the
@@ -63,7 +63,7 @@ def _error_line(name: str, stats: dict) -> str:
 
 def keyboard_screen(summary: dict, frame: dict, slot: Slot, predictor=None) -> str:
     """The keyboard player's screen: score, top view, keys, prediction error so far."""
-    from processes.network.keyboard import top_view
+    from processes.network.client.keyboard import top_view
 
     lines = [f"pingpong - you play {slot.name} (+ is your target)",
              _score_line(frame["snapshot"], frame["ball_pos"], frame["ball_vel"], frame["tick"]), ""]
@@ -79,7 +79,7 @@ def keyboard_screen(summary: dict, frame: dict, slot: Slot, predictor=None) -> s
 
 def join_command(args: argparse.Namespace) -> int:
     """`pingpong join ADDRESS --as player|spectator [--bot]`."""
-    from processes.network.client import NO_TOKEN, Client, Rejected, curve_client_options
+    from processes.network.client.client import NO_TOKEN, Client, Rejected, curve_client_options
     from processes.network.wire import Slot
 
     keyboard = args.role == "player" and not args.bot
@@ -139,8 +139,8 @@ def _warm_up(skill: str) -> None:
     """Load (or compile) every kernel a player's client runs, with the bundled match scene: the
     kernels depend on types, not on the scene, so the served scene's objects build at once later."""
     from engine.scene import load_scene
-    from processes.network.bot import BotBrain
-    from processes.network.prediction import Predictor
+    from processes.network.client.bot import BotBrain
+    from processes.network.client.prediction import Predictor
     from processes.network.wire import Slot
 
     Predictor(load_scene("match"), Slot.A).advance_to(0)
@@ -150,11 +150,11 @@ def _warm_up(skill: str) -> None:
 def _play(client: Client, welcome: wire.Message, args: argparse.Namespace, keyboard: bool) -> dict:
     """The session of `pingpong join` once welcomed: bot, keyboard or spectator."""
     from engine.scene import load_scene
-    from processes.network.bot import BotBrain
-    from processes.network.interpolation import Interpolator
-    from processes.network.keyboard import KeyboardPilot, TerminalKeys
-    from processes.network.prediction import Predictor
-    from processes.network.session import run_session
+    from processes.network.client.bot import BotBrain
+    from processes.network.client.interpolation import Interpolator
+    from processes.network.client.keyboard import KeyboardPilot, TerminalKeys
+    from processes.network.client.prediction import Predictor
+    from processes.network.client.session import run_session
     from processes.network.wire import Slot
 
     if client.slot == Slot.NONE:
@@ -195,8 +195,8 @@ def serve_command(args: argparse.Namespace) -> int:
     from engine.scene import SceneError, load_scene, with_remote_players
     from engine.world import SimulationError
     from processes.cli.common import bot_budget_s, with_players
-    from processes.network.client import load_curve_key
-    from processes.network.gateway import GatewayConfig
+    from processes.network.client.client import load_curve_key
+    from processes.network.server.gateway import GatewayConfig
     from processes.supervisor import Supervisor, WorkerFailed
 
     try:
@@ -351,11 +351,11 @@ def _interrupted(args: argparse.Namespace, stats_path: str, signal_name: str) ->
 
 
 def watch_command(args: argparse.Namespace) -> int:
-    """`pingpong watch ADDRESS --web HOST:PORT`: the match in the browser (processes.network.web)."""
+    """`pingpong watch ADDRESS --web HOST:PORT`: the match in the browser (processes.network.web.bridge)."""
     import threading
 
-    from processes.network.client import Rejected, curve_client_options
-    from processes.network.web import WebBridge
+    from processes.network.client.client import Rejected, curve_client_options
+    from processes.network.web.bridge import WebBridge
 
     try:
         socket_options = curve_client_options(getattr(args, "curve_server_key", None))
@@ -394,13 +394,13 @@ def watch_command(args: argparse.Namespace) -> int:
 
 
 def relay_command(args: argparse.Namespace) -> int:
-    """`pingpong relay UPSTREAM --bind ENDPOINT`: re-publish a gateway's feed (processes.network.relay)."""
+    """`pingpong relay UPSTREAM --bind ENDPOINT`: re-publish a gateway's feed (processes.network.server.relay)."""
     import threading
 
     import zmq
 
-    from processes.network.client import curve_client_options
-    from processes.network.relay import Relay
+    from processes.network.client.client import curve_client_options
+    from processes.network.server.relay import Relay
 
     try:
         socket_options = curve_client_options(getattr(args, "curve_server_key", None))

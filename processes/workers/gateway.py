@@ -1,11 +1,11 @@
-"""The gateway worker: the network.gateway.Gateway fed by the run's shared memory.
+"""The gateway worker: the network.server.gateway.Gateway fed by the run's shared memory.
 
 It reads the physics snapshots and the point log, pairs each snapshot with the remote inputs it
 acknowledges (remote_acks), and posts the remote players' inputs to the locked remote-input
 mailbox that the physics drains before each tick. In a run with a net worker (a scene with a
 cloth net: processes.workers.workers_for; build_layout then makes the net_even/net_odd blocks)
 it also reads the net's newest published state, never torn (SnapshotBlock.snapshot) and only
-when a net message is due, for the clients' view of the net (network.feed.NetFeed). A net in
+when a net message is due, for the clients' view of the net (network.server.feed.NetFeed). A net in
 its linear tail publishes where the tail started and how long it has run (net_snapshot_dtype):
 NetView rebuilds the knots at the tick of the newest physics snapshot, which the net worker
 itself has no reason to step to while the ball is away.
@@ -19,8 +19,8 @@ import zmq
 
 from engine.dtypes import net_snapshot_dtype, physics_snapshot_dtype
 from net_kernel import NetSim, build_topology
-from processes.network.gateway import STATS_EVERY_S, Gateway, GatewayConfig
-from processes.network.seats import SeatStore
+from processes.network.server.gateway import STATS_EVERY_S, Gateway, GatewayConfig
+from processes.network.server.seats import SeatStore
 from processes.network.wire import GoodbyeReason, Slot
 from processes.runtime.control import Control, StopRequested, crash
 from processes.runtime.locks import LockTable

@@ -18,7 +18,7 @@ and removes them at the end. The blocks of a run, by name:
 | ai_local | LOCAL_DTYPE | physics | a restarted physics |
 | remote_header, remote_inputs | Mailbox of REMOTE_INPUT_DTYPE (locked) | gateway posts | physics drains |
 | remote_applied, remote_acks | seqs applied per bat, REMOTE_ACK_DTYPE ring | physics | gateway |
-| seats | network.seats.SEAT_DTYPE (SnapshotBlock) | gateway | a restarted gateway |
+| seats | network.server.seats.SEAT_DTYPE (SnapshotBlock) | gateway | a restarted gateway |
 | lock_holders | runtime.locks.HOLDER_DTYPE | lock table | lock table |
 """
 from __future__ import annotations
@@ -37,7 +37,7 @@ from engine.dtypes import (CONTACT_DTYPE, POINT_DTYPE, ai_answer_dtype, ai_local
 from engine.rules import Phase, next_striker
 from engine.scene import Scene
 from net_kernel import build_topology
-from processes.network.seats import SEAT_DTYPE
+from processes.network.server.seats import SEAT_DTYPE
 from processes.runtime.control import STATUS_DTYPE
 from processes.runtime.handoff import TICK_SLOT_DTYPE, Baton
 from processes.runtime.locks import HOLDER_DTYPE, LockTable

@@ -11,7 +11,7 @@ import time
 
 import zmq
 
-from processes.network.client import Client, Rejected
+from processes.network.client.client import Client, Rejected
 from processes.stress.harness import Proxy, Run, until
 from processes.stress.probes import fd_count, shm_names
 from processes.stress.result import base, check, finish

@@ -13,7 +13,7 @@ from collections import Counter
 import numpy as np
 import zmq
 
-from processes.network.client import Client, Rejected
+from processes.network.client.client import Client, Rejected
 from processes.stress.probes import fd_count, rss_kb
 from processes.stress.swarm import context, emit
 

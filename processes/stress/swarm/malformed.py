@@ -21,8 +21,8 @@ import numpy as np
 import zmq
 
 from processes.network import wire
-from processes.network.client import Client, Rejected
-from processes.network.gateway import MAX_BAD, MAX_FRAME_BYTES
+from processes.network.client.client import Client, Rejected
+from processes.network.server.gateway import MAX_BAD, MAX_FRAME_BYTES
 from processes.network.wire import GoodbyeReason, InputMode, Kind, Role, Slot
 from processes.stress.probes import fd_count
 from processes.stress.swarm import NO_TOKEN, context

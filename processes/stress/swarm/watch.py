@@ -39,7 +39,7 @@ from collections import Counter
 import numpy as np
 import zmq
 
-from processes.network.client import Client, Rejected
+from processes.network.client.client import Client, Rejected
 from processes.network.wire import GoodbyeReason, Kind, RejectReason
 from processes.stress.probes import cpu_seconds, fd_count, rss_kb, thread_cpu_seconds, thread_sched_seconds
 from processes.stress.swarm import NO_TOKEN, context, emit

@@ -22,8 +22,8 @@ from engine.dtypes import physics_snapshot_dtype
 from engine.scene import SceneError, load_scene, parse_scene, with_remote_players
 from processes.network import wire
 from processes.runtime import shm
-from processes.network.client import Client, Rejected
-from processes.network.gateway import Gateway, GatewayConfig
+from processes.network.client.client import Client, Rejected
+from processes.network.server.gateway import Gateway, GatewayConfig
 from processes.supervisor import workers_for
 from processes.network.wire import GoodbyeReason, Kind, RejectReason, Role, Slot
 from tests.processes.conftest import ctrl_c_able
@@ -575,7 +575,7 @@ def test_a_malformed_hello_is_rejected_bad_request_with_the_decoders_reason(rig)
 
 
 def test_target_mode_is_refused_counted_and_kicks_like_any_bad_message(rig):
-    from processes.network.gateway import MAX_BAD
+    from processes.network.server.gateway import MAX_BAD
 
     r = rig()
     player = r.client()
@@ -621,7 +621,7 @@ def test_a_token_expires_with_the_grace_and_the_seat_is_anyones(rig):
 
 
 def test_a_session_of_a_replaced_gateway_is_told_goodbye_once_and_rejoins(zctx, no_leftovers):
-    from processes.network.seats import SEAT_DTYPE, SeatStore
+    from processes.network.server.seats import SEAT_DTYPE, SeatStore
 
     arena = shm.Arena()
     store = SeatStore(arena.snapshot_block("seats", SEAT_DTYPE, 2))
@@ -658,7 +658,7 @@ def test_a_session_of_a_replaced_gateway_is_told_goodbye_once_and_rejoins(zctx, 
 
 
 def test_a_relay_republishes_the_feed_byte_for_byte_to_its_subscribers(rig, zctx):
-    from processes.network.relay import Relay
+    from processes.network.server.relay import Relay
 
     r = rig()
     watcher = r.client(role="spectator")
@@ -1191,7 +1191,7 @@ def test_a_curve_session_works_and_a_client_without_the_server_key_cannot_join(r
     import zmq.auth
 
     from processes.cli import main
-    from processes.network.client import curve_client_options, load_curve_key
+    from processes.network.client.client import curve_client_options, load_curve_key
 
     assert main(["keys", str(tmp_path / "keys"), "--json"]) == 0  # `pingpong keys DIR`
     public_file, secret_file = tmp_path / "keys" / "server.key", tmp_path / "keys" / "server.key_secret"
@@ -1229,7 +1229,7 @@ def test_a_curve_session_works_and_a_client_without_the_server_key_cannot_join(r
 
 # --- seats outlive a gateway --------------------------------------------------------------------
 def test_a_restarted_gateway_finds_its_seats_and_the_token_reclaims_one(zctx, no_leftovers):
-    from processes.network.seats import SEAT_DTYPE, SeatStore
+    from processes.network.server.seats import SEAT_DTYPE, SeatStore
 
     arena = shm.Arena()
     first = second = None

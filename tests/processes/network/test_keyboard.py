@@ -17,11 +17,11 @@ import pytest
 
 from engine.scene import load_scene
 from engine.world import build_model, initial_state
-from processes.network.client import Client
-from processes.network.session import run_session
-from processes.network.gateway import Gateway, GatewayConfig
-from processes.network.keyboard import STEP_M, STROKE_M, IterableKeys, KeyboardPilot, TerminalKeys, parse_keys, top_view
-from processes.network.prediction import Predictor
+from processes.network.client.client import Client
+from processes.network.client.session import run_session
+from processes.network.server.gateway import Gateway, GatewayConfig
+from processes.network.client.keyboard import STEP_M, STROKE_M, IterableKeys, KeyboardPilot, TerminalKeys, parse_keys, top_view
+from processes.network.client.prediction import Predictor
 from processes.network.wire import Slot
 from tests.waits import DEADLINE_S
 

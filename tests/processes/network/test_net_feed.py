@@ -16,8 +16,8 @@ import pytest
 from engine.scene import load_scene
 from net_kernel import NetSim, build_topology
 from processes.network import wire
-from processes.network.client import Client
-from processes.network.feed import NetFeed
+from processes.network.client.client import Client
+from processes.network.server.feed import NetFeed
 from processes.network.wire import Kind
 from tests.processes.network.test_gateway import ROUNDS, _pingpong, rig, served  # noqa: F401 (fixtures)
 from tests.waits import DEADLINE_S, line

@@ -9,8 +9,8 @@ import pytest
 from engine.scene import load_scene
 from engine.world import build_model, initial_state, new_events, step
 from processes.network import wire
-from processes.network.interpolation import Interpolator, hermite, slerp
-from processes.network.prediction import MAX_AHEAD_TICKS, ErrorStats, Predictor, ServerClock
+from processes.network.client.interpolation import Interpolator, hermite, slerp
+from processes.network.client.prediction import MAX_AHEAD_TICKS, ErrorStats, Predictor, ServerClock
 from processes.network.wire import Slot
 
 SNAPSHOT_EVERY = 10  # ticks between snapshots: 100 Hz at the match scene's 1 ms tick
@@ -225,7 +225,7 @@ def test_the_baseline_without_prediction_is_measured_alongside():
 
 
 def test_the_round_trip_is_the_least_time_from_an_input_to_its_first_acknowledgement():
-    from processes.network.prediction import RoundTrip
+    from processes.network.client.prediction import RoundTrip
 
     trip = RoundTrip(window=4)
     assert trip.seconds == 0.0

@@ -4,7 +4,8 @@ from pathlib import Path
 import pytest
 
 from engine import rules
-from processes.network import protocol, wire
+from processes.network import wire
+from processes.network.wire import protocol
 
 ROOT = Path(__file__).resolve().parents[3]
 DOC = ROOT / "docs" / "protocol.md"

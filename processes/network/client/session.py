@@ -1,8 +1,8 @@
 """A client's session loop: play (bot or keyboard, with prediction) or watch (interpolated) until it ends.
 
-A player predicts with the engine and reconciles on each snapshot (processes.network.prediction)
+A player predicts with the engine and reconciles on each snapshot (processes.network.client.prediction)
 and sends its inputs from the predicted present; a spectator shows the state interpolated 100 ms
-behind (processes.network.interpolation).
+behind (processes.network.client.interpolation).
 """
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ import time
 import numpy as np
 
 from processes.network import wire
-from processes.network.client import Client
-from processes.network.prediction import RoundTrip, ServerClock
+from processes.network.client.client import Client
+from processes.network.client.prediction import RoundTrip, ServerClock
 from processes.network.wire import Kind, Slot
 
 CONTROL_HZ = 100  # a predicting player's inputs per second (the server's AI arms decide at 100 Hz too)

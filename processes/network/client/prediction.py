@@ -28,7 +28,7 @@ import numpy as np
 
 from engine.arm import brake_force
 from engine.world import SimulationError, build_model, initial_state, new_events, step
-from processes.network.gateway import INPUT_HOLD_S
+from processes.network.server.gateway import INPUT_HOLD_S
 from processes.network.wire import Slot
 
 MAX_AHEAD_TICKS = 500  # a prediction runs at most this far past the last snapshot (0.5 s at 1 kHz)

@@ -1,6 +1,6 @@
 // The wire protocol's decoder for the browser (and node): one binary message to a plain object.
 //
-// It reads the layouts from the protocol's JSON (processes/network/protocol.py layout_json, served
+// It reads the layouts from the protocol's JSON (processes/network/wire/protocol.py layout_json, served
 // by the web bridge as /protocol.json and embedded in a replay's HTML), so the offsets are the
 // Python dtypes' own and cannot drift. The bridge forwards only messages its own decoder accepted;
 // this one checks magic, version, kind and size, and reads the fields.

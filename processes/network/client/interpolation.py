@@ -11,7 +11,7 @@ from collections import deque
 
 import numpy as np
 
-from processes.network.prediction import ServerClock
+from processes.network.client.prediction import ServerClock
 
 def hermite(t0: float, p0, v0, t1: float, p1, v1, t: float) -> np.ndarray:
     """Cubic Hermite position at time t between (p0, v0) at t0 and (p1, v1) at t1.

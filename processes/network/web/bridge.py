@@ -1,6 +1,6 @@
 """The web bridge: a gateway client that shows a served match in the browser, in 3D.
 
-A spectator session with the gateway (processes.network.client.Client: hello, heartbeats, the
+A spectator session with the gateway (processes.network.client.client.Client: hello, heartbeats, the
 feed) in a thread of its own, and an HTTP + WebSocket server (the `websockets` asyncio library)
 in another. The page and its scripts, three.js among them (vendored, see web_static/vendor),
 load from this server only, so it works offline. Every wire message the session takes (the
@@ -34,12 +34,13 @@ from pathlib import Path
 
 import numpy as np
 
-from processes.network import protocol, wire
-from processes.network.client import Client
-from processes.network.keyboard import KEYS
+from processes.network import wire
+from processes.network.wire import protocol
+from processes.network.client.client import Client
+from processes.network.client.keyboard import KEYS
 from processes.network.wire import Kind
 
-STATIC = Path(__file__).with_name("web_static")
+STATIC = Path(__file__).with_name("static")
 PAGES = {"/": "index.html", "/index.html": "index.html", "/app.js": "app.js", "/decoder.js": "decoder.js",
          "/vendor/three.module.min.js": "vendor/three.module.min.js", "/vendor/three.LICENSE": "vendor/three.LICENSE"}
 JOIN_TIMEOUT_S = 10.0
@@ -317,10 +318,10 @@ class BrowserPlayer:
 
     def _run(self) -> None:
         from engine.scene import load_scene
-        from processes.network.client import Rejected
-        from processes.network.keyboard import KeyboardPilot
-        from processes.network.prediction import Predictor
-        from processes.network.session import run_session
+        from processes.network.client.client import Rejected
+        from processes.network.client.keyboard import KeyboardPilot
+        from processes.network.client.prediction import Predictor
+        from processes.network.client.session import run_session
 
         bridge = self.bridge
         client = Client(bridge.address, "player", "browser", self.wanted, socket_options=bridge.socket_options)

@@ -77,9 +77,9 @@ import numpy as np
 import zmq
 
 from processes.network import wire
-from processes.network.feed import NetFeed, feed_socket
-from processes.network.pacing import SnapshotPacer
-from processes.network.seats import SeatStore
+from processes.network.server.feed import NetFeed, feed_socket
+from processes.network.server.pacing import SnapshotPacer
+from processes.network.server.seats import SeatStore
 from processes.network.wire import GoodbyeReason, InputMode, Kind, RejectReason, Role, Slot
 
 # A remote arm's input holds at most this long: a client that stalls (or whose snapshots stop)

@@ -1,6 +1,6 @@
 """The gateway's feed: its PUB socket, and which states of a cloth net go out on it (NetFeed).
 
-What every spectator gets goes out once on the feed (processes.network.gateway explains why);
+What every spectator gets goes out once on the feed (processes.network.server.gateway explains why);
 since protocol 3 that includes a cloth net's knots (wire.Net), at most NET_HZ times a second
 while the net moves, once when it falls asleep, and its latest state on each new session.
 """
