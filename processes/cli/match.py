@@ -213,7 +213,7 @@ def replay_command(args: argparse.Namespace) -> int:
             render.gif(data.frames, args.gif, title)
             summary["gif"] = args.gif
     if args.html:
-        from processes.network.web.bridge import replay_messages, replay_page
+        from processes.network.web.replay import replay_messages, replay_page
 
         messages = replay_messages(data, _best_of(h))
         Path(args.html).write_text(replay_page(messages, title), encoding="utf-8")

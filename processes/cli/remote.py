@@ -79,7 +79,8 @@ def keyboard_screen(summary: dict, frame: dict, slot: Slot, predictor=None) -> s
 
 def join_command(args: argparse.Namespace) -> int:
     """`pingpong join ADDRESS --as player|spectator [--bot]`."""
-    from processes.network.client.client import NO_TOKEN, Client, Rejected, curve_client_options
+    from processes.network.client.client import Client, Rejected, curve_client_options
+    from processes.network.wire import NO_TOKEN
     from processes.network.wire import Slot
 
     keyboard = args.role == "player" and not args.bot

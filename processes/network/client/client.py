@@ -21,9 +21,8 @@ import numpy as np
 import zmq
 
 from processes.network import wire
-from processes.network.wire import GoodbyeReason, InputMode, Kind, Role, Slot
+from processes.network.wire import NO_TOKEN, GoodbyeReason, InputMode, Kind, Role, Slot
 
-NO_TOKEN = bytes(wire.TOKEN_SIZE)
 JOIN_TIMEOUT_S = 10.0
 
 

@@ -12,7 +12,7 @@ What the client cannot know, it predicts as follows, and the statistics measure 
 - the opponent's bat coasts (its force is not on the wire): the ball meets it where it drifts;
 - an input holds from the tick it was stamped with (the server applies it on arrival, about a
   one-way trip later), and an input not yet acknowledged at T holds from T at the earliest;
-  it holds for the gateway's INPUT_HOLD_S at most (then the server's idle arm brakes the bat
+  it holds for the wire's INPUT_HOLD_S at most (then the server's idle arm brakes the bat
   every tick, engine.arm.brake_force), counted in ticks from its stamp (the server's physics
   counts from the tick it applied it);
 - the ball at a snapshot is in flight (the wire has no support flag: a resting ball settles
@@ -28,8 +28,7 @@ import numpy as np
 
 from engine.arm import brake_force
 from engine.world import SimulationError, build_model, initial_state, new_events, step
-from processes.network.server.gateway import INPUT_HOLD_S
-from processes.network.wire import Slot
+from processes.network.wire import INPUT_HOLD_S, Slot
 
 MAX_AHEAD_TICKS = 500  # a prediction runs at most this far past the last snapshot (0.5 s at 1 kHz)
 CLOCK_WINDOW = 16  # snapshots over which the least-delayed one sets the server's clock (short: a

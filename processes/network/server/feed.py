@@ -11,8 +11,7 @@ from collections import Counter
 import zmq
 
 from processes.network import wire
-
-NET_HZ = 60  # net messages per second at most, while the net is awake: the page's frame rate
+from processes.network.wire import NET_HZ
 
 
 def feed_socket(zctx, config, endpoint: str, own_io_thread: bool, max_frame_bytes: int):

@@ -1,7 +1,7 @@
 """The gateway: ZeroMQ sessions of remote players and spectators; their inputs in, snapshots out.
 
 Two sockets. The sessions live on a ROUTER: a client is a DEALER that sends one-frame wire
-messages (processes/wire.py); the gateway sees [identity, message]. What every spectator gets
+messages (processes/network/wire/); the gateway sees [identity, message]. What every spectator gets
 (snapshots, events) goes out once on a PUB socket, the feed, whose port the welcome announces
 (welcome.feed_port): the gateway encodes and sends a snapshot once per tick and libzmq's I/O
 thread copies it to each subscriber, where one send per spectator session would cost the
@@ -80,20 +80,15 @@ from processes.network import wire
 from processes.network.server.feed import NetFeed, feed_socket
 from processes.network.server.pacing import SnapshotPacer
 from processes.network.server.seats import SeatStore
-from processes.network.wire import GoodbyeReason, InputMode, Kind, RejectReason, Role, Slot
+from processes.network.wire import (DEFAULT_GRACE_S, DEFAULT_HEARTBEAT_S, DEFAULT_MAX_SPECTATORS, DEFAULT_SNAPSHOT_HZ,
+                                    DEFAULT_SNDHWM, DEFAULT_TIMEOUT_S, INPUT_HOLD_S, MAX_BAD, MAX_FRAME_BYTES, NO_TOKEN,
+                                    GoodbyeReason, InputMode, Kind, RejectReason, Role, Slot)
 
-# A remote arm's input holds at most this long: a client that stalls (or whose snapshots stop)
-# must not leave its bat pushed by a constant force (120 N on a 0.17 kg bat is 70 m/s in 0.1 s).
-# The physics counts it in match time from the tick it applied the input, then brakes the bat.
-INPUT_HOLD_S = 0.1  # s of match time, an input is let go of this long after the physics applied it
-MAX_BAD = 64  # bad messages one session may send before it is kicked
 MAX_STRANGERS_TOLD = 4096  # connections without a session told goodbye, remembered so each is told once
 MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messages
-MAX_FRAME_BYTES = 4096  # libzmq disconnects a peer sending a bigger frame (MAXMSGSIZE)
 SWEEPS_PER_HEARTBEAT = 10  # passes over every session (timeouts, heartbeats) per heartbeat period
 STATS_EVERY_S = 1.0  # the worker writes its counters to GatewayConfig.stats_path this often
 STOP_DRAIN_S = 0.2  # s after its goodbyes a stopping gateway still answers (a hello: reject shutting_down)
-NO_TOKEN = bytes(wire.TOKEN_SIZE)
 # A session's heartbeat, the message a thousand spectators send twice a second: magic, version,
 # kind, flags 0 and the size say it all (its only body field, ack, is any u64), so it is taken by
 # this fixed prefix and the tick's sign, exactly what wire.decode would accept, without decoding.
@@ -126,13 +121,13 @@ class GatewayConfig:
     """
 
     bind: str = "tcp://127.0.0.1:0"
-    snapshot_hz: int = 60
-    heartbeat_s: float = 0.5
-    timeout_s: float = 5.0
-    grace_s: float = 30.0
-    sndhwm: int = 32
+    snapshot_hz: int = DEFAULT_SNAPSHOT_HZ
+    heartbeat_s: float = DEFAULT_HEARTBEAT_S
+    timeout_s: float = DEFAULT_TIMEOUT_S
+    grace_s: float = DEFAULT_GRACE_S
+    sndhwm: int = DEFAULT_SNDHWM
     sndbuf: int = 0
-    max_spectators: int = 64
+    max_spectators: int = DEFAULT_MAX_SPECTATORS
     input_hold_s: float = INPUT_HOLD_S
     curve_secret_key: bytes = b""  # Z85; set: every session is CURVE-encrypted and the server authenticated
     curve_public_key: bytes = b""  # Z85, the secret key's public half

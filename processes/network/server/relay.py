@@ -17,7 +17,7 @@ import threading
 
 import zmq
 
-from processes.network.server.gateway import MAX_FRAME_BYTES
+from processes.network.wire import MAX_FRAME_BYTES
 
 RELAY_SNDHWM = 1000  # messages queued per subscriber (the gateway's feed queues 32): a relay is a buffer
 _START_TIMEOUT_S = 10.0

@@ -2,16 +2,16 @@
 
 A spectator session with the gateway (processes.network.client.client.Client: hello, heartbeats, the
 feed) in a thread of its own, and an HTTP + WebSocket server (the `websockets` asyncio library)
-in another. The page and its scripts, three.js among them (vendored, see web_static/vendor),
+in another. The page and its scripts, three.js among them (vendored, see static/vendor),
 load from this server only, so it works offline. Every wire message the session takes (the
 welcome, snapshots, events, a cloth net's knots, the goodbye) goes unchanged, binary, to every
 browser on /ws; a browser that connects late first gets the welcome, the latest snapshot and the
 latest net message of each chunk of knots. The page decodes the
-wire itself (web_static/decoder.js), with the layouts of /protocol.json (protocol.layout_json).
+wire itself (static/decoder.js), with the layouts of /protocol.json (wire.protocol.layout_json).
 
 A browser may also play: it asks for a seat ({"play": "a"|"b"|"any"}, a JSON text message) and
-the bridge opens a player session for it, a client like `pingpong join --as player` (run_session
-with a KeyboardPilot and a Predictor). The browser sends key names ({"key": "up"}: the keys
+the bridge opens a player session for it (web.player.BrowserPlayer), a client like `pingpong join
+--as player` (run_session with a KeyboardPilot and a Predictor). The browser sends key names ({"key": "up"}: the keys
 `join` uses) and pointer aims ({"aim": [x, y, z]}: a point the bat is driven to, kept in the
 pilot's reach box); the pilot turns them into force and torque for that seat's bat only, and
 the bridge sends the browser its predicted bat ({"predicted": {...}}, about 60 times a second)
@@ -24,26 +24,19 @@ misses that message, the others do not), so a slow browser stalls nobody.
 from __future__ import annotations
 
 import asyncio
-import base64
-import html
 import json
 import mimetypes
-import queue
 import threading
-from pathlib import Path
-
-import numpy as np
 
 from processes.network import wire
-from processes.network.wire import protocol
-from processes.network.client.client import Client
+from processes.network.client.client import JOIN_TIMEOUT_S, Client
 from processes.network.client.keyboard import KEYS
-from processes.network.wire import Kind
+from processes.network.web import STATIC
+from processes.network.web.player import BrowserPlayer
+from processes.network.wire import Kind, protocol
 
-STATIC = Path(__file__).with_name("static")
 PAGES = {"/": "index.html", "/index.html": "index.html", "/app.js": "app.js", "/decoder.js": "decoder.js",
          "/vendor/three.module.min.js": "vendor/three.module.min.js", "/vendor/three.LICENSE": "vendor/three.LICENSE"}
-JOIN_TIMEOUT_S = 10.0
 _START_TIMEOUT_S = 10.0
 _WRITE_LIMIT = 1 << 20  # bytes buffered per browser before broadcast skips it (about 3000 snapshots)
 
@@ -279,140 +272,4 @@ def _request(text) -> dict | None:
     return None
 
 
-class BrowserPlayer:
-    """A browser's player session: `pingpong join --as player` driven by the browser's keys
-    and pointer, in a thread of its own (run_session with a KeyboardPilot and a Predictor)."""
-
-    SHOW_EVERY_S = 1.0 / 60.0
-
-    def __init__(self, bridge: WebBridge, websocket, seat: str):
-        self.bridge, self.websocket = bridge, websocket
-        self.wanted = {"a": wire.Slot.A, "b": wire.Slot.B, "any": wire.Slot.NONE}[seat]
-        self.requests: queue.SimpleQueue = queue.SimpleQueue()
-        self.pilot = None
-        self._thread = threading.Thread(target=self._run, name="web-bridge-player", daemon=True)
-
-    def start(self) -> None:
-        self._thread.start()
-
-    def take(self, request: dict) -> None:
-        self.requests.put(request)
-
-    def stop(self, timeout_s: float = 5.0) -> None:
-        self.requests.put({"key": "quit"})
-        self._thread.join(timeout_s)
-
-    def poll(self, timeout_s: float = 0.0) -> list[str]:
-        """run_session's key source: the browser's keys; its aims move the pilot's target here,
-        in the session's thread."""
-        keys = []
-        while True:
-            try:
-                request = self.requests.get_nowait()
-            except queue.Empty:
-                return keys
-            if "aim" in request and self.pilot is not None:
-                self.pilot.aim_at(request["aim"])
-            elif "key" in request:
-                keys.append(request["key"])
-
-    def _run(self) -> None:
-        from engine.scene import load_scene
-        from processes.network.client.client import Rejected
-        from processes.network.client.keyboard import KeyboardPilot
-        from processes.network.client.prediction import Predictor
-        from processes.network.client.session import run_session
-
-        bridge = self.bridge
-        client = Client(bridge.address, "player", "browser", self.wanted, socket_options=bridge.socket_options)
-        try:
-            try:
-                welcome = client.join(bridge.join_timeout_s)
-            except (Rejected, TimeoutError) as err:
-                reason = err.reason.name.lower() if isinstance(err, Rejected) else "timeout"
-                bridge.send_text(self.websocket, {"rejected": reason, "detail": str(err)})
-                return
-            bridge.counts["players"] = bridge.counts.get("players", 0) + 1
-            predictor = Predictor(load_scene(welcome["scene"]), client.slot)
-            self.pilot = KeyboardPilot(predictor.model, client.slot)
-            bridge.send_text(self.websocket, {"seat": client.slot.name.lower(), "token": client.token.hex()})
-
-            def show(summary, frame) -> None:
-                if predictor.tick is None:
-                    return
-                bat = predictor.bat
-                bridge.send_text(self.websocket, {"predicted": {
-                    "tick": int(predictor.tick), "bat_pos": np.asarray(bat["pos"]).tolist(),
-                    "bat_quat": np.asarray(bat["quat"]).tolist(), "aim": np.asarray(frame["target"]).tolist(),
-                    "inputs_sent": summary["inputs_sent"]}})
-
-            summary = run_session(client, welcome, pilot=self.pilot, keys=self, predictor=predictor, show=show,
-                                  show_every_s=self.SHOW_EVERY_S)
-            bridge.send_text(self.websocket, {"ended": summary["goodbye"], "inputs_sent": summary["inputs_sent"]})
-        finally:
-            client.close()
-
-
-# --- a recorded match as one offline page ------------------------------------------------------
-def replay_messages(replay, best_of: int) -> list[bytes]:
-    """The wire messages a spectator would have got of a recorded match (engine.replay.Replay):
-    a welcome, a snapshot per frame, a point event per decided rally (and a game and a match
-    event where it decided one), in tick order."""
-    header, frames = replay.header, replay.frames
-    out = [wire.encode(Kind.WELCOME, tick=0, slot=wire.Slot.NONE, best_of=best_of, snapshot_hz=max(1, min(1000, round(
-        1.0 / (header["dt"] * max(1, header["frame_every"]))))), heartbeat_ms=500, timeout_ms=5000, dt=header["dt"],
-        token=bytes(wire.TOKEN_SIZE), scene=header["scene"][:32], name_a="A", name_b="B", feed_port=0)]
-    timed = []
-    for frame in frames:
-        try:
-            timed.append((int(frame["world"]["tick"]), 0, wire.snapshot_from_physics(frame, seq=len(timed) + 1)))
-        except wire.WireError:  # a frame the wire cannot carry (never written, or beyond its ranges)
-            continue
-    ticks = frames["world"]["tick"] if len(frames) else np.zeros(0, np.int64)
-    games = np.zeros(2, np.int64)
-    for k, row in enumerate(replay.points):
-        tick = int(row["tick"])
-        after = int(np.searchsorted(ticks, tick + 1))  # the first frame after the rally: its games_won
-        frame = frames[min(after, len(frames) - 1)] if len(frames) else None
-        won = frame["rally"]["games_won"] if frame is not None else games
-        rally = int(frame["rally"]["rally"]) if frame is not None else k + 1
-        fields = dict(winner=int(row["winner"]), reason=int(row["reason"]), game=int(row["game"]),
-                      score=row["score_after"], games_won=won, shots=int(row["shots"]), rally=rally)
-        timed.append((tick, 1, wire.encode(Kind.EVENT, tick=tick, event=wire.EventKind.POINT, **fields)))
-        if tuple(won) != tuple(games):
-            timed.append((tick, 2, wire.encode(Kind.EVENT, tick=tick, event=wire.EventKind.GAME, **fields)))
-            games = np.array(won)
-        if k == len(replay.points) - 1 and header.get("summary", {}).get("winner"):
-            timed.append((tick, 3, wire.encode(Kind.EVENT, tick=tick, event=wire.EventKind.MATCH, **fields)))
-    timed.sort(key=lambda item: item[:2])
-    return out + [data for *_, data in timed]
-
-
-def replay_page(messages: list[bytes], title: str) -> str:
-    """One self-contained HTML page that plays `messages` (a welcome, snapshots, events) in 3D:
-    three.js, the decoder, the app and the protocol's layouts inlined (base64), nothing fetched."""
-    def b64(data: bytes) -> str:
-        return base64.b64encode(data).decode("ascii")
-
-    page = (STATIC / "index.html").read_text()
-    loader = f"""<script type="text/plain" id="three-src">{b64((STATIC / 'vendor/three.module.min.js').read_bytes())}</script>
-<script type="text/plain" id="decoder-src">{b64((STATIC / 'decoder.js').read_bytes())}</script>
-<script type="text/plain" id="app-src">{b64((STATIC / 'app.js').read_bytes())}</script>
-<script type="application/json" id="protocol">{json.dumps(protocol.layout_json())}</script>
-<script type="application/json" id="messages">{json.dumps([b64(m) for m in messages])}</script>
-<script type="module">
-  const bytes = (id) => Uint8Array.from(atob(document.getElementById(id).textContent), (c) => c.charCodeAt(0));
-  const url = (data) => URL.createObjectURL(new Blob([data], {{ type: "text/javascript" }}));
-  const three = url(bytes("three-src")), decoder = url(bytes("decoder-src"));
-  const app = new TextDecoder().decode(bytes("app-src"))
-    .replace('"./vendor/three.module.min.js"', JSON.stringify(three)).replace('"./decoder.js"', JSON.stringify(decoder));
-  const {{ startReplay }} = await import(url(app));
-  startReplay(JSON.parse(document.getElementById("protocol").textContent),
-              JSON.parse(document.getElementById("messages").textContent));
-</script>"""
-    live = page[page.index('<script type="module">'):page.index("</script>", page.index('<script type="module">')) + 9]
-    page = page.replace(live, loader).replace("<title>pingpong</title>", f"<title>{html.escape(title)}</title>")
-    return page.replace('<div id="status">connecting ...</div>', '<div id="status">replay</div>')
-
-
-__all__ = ["PAGES", "STATIC", "WebBridge", "parse_host_port", "replay_messages", "replay_page"]
+__all__ = ["PAGES", "WebBridge", "parse_host_port"]

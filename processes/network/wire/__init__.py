@@ -48,23 +48,27 @@ from processes.network.wire.checks import (QUAT_TOL, REASON_CODES, WIRE_ERRORS, 
                                            WireError)
 from processes.network.wire.codec import DropCounter, Message, decode, encode, snapshot_from_physics
 from processes.network.wire.knots import net_knots, net_messages, net_rest
-from processes.network.wire.messages import (DETAIL_SIZE, Event, EventKind, Goodbye, GoodbyeReason, HEADER_DTYPE,
-                                             HEADER_FIELDS, HEADER_SIZE, Heartbeat, Hello, Input, InputMode, Kind,
-                                             MAGIC, MAX_BAT_ANG_VEL_RADS, MAX_BEST_OF, MAX_DT_S, MAX_FORCE_N,
-                                             MAX_REALTIME_FACTOR, SERVER_SILENCE_BEATS,
-                                             MAX_GAMES_WON, MAX_POS_M, MAX_SPEED_MS, MAX_SPIN_RADS, MAX_TORQUE_NM,
-                                             NAME_SIZE, NET_CHUNK_KNOTS, NET_MAX_OFFSET, NET_MAX_SIDE, NET_STEP_M,
-                                             PROTOCOL_VERSION, Net, Reject, RejectReason, Role, SIZES, SPECS, Slot,
-                                             Snapshot, TOKEN_SIZE, Welcome)
+from processes.network.wire.messages import (DEFAULT_GRACE_S, DEFAULT_HEARTBEAT_S, DEFAULT_MAX_SPECTATORS,
+                                             DEFAULT_SNAPSHOT_HZ, DEFAULT_SNDHWM, DEFAULT_TIMEOUT_S, DETAIL_SIZE,
+                                             Event, EventKind, Goodbye, GoodbyeReason, HEADER_DTYPE, HEADER_FIELDS,
+                                             HEADER_SIZE, Heartbeat, Hello, INPUT_HOLD_S, Input, InputMode, Kind,
+                                             MAGIC, MAX_BAD, MAX_BAT_ANG_VEL_RADS, MAX_BEST_OF, MAX_DT_S, MAX_FORCE_N,
+                                             MAX_FRAME_BYTES, MAX_GAMES_WON, MAX_POS_M, MAX_REALTIME_FACTOR,
+                                             MAX_SPEED_MS, MAX_SPIN_RADS, MAX_TORQUE_NM, NAME_SIZE, NET_CHUNK_KNOTS,
+                                             NET_HZ, NET_MAX_OFFSET, NET_MAX_SIDE, NET_STEP_M, NO_TOKEN, Net,
+                                             PROTOCOL_VERSION, Reject, RejectReason, Role, SERVER_SILENCE_BEATS,
+                                             SIZES, SPECS, Slot, Snapshot, TOKEN_SIZE, Welcome)
 
 
 __all__ = [
-    "BadEnum", "BadFlags", "BadMagic", "BadText", "BadVersion", "DETAIL_SIZE", "DropCounter", "Event",
-    "EventKind", "Goodbye", "GoodbyeReason", "HEADER_DTYPE", "HEADER_FIELDS", "HEADER_SIZE", "Heartbeat", "Hello",
-    "Input", "InputMode", "Kind", "MAGIC", "MAX_BAT_ANG_VEL_RADS", "MAX_BEST_OF", "MAX_DT_S", "MAX_FORCE_N", "MAX_REALTIME_FACTOR", "SERVER_SILENCE_BEATS",
-    "MAX_GAMES_WON", "MAX_POS_M", "MAX_SPEED_MS", "MAX_SPIN_RADS", "MAX_TORQUE_NM", "Message", "NAME_SIZE",
-    "NET_CHUNK_KNOTS", "NET_MAX_OFFSET", "NET_MAX_SIDE", "NET_STEP_M", "Net", "NonFinite", "OutOfRange", "PROTOCOL_VERSION", "QUAT_TOL", "REASON_CODES", "Reject", "RejectReason", "Role",
-    "SIZES", "SPECS", "Slot", "Snapshot", "TOKEN_SIZE", "TooLong", "TooShort", "UnknownType", "WIRE_ERRORS",
-    "Welcome", "WireError", "decode", "encode", "net_knots", "net_messages", "net_rest",
-    "snapshot_from_physics"
+    "BadEnum", "BadFlags", "BadMagic", "BadText", "BadVersion", "DEFAULT_GRACE_S", "DEFAULT_HEARTBEAT_S",
+    "DEFAULT_MAX_SPECTATORS", "DEFAULT_SNAPSHOT_HZ", "DEFAULT_SNDHWM", "DEFAULT_TIMEOUT_S", "DETAIL_SIZE",
+    "DropCounter", "Event", "EventKind", "Goodbye", "GoodbyeReason", "HEADER_DTYPE", "HEADER_FIELDS", "HEADER_SIZE",
+    "Heartbeat", "Hello", "INPUT_HOLD_S", "Input", "InputMode", "Kind", "MAGIC", "MAX_BAD", "MAX_BAT_ANG_VEL_RADS",
+    "MAX_BEST_OF", "MAX_DT_S", "MAX_FORCE_N", "MAX_FRAME_BYTES", "MAX_GAMES_WON", "MAX_POS_M", "MAX_REALTIME_FACTOR",
+    "MAX_SPEED_MS", "MAX_SPIN_RADS", "MAX_TORQUE_NM", "Message", "NAME_SIZE", "NET_CHUNK_KNOTS", "NET_HZ",
+    "NET_MAX_OFFSET", "NET_MAX_SIDE", "NET_STEP_M", "NO_TOKEN", "Net", "NonFinite", "OutOfRange", "PROTOCOL_VERSION",
+    "QUAT_TOL", "REASON_CODES", "Reject", "RejectReason", "Role", "SERVER_SILENCE_BEATS", "SIZES", "SPECS", "Slot",
+    "Snapshot", "TOKEN_SIZE", "TooLong", "TooShort", "UnknownType", "WIRE_ERRORS", "Welcome", "WireError", "decode",
+    "encode", "net_knots", "net_messages", "net_rest", "snapshot_from_physics"
 ]

@@ -31,6 +31,26 @@ NET_STEP_M = 1e-5  # one unit of a net message's knot offset: 0.01 mm
 NET_MAX_OFFSET = 32767  # |offset| in steps: 0.32767 m from the rest grid, twice the net's height
 NET_CHUNK_KNOTS = 640  # knots per net message: 3891 bytes, within MAX_FRAME_BYTES like every message
 NET_MAX_SIDE = 4000  # knots along a side of the net at most (net_kernel.topology's own bound)
+NO_TOKEN = bytes(TOKEN_SIZE)  # the token of no seat: a spectator's, or a player's first hello
+
+# What the gateway promises every session, published with the limits above (docs/protocol.md).
+MAX_FRAME_BYTES = 4096  # libzmq disconnects a peer sending a bigger frame (MAXMSGSIZE)
+MAX_BAD = 64  # bad messages one session may send before it is kicked
+NET_HZ = 60  # net messages per second at most, while the net is awake: the page's frame rate
+# A remote arm's input holds at most this long: a client that stalls (or whose snapshots stop)
+# must not leave its bat pushed by a constant force (120 N on a 0.17 kg bat is 70 m/s in 0.1 s).
+# The physics counts it in match time from the tick it applied the input, then brakes the bat;
+# a client's prediction lets go of its input as the physics does.
+INPUT_HOLD_S = 0.1  # s of match time, an input is let go of this long after the physics applied it
+
+# The gateway's settings that a client sees, at their defaults (server.gateway.GatewayConfig
+# takes them from here; docs/protocol.md publishes them).
+DEFAULT_SNAPSHOT_HZ = 60  # snapshots per second of match time
+DEFAULT_HEARTBEAT_S = 0.5  # s between the gateway's heartbeats to a session
+DEFAULT_TIMEOUT_S = 5.0  # s of silence after which a peer is dropped
+DEFAULT_GRACE_S = 30.0  # s a dropped player's seat waits for its token
+DEFAULT_SNDHWM = 32  # messages queued per peer before its newest are dropped
+DEFAULT_MAX_SPECTATORS = 64  # spectator sessions at most
 
 
 class Kind(enum.IntEnum):

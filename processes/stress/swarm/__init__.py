@@ -13,12 +13,10 @@ import sys
 
 import zmq
 
-from processes.network import wire
 from processes.stress.harness import Child
 from processes.stress.swarm.spec import WatchSpec
 
 PER_SWARM = 250  # clients per swarm process (each one socket, two descriptors)
-NO_TOKEN = bytes(wire.TOKEN_SIZE)
 
 
 def emit(obj) -> None:

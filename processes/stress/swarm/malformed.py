@@ -22,10 +22,9 @@ import zmq
 
 from processes.network import wire
 from processes.network.client.client import Client, Rejected
-from processes.network.server.gateway import MAX_BAD, MAX_FRAME_BYTES
-from processes.network.wire import GoodbyeReason, InputMode, Kind, Role, Slot
+from processes.network.wire import MAX_BAD, MAX_FRAME_BYTES, NO_TOKEN, GoodbyeReason, InputMode, Kind, Role, Slot
 from processes.stress.probes import fd_count
-from processes.stress.swarm import NO_TOKEN, context
+from processes.stress.swarm import context
 
 
 def _input(seq=1, slot=Slot.A, force=(1.0, 0.0, 0.0)) -> bytes:

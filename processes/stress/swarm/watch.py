@@ -40,9 +40,9 @@ import numpy as np
 import zmq
 
 from processes.network.client.client import Client, Rejected
-from processes.network.wire import GoodbyeReason, Kind, RejectReason
+from processes.network.wire import NO_TOKEN, GoodbyeReason, Kind, RejectReason
 from processes.stress.probes import cpu_seconds, fd_count, rss_kb, thread_cpu_seconds, thread_sched_seconds
-from processes.stress.swarm import NO_TOKEN, context, emit
+from processes.stress.swarm import context, emit
 from processes.stress.swarm.spec import WatchSpec
 from processes.stress.swarm.tally import Sequence, Tally, header
 

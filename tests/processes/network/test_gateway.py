@@ -575,7 +575,7 @@ def test_a_malformed_hello_is_rejected_bad_request_with_the_decoders_reason(rig)
 
 
 def test_target_mode_is_refused_counted_and_kicks_like_any_bad_message(rig):
-    from processes.network.server.gateway import MAX_BAD
+    from processes.network.wire import MAX_BAD
 
     r = rig()
     player = r.client()

@@ -20,7 +20,8 @@ import pytest
 from processes.network import wire
 from processes.network.wire import protocol
 from processes.network.server.feed import NetFeed
-from processes.network.web.bridge import STATIC, WebBridge, parse_host_port
+from processes.network.web import STATIC
+from processes.network.web.bridge import WebBridge, parse_host_port
 from processes.network.wire import Kind
 from tests.processes.network.test_gateway import Rig
 from tests.processes.network.test_wire import GOLDEN
@@ -271,7 +272,7 @@ def test_the_live_page_draws_a_cloth_nets_knots_in_place_of_the_panel(bridged, b
 def test_the_replay_page_plays_offline_from_one_file(browser, tmp_path):
     from engine.dtypes import physics_snapshot_dtype
     from engine.rules import REASONS, Reason
-    from processes.network.web.bridge import replay_page
+    from processes.network.web.replay import replay_page
 
     welcome = wire.encode(Kind.WELCOME, tick=0, slot=wire.Slot.NONE, best_of=1, snapshot_hz=100, heartbeat_ms=500,
                           timeout_ms=5000, dt=0.001, token=bytes(16), scene="match", name_a="Ada", name_b="Bo",
