@@ -206,11 +206,11 @@ def test_help_imports_no_engine_numpy_numba_or_zmq():
 def test_the_parsers_spelled_out_defaults_are_the_runs():
     from engine.players import DEFAULT_BUDGET_S
     from engine.scene import SKILL_NAMES
-    from processes.cli import common, remote, tournament
+    from processes.cli import common, serve, tournament
     from processes.workers import PLAYERS_TIMEOUT_S
 
     assert tournament.SKILL_NAMES == SKILL_NAMES
-    assert remote.PLAYERS_TIMEOUT_S == PLAYERS_TIMEOUT_S
+    assert serve.PLAYERS_TIMEOUT_S == PLAYERS_TIMEOUT_S
     from processes import supervisor
-    assert (remote.RESTART_BUDGET, remote.RESTART_WINDOW_S) == (supervisor.RESTART_BUDGET, supervisor.RESTART_WINDOW_S)
+    assert (serve.RESTART_BUDGET, serve.RESTART_WINDOW_S) == (supervisor.RESTART_BUDGET, supervisor.RESTART_WINDOW_S)
     assert common.BOT_BUDGET_MS == DEFAULT_BUDGET_S * 1000

@@ -939,7 +939,7 @@ def test_serve_in_the_background_stops_cleanly_on_sigint_and_sigterm(served, zct
 
 
 def test_serve_tells_how_to_join_what_it_serves():
-    from processes.cli.remote import _serving_line
+    from processes.cli.serve import _serving_line
 
     assert "--as player" not in _serving_line("match", "tcp://127.0.0.1:1", 0)  # nobody to play: watch
     assert "--as spectator" in _serving_line("match", "tcp://127.0.0.1:1", 0)
