@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 IN_PROCESS = """\
 from engine.match import Match
 from engine.scene import load_scene
-from processes.cli.serve import _warm_up
+from processes.cli.join import _warm_up
 for name in ("match_rigid", "match"):
     Match(load_scene(name), 0).play(max_ticks=2)
 _warm_up("pro")

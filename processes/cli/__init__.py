@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from processes.cli import bench, match, run, serve, stress, sweep, tournament
+from processes.cli import bench, decode, join, match, run, serve, stress, sweep, tournament
 
 EPILOG = """examples:
   pingpong match                          a best-of-5 AI match in worker processes, live score
@@ -24,7 +24,7 @@ EPILOG = """examples:
   pingpong sweep match --set match.ai_hz=100,250   one scene key's values, each cell's matches as tasks
 `pingpong COMMAND --help` describes each command."""
 
-FAMILIES = (run, match, bench, serve, stress, tournament, sweep)
+FAMILIES = (run, match, bench, serve, join, decode, stress, tournament, sweep)
 
 
 def build_parser() -> argparse.ArgumentParser:
