@@ -2,7 +2,7 @@
 time, and a clock that stands (a paused match) still seen by the clients."""
 from __future__ import annotations
 
-from processes.network.pacing import SnapshotPacer
+from processes.network.server.pacing import SnapshotPacer
 
 DT = 0.001  # s, the tick
 HZ = 100  # snapshots per second: one every 10 ticks
