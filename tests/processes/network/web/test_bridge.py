@@ -23,8 +23,8 @@ from processes.network.server.feed import NetFeed
 from processes.network.web import STATIC
 from processes.network.web.bridge import WebBridge, parse_host_port
 from processes.network.wire import Kind
-from tests.processes.network.test_gateway import Rig
-from tests.processes.network.test_wire import GOLDEN
+from tests.processes.network.server.test_gateway import Rig
+from tests.processes.network.wire.test_codec import GOLDEN
 from tests.waits import DEADLINE_S, Deadline, wait_for
 
 pytest.importorskip("websockets")

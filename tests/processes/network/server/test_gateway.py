@@ -29,7 +29,7 @@ from processes.network.wire import GoodbyeReason, Kind, RejectReason, Role, Slot
 from tests.processes.conftest import ctrl_c_able
 from tests.waits import DEADLINE_S, Deadline, line, rest
 
-ROOT = Path(__file__).resolve().parents[3]
+ROOT = Path(__file__).resolve().parents[4]
 ROUNDS = 400  # pump rounds of a bounded exchange (each polls for at most 10 ms)
 
 

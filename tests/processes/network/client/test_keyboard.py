@@ -25,7 +25,7 @@ from processes.network.client.prediction import Predictor
 from processes.network.wire import Slot
 from tests.waits import DEADLINE_S
 
-ROOT = Path(__file__).resolve().parents[3]
+ROOT = Path(__file__).resolve().parents[4]
 PRO_MAX_FORCE_N = 120.0  # engine.ai.SKILLS["pro"].max_force_n
 
 

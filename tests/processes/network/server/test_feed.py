@@ -19,7 +19,7 @@ from processes.network import wire
 from processes.network.client.client import Client
 from processes.network.server.feed import NetFeed
 from processes.network.wire import Kind
-from tests.processes.network.test_gateway import ROUNDS, _pingpong, rig, served  # noqa: F401 (fixtures)
+from tests.processes.network.server.test_gateway import ROUNDS, _pingpong, rig, served  # noqa: F401 (fixtures)
 from tests.waits import DEADLINE_S, line
 
 TICKS = 1500  # 1.5 s of realtime play: the net falls asleep within it

@@ -7,7 +7,7 @@ from engine import rules
 from processes.network import wire
 from processes.network.wire import protocol
 
-ROOT = Path(__file__).resolve().parents[3]
+ROOT = Path(__file__).resolve().parents[4]
 DOC = ROOT / "docs" / "protocol.md"
 
 
