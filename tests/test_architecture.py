@@ -1,4 +1,6 @@
-"""The dependency direction of DESIGN.md, as an allow-list import-linter cannot express."""
+"""The house rules import-linter cannot express: what each package may import (an allow-list), no
+import cycle, no module over 700 lines, processes/ in its layers, and tests that share code only
+through fixtures and tests/helpers/."""
 import ast
 import sys
 from pathlib import Path
@@ -145,3 +147,26 @@ def test_no_function_over_120_lines_outside_numba_kernels():
                     if lines > MAX_FUNCTION_LINES:
                         long[f"{path.relative_to(ROOT)}:{node.lineno} {node.name}"] = lines
     assert not long, f"functions over {MAX_FUNCTION_LINES} lines (split them by what they do): {long}"
+
+
+def test_no_test_module_imports_another_test_module_or_a_conftest():
+    """Shared test code lives in fixtures (conftest.py, found by pytest) or in tests/helpers/; a
+    test module imported as a module runs its tests twice and ties two rooms' tests together."""
+    def is_test_module(name: str) -> bool:
+        last = name.rsplit(".", 1)[-1]
+        return name.split(".")[0] == "tests" and (last.startswith("test_") or last == "conftest")
+
+    found = []
+    for path in sorted((ROOT / "tests").rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names = [node.module] + [f"{node.module}.{alias.name}" for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):  # relative: the suite imports by full names only
+                found.append(f"{path.relative_to(ROOT)}: a relative import")
+                continue
+            else:
+                continue
+            found += [f"{path.relative_to(ROOT)} imports {name}" for name in names if is_test_module(name)]
+    assert not found, f"test modules importing test modules (move the helper to tests/helpers/ or a fixture): {found}"

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from tests.conftest import make_scene, run_ticks
+from tests.helpers.scenes import make_scene, run_ticks
 
 
 def test_constant_force_gives_the_semi_implicit_euler_kinematics():

@@ -10,7 +10,7 @@ import pytest
 
 from engine.bat import BAT_MAX_SPEED, BAT_MAX_SPIN, HALL_HI_X, HALL_HI_Z, HALL_LO_X
 from engine.world import SimulationError, build_model, initial_state, new_events, step
-from tests.conftest import make_scene
+from tests.helpers.scenes import make_scene
 
 BATS = {"a": {"pos": [-1.5, 0.0, 0.2]}, "b": {"pos": [1.5, 0.0, 0.2]}}
 ROUND = 1e-12  # relative: the limit is applied by scaling, one rounding per component

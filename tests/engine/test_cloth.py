@@ -7,7 +7,7 @@ from engine.scene import SceneError, parse_scene
 from engine.world import build_model, initial_state, new_events, step
 from net_kernel import NetSpec
 from net_kernel.topology import resolution_spec
-from tests.conftest import make_scene, run_ticks
+from tests.helpers.scenes import make_scene, run_ticks
 
 CLOTH = {"kind": "cloth"}
 # A coarse net (fewer, heavier knots) settles and sleeps within a few hundred ticks.

@@ -5,7 +5,7 @@ import pytest
 from engine import equipment
 from engine.geometry import Body, disc_sdf
 from engine.world import build_model, initial_state, new_events, step
-from tests.conftest import make_scene
+from tests.helpers.scenes import make_scene
 
 R = equipment.BALL_RADIUS
 

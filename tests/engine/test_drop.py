@@ -4,7 +4,7 @@ import pytest
 
 from engine import equipment
 from engine.run import run
-from tests.conftest import make_scene
+from tests.helpers.scenes import make_scene
 
 H0 = 0.30  # m, drop height of the ball's bottom (ITTF rule 2.1.3)
 

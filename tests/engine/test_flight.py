@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from engine.integrators import METHODS
-from tests.conftest import make_scene, run_ticks
+from tests.helpers.scenes import make_scene, run_ticks
 
 G = 9.81
 BALL = {"pos": [-1.0, 0.2, 0.5], "vel": [8.0, -1.0, 3.0], "spin": [0.0, 0.0, 0.0]}

@@ -4,7 +4,7 @@ import pytest
 
 from net_kernel import NetSim, NetSpec, build_topology, grid_spec, kernels, make_topology, reference
 from net_kernel.kernels import GRID_WORK_ROWS
-from tests.net_kernel.conftest import perturbed
+from tests.helpers.net import perturbed
 
 STEPS = 7
 

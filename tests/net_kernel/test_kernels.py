@@ -6,7 +6,7 @@ import pytest
 from net_kernel import kernels, reference
 from net_kernel.kernels import KNOT_WORK_ROWS, NO_CONTACT, SPRING_WORK_COLS
 from net_kernel.topology import NetSpec, build_topology
-from tests.net_kernel.conftest import perturbed
+from tests.helpers.net import perturbed
 
 
 def _step_args(topo, h):

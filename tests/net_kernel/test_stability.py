@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from net_kernel import NetSim, build_topology, grid_spec, kernels, make_topology
-from tests.net_kernel.conftest import net_energy, perturbed
+from tests.helpers.net import net_energy, perturbed
 
 STEPS = 20_000
 

@@ -1,21 +1,12 @@
 """Process tests: every wait bounded, every process and segment cleaned up even on failure."""
 import multiprocessing
-import sys
 
 import pytest
 import zmq
 
 from processes.runtime import shm
-
-
-def ctrl_c_able(*args: str) -> list[str]:
-    """The command line of `pingpong ARGS` as a terminal's foreground job runs it: with SIGINT's
-    default handling. A process started with SIGINT ignored keeps ignoring it and Python then
-    installs no KeyboardInterrupt handler (POSIX: a non-interactive shell starts its background
-    jobs that way, so under `nohup make test &` every child ignored Ctrl-C and the Ctrl-C tests
-    failed); a test of what Ctrl-C does must not inherit that."""
-    return [sys.executable, "-c", "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
-            "from processes.cli import main; sys.exit(main(sys.argv[1:]))", *args]
+from tests.helpers import commands
+from tests.helpers.gateway import Rig
 
 
 @pytest.fixture
@@ -56,3 +47,26 @@ def zctx():
         socket.close(linger=0)
     context.term()
     assert not leaked, f"sockets left open: {[zmq.SocketType(s.socket_type).name for s in leaked]}"
+
+
+@pytest.fixture
+def rig(zctx):
+    """rig(**settings): a Gateway in this process (tests.helpers.gateway.Rig), closed at the end."""
+    made = []
+
+    def make(**kwargs):
+        made.append(Rig(zctx, **kwargs))
+        return made[-1]
+
+    yield make
+    for r in made:
+        r.close()
+
+
+@pytest.fixture
+def served():
+    """The `pingpong` processes a test starts (append them): stopped and reaped at the end,
+    whatever happened (tests.helpers.commands.stop)."""
+    started = []
+    yield started
+    commands.stop(started)

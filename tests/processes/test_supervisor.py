@@ -15,7 +15,7 @@ from engine.scene import load_scene, with_overrides
 from processes.runtime.shm import Arena, leftover_segments
 from processes.supervisor import Supervisor, first_difference, workers_for
 from processes.runtime.control import STATUS_DTYPE, WorkerState
-from tests.processes.conftest import ctrl_c_able
+from tests.helpers.commands import ctrl_c_able
 from tests.waits import DEADLINE_S
 
 

@@ -14,7 +14,7 @@ from engine.match import match_record
 from engine.scene import load_scene
 from processes.cli import main, standings, sweep
 from processes.cli.tournament import MATCHES_FILE, pairs_of, plan, run_tasks
-from tests.processes.conftest import ctrl_c_able
+from tests.helpers.commands import ctrl_c_able
 from tests.waits import DEADLINE_S
 
 ray = pytest.importorskip("ray")

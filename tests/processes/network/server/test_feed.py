@@ -19,7 +19,7 @@ from processes.network import wire
 from processes.network.client.client import Client
 from processes.network.server.feed import NetFeed
 from processes.network.wire import Kind
-from tests.processes.network.server.test_gateway import ROUNDS, _pingpong, rig, served  # noqa: F401 (fixtures)
+from tests.helpers.commands import pingpong
 from tests.waits import DEADLINE_S, line
 
 TICKS = 1500  # 1.5 s of realtime play: the net falls asleep within it
@@ -37,7 +37,7 @@ def _reference(spec, dt, ticks) -> dict[int, np.ndarray]:
 
 
 def test_a_spectator_gets_the_net_workers_knots_while_the_net_is_awake_and_once_asleep(served):
-    server = _pingpong("serve", "--players", "1", "--ticks", str(TICKS), "--json")
+    server = pingpong("serve", "--players", "1", "--ticks", str(TICKS), "--json")
     served.append(server)
     endpoint = json.loads(line(server, "the server's listening line"))["listening"]
     spectator = Client(endpoint, "spectator", "net-watcher")

@@ -1,0 +1,45 @@
+"""The gateway and a player's inputs: its own bat only, forwarded to the physics, never braked here.
+
+A Gateway in this process (the rig fixture) on 127.0.0.1; every wait bounded by the suite's deadline.
+"""
+import numpy as np
+
+from processes.network.server.gateway import Gateway
+from processes.network.wire import Slot
+
+
+def test_a_player_moves_only_its_own_bat_and_the_refusals_are_counted(rig):
+    r = rig()
+    a, b = r.client(), r.client()
+    r.join(a)
+    r.join(b)
+    a.send_input([1.0, 2.0, 3.0, 0.1, 0.2, 0.3], tick=7)
+    a.send_input([5.0, 0, 0, 0, 0, 0], tick=8, slot=Slot.B)  # the other player's bat
+    a.send_input([6.0, 0, 0, 0, 0, 0], tick=9)
+    watcher = r.client(role="spectator")
+    r.join(watcher)
+    watcher.send_input([1.0, 0, 0, 0, 0, 0], tick=9, slot=Slot.A)  # a spectator controls nothing
+    r.settle(lambda: r.gateway.counts["inputs_accepted"] == 2 and r.gateway.counts["refused.spectator_input"] == 1)
+    assert r.gateway.counts["refused.other_bat"] == 1
+    assert [(bat, tick) for bat, _, tick, _ in r.posted] == [(0, 7), (0, 9)]  # bat 0 = A; nothing for B
+    np.testing.assert_array_equal(r.posted[0][3], [1.0, 2.0, 3.0, 0.1, 0.2, 0.3])
+    assert r.posted[1][1] > r.posted[0][1]  # the input's seq rides along, for the snapshot's echo
+
+
+def test_the_gateway_only_forwards_inputs_the_idle_arm_is_the_physics(rig):
+    # The hold and the brake are the physics' (processes.workers.hub.RemoteInputs): the gateway
+    # posts nothing when an input's hold passes, for a moving bat on an empty seat, or as a
+    # player leaves.
+    r = rig(remote=(Slot.A,), input_hold_s=0.1, timeout_s=5.0)
+    r.record["bats"]["vel"][0] = (2.0, 0.0, 0.0)  # bat A moves
+    a = r.client()
+    r.join(a)
+    a.send_input([30.0, 0, 0, 0, 0, 0], tick=3)
+    r.settle(lambda: r.gateway.counts["inputs_accepted"] == 1)
+    r.clock.now += 1.0  # long past the hold
+    for _ in range(5):
+        r.step(serve=True)
+    a.leave()
+    r.settle(lambda: r.gateway.seats[Slot.A].identity is None)
+    r.step(serve=True)
+    assert len(r.posted) == 1 and r.posted[0][3][0] == 30.0
