@@ -5,7 +5,7 @@ Each method does N round trips between this process and one child:
 - shared-memory spin ping-pong: both sides spin on a shared counter (no kernel, burns a core
   each; on 2 shared cores it is at the mercy of the scheduler);
 - multiprocessing.Queue round trip (pickling and a feeder thread);
-- lockstep hand-off: what the physics does for one AI turn (processes.workers.hub.AIDriver
+- lockstep hand-off: what the physics does for one AI turn (processes.workers.ai_driver.AIDriver
   and processes.workers.ai): copy the state into the shared `ai_view` record, give the baton and
   wait until the turn is done; the worker copies the view, writes its answer into the shared
   `ai_answer` record (ANSWER_DTYPE) and hands back, and the hub reads the answer. The baton

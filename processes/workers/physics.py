@@ -13,7 +13,7 @@ from engine.match import Match, point_from_row, point_row
 from engine.world import State, build_model, copy_record, initial_state, new_events, step
 from processes.runtime.control import Control, crash
 from processes.runtime.shm import Arena
-from processes.workers.hub import AIDriver, RemoteInputs, RemoteNet
+from processes.workers.ai_driver import AIDriver, RemoteInputs, RemoteNet
 from processes.workers.options import RunOptions
 
 

@@ -8,7 +8,7 @@ from engine.dtypes import physics_snapshot_dtype
 from engine.match import Match, make_ais
 from engine.scene import load_scene
 from processes.workers.ai import Answerer
-from processes.workers.hub import PlanFollower
+from processes.workers.ai_driver import PlanFollower
 from processes.workers.layout import decision_key
 
 SCENE = load_scene("match_rigid")
