@@ -13,8 +13,10 @@ from engine.match import Match, point_from_row, point_row
 from engine.world import State, build_model, copy_record, initial_state, new_events, step
 from processes.runtime.control import Control, crash
 from processes.runtime.shm import Arena
-from processes.workers.ai_driver import AIDriver, RemoteInputs, RemoteNet
+from processes.workers.ai_driver import AIDriver
 from processes.workers.options import RunOptions
+from processes.workers.remote_inputs import RemoteInputs
+from processes.workers.remote_net import RemoteNet
 
 
 class _Pacer:

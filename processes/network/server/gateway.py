@@ -50,7 +50,7 @@ theirs on the session (two sends, and a player's snapshots are counted per sessi
   physics writes them per tick into the remote_acks ring before publishing T), so a client
   rewinds to T and replays exactly its later inputs. The gateway only forwards inputs: the
   physics lets go of one input_hold_s after it applied it and brakes the bat itself
-  (processes.workers.ai_driver.RemoteInputs), as it brakes the bat of a seat without a player.
+  (processes.workers.remote_inputs.RemoteInputs), as it brakes the bat of a seat without a player.
 - the seat table (tokens, names, grace) is saved to a SeatStore on every change: a gateway
   restarted after a crash restores it and a player's token still reclaims its seat.
 - with a CURVE key pair (`pingpong keys`, `serve --curve-secret`) every session and the feed are

@@ -36,7 +36,7 @@ def test_a_snapshot_acknowledges_the_inputs_applied_before_its_tick_not_the_next
                                           RUN_LOCK_NAMES, read_ack, write_ack)
     from processes.runtime.locks import HOLDER_DTYPE, LockTable
     from processes.runtime.mailbox import MAILBOX_HEADER, Mailbox
-    from processes.workers.ai_driver import RemoteInputs
+    from processes.workers.remote_inputs import RemoteInputs
     from processes.workers.options import RunOptions
 
     scene = with_remote_players(load_scene("match_rigid"), 2)

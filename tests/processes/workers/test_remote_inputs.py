@@ -14,7 +14,7 @@ from engine.match import Match
 from engine.scene import load_scene, with_remote_players
 from processes.network import wire
 from processes.runtime import shm
-from processes.workers.ai_driver import remote_input_refusal
+from processes.workers.remote_inputs import remote_input_refusal
 
 REMOTE = frozenset({0, 1})
 
@@ -55,7 +55,7 @@ def served(tmp_path, no_leftovers):
                                           RUN_LOCK_NAMES)
     from processes.runtime.locks import HOLDER_DTYPE, LockTable
     from processes.runtime.mailbox import MAILBOX_HEADER, Mailbox
-    from processes.workers.ai_driver import RemoteInputs
+    from processes.workers.remote_inputs import RemoteInputs
     from processes.workers.options import RunOptions
     from processes.network.server.gateway import GatewayConfig
 

@@ -27,7 +27,7 @@ def test_a_player_moves_only_its_own_bat_and_the_refusals_are_counted(rig):
 
 
 def test_the_gateway_only_forwards_inputs_the_idle_arm_is_the_physics(rig):
-    # The hold and the brake are the physics' (processes.workers.ai_driver.RemoteInputs): the gateway
+    # The hold and the brake are the physics' (processes.workers.remote_inputs.RemoteInputs): the gateway
     # posts nothing when an input's hold passes, for a moving bat on an empty seat, or as a
     # player leaves.
     r = rig(remote=(Slot.A,), input_hold_s=0.1, timeout_s=5.0)

@@ -1,0 +1,113 @@
+"""The physics worker's stand-in for engine.world's NetSim (RemoteNet): the net stepped by the net
+worker, handed its turn through shared memory, so the physics steps the same bits as in-process."""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from net_kernel import NO_CONTACT, NetContact, NetSim
+from net_kernel.sim import ball_far_from_box
+from processes.runtime.control import Control
+from processes.runtime.shm import Arena
+from processes.workers.layout import NetIO
+from processes.workers.options import RunOptions
+
+# A hand-off waits options.handoff_s, gives the turn again (a killed net worker is being
+# restarted) and waits again, for this long in all.
+NET_GIVE_UP_S = 60.0
+
+
+class RemoteNet:
+    """The physics worker's stand-in for the NetSim in engine.world: same `sleeping`, `in_tail`,
+    step() and step_free().
+
+    Args:
+        control: the physics worker's Control (heartbeats while it waits).
+        arena, options: the run's (net_io, net_baton).
+        world: the physics state's world record (its tick says which tick is being stepped).
+        local: a NetSim of the same net as built (its knot radius, tick and built shape).
+
+    A sleeping net and a ball that cannot touch its frozen shape cost no hand-off, exactly as
+    NetSim.step returns early: the stand-in keeps the box the net froze in (from net_io after each
+    ball tick). So does a net in its linear tail (net_kernel/tail.py) and a ball far from the box
+    that holds the tail's knots: NetSim.step only counts such a tick, so the stand-in grants it
+    free, and knows from the net's last answer the tick at which the tail falls asleep. What it
+    knows of `sleeping` otherwise comes from the net's last answer, so after free ticks, in which
+    the net may have fallen asleep or into its tail, it may still think the net awake: that costs
+    a hand-off more, never a different bit (the net worker then steps exactly as NetSim.step would).
+    """
+
+    def __init__(self, control: Control, arena: Arena, options: RunOptions, world, local: NetSim):
+        self.control = control
+        self.local = local
+        self.world = world
+        self.baton = options.net_baton.attach(arena["net_baton"].array)
+        self.handoff_s = options.handoff_s
+        self.io = NetIO(arena["net_io"].array)
+        self._none = np.zeros(3)
+        self.waits = 0.0
+        self.ball_ticks = 0  # ticks handed to the net worker with the ball (and waited for)
+        self.free_ticks = 0  # ticks granted without the ball (not waited for)
+        self.turns_again = 0  # turns given again because the net's answer took longer than one wait's bound
+        # Nothing known yet (a fresh run's net is as built and awake; a resumed one, whatever the
+        # net says at its first answer): awake is the guess that can cost a hand-off but no bit.
+        self._sleeping = False
+        self._tail_until = -1  # the tick at which the tail of the last answer falls asleep (-1: no tail)
+        self.box = local.box.copy()
+
+    @property
+    def sleeping(self) -> bool:
+        """Asleep after the ticks done, as far as the net's last answer tells."""
+        return self._sleeping or 0 <= self._tail_until <= int(self.world["tick"])
+
+    @property
+    def in_tail(self) -> bool:
+        """In its linear tail after the ticks done, as far as the net's last answer tells."""
+        return self._tail_until > int(self.world["tick"])
+
+    def step_free(self, ticks: int) -> None:
+        """NetSim.step_free: grant the net the ticks just done (the world's tick is past them) and go on."""
+        if ticks > 0:
+            self.io.granted = int(self.world["tick"])
+            self.baton.nudge()
+            self.free_ticks += ticks
+
+    def step(self, ball_pos, ball_vel, ball_radius: float, ball_inv_mass: float) -> NetContact:
+        """NetSim.step, done by the net worker (called after the ball's tick, as engine.world does)."""
+        local = self.local
+        tick = int(self.world["tick"]) - 1
+        tail = self._tail_until > tick  # the net's state at this tick's start
+        if (self._sleeping or tail or 0 <= self._tail_until <= tick) and ball_far_from_box(
+                self.box, True, local.knot_radius, local.dt, ball_pos, ball_vel, ball_radius):
+            if tail:  # a tick of the tail: counted free (NetSim.step with the ball far)
+                self.io.granted = tick + 1
+                self.free_ticks += 1
+            self._none[:] = 0.0
+            return NetContact(NO_CONTACT, self._none, self._none)
+        started = time.perf_counter()
+        row = self.io
+        # `turn` odd while the fields are written, even once they all are (see net_worker): the
+        # worker may wake on an earlier post at any moment and must never read half of them.
+        row.turn = row.turn // 2 * 2 + 1
+        row.tick = tick
+        row.ball[0] = ball_pos
+        row.ball[1] = ball_vel
+        row.radius = ball_radius
+        row.inv_mass = ball_inv_mass
+        row.turn += 1
+        self.baton.give(tick)
+        # The net may still be stepping free ticks, or restarting: stay alive and ask again (a
+        # new turn; net_io still holds the ball).
+        self.baton.wait_done_or_retry(tick, self.handoff_s, NET_GIVE_UP_S, self._ask_again)
+        self._sleeping = bool(row.sleeping)
+        self._tail_until = row.tail_until
+        self.box[:] = row.box
+        self.waits += time.perf_counter() - started
+        self.ball_ticks += 1
+        return NetContact(row.toi, row.impulse.copy(), row.offset.copy())
+
+    def _ask_again(self, tick: int) -> None:
+        self.control.beat(tick)
+        self.turns_again += 1
+        self.io.turn += 2  # the same fields, a new turn (even: nothing is being written)
