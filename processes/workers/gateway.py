@@ -102,7 +102,7 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
         post["tick"], post["seq"], post["bat"], post["inputs"] = tick, seq, bat, inputs
         return box.post(post)
 
-    remote = [Slot(i + 1) for i, bat in enumerate(scene.bats) if bat.remote]
+    remote = [Slot.of_bat(i) for i, bat in enumerate(scene.bats) if bat.remote]
     zctx = zmq.Context(io_threads=2)  # sessions and the feed's fan-out each on their own (Gateway)
     seat_store = SeatStore(arena["seats"]) if "seats" in arena.blocks else None
     knots = blocks = net_grid = None

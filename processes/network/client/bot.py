@@ -23,7 +23,7 @@ class BotBrain:
     def __init__(self, scene_name: str, slot: Slot, skill: str = "pro", seed: int = 0):
         self.scene = load_scene(scene_name)
         self.model = build_model(self.scene)
-        self.player = int(slot) - 1
+        self.player = slot.bat
         self.ai = BatAI(self.model, self.player, SKILLS[skill], seed=seed * 1000 + self.player)
         self.ai.warm_up()
         self.bat = np.zeros((), BAT_DTYPE)

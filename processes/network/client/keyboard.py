@@ -127,7 +127,7 @@ class KeyboardPilot:
     def __init__(self, model, slot: Slot, skill: str = "pro"):
         if slot not in (Slot.A, Slot.B):
             raise ValueError(f"keyboard play drives a player's bat: slot must be A or B, got {slot!r}")
-        self.player = int(slot) - 1
+        self.player = slot.bat
         self.end_sign = -1 if self.player == 0 else 1
         # The AI's own arm: bat_control (PD with feed-forward, the skill's force, torque and speed
         # limits) holding the pose in its control array; the pose is the keys' aim, so the

@@ -128,7 +128,7 @@ class Predictor:
         self.model = build_model(scene)
         self.state = initial_state(scene)
         self.events = new_events()
-        self.player = int(slot) - 1
+        self.player = slot.bat
         self.dt = self.model.dt
         self.tick: int | None = None  # the tick the predicted state is at; None before a snapshot
         self._sent: list[tuple[int, int, np.ndarray]] = []  # (seq, tick, inputs) not yet acknowledged
@@ -136,7 +136,7 @@ class Predictor:
         self._held_from = 0  # the tick it was stamped with
         self._input_from = 0  # the stamp of the input in effect while predicting
         self.hold_ticks = int(round((INPUT_HOLD_S if input_hold_s is None else input_hold_s) / self.model.dt))
-        self._bat_mass = float(self.model.bat_mass[int(slot) - 1])
+        self._bat_mass = float(self.model.bat_mass[slot.bat])
         self._brake = np.zeros(6)
         self._next_input = 0  # index into _sent of the next input to take effect while predicting
         self._max_seq = 0  # the highest seq we sent

@@ -84,7 +84,7 @@ def run_session(client: Client, welcome: wire.Message, *, brain=None, pilot=None
             summary["snapshots_acted_on"] = summary.get("snapshots_acted_on", 0) + 1
             last = newest
             if client.slot != Slot.NONE:
-                round_trip.acked(int(newest["input_seq"][int(client.slot) - 1]), now)
+                round_trip.acked(int(newest["input_seq"][client.slot.bat]), now)
             if predictor is not None:
                 predictor.reconcile(newest)
             if brain is not None and predictor is None:

@@ -522,7 +522,7 @@ class Gateway:
             return
         session.input_seq = message.seq
         inputs = np.concatenate([message["force"], message["torque"]])
-        if self.post_input(int(session.slot) - 1, message.seq, message.tick, inputs):
+        if self.post_input(session.slot.bat, message.seq, message.tick, inputs):
             self.counts["inputs_accepted"] += 1
         else:
             self.counts["mailbox_full"] += 1

@@ -77,6 +77,20 @@ class Slot(enum.IntEnum):
     A = 1  # engine player 0, x < 0
     B = 2  # engine player 1, x > 0
 
+    @property
+    def bat(self) -> int:
+        """The engine's index of this seat's bat and player (A: 0, B: 1), the index of every
+        per-bat array (scene.bats, the state's bats, snapshot.input_seq). Raises ValueError for
+        NONE, which has no bat."""
+        if self is Slot.NONE:
+            raise ValueError("Slot.NONE (a spectator) has no bat")
+        return int(self) - 1
+
+    @classmethod
+    def of_bat(cls, bat: int) -> Slot:
+        """The seat of the engine's bat `bat` (0: A, 1: B)."""
+        return cls(bat + 1)
+
 
 class InputMode(enum.IntEnum):
     FORCE = 1  # force and torque held over the ticks until the next input

@@ -5,7 +5,7 @@ import re
 import pytest
 
 from processes.network import wire
-from processes.network.wire import Kind, encode
+from processes.network.wire import Kind, Slot, encode
 from tests.helpers.golden import GOLDEN, GOLDEN_FIELDS
 
 EXPECTED_SIZES = {Kind.HELLO: 74, Kind.WELCOME: 158, Kind.REJECT: 89, Kind.INPUT: 130, Kind.SNAPSHOT: 338,
@@ -58,3 +58,10 @@ def test_golden_message_bytes(name):
     kind, fields = GOLDEN_FIELDS[name]
     assert encode(kind, **fields) == GOLDEN[name]
     assert encode(kind.name.lower(), **fields) == GOLDEN[name]  # by name too
+
+
+def test_a_seat_names_its_bat_and_a_spectator_has_none():
+    assert (Slot.A.bat, Slot.B.bat) == (0, 1)  # the engine's player 0 plays at x < 0 (wire.Slot)
+    assert [Slot.of_bat(bat) for bat in (0, 1)] == [Slot.A, Slot.B]
+    with pytest.raises(ValueError, match="has no bat"):
+        Slot.NONE.bat
