@@ -14,7 +14,7 @@ NET_HALF_WIDTH = TABLE_WIDTH / 2 + NET_OVERHANG  # 0.915 m
 # A rigid net is modelled as a thin slab; real nets are a few mm of cord mesh.
 NET_THICKNESS = 0.004
 
-# ITTF rule 2.3 (the ball): 40 mm diameter, 2.7 g; a thin shell, so I = 2/3 m r^2 (DESIGN.md).
+# ITTF rule 2.3 (the ball): 40 mm diameter, 2.7 g; a thin spherical shell, so I = 2/3 m r^2.
 BALL_RADIUS = 0.020
 BALL_MASS = 0.0027
 BALL_INERTIA_FACTOR = 2.0 / 3.0

@@ -15,7 +15,7 @@ from engine import equipment
 
 
 class Body(enum.IntEnum):
-    """Ids of the bodies; 0 means none (STYLE.md: ids, 0 = none)."""
+    """Ids of the bodies; 0 means none (as every id of the project: bats, players and slots too)."""
 
     NONE = 0
     TABLE = 1

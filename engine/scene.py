@@ -25,7 +25,8 @@ from net_kernel.topology import (
 
 SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
 
-# Effects a scene can list (DESIGN.md). Those this version cannot simulate yet are refused by name.
+# Effects a scene can list: each an optional piece of physics, not computed when absent. Those this
+# version cannot simulate yet are refused by name.
 EFFECTS = ("gravity", "drag", "magnus", "friction", "table", "floor", "net", "bats", "ai", "referee", "remote")
 PLANNED_EFFECTS = ("recording",)
 SKILL_NAMES = ("pro", "club", "novice")

@@ -73,7 +73,7 @@ CONTACT_TRAVEL = 1e-3
 CONTACT_SPEED_MAX = 120.0
 CG_TOL = 1e-8
 CG_MAX_ITER = 200
-# DESIGN.md equipment: a 40 mm, 2.7 g ball (the defaults of NetSim.step).
+# The ITTF ball (engine/equipment.py): 40 mm, 2.7 g (the defaults of NetSim.step).
 BALL_RADIUS = 0.02
 BALL_MASS = 2.7e-3
 

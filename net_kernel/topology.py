@@ -1,9 +1,10 @@
 """The net's topology: knots, springs and the CSR adjacency, built once from a NetSpec.
 
-Frame (DESIGN.md): the net hangs in the plane x = 0 and spans y in [-width/2, width/2],
-z in [hem_gap, height] (z in [0, height] when its bottom row is tied to the table). Knots sit
-on a regular grid of `cols` columns (along y) by `rows` rows (along z), numbered row-major from
-the bottom row: knot = row * cols + col. Springs are structural (horizontal, vertical) and
+Frame (the project's: origin at the centre of the playing surface, x along the table, z up):
+the net hangs in the plane x = 0 and spans y in [-width/2, width/2], z in [hem_gap, height]
+(z in [0, height] when its bottom row is tied to the table). Knots sit on a regular grid of
+`cols` columns (along y) by `rows` rows (along z), numbered row-major from the bottom row:
+knot = row * cols + col. Springs are structural (horizontal, vertical) and
 shear (both diagonals) spring-dampers; the top row's horizontal springs are the tensioned top
 cord, the bottom row's the bottom cord. Springs between two fixed knots are left out (they
 could never move anything).

@@ -6,4 +6,4 @@ colliders. A hanging net's hem swings down onto the table when struck low; a rea
 pass through it.
 """
 
-TABLE_Z = 0.0  # m: the playing surface (DESIGN.md frame)
+TABLE_Z = 0.0  # m: the playing surface (the frame's origin is its centre, z up)

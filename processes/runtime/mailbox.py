@@ -1,4 +1,5 @@
-"""Mailboxes: where one process asks another to change state it owns (DESIGN.md).
+"""Mailboxes: where one process asks another to change state it owns (every shared block has one
+writing process; another that must change it posts to the owner's mailbox instead).
 
 A mailbox is a shared array of records plus a small header, guarded by an arbitrated lock.
 Senders post under the lock; the owner drains under the lock. A `dirty` flag is raised for the

@@ -1,6 +1,6 @@
 """The run's shared layout: every record and block a run shares, its dtype, and who writes it.
 
-One writer per block (DESIGN.md); the supervisor creates them all here, before any worker starts,
+One writer per block (others ask its owner through a mailbox, processes.runtime.mailbox); the supervisor creates them all here, before any worker starts,
 and removes them at the end. The blocks of a run, by name:
 
 | name | dtype | writer | readers |

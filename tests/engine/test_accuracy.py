@@ -200,7 +200,7 @@ def test_disabled_effects_run_no_code():
 
 
 def test_engine_runs_as_plain_python():
-    # STYLE.md's coverage job runs the kernels as plain Python (NUMBA_DISABLE_JIT=1).
+    # A coverage run (NUMBA_DISABLE_JIT=1) runs the kernels as plain Python: they must work that way too.
     code = "from engine.scene import load_scene; from engine.run import run; print(run(load_scene('drop'), 3).ticks)"
     env = {**os.environ, "NUMBA_DISABLE_JIT": "1", "PYTHONPATH": str(ROOT)}
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=DEADLINE_S, cwd=ROOT)

@@ -53,7 +53,7 @@ def test_top_skill_returns_most_serves():
                 served += 1
                 returned += p.shots >= 2
     assert served >= 4
-    assert returned / served >= 0.7  # issue 6: most serves returned at high skill
+    assert returned / served >= 0.7  # most serves returned at high skill
 
 
 def _incoming_balls(n, seed):

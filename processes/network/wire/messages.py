@@ -13,7 +13,7 @@ PROTOCOL_VERSION = 4  # 2: welcome.feed_port (the spectator feed); 3: net (the c
 # 4: snapshot.realtime_factor (how fast the server's match clock runs)
 
 # Ranges: generous for real play, tight enough that a corrupted or hostile value is refused.
-MAX_FORCE_N = 500.0  # |force| of an input; the AI arm's own limit is 50..120 N (engine/ai.py SKILLS)
+MAX_FORCE_N = 500.0  # |force| of an input; the AI arm's own limit is 50..120 N (engine/ai/skill.py SKILLS)
 MAX_TORQUE_NM = 50.0  # |torque| of an input; the AI's limit is 2..4 N m
 MAX_POS_M = 8.0  # every position component: twice the distance at which the ball is out of play (4 m)
 MAX_SPEED_MS = 100.0  # |velocity| of ball or bat; the fastest recorded smash is ~31 m/s

@@ -8,7 +8,7 @@ is written by hand. A test renders the blocks again and compares them with the c
 so the document cannot drift from the code.
 
 Offsets, sizes and types come from the numpy dtypes; a field's meaning comes from its message's
-docstring layout table (tests/processes/network/test_wire.py checks those tables against the
+docstring layout table (tests/processes/network/wire/test_messages.py checks those tables against the
 dtypes too); an enum member's meaning from the comment beside it in the source.
 """
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""`pingpong bench accuracy|effects|ringdown --quick`, smoke-run as subprocesses (STYLE.md); no timing asserts."""
+"""`pingpong bench accuracy|effects|ringdown --quick`, smoke-run as subprocesses, as every command is; no timing asserts."""
 import json
 import math
 import subprocess

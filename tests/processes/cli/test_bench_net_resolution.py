@@ -1,4 +1,4 @@
-"""`pingpong bench net-resolution --quick`, smoke-run as a subprocess (STYLE.md); no timing asserts."""
+"""`pingpong bench net-resolution --quick`, smoke-run as a subprocess, as every command is; no timing asserts."""
 import json
 import subprocess
 import sys

@@ -1,4 +1,4 @@
-"""Every `pingpong` subcommand of this stage, smoke-run as a subprocess (STYLE.md: --ticks 2)."""
+"""Every `pingpong` subcommand of this stage, smoke-run as a subprocess (with --ticks 2 where it runs a scene)."""
 import json
 import subprocess
 import sys
