@@ -170,3 +170,23 @@ def test_no_test_module_imports_another_test_module_or_a_conftest():
                 continue
             found += [f"{path.relative_to(ROOT)} imports {name}" for name in names if is_test_module(name)]
     assert not found, f"test modules importing test modules (move the helper to tests/helpers/ or a fixture): {found}"
+
+
+def test_every_import_of_a_project_module_names_one_that_exists():
+    """A module moved or renamed leaves no import of its old name behind (import-linter passes over
+    an import it cannot resolve, and a lazy one fails only when it runs)."""
+    paths = {_module_name(p) for package in PACKAGES + ("bench", "tests") for p in (ROOT / package).rglob("*.py")}
+    paths |= {name.rsplit(".", k)[0] for name in paths for k in range(1, name.count(".") + 1)}  # namespace packages
+    missing = []
+    for package in PACKAGES + ("bench", "tests", "examples"):
+        for path in sorted((ROOT / package).rglob("*.py")):
+            for node in ast.walk(ast.parse(path.read_text(), str(path))):
+                if isinstance(node, ast.Import):
+                    names = [alias.name for alias in node.names]
+                elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                    names = [node.module]
+                else:
+                    continue
+                missing += [f"{path.relative_to(ROOT)}: {name}" for name in names
+                            if name.split(".")[0] in PACKAGES + ("bench", "tests") and name not in paths]
+    assert not missing, f"imports of modules that do not exist: {missing}"

@@ -19,8 +19,8 @@ import time
 
 import numpy as np
 
-from processes.network.client import Client, Rejected
-from processes.network.pacing import RATE_WINDOW_S
+from processes.network.client.client import Client, Rejected
+from processes.network.server.pacing import RATE_WINDOW_S
 from processes.network.wire import EventKind, Kind, Slot
 
 JOIN_TIMEOUT_S = 120.0  # a busy machine's server may take long to answer the first hello

@@ -15,8 +15,9 @@ class BrowserPlayer:
     and pointer, in a thread of its own (run_session with a KeyboardPilot and a Predictor).
 
     Args:
-        bridge: the web.bridge.WebBridge it plays through (its address, socket options, join timeout and
-            counts; its send_text answers the browser). websocket: the browser's connection.
+        bridge: the web.bridge.WebBridge it plays through (its address, socket options, join
+            timeout and counts; its send_text answers the browser). websocket: the browser's
+            connection.
         seat: "a", "b" or "any", the seat the browser asked for.
     """
 
