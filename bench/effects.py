@@ -65,8 +65,8 @@ def _rally_loop(ball0, bats0, n_ticks, h, method, gravity, drag_k, magnus_k, rto
                 bats[:] = bats0
         if bats is not None:
             bat_step(bats, h, bat_mass, bat_inertia, motion, tmp)
-        n, support = ball_tick(ball, h, support, method, gravity, drag_k, magnus_k, rtol, atol, table, floor_z, net,
-                               posts, motion, params, materials, work, scratch, adapt, events)
+        n, support = ball_tick(ball, h, support, (method, gravity, drag_k, magnus_k, rtol, atol),
+                               (table, floor_z, net, posts), motion, params, materials, work, scratch, adapt, events)
         if n < 0:
             return n
         impacts += n

@@ -219,8 +219,8 @@ def _simulate(y0, h, n_ticks, smooth_tick, method, gravity, drag_k, magnus_k, rt
         if record:
             prev[:] = y
             adapt_prev[:] = adapt
-        n, support = ball_tick(y, h, support, method, gravity, drag_k, magnus_k, rtol, atol, table, floor_z,
-                               None, None, None, params, materials, work, scratch, adapt, events)
+        n, support = ball_tick(y, h, support, (method, gravity, drag_k, magnus_k, rtol, atol), (table, floor_z, None, None),
+                               None, params, materials, work, scratch, adapt, events)
         if n < 0:
             return n, n_imp, n_apex
         if not record:

@@ -163,16 +163,19 @@ def _body_point_velocity(body, p, normal, frac, h, bats, params, centre, axis, o
 
 
 @njit(cache=True)
-def ball_tick(y, h, support, method, gravity, drag_k, magnus_k, rtol, atol,
-              table, floor_z, net, posts, bats, params, materials, work, scratch, adapt, events):
+def ball_tick(y, h, support, flight, geometry, bats, params, materials, work, scratch, adapt, events):
     """Advance the ball by one tick h, applying every impact inside it.
 
     Args:
         y: (9,) ball state pos m, vel m/s, spin rad/s; updated in place.
         h: tick, s. support: Body id the ball rests on at the start, 0 in flight.
-        method, gravity, drag_k, magnus_k, rtol, atol: as engine.integrators.advance.
-        table: (6,) box or None. floor_z: m or None. net: (6,) box or None (rigid net).
-        posts: (n, 6) boxes or None. bats: (n_bats, BAT_ROW) motion over the tick, or None.
+        flight: the ball's model, (method, gravity, drag_k, magnus_k, rtol, atol) as
+            engine.integrators.advance (engine.world.Model.flight).
+        geometry: the static bodies, (table, floor_z, net, posts) (engine.world.Model.geometry):
+            table (6,) box or None, floor_z m or None, net (6,) box or None (rigid net), posts
+            (n, 6) boxes or None. An absent body (None) is compiled out of the kernel; the
+            records are unpacked here, because numba prunes a None only where it is an argument.
+        bats: (n_bats, BAT_ROW) motion over the tick, or None.
         params: (N_PARAMS,) ball parameters, see P_*. materials: (n_body_ids, 2) restitution, friction.
         work: WORK_SHAPE scratch. scratch: SCRATCH_SHAPE scratch. adapt: dopri5 bookkeeping.
         events: (n, EVENT_ROW) written with the tick's impacts.
@@ -180,6 +183,8 @@ def ball_tick(y, h, support, method, gravity, drag_k, magnus_k, rtol, atol,
     Returns:
         (n_events or a negative ERR_* code, support at the end of the tick).
     """
+    method, gravity, drag_k, magnus_k, rtol, atol = flight
+    table, floor_z, net, posts = geometry
     cur = scratch[0]
     trial = scratch[1]
     normal = scratch[2, 0:3]
@@ -199,8 +204,7 @@ def ball_tick(y, h, support, method, gravity, drag_k, magnus_k, rtol, atol,
         if support != 0:
             # Leave the surface when lifted (Magnus) or rolled off the table's top.
             ball_accel_z = _lift_check(cur, gravity, drag_k, magnus_k, acc)
-            off_table = support == _TABLE and table is not None and (
-                abs(cur[0] - table[0]) > table[3] or abs(cur[1] - table[1]) > table[4])
+            off_table = support == _TABLE and _off_table(cur, table)
             if ball_accel_z > 0.0 or off_table:
                 support = 0
         friction = materials[support, 1]
@@ -363,7 +367,7 @@ def _project_once(cur, h, table, floor_z, net, posts, bats, params, mask, normal
     return True
 
 
-@njit(inline="always", cache=True)
+@njit(cache=True)  # not inlined: its None tests must see table and floor_z as arguments (ball_tick)
 def _surface_z(body, table, floor_z):
     """Height of the horizontal surface a resting ball lies on, m."""
     if body == _FLOOR and floor_z is not None:
@@ -371,6 +375,14 @@ def _surface_z(body, table, floor_z):
     if body == _TABLE and table is not None:
         return table[2] + table[5]
     return 0.0
+
+
+@njit(cache=True)
+def _off_table(cur, table):
+    """The ball's centre beyond the table top's edges in x or y (False without a table)."""
+    if table is None:
+        return False
+    return abs(cur[0] - table[0]) > table[3] or abs(cur[1] - table[1]) > table[4]
 
 
 @njit(cache=True)

@@ -79,8 +79,8 @@ def _advance(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_t
         if bat_motion is not None:
             bat_step(bat_flat, h, bat_mass, bat_inertia, bat_motion, bat_tmp)
         support_before = w['ball_support']
-        n, support = ball_tick(ball_flat, h, support_before, method, gravity, drag_k, magnus_k, rtol, atol,
-                               table, floor_z, net, posts, bat_motion, params, materials, work, scratch, adapt,
+        n, support = ball_tick(ball_flat, h, support_before, (method, gravity, drag_k, magnus_k, rtol, atol),
+                               (table, floor_z, net, posts), bat_motion, params, materials, work, scratch, adapt,
                                event_rows)
         if n < 0:
             return k, 0, STOP_LIMIT, n

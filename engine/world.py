@@ -67,6 +67,17 @@ class Model:
     cloth_watch: np.ndarray | None = None  # (6,) box around a cloth net: inside it, tick by tick
     cloth_reach: np.ndarray | None = None  # (6,) box beyond which the ball cannot touch even an awake cloth net
 
+    @property
+    def flight(self) -> tuple:
+        """The ball's flight model as engine.collision.ball_tick takes it: (method, gravity,
+        drag_k, magnus_k, rtol, atol)."""
+        return (self.method, self.gravity, self.drag_k, self.magnus_k, self.scene.rtol, self.scene.atol)
+
+    @property
+    def geometry(self) -> tuple:
+        """The static bodies as engine.collision.ball_tick takes them: (table, floor_z, net, posts)."""
+        return (self.table, self.floor_z, self.net, self.posts)
+
 
 def build_model(scene: Scene) -> Model:
     """Derive the model of a scene: effect factors, geometry, ball and bat parameters."""

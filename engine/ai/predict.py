@@ -142,8 +142,8 @@ def predict_span(h, k0, k_stop, n_max, max_events, stop_rule, end_sign, first_ro
         if not fast:  # near a body (or not finite: ball_tick reports it)
             for i in range(9):
                 traj[k + 1, i] = y[i]
-            n, support = ball_tick(traj[k + 1], h, support, method, gravity, drag_k, magnus_k, rtol, atol,
-                                   table, floor_z, net, posts, None, params, materials, work, scratch, adapt,
+            n, support = ball_tick(traj[k + 1], h, support, (method, gravity, drag_k, magnus_k, rtol, atol),
+                                   (table, floor_z, net, posts), None, params, materials, work, scratch, adapt,
                                    tick_events)
             memo[_M_SUPPORT] = support
             if n < 0:

@@ -173,8 +173,7 @@ _COUNTING = textwrap.dedent("""
     # The engine's ball tick with the model's arguments, as engine.world.step passes them.
     support = 0
     for _ in range(40):
-        n, support = collision.ball_tick(s.ball_flat[0:9], m.dt, support, m.method, m.gravity, m.drag_k, m.magnus_k,
-                                         scene.rtol, scene.atol, m.table, m.floor_z, m.net, m.posts, bats,
+        n, support = collision.ball_tick(s.ball_flat[0:9], m.dt, support, m.flight, m.geometry, bats,
                                          m.ball_params, m.materials, s.work, s.scratch, s.adapt, s.event_rows)
         assert n >= 0
     print(json.dumps(calls))

@@ -148,8 +148,7 @@ def test_prediction_is_ball_tick_bit_for_bit_where_it_steps_free_flight(ai):
         adapt[:] = 0.0
         for k in range(n):
             want[k + 1] = want[k]
-            _, support = ball_tick(want[k + 1], m.dt, support, m.method, m.gravity, m.drag_k, m.magnus_k,
-                                   m.scene.rtol, m.scene.atol, m.table, m.floor_z, m.net, m.posts, None,
+            _, support = ball_tick(want[k + 1], m.dt, support, m.flight, m.geometry, None,
                                    m.ball_params, m.materials, work, scratch, adapt, events)
         np.testing.assert_array_equal(got, want)  # exact: the same arithmetic
         contacts += n_events
