@@ -94,7 +94,7 @@ def _play(client: Client, welcome: wire.Message, args: argparse.Namespace, keybo
     from processes.network.client.interpolation import Interpolator
     from processes.network.client.keyboard import KeyboardPilot, TerminalKeys
     from processes.network.client.prediction import Predictor
-    from processes.network.client.session import run_session
+    from processes.network.client.session import SessionOptions, run_session
     from processes.network.wire import Slot
 
     if client.slot == Slot.NONE:
@@ -103,12 +103,13 @@ def _play(client: Client, welcome: wire.Message, args: argparse.Namespace, keybo
         def show(summary, frame):
             print(_score_line(frame["snapshot"], frame["ball_pos"], frame["ball_vel"], frame["tick"]), flush=True)
 
-        return run_session(client, welcome, view=view, seconds=args.seconds, show=None if args.json else show)
+        return run_session(client, welcome, SessionOptions(view=view, seconds=args.seconds,
+                                                            show=None if args.json else show))
     scene = load_scene(welcome["scene"])
     predictor = Predictor(scene, client.slot)
     if not keyboard:
         brain = BotBrain(welcome["scene"], client.slot, args.skill, args.seed)
-        return run_session(client, welcome, brain=brain, predictor=predictor, seconds=args.seconds)
+        return run_session(client, welcome, SessionOptions(brain=brain, predictor=predictor, seconds=args.seconds))
     from rich.console import Console
     from rich.live import Live
     from rich.text import Text
@@ -119,8 +120,8 @@ def _play(client: Client, welcome: wire.Message, args: argparse.Namespace, keybo
         def show(summary, frame):
             live.update(Text(keyboard_screen(summary, frame, client.slot, predictor)), refresh=True)
 
-        return run_session(client, welcome, pilot=pilot, keys=keys, predictor=predictor, seconds=args.seconds,
-                           show=show, show_every_s=0.05)
+        return run_session(client, welcome, SessionOptions(pilot=pilot, keys=keys, predictor=predictor,
+                                                            seconds=args.seconds, show=show, show_every_s=0.05))
 
 
 def keyboard_screen(summary: dict, frame: dict, slot: Slot, predictor=None) -> str:

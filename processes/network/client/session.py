@@ -7,36 +7,65 @@ behind (processes.network.client.interpolation).
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from processes.network import wire
 from processes.network.client.client import Client
-from processes.network.client.prediction import RoundTrip, ServerClock
+from processes.network.client.prediction import Predictor, RoundTrip, ServerClock
 from processes.network.wire import Kind, Slot
+
+if TYPE_CHECKING:  # for the annotations only: a session imports none of its players' modules
+    from processes.network.client.bot import BotBrain
+    from processes.network.client.interpolation import Interpolator
+    from processes.network.client.keyboard import KeyboardPilot
 
 CONTROL_HZ = 100  # a predicting player's inputs per second (the server's AI arms decide at 100 Hz too)
 
 
-def run_session(client: Client, welcome: wire.Message, *, brain=None, pilot=None, keys=None, predictor=None,
-                view=None, seconds: float = 3600.0, show=None, show_every_s: float = 0.25,
-                clock=time.monotonic) -> dict:
-    """Play or watch until the server says goodbye, falls silent, the keys say quit or `seconds` pass.
+@dataclass(frozen=True)
+class SessionOptions:
+    """Who plays a session and how it is shown (run_session); the defaults watch, showing nothing.
 
-    Args:
-        client: joined (welcome taken). brain: a BotBrain (with a predictor: inputs at CONTROL_HZ
-            from the predicted state; without: from each newest snapshot).
+    Attributes:
+        brain: a BotBrain (with a predictor: inputs at CONTROL_HZ from the predicted state;
+            without: from each newest snapshot).
         pilot, keys: a keyboard.KeyboardPilot and a key source (inputs at CONTROL_HZ from the
             predicted bat). predictor: a prediction.Predictor (a player): reconciled on each
             snapshot, advanced to the server's estimated present, stamps our inputs.
-        view: a prediction.Interpolator (a spectator). show(summary, frame): called at most every
-            show_every_s with the summary so far and the frame to draw (the interpolated state
-            of a spectator, the predicted state of a player, else the last snapshot).
+        view: an interpolation.Interpolator (a spectator).
+        seconds: s, the session ends after this long at most.
+        show(summary, frame): called at most every show_every_s (s) with the summary so far and
+            the frame to draw (the interpolated state of a spectator, the predicted state of a
+            player, else the last snapshot).
+        clock: the session's clock, s (time.monotonic).
+    """
+
+    brain: BotBrain | None = None
+    pilot: KeyboardPilot | None = None
+    keys: Any = None
+    predictor: Predictor | None = None
+    view: Interpolator | None = None
+    seconds: float = 3600.0
+    show: Callable[[dict, dict], None] | None = None
+    show_every_s: float = 0.25
+    clock: Callable[[], float] = time.monotonic
+
+
+def run_session(client: Client, welcome: wire.Message, options: SessionOptions = SessionOptions()) -> dict:
+    """Play or watch until the server says goodbye, falls silent, the keys say quit or
+    options.seconds pass. client: joined (welcome taken).
 
     Returns:
         The summary: snapshots, events, inputs_sent, goodbye, the last snapshot's tick and score,
         prediction statistics (a player with a predictor) or interpolation counts (a spectator).
     """
+    brain, pilot, keys, predictor, view = options.brain, options.pilot, options.keys, options.predictor, options.view
+    show, show_every_s, clock = options.show, options.show_every_s, options.clock
+    seconds = options.seconds
     dt = welcome["dt"]
     server_clock = ServerClock(dt)
     round_trip = RoundTrip()

@@ -59,7 +59,7 @@ class BrowserPlayer:
         from processes.network.client.client import Rejected
         from processes.network.client.keyboard import KeyboardPilot
         from processes.network.client.prediction import Predictor
-        from processes.network.client.session import run_session
+        from processes.network.client.session import SessionOptions, run_session
 
         bridge = self.bridge
         client = Client(bridge.address, "player", "browser", self.wanted, socket_options=bridge.socket_options)
@@ -84,8 +84,8 @@ class BrowserPlayer:
                     "bat_quat": np.asarray(bat["quat"]).tolist(), "aim": np.asarray(frame["target"]).tolist(),
                     "inputs_sent": summary["inputs_sent"]}})
 
-            summary = run_session(client, welcome, pilot=self.pilot, keys=self, predictor=predictor, show=show,
-                                  show_every_s=self.SHOW_EVERY_S)
+            summary = run_session(client, welcome, SessionOptions(pilot=self.pilot, keys=self, predictor=predictor,
+                                                                 show=show, show_every_s=self.SHOW_EVERY_S))
             bridge.send_text(self.websocket, {"ended": summary["goodbye"], "inputs_sent": summary["inputs_sent"]})
         finally:
             client.close()

@@ -18,7 +18,7 @@ import pytest
 from engine.scene import load_scene
 from engine.world import build_model, initial_state
 from processes.network.client.client import Client
-from processes.network.client.session import run_session
+from processes.network.client.session import SessionOptions, run_session
 from processes.network.server.gateway import Gateway, GatewayConfig
 from processes.network.client.keyboard import STEP_M, STROKE_M, IterableKeys, KeyboardPilot, TerminalKeys, parse_keys, top_view
 from processes.network.client.prediction import Predictor
@@ -136,7 +136,8 @@ def test_a_keyboard_session_sends_the_arms_forces_towards_the_target(zctx):
         assert client.slot == Slot.A
         pilot = KeyboardPilot(predictor.model, client.slot)
         keys = IterableKeys([["up"] * 4] + [[]] * 150 + ["quit"])
-        summary = run_session(client, welcome, pilot=pilot, keys=keys, predictor=predictor, seconds=DEADLINE_S)
+        summary = run_session(client, welcome, SessionOptions(pilot=pilot, keys=keys, predictor=predictor,
+                                                              seconds=DEADLINE_S))
         assert summary["goodbye"] == "quit" and summary["snapshots"] > 0 and summary["inputs_sent"] > 0
         np.testing.assert_allclose(pilot.target, [-1.77 + 4 * STEP_M, 0.0, 0.15], rtol=0, atol=1e-12)
         assert served.wait_for(lambda: served.gateway.counts["quits"] == 1)
