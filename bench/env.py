@@ -7,10 +7,10 @@
   --async-tables. Every step of every table counts, autoresets included; the first steps (kernels
   loaded, in each process) are not timed. Each figure's ratio is to the one environment's of the
   same net.
-- physics share: the share of the one environment's step (CPU time) spent in the physics
-  (engine.world.advance, timed around each call: the numba tick kernel and, with the cloth net, the net's kernels): the
-  most that stepping a batch of tables' physics in one numba call could take away; the rest is the
-  referee's, the players' and the step's Python work.
+- physics share: the share of the one environment's step (the process's CPU time, every thread)
+  spent in the physics (engine.world.advance, timed around each call: the numba tick kernel and,
+  with the cloth net, the net's kernels): the most that stepping a batch of tables' physics in one
+  numba call could take away; the rest is the referee's, the players' and the step's Python work.
 - players: the same in-process match (match_rigid, seed 0) with A played by `pro` and by
   examples/block.py:Block, B by novice, each --ticks ticks: engine.match.Match.ai_seconds (all
   the players' decisions and control laws) per control tick, and the bot's own act() (CPU) per
@@ -66,19 +66,19 @@ def single_steps_per_second(seconds: float, net: str) -> dict:
     inside = [0.0]
 
     def timed_physics(*args, **kwargs):
-        started = time.thread_time()
+        started = time.process_time()
         try:
             return physics(*args, **kwargs)
         finally:
-            inside[0] += time.thread_time() - started
+            inside[0] += time.process_time() - started
 
     rate = _timed(step, 1, seconds)
     engine.match.advance = timed_physics
     try:
-        started, cpu = time.perf_counter(), time.thread_time()
+        started, cpu = time.perf_counter(), time.process_time()
         while time.perf_counter() - started < seconds / 2:
             step()
-        share = inside[0] / (time.thread_time() - cpu)
+        share = inside[0] / (time.process_time() - cpu)
     finally:
         engine.match.advance = physics
     return {"steps_per_s": rate, "physics_share": share}
@@ -162,7 +162,8 @@ def _run(args: argparse.Namespace, progress=None) -> dict:
             "native": {str(n): {"steps_per_s": r, "ratio": r / rate} for n, r in native.items()},
             "async": {str(n): {"steps_per_s": r, "ratio": r / rate} for n, r in asynchronous.items()},
         }
-    result["cloth_cost"] = result["nets"]["rigid"]["single"]["steps_per_s"] / result["nets"]["cloth"]["single"]["steps_per_s"]
+    single = {net: result["nets"][net]["single"]["steps_per_s"] for net in NETS}
+    result["cloth_cost"] = single["rigid"] / single["cloth"]
     if progress is not None:
         progress(f"players: pro and the Block bot, {args.ticks} ticks each")
     result["players"] = players_per_control_tick(args.ticks if not args.quick else 5_000)
@@ -183,7 +184,8 @@ def _report(result: dict) -> None:
                 print(f"    {label:<18} N = {n:>3}: {r['steps_per_s']:7.0f} steps/s  {r['ratio']:5.2f}x")
     print(f"  the cloth net costs {result['cloth_cost']:.2f}x the rigid net's time per step (one environment)")
     p = result["players"]
-    print(f"players per control tick (match_rigid, {p['pro']['ticks']} ticks): pro {p['pro']['ai_us_per_control_tick']:.1f} us, "
+    print(f"players per control tick (match_rigid, {p['pro']['ticks']} ticks): "
+          f"pro {p['pro']['ai_us_per_control_tick']:.1f} us, "
           f"Block bot {p['block_bot']['ai_us_per_control_tick']:.1f} us ({p['ratio_bot_to_pro']:.2f}x), "
           f"its act() {p['block_bot']['act_us_per_decision']:.1f} us a decision")
     before, after = result["loadavg_before_after"]

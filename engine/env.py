@@ -306,8 +306,9 @@ class PingPongEnv(gymnasium.Env):
         state = match.state
         world = state.world[0]
         floats = match.ais.bat_floats(state.bats)
-        view = self.seats[self.player if end is None else end].observe(int(world["tick"]), float(world["time"]), state.ball_flat, floats,
-                                 match.rally_record, decision_key(match.rally_record))
+        seat = self.seats[self.player if end is None else end]
+        view = seat.observe(int(world["tick"]), float(world["time"]), state.ball_flat, floats,
+                            match.rally_record, decision_key(match.rally_record))
         return flatten(view, self._obs).copy()
 
     # --- pictures and replays -----------------------------------------------------------------
