@@ -15,6 +15,13 @@ def add_common(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of a human summary")
 
 
+def add_session_options(parser: argparse.ArgumentParser, whose: str = "the server's") -> None:
+    """--join-timeout and --curve-server-key: how a client command opens its session."""
+    parser.add_argument("--join-timeout", type=float, default=10.0, help="s to wait for the welcome")
+    parser.add_argument("--curve-server-key", default=None, metavar="FILE",
+                        help=f"{whose} public key file: connect CURVE-encrypted (`pingpong keys DIR`)")
+
+
 def add_bot_options(parser: argparse.ArgumentParser) -> None:
     """--on-bot-error and --bot-budget-ms: what a match does about a bot's failed decision."""
     parser.add_argument("--on-bot-error", choices=["point", "stop"], default="point",

@@ -7,7 +7,7 @@ import json
 import sys
 from typing import TYPE_CHECKING
 
-from processes.cli.common import FORMATTER, add_common
+from processes.cli.common import FORMATTER, add_common, add_session_options
 
 if TYPE_CHECKING:
     from processes.network import wire
@@ -212,10 +212,8 @@ def add_commands(sub) -> None:
     join.add_argument("--name", default="client", help="shown to the other clients")
     join.add_argument("--token", default=None, help="rejoin token (hex) from an earlier session")
     join.add_argument("--seconds", type=float, default=3600.0, help="leave after this long at most")
-    join.add_argument("--join-timeout", type=float, default=10.0, help="s to wait for the welcome")
     join.add_argument("--delay-ms", type=float, default=100.0, help="a spectator's view runs this far behind")
-    join.add_argument("--curve-server-key", default=None, metavar="FILE",
-                      help="the server's public key file: connect CURVE-encrypted (`pingpong keys DIR`)")
+    add_session_options(join)
     add_common(join)
     join.set_defaults(func=join_command)
 
@@ -226,8 +224,6 @@ def add_commands(sub) -> None:
                        help="where the page is served; port 0 picks a free one")
     watch.add_argument("--seconds", type=float, default=24 * 3600.0, help="stop after this long at most")
     watch.add_argument("--linger", type=float, default=5.0, help="s the page stays up after the match ends")
-    watch.add_argument("--join-timeout", type=float, default=10.0, help="s to wait for the welcome")
-    watch.add_argument("--curve-server-key", default=None, metavar="FILE",
-                       help="the server's public key file: connect CURVE-encrypted (`pingpong keys DIR`)")
+    add_session_options(watch)
     watch.add_argument("--json", action="store_true", help="print JSON: the URL, then the summary")
     watch.set_defaults(func=watch_command)

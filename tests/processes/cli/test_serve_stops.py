@@ -39,12 +39,7 @@ def test_ctrl_c_on_the_server_says_goodbye_and_leaves_nothing_behind(served, zct
         workers = descendants(server.pid)
         assert len(workers) >= 3  # forkserver, physics, AI, gateway (and the resource tracker)
         os.kill(server.pid, signal.SIGINT)
-        goodbye, deadline = None, Deadline()
-        while not deadline.expired():
-            message = client.recv(100)
-            if message is not None and message.kind == Kind.GOODBYE:
-                goodbye = message
-                break
+        goodbye, _ = until_goodbye(client)
         assert goodbye is not None and goodbye["reason"] == GoodbyeReason.SHUTDOWN
     finally:
         client.close()
@@ -112,13 +107,7 @@ def test_a_killed_gateway_is_restarted_on_the_same_endpoint_and_the_token_reclai
         with pytest.raises(Rejected) as refused:  # and nobody else may take it
             thief.join(DEADLINE_S)
         assert refused.value.reason == RejectReason.FULL
-        goodbye, deadline = None, Deadline()
-        while not deadline.expired():
-            player.heartbeat_if_due()
-            message = player.recv(100)
-            if message is not None and message.kind == Kind.GOODBYE:
-                goodbye = message
-                break
+        goodbye, _ = until_goodbye(player)
         assert goodbye is not None and goodbye["reason"] == GoodbyeReason.MATCH_OVER
     finally:
         player.close()
