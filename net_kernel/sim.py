@@ -78,6 +78,25 @@ BALL_RADIUS = 0.02
 BALL_MASS = 2.7e-3
 
 
+def _checked_substeps(topo: NetTopology, dt: float, substeps: int | None, implicit: bool) -> int:
+    """NetSim's substeps per tick: `substeps`, or (None) the fewest the stability bound allows
+    (1 for the implicit solver); ValueError for a count that is no integer >= 1 or whose
+    substep exceeds the bound."""
+    if substeps is None:
+        substeps = 1 if implicit else max(1, math.ceil(dt / (SAFETY * topo.h_max)))
+    if not isinstance(substeps, int) or substeps < 1:
+        raise ValueError(f"substeps = {substeps!r} must be an integer >= 1")
+    h = dt / substeps
+    if not implicit and h >= topo.h_max:
+        need = math.ceil(dt / (SAFETY * topo.h_max))
+        raise ValueError(
+            f"substep h = {h:.4g} s is above the semi-implicit Euler stability bound h_max = {topo.h_max:.4g} s "
+            "(h^2 w^2 + 2 h g < 4, w^2 and g the net's largest stiffness and damping per unit mass: "
+            "net_kernel.topology.stability_bound); "
+            f"use substeps >= {need} (or substeps=None), or solver='implicit'")
+    return substeps
+
+
 class NetContact(NamedTuple):
     """What the net did to the ball in one tick (see NetSim.step)."""
 
@@ -132,20 +151,8 @@ class NetSim:
         self.dt = float(dt)
         self.backend = backend
         self.implicit = topo.spec is not None and topo.spec.solver == IMPLICIT
-        if substeps is None:
-            substeps = 1 if self.implicit else max(1, math.ceil(self.dt / (SAFETY * topo.h_max)))
-        if not isinstance(substeps, int) or substeps < 1:
-            raise ValueError(f"substeps = {substeps!r} must be an integer >= 1")
-        h = self.dt / substeps
-        if not self.implicit and h >= topo.h_max:
-            need = math.ceil(self.dt / (SAFETY * topo.h_max))
-            raise ValueError(
-                f"substep h = {h:.4g} s is above the semi-implicit Euler stability bound h_max = {topo.h_max:.4g} s "
-                "(h^2 w^2 + 2 h g < 4, w^2 and g the net's largest stiffness and damping per unit mass: "
-                "net_kernel.topology.stability_bound); "
-                f"use substeps >= {need} (or substeps=None), or solver='implicit'")
-        self.substeps = substeps
-        self.h = h
+        self.substeps = _checked_substeps(topo, self.dt, substeps, self.implicit)
+        self.h = h = self.dt / self.substeps
         spec = topo.spec
         self.gravity = spec.gravity if spec is not None else 9.81
         self.drag = spec.air_damping if spec is not None else 0.0
