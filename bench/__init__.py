@@ -15,7 +15,7 @@ STUDIES = {
     "handoff": ("bench.handoff:STUDY", "a lockstep hand-off between workers against a raw semaphore wake-up"),
     "match": ("bench.match:STUDY", "a headless match in worker processes against the in-process reference"),
     "net-resolution": ("bench.net_resolution:STUDY", "the net's grid: accuracy against cost"),
-    "net-tail": ("bench.net_tail:STUDY", "the net's linear tail against the full kernel"),
+    "net-tail": ("bench.net_tail:STUDY", "the net's linear tail and float32 kernels against the full float64 kernel"),
     "profile-net": ("bench.profile_net:STUDY", "the net kernel's cost against the machine's copy bandwidth"),
     "ringdown": ("bench.ringdown:STUDY", "a struck net's ring: time to sleep, damping, energy taken"),
 }

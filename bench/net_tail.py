@@ -1,24 +1,31 @@
-"""What the net's linear tail costs in accuracy and saves in time: seeded strikes, full kernel against the tail.
+"""What the net's cheaper paths cost in accuracy and save in time: seeded strikes, the full float64 kernel against each.
 
 Each strike throws a ball into the default match's net (scenes/match.toml: 85 x 8 knots, the
 hanging net) at 5-60 m/s, into the middle, near a post, at the top cord and at the hem, and
 lets the net ring until it sleeps; some strikes send a second ball 3 s later, while the struck
 net is in its tail, towards the top of the net (over it or into it). Every strike runs with
 the full float64 kernel on every awake tick (NetSpec.tail_energy = 0, the reference) and with
-the tail at each energy asked for, and reports: the knots' largest distance from the
-reference's over the whole ring of the strike (sampled every SAMPLE_TICKS ticks, up to a second
-ball), the second ball's outcome (over the net or not, its speed after the net, where it
-comes down to the playing surface's height), the tick each net falls asleep, the ticks it spent
-awake and in its tail, and the CPU time per strike (a run of its own without reading the
-knots, which would rebuild the tail's state). The budget: 50 um for the knots (a tenth of a
-knot's radius, net_kernel.sim.KNOT_RADIUS), 1 % for the rebound speed and 1 mm for the
-landing point of the second ball. The knots after a second ball are reported, not budgeted: a
-struck net amplifies any difference of its state about ten-million-fold within 0.3 s (float64
-against itself with every knot moved by 1 nm differs by millimetres after a 20 m/s ball,
-tests/net_kernel/test_grid32.py), so what a second ball can be held to is its outcome.
+each cheaper path (paths()): the linear tail at each energy asked for; the float32 grid kernels
+(NetSpec.kernel_precision, with and without kernel_fma) with the tail at the match's energy
+(NetSpec.tail_energy), and float32 with FMA without the tail (its rounding alone); and, as the
+yardstick of the model's own sensitivity, the float64 kernel with every knot's offset from the built grid
+scaled by 1 + NUDGE before the strike (float32's epsilon on the offsets float32 steps). It
+reports: the knots' largest distance from the reference's over the whole ring of the strike
+(sampled every SAMPLE_TICKS ticks, up to a second ball), the second ball's outcome (over the net
+or not, its speed after the net, where it comes down to the playing surface's height), the tick
+each net falls asleep, the ticks it spent awake and in its tail, and the CPU time per strike (a
+run of its own without reading the knots, which would rebuild the tail's state). The budget:
+50 um for the knots (a tenth of a knot's radius, net_kernel.sim.KNOT_RADIUS), 1 % for the
+rebound speed and 1 mm for the landing point of the second ball. The knots after a second ball
+are reported, not budgeted: a struck net amplifies any difference of its state about
+ten-million-fold within 0.3 s (float64 against itself with every knot moved by 1 nm differs by
+millimetres after a 20 m/s ball, tests/net_kernel/test_grid32.py), so what a second ball can be
+held to is its outcome. A path that steps the whole strike differently (float32) meets the same
+amplification from the first tick: its knot error is shown beside the nudged float64's on the
+same strike (the worst ratio of the two), which says whether it is rounding or a defect.
 
     pingpong bench net-tail [--quick] [--json]
-    python -m bench.net_tail [--quick] [--energies 20e-6,30e-6,40e-6,50e-6] [--json] [--readme docs/accuracy.md]
+    python -m bench.net_tail [--quick] [--energies 20e-6,30e-6,40e-6,50e-6] [--no-float32] [--json] [--readme docs/accuracy.md]
 """
 from __future__ import annotations
 
@@ -31,8 +38,9 @@ import numpy as np
 from bench.study import Study
 from bench.study import run as run_study
 from engine.scene import load_scene
-from net_kernel import NetSim, build_topology
+from net_kernel import NetSim, NetSpec, build_topology
 from net_kernel.sim import BALL_MASS, BALL_RADIUS
+from net_kernel.topology import FLOAT32, FLOAT64
 
 DT = 1e-3  # s: the match's tick (scenes/match.toml)
 GRAVITY = 9.81
@@ -40,31 +48,34 @@ SAMPLE_TICKS = 10
 MAX_TICKS = 12_000  # 12 s: every net here sleeps well before
 SECOND_BALL_TICK = 3000  # 3 s after the strike: every strike's net is in its tail by then
 SPEEDS = (5.0, 10.0, 20.0, 30.0, 40.0, 60.0)
+MORE_SPEEDS = (15.0, 50.0)  # drawn after SPEEDS' strikes, which keep their seeded aim
 # (y, z) m aimed at: the middle of the mesh, near a post, the top cord, the hem
 POINTS = {"middle": (0.0, 0.08), "post": (0.8, 0.08), "top cord": (0.1, 0.148), "hem": (-0.2, 0.012)}
 ENERGIES = (20e-6, 30e-6, 40e-6, 50e-6)
 BUDGET_M = 50e-6
 BUDGET_SPEED = 0.01
 BUDGET_LANDING_M = 1e-3
+NUDGE = 1e-7  # relative: float32's epsilon (1.19e-7), rounded, on the offsets from the built grid it steps
 
 
 def strikes(quick: bool = False, seed: int = 0) -> list[dict]:
-    """The seeded strikes: every speed at every point, aimed within 5 mm of it, at up to 10 degrees
-    off the table's axis; a second ball for the 10 and 30 m/s strikes (20 cm before the net,
-    0.13-0.17 m high, 8-14 m/s)."""
+    """The seeded strikes: every speed of SPEEDS then of MORE_SPEEDS at every point, aimed within
+    5 mm of it, at up to 10 degrees off the table's axis; a second ball for the 10 and 30 m/s
+    strikes (20 cm before the net, 0.13-0.17 m high, 8-14 m/s)."""
     rng = np.random.default_rng(seed)
     out = []
-    for where, (y, z) in POINTS.items():
-        for speed in SPEEDS:
-            angle = math.radians(rng.uniform(-10.0, 10.0))
-            shot = {"point": where, "speed": speed, "pos": [-0.06, y + rng.uniform(-5e-3, 5e-3),
-                                                            z + rng.uniform(-5e-3, 5e-3)],
-                    "vel": [speed * math.cos(angle), speed * math.sin(angle), 0.0]}
-            if speed in (10.0, 30.0):
-                second_speed = rng.uniform(8.0, 14.0)
-                shot["second"] = {"pos": [-0.2, rng.uniform(-0.5, 0.5), rng.uniform(0.13, 0.17)],
-                                  "vel": [second_speed, 0.0, 0.5]}
-            out.append(shot)
+    for speeds in (SPEEDS, MORE_SPEEDS):
+        for where, (y, z) in POINTS.items():
+            for speed in speeds:
+                angle = math.radians(rng.uniform(-10.0, 10.0))
+                shot = {"point": where, "speed": speed, "pos": [-0.06, y + rng.uniform(-5e-3, 5e-3),
+                                                                z + rng.uniform(-5e-3, 5e-3)],
+                        "vel": [speed * math.cos(angle), speed * math.sin(angle), 0.0]}
+                if speed in (10.0, 30.0):
+                    second_speed = rng.uniform(8.0, 14.0)
+                    shot["second"] = {"pos": [-0.2, rng.uniform(-0.5, 0.5), rng.uniform(0.13, 0.17)],
+                                      "vel": [second_speed, 0.0, 0.5]}
+                out.append(shot)
     if quick:
         out = [s for s in out if s["point"] == "middle" and s["speed"] in (10.0, 30.0)]
     return out
@@ -77,10 +88,39 @@ def _landing(pos: np.ndarray, vel: np.ndarray) -> np.ndarray:
     return pos[:2] + vel[:2] * t
 
 
-def run_strike(topo, shot: dict, trace: bool) -> dict:
+def paths(energies, tail_energy: float, float32: bool = True) -> list[dict]:
+    """The cheaper paths, each a NetSpec's kernel options and a nudge: the float64 tail at each of
+    `energies`; with `float32`, the float32 kernels with the tail at `tail_energy` (without and
+    with FMA), float32 with FMA without the tail, and float64 without the tail, nudged (NUDGE)."""
+    out = [{"path": f"float64, tail {e * 1e6:g} uJ", "kernel_precision": FLOAT64, "kernel_fma": False,
+            "tail_energy_J": e, "nudge": 0.0} for e in energies]
+    if float32:
+        out += [{"path": f"float32, tail {tail_energy * 1e6:g} uJ", "kernel_precision": FLOAT32, "kernel_fma": False,
+                 "tail_energy_J": tail_energy, "nudge": 0.0},
+                {"path": f"float32 + FMA, tail {tail_energy * 1e6:g} uJ", "kernel_precision": FLOAT32,
+                 "kernel_fma": True, "tail_energy_J": tail_energy, "nudge": 0.0},
+                {"path": "float32 + FMA, no tail", "kernel_precision": FLOAT32, "kernel_fma": True,
+                 "tail_energy_J": 0.0, "nudge": 0.0},
+                {"path": f"float64 nudged {NUDGE:g}, no tail", "kernel_precision": FLOAT64, "kernel_fma": False,
+                 "tail_energy_J": 0.0, "nudge": NUDGE}]
+    return out
+
+
+def _path_spec(cloth: NetSpec, path: dict) -> NetSpec:
+    """The net of `path`: the match's cloth with its kernel options and tail energy."""
+    return dataclasses.replace(cloth, tail_energy=path["tail_energy_J"], kernel_precision=path["kernel_precision"],
+                               kernel_fma=path["kernel_fma"])
+
+
+def run_strike(topo, shot: dict, trace: bool, nudge: float = 0.0) -> dict:
     """One strike on a net built from `topo`: its sleep tick, ticks awake and in the tail, CPU
-    seconds, the second ball's outcome, and with `trace` the sampled knot positions."""
+    seconds, the second ball's outcome, and with `trace` the sampled knot positions; `nudge`
+    scales every free knot's offset from the built grid by 1 + nudge before the strike."""
     sim = NetSim(topo, DT)
+    if nudge:
+        free = topo.knot_inv_mass > 0
+        sim.knot_pos[free] = topo.knot_pos[free] + (sim.knot_pos[free] - topo.knot_pos[free]) * (1.0 + nudge)
+        sim.wake()
     balls = [[np.array(shot["pos"], float), np.array(shot["vel"], float), 0]]
     second = shot.get("second")
     samples, sample_ticks = [], []
@@ -138,23 +178,29 @@ def _error(ref: dict, run: dict, start: int = 0, end: int = MAX_TICKS) -> float:
     return worst
 
 
-def study(quick: bool = False, energies=ENERGIES, progress=None) -> dict:
-    """The table: one row per strike and tail energy, with the reference's sleep tick and CPU."""
+def study(quick: bool = False, energies=ENERGIES, progress=None, float32: bool = True) -> dict:
+    """The table: one row per strike and path (paths()), with the reference's sleep tick and CPU."""
     cloth = load_scene("match").cloth
-    reference_topo = build_topology(dataclasses.replace(cloth, tail_energy=0.0))
-    topos = {e: build_topology(dataclasses.replace(cloth, tail_energy=e)) for e in energies}
-    NetSim(topos[energies[0]], DT).modes()  # computed or loaded before any timing
-    run_strike(reference_topo, strikes(True)[0], False)  # kernels compiled or loaded before any timing
+    reference_topo = build_topology(dataclasses.replace(cloth, tail_energy=0.0, kernel_precision=FLOAT64,
+                                                        kernel_fma=False))
+    chosen = paths(energies, cloth.tail_energy, float32)
+    topos = [build_topology(_path_spec(cloth, path)) for path in chosen]
+    for topo in topos:  # modes computed or loaded, kernels compiled or loaded, before any timing
+        sim = NetSim(topo, DT)
+        if sim.tail_refusal is None:
+            sim.modes()
+        run_strike(topo, strikes(True)[0], False)
+    run_strike(reference_topo, strikes(True)[0], False)
     rows = []
-    for shot in strikes(quick):
+    for index, shot in enumerate(strikes(quick)):
         if progress:
             progress(f"{shot['speed']:g} m/s at the {shot['point']}")
         ref_timed = run_strike(reference_topo, shot, False)
         ref = run_strike(reference_topo, shot, True)
-        for energy, topo in topos.items():
-            timed = run_strike(topo, shot, False)
-            traced = run_strike(topo, shot, True)
-            row = {"point": shot["point"], "speed_m_s": shot["speed"], "tail_energy_J": energy,
+        for path, topo in zip(chosen, topos):
+            timed = run_strike(topo, shot, False, path["nudge"])
+            traced = run_strike(topo, shot, True, path["nudge"])
+            row = {**path, "strike": index, "point": shot["point"], "speed_m_s": shot["speed"],
                    "knot_error_m": _error(ref, traced, 0, SECOND_BALL_TICK if "second" in shot else MAX_TICKS),
                    "sleep_tick": timed["sleep_tick"],
                    "reference_sleep_tick": ref_timed["sleep_tick"], "awake_ticks": timed["awake_ticks"],
@@ -168,29 +214,44 @@ def study(quick: bool = False, energies=ENERGIES, progress=None) -> dict:
                     "speed_error": abs(b["speed"] - a["speed"]) / a["speed"] if b else math.inf,
                     "landing_error_m": float(np.hypot(*np.subtract(b["landing"], a["landing"]))) if b else math.inf}
             rows.append(row)
-    return {"net": f"{cloth.cols} x {cloth.rows}", "dt_s": DT, "sample_ticks": SAMPLE_TICKS, "rows": rows,
-            "summary": summarise(rows, energies)}
+    return {"net": f"{cloth.cols} x {cloth.rows}", "dt_s": DT, "sample_ticks": SAMPLE_TICKS, "nudge": NUDGE,
+            "rows": rows, "summary": summarise(rows, chosen)}
 
 
-def summarise(rows: list[dict], energies) -> list[dict]:
-    """Per tail energy: the worst knot error, the second balls' worst errors, the share of awake
-    ticks and of CPU against the reference, whether it keeps every budget."""
+def _over_nudge(mine: list[dict], nudged: list[dict]) -> float | None:
+    """The largest ratio of a path's knot error to the nudged float64's on the same strike, over
+    the strikes the path misses the budget on (None: it misses none, or there is no nudged run)."""
+    by_strike = {r["strike"]: r["knot_error_m"] for r in nudged}
+    ratios = [r["knot_error_m"] / max(by_strike[r["strike"]], 1e-12) for r in mine
+              if r["knot_error_m"] > BUDGET_M and r["strike"] in by_strike]
+    return max(ratios, default=None)
+
+
+def summarise(rows: list[dict], chosen: list[dict]) -> list[dict]:
+    """Per path: the worst knot error (and its strike), against the nudged float64's, the second
+    balls' worst errors, the share of awake ticks and of CPU against the reference, the sleep
+    tick's shift, whether it keeps every budget."""
     out = []
-    for energy in energies:
-        mine = [r for r in rows if r["tail_energy_J"] == energy]
+    nudged = [r for r in rows if r["nudge"] > 0]
+    for path in chosen:
+        mine = [r for r in rows if r["path"] == path["path"]]
         balls = [r["second_ball"] for r in mine if "second_ball" in r]
-        worst = max(r["knot_error_m"] for r in mine)
+        worst_row = max(mine, key=lambda r: r["knot_error_m"])
+        worst = worst_row["knot_error_m"]
         speed = max((b["speed_error"] for b in balls), default=0.0)
         landing = max((b["landing_error_m"] for b in balls), default=0.0)
         same = all(b["same_side"] for b in balls)
         after = max((b["knot_error_m"] for b in balls), default=0.0)
-        out.append({"tail_energy_J": energy, "strikes": len(mine), "worst_knot_error_m": worst,
+        later = [r["sleep_tick"] - r["reference_sleep_tick"] for r in mine]
+        out.append({**path, "strikes": len(mine), "worst_knot_error_m": worst,
+                    "worst_knot_error_strike": f"{worst_row['speed_m_s']:g} m/s at the {worst_row['point']}",
+                    "worst_over_nudged": None if path["nudge"] else _over_nudge(mine, nudged),
                     "second_balls": len(balls), "second_same_side": same, "worst_speed_error": speed,
                     "worst_landing_error_m": landing, "worst_knot_error_after_second_m": after,
                     "awake_share": sum(r["awake_ticks"] for r in mine) / sum(r["reference_awake_ticks"] for r in mine),
                     "cpu_share": sum(r["cpu_s"] for r in mine) / sum(r["reference_cpu_s"] for r in mine),
-                    "sleep_later_ticks_median": float(np.median([r["sleep_tick"] - r["reference_sleep_tick"]
-                                                                 for r in mine])),
+                    "sleep_later_ticks_median": float(np.median(later)),
+                    "sleep_later_ticks_range": [min(later), max(later)],
                     "within_budget": bool(worst <= BUDGET_M and same and speed <= BUDGET_SPEED
                                           and landing <= BUDGET_LANDING_M)})
     return out
@@ -198,16 +259,21 @@ def summarise(rows: list[dict], energies) -> list[dict]:
 
 def markdown(result: dict) -> str:
     """The summary as a Markdown table."""
-    lines = ["| tail energy | strikes | worst knot error over the ring | second balls: same side, speed, landing "
-             "| knots after a second ball | awake ticks | CPU | sleeps later (median) | within budget |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = ["| path | strikes | worst knot error over the ring | over budget: x the nudged float64's "
+             "| second balls: same side, speed, landing | knots after a second ball | awake ticks | CPU "
+             "| sleeps later: median (range) | within budget |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for s in result["summary"]:
-        lines.append(f"| {s['tail_energy_J'] * 1e6:g} uJ | {s['strikes']} | {s['worst_knot_error_m'] * 1e6:.1f} um | "
+        ratio = "-" if s["worst_over_nudged"] is None else f"{s['worst_over_nudged']:.2g}"
+        low, high = (t * DT for t in s["sleep_later_ticks_range"])
+        lines.append(f"| {s['path']} | {s['strikes']} | {s['worst_knot_error_m'] * 1e6:.1f} um "
+                     f"({s['worst_knot_error_strike']}) | {ratio} | "
                      f"{s['second_balls']}: {'yes' if s['second_same_side'] else 'NO'}, "
                      f"{s['worst_speed_error'] * 100:.3f} %, {s['worst_landing_error_m'] * 1e3:.3f} mm | "
                      f"{s['worst_knot_error_after_second_m'] * 1e3:.1f} mm | "
                      f"{s['awake_share'] * 100:.0f} % | {s['cpu_share'] * 100:.0f} % | "
-                     f"{s['sleep_later_ticks_median'] * DT:.2f} s | {'yes' if s['within_budget'] else 'no'} |")
+                     f"{s['sleep_later_ticks_median'] * DT:.2f} s ({low:.2f} to {high:.2f}) | "
+                     f"{'yes' if s['within_budget'] else 'no'} |")
     return "\n".join(lines)
 
 
@@ -215,18 +281,24 @@ def text(result: dict) -> str:
     """The summary for a terminal or the README."""
     return (f"Measured by `pingpong bench net-tail`: {len(result['rows']) // max(len(result['summary']), 1)} seeded "
             f"strikes on the {result['net']} net of scenes/match.toml (5-60 m/s into the middle, near a post, the top "
-            f"cord and the hem; second balls 3 s later towards the top of the net), the full kernel against the "
-            f"linear tail at each energy; knots compared every {result['sample_ticks']} ms over each strike's ring. "
-            f"Budget: 50 um for the knots, 1 % for a second ball's speed after the net, 1 mm for where it comes "
-            f"down; the knots after a second ball are shown, not budgeted (a struck net amplifies any difference of "
-            f"its state some ten-million-fold within 0.3 s, bench/net_tail.py); CPU is the net's alone, the tail's "
-            f"against the full kernel's in the same run.\n\n"
+            f"cord and the hem; second balls 3 s later towards the top of the net), the full float64 kernel against "
+            f"each path: the linear tail at each energy, the float32 kernels (NetSpec.kernel_precision, with and "
+            f"without kernel_fma) with the tail and without it, and float64 with every knot's offset from the built "
+            f"grid scaled by 1 + {result['nudge']:g} (float32's epsilon: the model's own sensitivity); knots compared "
+            f"every {result['sample_ticks']} ms over each strike's ring. Budget: 50 um for the knots, 1 % for a "
+            f"second ball's speed after the net, 1 mm for where it comes down; the knots after a second ball are "
+            f"shown, not budgeted (a struck net amplifies any difference of its state some ten-million-fold within "
+            f"0.3 s, bench/net_tail.py), and a strike's knot error over budget is shown against the nudged "
+            f"float64's on the same strike (the worst ratio); CPU is the net's alone, each path's against the full "
+            f"float64 kernel's in the same run.\n\n"
             + markdown(result))
 
 
 def _arguments(parser) -> None:
     parser.add_argument("--energies", default=",".join(f"{e:g}" for e in ENERGIES),
-                        help="tail energies (J), comma-separated")
+                        help="tail energies (J) of the float64 paths, comma-separated")
+    parser.add_argument("--no-float32", action="store_true",
+                        help="only the float64 tail paths (no float32 kernels, no nudged float64)")
 
 
 def _run(args, progress=None) -> dict:
@@ -237,7 +309,7 @@ def _run(args, progress=None) -> dict:
         raise ValueError(f"--energies {args.energies!r}: give numbers in J, e.g. 5e-6,20e-6") from None
     if not energies or any(not (math.isfinite(e) and e > 0) for e in energies):
         raise ValueError(f"--energies {args.energies!r}: every energy must be a finite number of J > 0")
-    return study(args.quick, energies, progress=progress)
+    return study(args.quick, energies, progress=progress, float32=not args.no_float32)
 
 
 STUDY = Study(run=_run, report=lambda result: print(text(result)), add_arguments=_arguments,
