@@ -38,6 +38,10 @@ from engine.tick import ERR_BATS_AFTER, ERR_BATS_BEFORE, STOP_EVENT, STOP_LIMIT,
 from net_kernel import NO_CONTACT, NetContact, NetSim, build_topology
 from net_kernel.sim import KNOT_RADIUS, NET_REACH, WAKE_MARGIN
 
+# The most ticks near the net the engine steps the ball ahead of the net (_run_near_net); a
+# worker's net answers them in one hand-off. A match's run also ends at each AI control tick.
+NET_RUN_TICKS = 16
+
 
 class SimulationError(RuntimeError):
     """The engine could not advance the state (it says which check failed and at which tick)."""
@@ -175,10 +179,12 @@ class NetStepper(Protocol):
     def in_tail(self) -> bool:
         """In its linear tail after the ticks done: its knots stay within the box it rings in."""
 
-    def step(self, ball_pos: np.ndarray, ball_vel: np.ndarray, ball_radius: float,
-             ball_inv_mass: float) -> NetContact:
-        """One tick of the net with the ball's contact, called after the ball's tick with the ball
-        at its start (pos m, vel m/s, radius m, 1/kg): NetSim.step's contract."""
+    def step_run(self, ball: np.ndarray, ball_radius: float, ball_inv_mass: float,
+                 free_outside: np.ndarray) -> tuple[int, NetContact]:
+        """A run of ticks with the ball near, up to the first that touches it (ball[j]: the (2, 3)
+        position m and velocity m/s at tick j's start; radius m, 1/kg), each as step() or, while
+        the net sleeps or rings in its tail and the ball lies outside `free_outside`, as
+        step_free(1): NetSim.step_run's contract. Returns (ticks stepped, the last one's contact)."""
 
     def step_free(self, ticks: int) -> None:
         """`ticks` ticks of the net without the ball, which stayed out of its reach in them."""
@@ -207,6 +213,9 @@ class State:
     bat_tmp: np.ndarray
     # The cloth net (a scene with net kind "cloth"): a NetSim (initial_state), or a stand-in.
     net_sim: NetStepper | None = None
+    # A run of ticks near the net (_advance_with_cloth): the ball at each tick's start, the state after each.
+    run_ball: np.ndarray | None = None  # (NET_RUN_TICKS, 2, 3) m, m/s
+    run_records: np.ndarray | None = None  # (NET_RUN_TICKS,) physics_snapshot_dtype
 
 
 def initial_state(scene: Scene) -> State:
@@ -225,6 +234,7 @@ def initial_state(scene: Scene) -> State:
         motion[i, BAT_RADIUS] = spec.radius
         motion[i, BAT_HALF_THICKNESS] = spec.half_thickness
     world = record["world"]
+    net_sim = NetSim(build_topology(scene.cloth), scene.dt) if scene.cloth is not None and "net" in scene.effects else None
     return State(
         record=record,
         ball=ball,
@@ -238,7 +248,9 @@ def initial_state(scene: Scene) -> State:
         adapt=world["ball_adapt"][0],  # a view: dopri5 updates the world record in place
         event_rows=np.zeros((MAX_IMPACTS_PER_TICK, EVENT_ROW)),
         bat_tmp=np.zeros((3, 3)),
-        net_sim=NetSim(build_topology(scene.cloth), scene.dt) if scene.cloth is not None and "net" in scene.effects else None,
+        net_sim=net_sim,
+        run_ball=np.zeros((NET_RUN_TICKS, 2, 3)) if net_sim is not None else None,
+        run_records=np.zeros(NET_RUN_TICKS, record.dtype) if net_sim is not None else None,
     )
 
 
@@ -364,10 +376,10 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
 
     Out of the net's reach (model.cloth_reach) the ball's ticks run in one kernel call and the net
     is then stepped as many ticks without it (NetSim.step_free): neither depends on the other
-    there, so a worker's net may do them while the physics goes on. It returns after every tick
-    the net was stepped with the ball (STOP_NET, unless another reason): a caller that publishes
-    its state after each call then always has a state the net's agrees with, which a restarted
-    net or physics worker resumes from exactly. `state.net_sim` is a NetSim, or a stand-in with
+    there, so a worker's net may do them while the physics goes on. Near the net it steps runs of
+    ticks (_run_near_net) and returns after every run the net was stepped with the ball (STOP_NET,
+    unless another reason): a caller that publishes its state after each call then always has a
+    state the net's agrees with, which a restarted net or physics worker resumes from exactly. `state.net_sim` is a NetSim, or a stand-in with
     its contract (NetStepper: the physics worker's, which asks the net worker).
     """
     net: NetStepper = state.net_sim
@@ -398,12 +410,12 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
             if reason != STOP_WATCH:
                 return done, n, reason
             continue
-        p0, v0 = y[0:3].copy(), y[3:6].copy()
-        ticks, n, reason = _advance_kernel(model, state, 1, inputs, events, h, gone_radius, gone_z, deadline, None)
+        taken, n, reason, contact = _run_near_net(model, state, min(n_max - done, NET_RUN_TICKS), inputs, events, h,
+                                                  gone_radius, gone_z, deadline)
         inputs = None
-        done += ticks
-        contact = net.step(p0, v0, radius, 1.0 / mass)
+        done += taken
         if contact.toi != NO_CONTACT:
+            p0, v0 = state.run_ball[taken - 1]
             pressing = _bats_pressing(model, state, events[:n], y[0:3], radius, contact.impulse)
             if pressing:
                 # Squeezed between a bat and the cloth net, the ball takes the net's path alone (its
@@ -422,6 +434,50 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
             reason = STOP_EVENT
         return done, n, STOP_NET if reason == STOP_LIMIT else reason
     return done, 0, STOP_LIMIT
+
+
+def _run_near_net(model: Model, state: State, n_max: int, inputs, events: np.ndarray, h: float, gone_radius: float,
+                  gone_z: float, deadline: float) -> tuple[int, int, int, NetContact]:
+    """_advance_with_cloth's ticks near the net: the ball's ticks one by one without the net, up to
+    n_max (at most NET_RUN_TICKS), a tick that needs the caller (an event, any STOP_* but the
+    limit), or the ball leaving the net's reach; then the net's run over them (NetStepper.step_run),
+    which stops at the first tick that touches the ball. The ticks after that one are undone (the
+    state after each was kept), so the result is the same bits as a tick at a time: only the ball's
+    ticks before a touch are stepped without the net, and those a tick at a time would step so too.
+    A worker's net answers the whole run in one hand-off.
+
+    Returns:
+        (ticks kept, events of the last kept tick in `events`, its STOP_* reason, the net's contact
+        in it, or one with NO_CONTACT).
+    """
+    y, ball, records = state.ball_flat, state.run_ball, state.run_records
+    k = 0
+    n, reason = 0, STOP_LIMIT
+    while k < n_max:
+        ball[k, 0] = y[0:3]
+        ball[k, 1] = y[3:6]
+        try:
+            _, n, reason = _advance_kernel(model, state, 1, inputs, events, h, gone_radius, gone_z, deadline, None)
+        except SimulationError:
+            if k == 0:
+                raise
+            # A tick after a touch may never happen: undo it; if the net does not touch the
+            # ball before it, the next call steps it again, from the same state, and raises.
+            copy_record(records[k - 1:k], state.record)
+            n, reason = 0, STOP_LIMIT
+            break
+        inputs = None
+        copy_record(state.record, records, k)
+        k += 1
+        if n or reason != STOP_LIMIT or not _in_box(model.cloth_reach, y):
+            break
+    mass = float(model.ball_params[P_MASS])
+    taken, contact = state.net_sim.step_run(ball[:k], float(model.ball_params[P_RADIUS]), 1.0 / mass,
+                                            model.cloth_watch)
+    if taken < k:  # the net touched the ball before the run's last tick: back to the state after that tick
+        copy_record(records[taken - 1:taken], state.record)
+        n, reason = 0, STOP_LIMIT
+    return taken, n, reason, contact
 
 
 def _bats_pressing(model: Model, state: State, events: np.ndarray, ball_pos: np.ndarray, radius: float,

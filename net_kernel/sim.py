@@ -529,6 +529,30 @@ class NetSim:
         return (f"a knot of the net is more than NET_REACH = {NET_REACH} m outside the box it was built in (knots now "
                 f"span {self.box.tolist()} m): the net blew up")
 
+    def step_run(self, ball: np.ndarray, ball_radius: float, ball_inv_mass: float,
+                 free_outside: np.ndarray) -> tuple[int, NetContact]:
+        """A run of ticks with the ball near, up to the first that touches it: tick j as step() with
+        the ball at ball[j] (its (2, 3) position m and velocity m/s at the tick's start), or, while
+        the net sleeps or rings in its tail and the ball's centre lies outside the (6,) lo, hi box
+        `free_outside`, as step_free(1) (the engine steps those ticks so; the same bits as a tick at
+        a time). The caller steps the ball's ticks first, without the net; it keeps the ticks up to
+        the one that touched and goes back to the state after it.
+
+        Returns:
+            (ticks stepped, that last tick's NetContact): the contact, or NO_CONTACT after all of them.
+        """
+        for j in range(len(ball)):
+            pos = ball[j, 0]
+            if (self.sleeping or self.tail is not None) and not (
+                    free_outside[0] <= pos[0] <= free_outside[3] and free_outside[1] <= pos[1] <= free_outside[4]
+                    and free_outside[2] <= pos[2] <= free_outside[5]):
+                self.step_free(1)
+                continue
+            contact = self.step(pos, ball[j, 1], ball_radius, ball_inv_mass)
+            if contact.toi != NO_CONTACT:
+                return j + 1, contact
+        return len(ball), self._no_contact
+
     def step_free(self, ticks: int) -> None:
         """Advance `ticks` ticks with the ball out of the net's reach: the same bits as as many step()
         calls without a ball (a sleeping net stays as it is, an awake one may fall asleep).

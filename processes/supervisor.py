@@ -323,7 +323,7 @@ class Supervisor:
                 # and forces it computed itself on the AIs' plans; its cloth net ticks: handed to
                 # the net worker with the ball (waited for), and without it (not waited for), and
                 # the ball ticks given again because the net's answer took longer than handoff_s
-                **({k: w.report[k] for k in ("ai_turns", "ai_local_ticks", "net_ball_ticks", "net_free_ticks",
+                **({k: w.report[k] for k in ("ai_turns", "ai_local_ticks", "net_ball_ticks", "net_runs", "net_free_ticks",
                                              "net_turns_again", "bot_errors", "stopped")
                     if k in w.report} if w.kind == "physics" else {}),
                 # the AI worker's thinking between its turns, and the strokes it had to finish late

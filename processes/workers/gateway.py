@@ -3,7 +3,7 @@
 It reads the physics snapshots and the point log, pairs each snapshot with the remote inputs it
 acknowledges (remote_acks), and posts the remote players' inputs to the locked remote-input
 mailbox that the physics drains before each tick. In a run with a net worker (a scene with a
-cloth net: processes.workers.workers_for; build_layout then makes the net_even/net_odd blocks)
+cloth net: processes.workers.workers_for; build_layout then makes the net_a/net_b blocks)
 it also reads the net's newest published state, never torn (SnapshotBlock.snapshot) and only
 when a net message is due, for the clients' view of the net (network.server.feed.NetFeed). A net in
 its linear tail publishes where the tail started and how long it has run (net_snapshot_dtype):

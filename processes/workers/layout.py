@@ -11,7 +11,7 @@ and removes them at the end. The blocks of a run, by name:
 | trace | physics snapshot per tick (with trace) | physics | supervisor |
 | points | POINT_DTYPE log (a match) | physics | supervisor, gateway |
 | frames | physics snapshot every frame_every ticks (replays) | physics | supervisor |
-| net_even, net_odd | net snapshot (SnapshotBlock), by tick parity | net | physics, a restarted net, gateway |
+| net_a, net_b | net snapshot (SnapshotBlock), published into each in turn | net | physics, a restarted net, gateway |
 | net_io | NET_IO_DTYPE | physics and net, ordered by net_baton | both |
 | ai_view | physics snapshot | physics, ordered by ai_baton | ai |
 | ai_answer | ANSWER_DTYPE | ai, ordered by ai_baton | physics |
@@ -36,6 +36,7 @@ from engine.dtypes import (CONTACT_DTYPE, POINT_DTYPE, ai_answer_dtype, ai_local
                            physics_snapshot_dtype)
 from engine.rules import Phase, next_striker
 from engine.scene import Scene
+from engine.world import NET_RUN_TICKS
 from net_kernel import build_topology
 from processes.network.server.seats import SEAT_DTYPE
 from processes.runtime.control import STATUS_DTYPE
@@ -55,20 +56,23 @@ ANSWER_DTYPE = ai_answer_dtype(MAX_BATS, CTL_SIZE)
 FAULT_TEXT_BYTES = ANSWER_DTYPE["fault_text"].base.itemsize
 LOCAL_DTYPE = ai_local_dtype(MAX_BATS)
 
-# The physics' hand-off of a ball tick to the net worker, and the net's answer (NetSim.step's).
+# The physics' hand-off of a run of ticks near the net to the net worker (engine.world's
+# _run_near_net), and the net's answer (NetSim.step_run's).
 NET_IO_DTYPE = np.dtype([
-    ("tick", "<i8"),  # the tick to step (the physics' tick at its start)
-    ("ball", "<f8", (2, 3)),  # position m, velocity m/s at the tick's start
+    ("tick", "<i8"),  # the run's first tick (the physics' tick at its start)
+    ("count", "<i8"),  # the run's ticks, at most NET_RUN_TICKS
+    ("ball", "<f8", (NET_RUN_TICKS, 2, 3)),  # each tick's ball at its start: position m, velocity m/s
     ("radius", "<f8"), ("inv_mass", "<f8"),  # m, 1/kg
-    ("toi", "<f8"), ("impulse", "<f8", 3), ("offset", "<f8", 3),  # NetSim.step's answer
-    ("sleeping", "<i8"),  # the net sleeps after this step
-    ("tail_until", "<i8"),  # -1, or the tick at which the linear tail holding the net after this step falls asleep
-    ("box", "<f8", (2, 3)),  # m, lo and hi corners of the knots' box after this step (NetSim.box)
+    ("taken", "<i8"),  # the ticks the net stepped: up to the first that touched the ball, or all
+    ("toi", "<f8"), ("impulse", "<f8", 3), ("offset", "<f8", 3),  # the contact in the last of them
+    ("sleeping", "<i8"),  # the net sleeps after the run
+    ("tail_until", "<i8"),  # -1, or the tick at which the linear tail holding the net after the run falls asleep
+    ("box", "<f8", (2, 3)),  # m, lo and hi corners of the knots' box after the run (NetSim.box)
     ("granted", "<i8"),  # the physics: the net may step every tick below this without the ball
-    ("turn", "<i8"),  # the physics: two a ball tick, odd while its fields are written (a repeated turn counts again)
+    ("turn", "<i8"),  # the physics: two a run, odd while its fields are written (a repeated turn counts again)
     ("served", "<i8"),  # the worker: the last turn it answered
 ])
-NET_BLOCKS = ("net_even", "net_odd")
+NET_BLOCKS = ("net_a", "net_b")
 
 def _net_word(name: str) -> int:
     return NET_IO_DTYPE.fields[name][1] // 8  # every field of NET_IO_DTYPE is made of 8-byte words
@@ -95,6 +99,8 @@ class NetIO:
     """
 
     tick = _net_int("tick")
+    count = _net_int("count")
+    taken = _net_int("taken")
     radius = _net_float("radius")
     inv_mass = _net_float("inv_mass")
     toi = _net_float("toi")
@@ -109,7 +115,7 @@ class NetIO:
         self._ints = memoryview(array.view("<i8")).cast("B").cast("q")
         self._floats = memoryview(array.view("<f8")).cast("B").cast("d")
         record = array[0]
-        self.ball = record["ball"]  # (2, 3) m, m/s; the others (3,) and (2, 3), all views
+        self.ball = record["ball"]  # (NET_RUN_TICKS, 2, 3) m, m/s; the others (3,) and (2, 3), all views
         self.impulse = record["impulse"]
         self.offset = record["offset"]
         self.box = record["box"]
@@ -119,7 +125,6 @@ class NetIO:
         self._ints.release()
         self._floats.release()
         del self.array, self.ball, self.impulse, self.offset, self.box
-  # by the parity of the tick a state holds
 
 # One remote input on its way to the physics worker (the remote-input mailbox's record).
 REMOTE_INPUT_DTYPE = np.dtype([("tick", "<i8"), ("seq", "<u8"), ("bat", "<i8"), ("inputs", "<f8", (6,))])

@@ -1,27 +1,29 @@
 """The net worker: the cloth net (net_kernel.NetSim) in a process of its own.
 
 Two kinds of ticks reach it from the physics worker:
-- Ticks with the ball in the net's reach (engine.world: inside model.cloth_reach, the net awake
-  or the ball near its frozen shape): the physics gives it the baton and waits. The ball's state
-  at the tick's start crosses in the shared `net_io` record and the net's answer (time of impact,
-  impulse, offset, whether it now sleeps, its box) comes back in it; the baton orders the two
-  sides, so the record needs no lock. The physics applies the answer exactly as the in-process
-  engine applies NetSim.step's.
+- Runs of ticks with the ball in the net's reach (engine.world: inside model.cloth_reach, the net
+  awake or the ball near its frozen shape): the physics steps the ball's ticks of a run without
+  the net, gives it the baton and waits. The ball's state at each tick's start crosses in the
+  shared `net_io` record and the net's answer (how many ticks it stepped, up to the first that
+  touched the ball, and that touch: time of impact, impulse, offset; whether it now sleeps, its
+  box) comes back in it; the baton orders the two sides, so the record needs no lock. The
+  physics keeps the ticks the net stepped and applies the answer exactly as the in-process
+  engine applies NetSim.step_run's.
 - Ticks with the ball out of reach (NetSim.step_free): the physics only raises `granted`, the
   tick the net may step to without the ball, nudges the worker and goes on at once. The net
   steps them while the physics works: on two cores the ringing of a struck net then costs the
   physics nothing until the ball comes back within reach, where its first hand-off waits until
-  the net has caught up. A sleeping net with the ball far away wakes nobody.
+  the net has caught up. A sleeping net wakes nobody.
 Either way the net steps the same ticks with the same inputs as the in-process NetSim, which
 keeps lockstep runs bit for bit equal to the reference.
 
 The worker publishes its whole state (engine.dtypes.net_snapshot_dtype) before and after every
-tick stepped with the ball and after every run of free ticks, into one of two SnapshotBlocks by
-the parity of the tick it holds, so the state before the last ball tick is always kept too. That makes restarts
-exact: a restarted net worker resumes from its newest state (and steps the free ticks still
-granted); a restarted physics worker may ask again for the ball tick the net has just stepped,
-and the net then goes back to the state before it (in the other block). Free ticks never need
-going back: the physics grants a tick only after deciding it, and decides it the same way again.
+run stepped with the ball and after every run of free ticks, into the two SnapshotBlocks in
+turn, so the state before the last run is always kept too. That makes restarts exact: a
+restarted net worker resumes from its newest state (and steps the free ticks still granted); a
+restarted physics worker may ask again for the run the net has just stepped, and the net then
+goes back to the state before it (in the other block). Free ticks never need going back: the
+physics grants a tick only after deciding it, and decides it the same way again.
 """
 from __future__ import annotations
 
@@ -30,6 +32,7 @@ import time
 import numpy as np
 
 from engine.dtypes import net_snapshot_dtype
+from engine.world import build_model
 from net_kernel import NetSim, build_topology
 from net_kernel.sim import compile_kernels
 from processes.runtime.handoff import HandoffTimeout
@@ -50,27 +53,32 @@ def newest_state(blocks, out: np.ndarray, at_most: int | None = None) -> bool:
 
     Returns False when no block holds such a state (a fresh run: the net is as built).
     """
+    return _newest_block(blocks, out, at_most) is not None
+
+
+def _newest_block(blocks, out: np.ndarray, at_most: int | None = None) -> int | None:
+    """newest_state, returning the index of the block it copied from (None: none)."""
     best = None
-    for block in blocks:
+    for i, block in enumerate(blocks):
         if block.version < 2:  # never published
             continue
         tick = block.tick
-        if (at_most is None or tick <= at_most) and (best is None or tick > best.tick):
-            best = block
-    if best is None:
-        return False
-    best.snapshot(out)
-    return True
+        if (at_most is None or tick <= at_most) and (best is None or tick > blocks[best].tick):
+            best = i
+    if best is not None:
+        blocks[best].snapshot(out)
+    return best
 
 
 def _load(sim: NetSim, state) -> None:
     sim.load_state(state["pos"], state["vel"], bool(state["sleeping"]), int(state["quiet_ticks"]), int(state["tail"]))
 
 
-def _publish(sim: NetSim, tick: int, state: np.ndarray, blocks) -> None:
-    """Publish the net's state at `tick` into the block of its parity (a ball tick's state before
-    and after it then sit in different blocks, and answering the same tick again, which goes
-    back to the state before it, overwrites only the state after it)."""
+def _publish(sim: NetSim, tick: int, state: np.ndarray, blocks, held: int) -> int:
+    """Publish the net's state at `tick` into the block other than `held`, the one holding the
+    state it was stepped from (a run's state before and after it then sit in different blocks,
+    and answering the same run again, which goes back to the state before it, overwrites only
+    the state after it); returns the block it published into."""
     row = state[0]
     row["tick"] = tick
     row["sleeping"] = sim.sleeping
@@ -84,7 +92,9 @@ def _publish(sim: NetSim, tick: int, state: np.ndarray, blocks) -> None:
         row["quiet_ticks"] = tail.quiet_ticks
         row["pos"] = tail.start_pos
         row["vel"] = tail.start_vel
-    blocks[tick % 2].publish(state, tick)
+    into = 1 - held
+    blocks[into].publish(state, tick)
+    return into
 
 
 def tail_until(sim: NetSim, net_tick: int) -> int:
@@ -94,26 +104,29 @@ def tail_until(sim: NetSim, net_tick: int) -> int:
 
 def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
     """options: net_baton (processes.runtime.handoff.Baton); crash_at_tick, crash_kind (tests: end this process
-    after publishing that ball tick's state and before saying it is done, the hardest moment, or
-    after publishing a run of free ticks that holds it: a net in its linear tail, say);
-    slow_turn_s (tests: answer each ball tick that much later)."""
+    after publishing the state after the run that holds that tick and before saying it is done, the
+    hardest moment, or after publishing a run of free ticks that holds it: a net in its linear
+    tail, say); slow_turn_s (tests: answer each run that much later)."""
     topo = build_topology(scene.cloth)
     sim = NetSim(topo, scene.dt)
     compile_kernels(topo, scene.dt)  # before "ready": nothing compiles mid-run
+    watch = build_model(scene).cloth_watch  # the box engine.world steps the ball tick by tick in
     baton = options.net_baton.attach(arena["net_baton"].array)
     row = NetIO(arena["net_io"].array)
     blocks = net_blocks(arena)
     state = np.zeros(1, net_snapshot_dtype(topo.n_knots))
-    ball = np.zeros((2, 3))  # the turn's ball, copied out of net_io: m, m/s
-    if newest_state(blocks, state):
+    ball = np.zeros(row.ball.shape)  # the turn's run, copied out of net_io: m, m/s
+    held = _newest_block(blocks, state)  # the block holding the state the net is at
+    if held is not None:
         _load(sim, state[0])  # restarted: resume from the newest state
         net_tick = int(state[0]["tick"])
     else:
         net_tick = 0
-        _publish(sim, net_tick, state, blocks)
+        held = _publish(sim, net_tick, state, blocks, 1)
     published = net_tick  # the tick of the newest published state
     served = row.served
-    answered = None  # the tick of the answer in net_io, once this incarnation has written one
+    answered = None  # the first tick of the run answered in net_io, once this incarnation has written one
+    answered_end = None  # the tick after that run's last stepped tick
     control.start(net_tick)
     busy = 0.0
     steps = 0
@@ -134,7 +147,7 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
                 steps += run
                 control.beat(net_tick)
             if published != net_tick:
-                _publish(sim, net_tick, state, blocks)
+                held = _publish(sim, net_tick, state, blocks, held)
                 published = net_tick
             if options.crash_at_tick is not None and free_from <= options.crash_at_tick < net_tick:
                 crash(options.crash_kind, options.crash_at_tick)  # a free tick's turn: after publishing it
@@ -151,27 +164,29 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
                 busy += time.perf_counter() - t0
                 continue
             tick = row.tick
-            ball[:] = row.ball
+            count = row.count
+            ball[:count] = row.ball[:count]
             radius, inv_mass = row.radius, row.inv_mass
             if row.turn != turn:
                 busy += time.perf_counter() - t0
                 continue
             served = turn
-            if net_tick > tick + 1 or (net_tick == tick + 1 and answered == tick):
-                # A turn given again (the physics' wait ran out while we stepped it) for the tick
+            if net_tick > tick + count or (answered == tick and net_tick == answered_end):
+                # A turn given again (the physics' wait ran out while we stepped it) for the run
                 # answered last: net_io still holds that answer. Say so again, for a physics
                 # that still waits for it; one that took it and went on skips it (Baton.done).
                 # Past it (free ticks after it), the physics has taken it: nothing to answer.
                 row.served = served
-                if net_tick == tick + 1:
+                if net_tick == answered_end:
                     baton.done(tick)
                 busy += time.perf_counter() - t0
                 continue
             if net_tick > tick:
-                # The physics does this tick again (it was restarted): back to the state before it.
-                newest_state(blocks, state, at_most=tick)
+                # The physics does this run again (it was restarted): back to the state before it.
+                held = _newest_block(blocks, state, at_most=tick)
                 _load(sim, state[0])
-            elif net_tick < tick:
+                net_tick = int(state[0]["tick"])
+            if net_tick < tick:
                 # Ticks the physics skipped because it knew the net asleep (it stays as it is) or in
                 # its linear tail with the ball far from the tail's box (they count, as in NetSim.step).
                 if sim.in_tail:
@@ -179,24 +194,25 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
                 elif not sim.sleeping:
                     raise RuntimeError(f"net worker: asked for tick {tick} at tick {net_tick} while awake; the "
                                        "ticks between were neither granted free nor given")
-            contact = sim.step(ball[0], ball[1], radius, inv_mass)
+            taken, contact = sim.step_run(ball[:count], radius, inv_mass, watch)
+            row.taken = taken
             row.toi = contact.toi
             row.impulse[:] = contact.impulse
             row.offset[:] = contact.offset
             row.sleeping = int(sim.sleeping)
             row.box[:] = sim.box
-            net_tick = tick + 1
-            answered = tick
+            net_tick = tick + taken
+            answered, answered_end = tick, net_tick
             row.tail_until = tail_until(sim, net_tick)
-            _publish(sim, net_tick, state, blocks)
+            held = _publish(sim, net_tick, state, blocks, held)
             published = net_tick
             row.served = served
-            steps += 1
+            steps += taken
             busy += time.perf_counter() - t0
             if options.slow_turn_s:
                 time.sleep(options.slow_turn_s)  # fault injection: a descheduled worker, not synchronisation
-            if tick == options.crash_at_tick:
-                crash(options.crash_kind, tick)
+            if options.crash_at_tick is not None and tick <= options.crash_at_tick < net_tick:
+                crash(options.crash_kind, options.crash_at_tick)
             baton.done(tick)
             control.beat(tick)
         control.finish(busy, 0.0, {"tick": net_tick, "busy_s": busy, "steps": steps, "awake_ticks": sim.awake_ticks,

@@ -140,7 +140,8 @@ def _finish(control: Control, tick: int, busy: float, net, options: RunOptions, 
     handoff = _stop_net(net, options)
     report = {"tick": tick}
     if net is not None:
-        report.update(net_ball_ticks=net.ball_ticks, net_free_ticks=net.free_ticks, net_turns_again=net.turns_again)
+        report.update(net_ball_ticks=net.ball_ticks, net_runs=net.runs, net_free_ticks=net.free_ticks,
+                      net_turns_again=net.turns_again)
     if driver is not None:
         handoff += driver.waits
         options.ai_baton.stop()

@@ -20,7 +20,7 @@ NET_GIVE_UP_S = 60.0
 
 class RemoteNet:
     """The physics worker's stand-in for the NetSim in engine.world: same `sleeping`, `in_tail`,
-    step() and step_free().
+    step_run() and step_free().
 
     Args:
         control: the physics worker's Control (heartbeats while it waits).
@@ -48,6 +48,7 @@ class RemoteNet:
         self._none = np.zeros(3)
         self.waits = 0.0
         self.ball_ticks = 0  # ticks handed to the net worker with the ball (and waited for)
+        self.runs = 0  # hand-offs of those ticks (a run of them each)
         self.free_ticks = 0  # ticks granted without the ball (not waited for)
         self.turns_again = 0  # turns given again because the net's answer took longer than one wait's bound
         # Nothing known yet (a fresh run's net is as built and awake; a resumed one, whatever the
@@ -73,39 +74,52 @@ class RemoteNet:
             self.baton.nudge()
             self.free_ticks += ticks
 
-    def step(self, ball_pos, ball_vel, ball_radius: float, ball_inv_mass: float) -> NetContact:
-        """NetSim.step, done by the net worker (called after the ball's tick, as engine.world does)."""
+    def step_run(self, ball: np.ndarray, ball_radius: float, ball_inv_mass: float,
+                 free_outside: np.ndarray) -> tuple[int, NetContact]:
+        """NetSim.step_run, done by the net worker in one hand-off (called after the run's ball
+        ticks, as engine.world does). Its first ticks cost no hand-off while the net's last answer
+        says it sleeps or rings in its tail and the ball is far from the box it froze or rings in:
+        NetSim.step leaves such a net untouched or only counts the tick."""
         local = self.local
-        tick = int(self.world["tick"]) - 1
-        tail = self._tail_until > tick  # the net's state at this tick's start
-        if (self._sleeping or tail or 0 <= self._tail_until <= tick) and ball_far_from_box(
-                self.box, True, local.knot_radius, local.dt, ball_pos, ball_vel, ball_radius):
+        count = len(ball)
+        first = int(self.world["tick"]) - count
+        j = 0
+        while j < count:
+            tick = first + j
+            tail = self._tail_until > tick  # the net's state at this tick's start
+            if not ((self._sleeping or tail or 0 <= self._tail_until <= tick) and ball_far_from_box(
+                    self.box, True, local.knot_radius, local.dt, ball[j, 0], ball[j, 1], ball_radius)):
+                break
             if tail:  # a tick of the tail: counted free (NetSim.step with the ball far)
                 self.io.granted = tick + 1
                 self.free_ticks += 1
+            j += 1
+        if j == count:
             self._none[:] = 0.0
-            return NetContact(NO_CONTACT, self._none, self._none)
+            return count, NetContact(NO_CONTACT, self._none, self._none)
         started = time.perf_counter()
         row = self.io
         # `turn` odd while the fields are written, even once they all are (see net_worker): the
         # worker may wake on an earlier post at any moment and must never read half of them.
         row.turn = row.turn // 2 * 2 + 1
+        tick = first + j
         row.tick = tick
-        row.ball[0] = ball_pos
-        row.ball[1] = ball_vel
+        row.count = count - j
+        row.ball[:count - j] = ball[j:]
         row.radius = ball_radius
         row.inv_mass = ball_inv_mass
         row.turn += 1
         self.baton.give(tick)
         # The net may still be stepping free ticks, or restarting: stay alive and ask again (a
-        # new turn; net_io still holds the ball).
+        # new turn; net_io still holds the run).
         self.baton.wait_done_or_retry(tick, self.handoff_s, NET_GIVE_UP_S, self._ask_again)
         self._sleeping = bool(row.sleeping)
         self._tail_until = row.tail_until
         self.box[:] = row.box
         self.waits += time.perf_counter() - started
-        self.ball_ticks += 1
-        return NetContact(row.toi, row.impulse.copy(), row.offset.copy())
+        self.ball_ticks += row.taken
+        self.runs += 1
+        return j + row.taken, NetContact(row.toi, row.impulse.copy(), row.offset.copy())
 
     def _ask_again(self, tick: int) -> None:
         self.control.beat(tick)
