@@ -71,7 +71,8 @@ class RemoteNet:
         """NetSim.step_free: grant the net the ticks just done (the world's tick is past them) and go on."""
         if ticks > 0:
             self.io.granted = int(self.world["tick"])
-            self.baton.nudge()
+            if not self._sleeping:  # a sleeping net has nothing to step: it takes the grant at its next turn
+                self.baton.nudge()
             self.free_ticks += ticks
 
     def step_run(self, ball: np.ndarray, ball_radius: float, ball_inv_mass: float,
