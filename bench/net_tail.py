@@ -1,31 +1,35 @@
 """What the net's cheaper paths cost in accuracy and save in time: seeded strikes, the full float64 kernel against each.
 
 Each strike throws a ball into the default match's net (scenes/match.toml: 85 x 8 knots, the
-hanging net) at 5-60 m/s, into the middle, near a post, at the top cord and at the hem, and
-lets the net ring until it sleeps; some strikes send a second ball 3 s later, while the struck
-net is in its tail, towards the top of the net (over it or into it). Every strike runs with
-the full float64 kernel on every awake tick (NetSpec.tail_energy = 0, the reference) and with
-each cheaper path (paths()): the linear tail at each energy asked for; the float32 grid kernels
+hanging net) at 5-60 m/s, into the middle, near a post, at the top cord and at the hem, and lets
+the net ring until it sleeps; some strikes send a second ball 3 s later, while the struck net is
+in its tail, towards the top of the net (over it or into it). Every strike runs with the full
+float64 kernel on every awake tick (NetSpec.tail_energy = 0, the reference) and with each cheaper
+path (paths()): the linear tail at each energy asked for; the float32 grid kernels
 (NetSpec.kernel_precision, with and without kernel_fma) with the tail at the match's energy
-(NetSpec.tail_energy), and float32 with FMA without the tail (its rounding alone); and, as the
-yardstick of the model's own sensitivity, the float64 kernel with every knot's offset from the built grid
-scaled by 1 + NUDGE before the strike (float32's epsilon on the offsets float32 steps). It
-reports: the knots' largest distance from the reference's over the whole ring of the strike
-(sampled every SAMPLE_TICKS ticks, up to a second ball), the second ball's outcome (over the net
-or not, its speed after the net, where it comes down to the playing surface's height), the tick
-each net falls asleep, the ticks it spent awake and in its tail, and the CPU time per strike (a
-run of its own without reading the knots, which would rebuild the tail's state). The budget:
-50 um for the knots (a tenth of a knot's radius, net_kernel.sim.KNOT_RADIUS), 1 % for the
-rebound speed and 1 mm for the landing point of the second ball. The knots after a second ball
-are reported, not budgeted: a struck net amplifies any difference of its state about
-ten-million-fold within 0.3 s (float64 against itself with every knot moved by 1 nm differs by
-millimetres after a 20 m/s ball, tests/net_kernel/test_grid32.py), so what a second ball can be
-held to is its outcome. A path that steps the whole strike differently (float32) meets the same
-amplification from the first tick: its knot error is shown beside the nudged float64's on the
-same strike (the worst ratio of the two), which says whether it is rounding or a defect.
+(NetSpec.tail_energy), and float32 with FMA without the tail (its rounding alone); and two
+yardsticks of the model's own sensitivity to float32's epsilon, the float64 kernel without the
+tail with every knot's offset from the built grid scaled by 1 + NUDGE once before the strike (the
+state rounded once), and with the mesh's, top cord's and hem's tensions scaled by 1 + NUDGE (the
+net's constants rounded: another net for the whole ring, as float32's rounded spring constants
+make one). It reports: the knots' largest distance from the reference's over the whole ring of the
+strike (sampled every SAMPLE_TICKS ticks, up to a second ball), the second ball's outcome (over
+the net or not, its speed after the net, where it comes down to the playing surface's height), the
+tick each net falls asleep, the ticks it spent awake and in its tail, and the CPU time per strike
+(a run of its own without reading the knots, which would rebuild the tail's state). The budget:
+50 um for the knots (a tenth of a knot's radius, net_kernel.sim.KNOT_RADIUS), 1 % for the rebound
+speed and 1 mm for the landing point of the second ball. The knots after a second ball are
+reported, not budgeted: a struck net amplifies any difference of its state about ten-million-fold
+within 0.3 s (float64 against itself with every knot moved by 1 nm differs by millimetres after a
+20 m/s ball, tests/net_kernel/test_grid32.py), so what a second ball can be held to is its
+outcome. A path that steps the whole strike differently (float32) meets the same amplification
+from the first tick: its knot error is shown against each yardstick's on the same strike (the
+worst ratio over the strikes it misses the budget on), which says whether it is rounding or a
+defect.
 
     pingpong bench net-tail [--quick] [--json]
-    python -m bench.net_tail [--quick] [--energies 20e-6,30e-6,40e-6,50e-6] [--no-float32] [--json] [--readme docs/accuracy.md]
+    python -m bench.net_tail [--quick] [--energies 20e-6,30e-6,40e-6,50e-6] [--no-float32] [--json]
+                             [--readme docs/accuracy.md]
 """
 from __future__ import annotations
 
@@ -55,7 +59,8 @@ ENERGIES = (20e-6, 30e-6, 40e-6, 50e-6)
 BUDGET_M = 50e-6
 BUDGET_SPEED = 0.01
 BUDGET_LANDING_M = 1e-3
-NUDGE = 1e-7  # relative: float32's epsilon (1.19e-7), rounded, on the offsets from the built grid it steps
+NUDGE = 1e-7  # relative: float32's epsilon (1.19e-7), rounded
+TENSIONS = ("mesh_tension", "cord_tension", "hem_tension")  # NetSpec's prestress, scaled by the tension yardstick
 
 
 def strikes(quick: bool = False, seed: int = 0) -> list[dict]:
@@ -89,27 +94,33 @@ def _landing(pos: np.ndarray, vel: np.ndarray) -> np.ndarray:
 
 
 def paths(energies, tail_energy: float, float32: bool = True) -> list[dict]:
-    """The cheaper paths, each a NetSpec's kernel options and a nudge: the float64 tail at each of
+    """The cheaper paths, each a NetSpec's kernel options and tail energy, and the relative nudges
+    of the knots' offsets (nudge) and of the tensions (tension_nudge): the float64 tail at each of
     `energies`; with `float32`, the float32 kernels with the tail at `tail_energy` (without and
-    with FMA), float32 with FMA without the tail, and float64 without the tail, nudged (NUDGE)."""
+    with FMA), float32 with FMA without the tail, and the two yardsticks, float64 without the
+    tail, its knots or its tensions nudged by NUDGE."""
+    plain = {"nudge": 0.0, "tension_nudge": 0.0}
     out = [{"path": f"float64, tail {e * 1e6:g} uJ", "kernel_precision": FLOAT64, "kernel_fma": False,
-            "tail_energy_J": e, "nudge": 0.0} for e in energies]
+            "tail_energy_J": e, **plain} for e in energies]
     if float32:
         out += [{"path": f"float32, tail {tail_energy * 1e6:g} uJ", "kernel_precision": FLOAT32, "kernel_fma": False,
-                 "tail_energy_J": tail_energy, "nudge": 0.0},
+                 "tail_energy_J": tail_energy, **plain},
                 {"path": f"float32 + FMA, tail {tail_energy * 1e6:g} uJ", "kernel_precision": FLOAT32,
-                 "kernel_fma": True, "tail_energy_J": tail_energy, "nudge": 0.0},
+                 "kernel_fma": True, "tail_energy_J": tail_energy, **plain},
                 {"path": "float32 + FMA, no tail", "kernel_precision": FLOAT32, "kernel_fma": True,
-                 "tail_energy_J": 0.0, "nudge": 0.0},
-                {"path": f"float64 nudged {NUDGE:g}, no tail", "kernel_precision": FLOAT64, "kernel_fma": False,
-                 "tail_energy_J": 0.0, "nudge": NUDGE}]
+                 "tail_energy_J": 0.0, **plain},
+                {"path": f"float64, knots nudged {NUDGE:g}, no tail", "kernel_precision": FLOAT64, "kernel_fma": False,
+                 "tail_energy_J": 0.0, "nudge": NUDGE, "tension_nudge": 0.0},
+                {"path": f"float64, tensions nudged {NUDGE:g}, no tail", "kernel_precision": FLOAT64,
+                 "kernel_fma": False, "tail_energy_J": 0.0, "nudge": 0.0, "tension_nudge": NUDGE}]
     return out
 
 
 def _path_spec(cloth: NetSpec, path: dict) -> NetSpec:
-    """The net of `path`: the match's cloth with its kernel options and tail energy."""
+    """The net of `path`: the match's cloth with its kernel options, tail energy and tensions."""
+    tensions = {name: getattr(cloth, name) * (1.0 + path["tension_nudge"]) for name in TENSIONS}
     return dataclasses.replace(cloth, tail_energy=path["tail_energy_J"], kernel_precision=path["kernel_precision"],
-                               kernel_fma=path["kernel_fma"])
+                               kernel_fma=path["kernel_fma"], **tensions)
 
 
 def run_strike(topo, shot: dict, trace: bool, nudge: float = 0.0) -> dict:
@@ -218,21 +229,26 @@ def study(quick: bool = False, energies=ENERGIES, progress=None, float32: bool =
             "rows": rows, "summary": summarise(rows, chosen)}
 
 
-def _over_nudge(mine: list[dict], nudged: list[dict]) -> float | None:
-    """The largest ratio of a path's knot error to the nudged float64's on the same strike, over
-    the strikes the path misses the budget on (None: it misses none, or there is no nudged run)."""
-    by_strike = {r["strike"]: r["knot_error_m"] for r in nudged}
+def _yardstick(path: dict) -> bool:
+    """Is `path` a yardstick (float64 nudged by NUDGE), not a cheaper path?"""
+    return path["nudge"] > 0 or path["tension_nudge"] > 0
+
+
+def _over(mine: list[dict], yardstick: list[dict]) -> float | None:
+    """The largest ratio of a path's knot error to a yardstick's on the same strike, over the
+    strikes the path misses the budget on (None: it misses none)."""
+    by_strike = {r["strike"]: r["knot_error_m"] for r in yardstick}
     ratios = [r["knot_error_m"] / max(by_strike[r["strike"]], 1e-12) for r in mine
               if r["knot_error_m"] > BUDGET_M and r["strike"] in by_strike]
     return max(ratios, default=None)
 
 
 def summarise(rows: list[dict], chosen: list[dict]) -> list[dict]:
-    """Per path: the worst knot error (and its strike), against the nudged float64's, the second
+    """Per path: the worst knot error (and its strike), against each yardstick's, the second
     balls' worst errors, the share of awake ticks and of CPU against the reference, the sleep
     tick's shift, whether it keeps every budget."""
     out = []
-    nudged = [r for r in rows if r["nudge"] > 0]
+    yardsticks = [p["path"] for p in chosen if _yardstick(p)]
     for path in chosen:
         mine = [r for r in rows if r["path"] == path["path"]]
         balls = [r["second_ball"] for r in mine if "second_ball" in r]
@@ -245,7 +261,8 @@ def summarise(rows: list[dict], chosen: list[dict]) -> list[dict]:
         later = [r["sleep_tick"] - r["reference_sleep_tick"] for r in mine]
         out.append({**path, "strikes": len(mine), "worst_knot_error_m": worst,
                     "worst_knot_error_strike": f"{worst_row['speed_m_s']:g} m/s at the {worst_row['point']}",
-                    "worst_over_nudged": None if path["nudge"] else _over_nudge(mine, nudged),
+                    "worst_over_yardsticks": {y: _over(mine, [r for r in rows if r["path"] == y])
+                                              for y in yardsticks if not _yardstick(path)},
                     "second_balls": len(balls), "second_same_side": same, "worst_speed_error": speed,
                     "worst_landing_error_m": landing, "worst_knot_error_after_second_m": after,
                     "awake_share": sum(r["awake_ticks"] for r in mine) / sum(r["reference_awake_ticks"] for r in mine),
@@ -259,12 +276,12 @@ def summarise(rows: list[dict], chosen: list[dict]) -> list[dict]:
 
 def markdown(result: dict) -> str:
     """The summary as a Markdown table."""
-    lines = ["| path | strikes | worst knot error over the ring | over budget: x the nudged float64's "
+    lines = ["| path | strikes | worst knot error over the ring | over budget: x the knots' / tensions' nudge "
              "| second balls: same side, speed, landing | knots after a second ball | awake ticks | CPU "
              "| sleeps later: median (range) | within budget |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     for s in result["summary"]:
-        ratio = "-" if s["worst_over_nudged"] is None else f"{s['worst_over_nudged']:.2g}"
+        ratio = " / ".join("-" if r is None else f"{r:.2g}" for r in s["worst_over_yardsticks"].values()) or "-"
         low, high = (t * DT for t in s["sleep_later_ticks_range"])
         lines.append(f"| {s['path']} | {s['strikes']} | {s['worst_knot_error_m'] * 1e6:.1f} um "
                      f"({s['worst_knot_error_strike']}) | {ratio} | "
@@ -283,13 +300,14 @@ def text(result: dict) -> str:
             f"strikes on the {result['net']} net of scenes/match.toml (5-60 m/s into the middle, near a post, the top "
             f"cord and the hem; second balls 3 s later towards the top of the net), the full float64 kernel against "
             f"each path: the linear tail at each energy, the float32 kernels (NetSpec.kernel_precision, with and "
-            f"without kernel_fma) with the tail and without it, and float64 with every knot's offset from the built "
-            f"grid scaled by 1 + {result['nudge']:g} (float32's epsilon: the model's own sensitivity); knots compared "
+            f"without kernel_fma) with the tail and without it, and two yardsticks of the model's own sensitivity to "
+            f"float32's epsilon, float64 with every knot's offset from the built grid, or with the mesh's, cord's and "
+            f"hem's tensions, scaled by 1 + {result['nudge']:g}; knots compared "
             f"every {result['sample_ticks']} ms over each strike's ring. Budget: 50 um for the knots, 1 % for a "
             f"second ball's speed after the net, 1 mm for where it comes down; the knots after a second ball are "
             f"shown, not budgeted (a struck net amplifies any difference of its state some ten-million-fold within "
-            f"0.3 s, bench/net_tail.py), and a strike's knot error over budget is shown against the nudged "
-            f"float64's on the same strike (the worst ratio); CPU is the net's alone, each path's against the full "
+            f"0.3 s, bench/net_tail.py), and a strike's knot error over budget is shown against each "
+            f"yardstick's on the same strike (the worst ratio); CPU is the net's alone, each path's against the full "
             f"float64 kernel's in the same run.\n\n"
             + markdown(result))
 
@@ -298,7 +316,7 @@ def _arguments(parser) -> None:
     parser.add_argument("--energies", default=",".join(f"{e:g}" for e in ENERGIES),
                         help="tail energies (J) of the float64 paths, comma-separated")
     parser.add_argument("--no-float32", action="store_true",
-                        help="only the float64 tail paths (no float32 kernels, no nudged float64)")
+                        help="only the float64 tail paths (no float32 kernels, no yardsticks)")
 
 
 def _run(args, progress=None) -> dict:

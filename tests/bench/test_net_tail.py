@@ -18,7 +18,8 @@ def test_the_quick_study_keeps_the_tail_budget_and_reports_every_strike_on_every
     assert [s["path"] for s in result["summary"]] == [p["path"] for p in chosen]
     assert {(p["kernel_precision"], p["kernel_fma"], p["tail_energy_J"], p["nudge"]) for p in chosen} >= {
         ("float32", False, tail_energy, 0.0), ("float32", True, tail_energy, 0.0), ("float32", True, 0.0, 0.0),
-        ("float64", False, 0.0, NUDGE)}  # the float32 paths at the default tail, without it, and the nudged float64
+        ("float64", False, 0.0, NUDGE)}  # the float32 paths at the default tail, without it, and a nudged float64
+    assert {(p["nudge"], p["tension_nudge"]) for p in chosen} == {(0.0, 0.0), (NUDGE, 0.0), (0.0, NUDGE)}
     assert len(result["rows"]) == len(chosen) * 2  # the quick set: 10 and 30 m/s into the middle, each with a second ball
     for row in result["rows"]:
         if row["tail_energy_J"] > 0:  # the tail holds the ring, on float64 and float32 kernels alike
@@ -29,4 +30,4 @@ def test_the_quick_study_keeps_the_tail_budget_and_reports_every_strike_on_every
     default = next(s for s in result["summary"] if s["path"] == f"float64, tail {tail_energy * 1e6:g} uJ")
     # the default's promise (NetSpec.tail_energy): within 50 um of the full kernel, a tenth of a knot's radius
     assert default["worst_knot_error_m"] <= 50e-6 and default["within_budget"]
-    assert default["worst_over_nudged"] is None  # nothing over budget, nothing to set against the nudge
+    assert set(default["worst_over_yardsticks"].values()) == {None}  # nothing over budget: nothing to compare
