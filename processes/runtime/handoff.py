@@ -122,6 +122,11 @@ class Baton:
         self._go.release()
 
     # worker side
+    @property
+    def stopped(self) -> bool:
+        """Told to stop: also seen by a worker restarted after the stop's wake-up went to the one it replaces."""
+        return self._words[1] == STOP
+
     def wait_turn(self, timeout: float) -> int | None:
         """The tick to do, None when told to stop; raises HandoffTimeout after `timeout` s."""
         if not _acquire(self._go, timeout):

@@ -135,8 +135,12 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
             try:
                 stop = baton.wait_turn(Control.HEARTBEAT_S) is None
             except HandoffTimeout:
-                control.beat(net_tick)  # a sleeping net: still alive, still listening
-                continue
+                # A sleeping net: still alive, still listening; or restarted after the physics said
+                # stop (the worker it replaces died stepping the last free ticks): finish them.
+                stop = baton.stopped
+                if not stop:
+                    control.beat(net_tick)
+                    continue
             t0 = time.perf_counter()
             # First the free ticks granted so far (a nudge, or the ones before a ball tick).
             free_from = net_tick

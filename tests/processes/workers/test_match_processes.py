@@ -92,6 +92,15 @@ def test_net_worker_killed_in_its_linear_tail_resumes_and_stays_exact(no_leftove
     assert first_difference(killed.trace, trace) is None
 
 
+def test_net_worker_killed_stepping_its_last_tail_ticks_is_restarted_and_stops(no_leftovers):
+    # The physics grants a tail's ticks and wakes the net worker only every TAIL_NUDGE_TICKS, so
+    # the worker steps the last of them when told to stop, and is killed doing so: the worker
+    # that replaces it never gets that wake-up, reads the stop from the baton, and the run ends.
+    result = Supervisor(SCENE, TAIL_KILL, "lockstep", seed=2, crash_at_tick=TAIL_KILL - 1, crash_worker="net").run()
+    assert result.workers["net"]["restarts"] == 1
+    assert result.ticks == TAIL_KILL
+
+
 def test_ai_worker_killed_mid_match_is_restarted_and_the_match_goes_on(no_leftovers):
     # A restarted AI has lost its plan and its random state, so this run need not match the
     # reference; it must finish, with every worker accounted for.
