@@ -102,6 +102,18 @@ def tail_until(sim: NetSim, net_tick: int) -> int:
     return -1 if sim.tail is None else net_tick - sim.tail.ticks + sim.tail.sleep_at
 
 
+def _answer(sim: NetSim, row: NetIO, ball: np.ndarray, radius: float, inv_mass: float, watch: np.ndarray) -> int:
+    """Step a turn's run (NetSim.step_run) and write the answer into net_io; returns the ticks stepped."""
+    taken, contact = sim.step_run(ball, radius, inv_mass, watch)
+    row.taken = taken
+    row.toi = contact.toi
+    row.impulse[:] = contact.impulse
+    row.offset[:] = contact.offset
+    row.sleeping = int(sim.sleeping)
+    row.box[:] = sim.box
+    return taken
+
+
 def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
     """options: net_baton (processes.runtime.handoff.Baton); crash_at_tick, crash_kind (tests: end this process
     after publishing the state after the run that holds that tick and before saying it is done, the
@@ -198,13 +210,7 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
                 elif not sim.sleeping:
                     raise RuntimeError(f"net worker: asked for tick {tick} at tick {net_tick} while awake; the "
                                        "ticks between were neither granted free nor given")
-            taken, contact = sim.step_run(ball[:count], radius, inv_mass, watch)
-            row.taken = taken
-            row.toi = contact.toi
-            row.impulse[:] = contact.impulse
-            row.offset[:] = contact.offset
-            row.sleeping = int(sim.sleeping)
-            row.box[:] = sim.box
+            taken = _answer(sim, row, ball[:count], radius, inv_mass, watch)
             net_tick = tick + taken
             answered, answered_end = tick, net_tick
             row.tail_until = tail_until(sim, net_tick)
