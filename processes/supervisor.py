@@ -162,9 +162,11 @@ class Supervisor:
         worker.process = self._ctx.Process(
             target=worker_main, name=f"pingpong-{worker.kind}",
             args=(worker_target(worker.kind), child, self.arena.layout(), worker.index, self.scene, options))
-        worker.process.start()
-        child.close()
         worker.conn = parent
+        try:
+            worker.process.start()
+        finally:
+            child.close()
         worker.finished = False
 
     def _await_ready(self, worker: _Worker) -> None:
@@ -212,6 +214,10 @@ class Supervisor:
         terminate, kill."""
         process = worker.process
         if process is None:
+            return
+        if process.pid is None:  # never started (Process.start raised): nothing to stop
+            worker.conn.close()
+            worker.process = None
             return
         if process.is_alive():
             try:

@@ -147,3 +147,20 @@ def test_a_starting_worker_keeps_its_heartbeat_fresh_until_it_is_ready():
     row["state"] = WorkerState.READY  # ready: the thread stops beating and ends
     beater.join(timeout=DEADLINE_S)
     assert not beater.is_alive()
+
+
+def test_a_worker_that_cannot_be_started_fails_the_run_and_leaves_nothing_behind(no_leftovers, monkeypatch):
+    # The error that stopped the start is the one raised (not one of the clean-up's), every worker
+    # already started is stopped, and the run's segments are removed.
+    import multiprocessing.process
+
+    real_start = multiprocessing.process.BaseProcess.start
+
+    def start(process):
+        if process.name == "pingpong-net":
+            raise OSError("no process for the net worker (the test's)")
+        return real_start(process)
+
+    monkeypatch.setattr(multiprocessing.process.BaseProcess, "start", start)
+    with pytest.raises(OSError, match="no process for the net worker"):
+        Supervisor(load_scene("net"), 100, "lockstep").run()
