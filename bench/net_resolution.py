@@ -9,8 +9,8 @@ processes.workers.net): per 1 ms tick the ball flies straight under gravity, Net
 at the tick's start and the ball then takes the net's offset and impulse. No table, drag or spin:
 the same for every net, so the comparison sees only the net.
 
-Per net against the finest one: the outcome (over the cord, through the mesh, back, caught), the
-ball's velocity and position 150 ms after the shot (exit velocity, direction, where it is), the
+Per net against the finest one: the outcome (over the cord, through the mesh, under the bottom
+cord, back, caught), the ball's velocity and position 150 ms after the shot (exit velocity, direction, where it is), the
 first contact's duration and the net's largest bulge; the CPU time (the stepping thread's) per
 impact, per awake tick of the ringing net and per ring-down until the net sleeps; whether the ball
 can pass between knots (cell diagonal against 2 (ball radius + knot radius), and shots at 20-60 m/s
@@ -81,6 +81,8 @@ class Impact:
     vel: tuple
 
 
+OUTCOMES = ("over", "through", "under", "back", "caught")  # where a fired ball ends (run_impact)
+
 def impacts(n: int, seed: int = SEED, height: float = NetSpec().height) -> list[Impact]:
     """n seeded match-like impacts from x < 0 toward +x, the bands in turn."""
     rng = np.random.default_rng(seed)
@@ -133,6 +135,12 @@ def _cord_z(sim: NetSim, cols: int, rows: int, y: float) -> float:
     return float(np.interp(y, top[:, 1], top[:, 2]))
 
 
+def _under_hem(sim: NetSim, cols: int, p: np.ndarray) -> bool:
+    """Is the ball's centre p (m) below the bottom cord and in front of it (smaller x), at its y now?"""
+    hem = sim.knot_pos[:cols]
+    return p[2] < float(np.interp(p[1], hem[:, 1], hem[:, 2])) and p[0] < float(np.interp(p[1], hem[:, 1], hem[:, 0]))
+
+
 def run_impact(topo, imp: Impact, flight_s: float = FLIGHT_S) -> tuple[dict, NetSim]:
     """Fire one impact into a fresh net; returns its record and the net (awake or asleep) after it."""
     spec = topo.spec
@@ -143,6 +151,7 @@ def run_impact(topo, imp: Impact, flight_s: float = FLIGHT_S) -> tuple[dict, Net
     v = np.array(imp.vel, dtype=float)
     touched = []  # ticks with a contact
     crossings = []  # (z of the centre, z of the cord) each time the centre passes x = 0 going +x
+    under = False  # the ball, after a touch, was below the bottom cord and in front of it on the far side
     bulge = 0.0
     ticks = int(round(flight_s / DT))
     t0 = time.thread_time()
@@ -156,17 +165,20 @@ def run_impact(topo, imp: Impact, flight_s: float = FLIGHT_S) -> tuple[dict, Net
             touched.append(t)
         if p[0] < 0.0 <= p1[0]:
             crossings.append((float(p1[2]), _cord_z(sim, spec.cols, spec.rows, float(p1[1]))))
+        if touched and not under and p1[0] > 0.0 and _under_hem(sim, spec.cols, p1):
+            under = True  # caught, then out below the bottom cord that the bulge has swung up
         p, v = p1, v1
         bulge = max(bulge, float(np.max(np.abs(sim.knot_pos[:, 0]))))
     cpu = time.thread_time() - t0
     # Where the ball is at the end: clear of the net on its far side (over the cord or through the
-    # mesh, by where it last crossed the net's plane), back on its own side, or still in the net.
+    # mesh, by where it last crossed the net's plane, or under the bottom cord, which a deep bulge
+    # swings up and back: a caught ball can drop out below it), back on its own side, or still in the net.
     gap = float(np.min(np.linalg.norm(sim.knot_pos - p, axis=1))) - radius - KNOT_RADIUS
     if p[0] < 0.0 and (gap > 0.005 or v[0] < 0.0):
         outcome = "back"
     elif p[0] > 0.0 and gap > 0.005 and crossings:
         z_ball, z_cord = crossings[-1]
-        outcome = "over" if z_ball >= z_cord else "through"
+        outcome = "over" if z_ball >= z_cord else "under" if under else "through"
     else:
         outcome = "caught"
     # The first contact: from the first touching tick until CONTACT_GAP ticks pass without one; a
@@ -304,7 +316,7 @@ def study(quick: bool = False, sizes=None, n_impacts: int | None = None, progres
             "ring_down_s": statistics.median(r["sim_s"] for r in rings) if rings else None,
             "ring_down_cpu_s": statistics.median(r["cpu_s"] for r in rings) if rings else None,
             "ring_downs_slept": all(r["slept"] for r in rings),
-            "outcomes": {o: sum(r["outcome"] == o for r in runs) for o in ("over", "through", "back", "caught")},
+            "outcomes": {o: sum(r["outcome"] == o for r in runs) for o in OUTCOMES},
             "retouched": sum(r["retouched"] for r in runs),
         }
         rows.append(row)
@@ -380,7 +392,7 @@ def _se(e: dict) -> str:
 
 def markdown_table(result: dict) -> str:
     """The per-net table (errors against the reference, costs) as Markdown."""
-    head = ("| net | knots | substeps | cell mm (diag) | ball fits through | outcomes over/through/back/caught | "
+    head = ("| net | knots | substeps | cell mm (diag) | ball fits through | outcomes over/through/under/back/caught | "
             "outcome changes | stress shots through | exit speed bias m/s (SE) | exit v error m/s median / p90 / max | "
             "direction error deg median / max | "
             "position error at 150 ms mm median | first contact ms mean diff | bulge mm mean diff | "
@@ -396,7 +408,7 @@ def markdown_table(result: dict) -> str:
         lines.append(
             f"| {row['cols']}x{row['rows']} | {row['knots']} | {row['substeps']} | "
             f"{g['a_mm']:.1f} x {g['b_mm']:.1f} ({g['diagonal_mm']:.0f}) | {'yes' if g['ball_fits_through'] else 'no'} | "
-            f"{o['over']}/{o['through']}/{o['back']}/{o['caught']} | {e['outcome_changes']} | "
+            f"{o['over']}/{o['through']}/{o['under']}/{o['back']}/{o['caught']} | {e['outcome_changes']} | "
             f"{row['stress_through']}/{len(row['stress'])} | {e['speed_bias_mean']:+.2f} ({_se(e)}) | "
             f"{e['exit_velocity_error_median']:.3f} / {e['exit_velocity_error_p90']:.3f} / "
             f"{e['exit_velocity_error_max']:.3f} | {e['direction_error_deg_median']:.1f} / "
