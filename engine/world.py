@@ -369,8 +369,8 @@ def _advance_kernel(model: Model, state: State, n_max: int, inputs: np.ndarray |
 def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, h: float, gone_radius: float,
                         gone_z: float, deadline: float) -> tuple[int, int, int]:
     """advance() with a cloth net: the ball's ticks by the kernel, and near the net (or while the
-    net is awake) tick by tick, each followed by the net's step with the ball's contact
-    (net_kernel.NetSim.step: the net moves the ball by `offset` and gives it `impulse`). The net
+    net is awake) a tick at a time in runs, the net stepping each with the ball's contact
+    (net_kernel.NetSim.step_run: the net moves the ball by `offset` and gives it `impulse`). The net
     cannot press the ball into the table, and a bat that presses the ball into the net is stopped
     by it (the bats do not collide with the cloth itself; _bats_pressing, _stop_bat).
 
@@ -379,8 +379,9 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
     there, so a worker's net may do them while the physics goes on. Near the net it steps runs of
     ticks (_run_near_net) and returns after every run the net was stepped with the ball (STOP_NET,
     unless another reason): a caller that publishes its state after each call then always has a
-    state the net's agrees with, which a restarted net or physics worker resumes from exactly. `state.net_sim` is a NetSim, or a stand-in with
-    its contract (NetStepper: the physics worker's, which asks the net worker).
+    state the net's agrees with, which a restarted net or physics worker resumes from exactly.
+    `state.net_sim` is a NetSim, or a stand-in with its contract (NetStepper: the physics
+    worker's, which asks the net worker).
     """
     net: NetStepper = state.net_sim
     y = state.ball_flat
