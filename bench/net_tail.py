@@ -59,6 +59,11 @@ ENERGIES = (20e-6, 30e-6, 40e-6, 50e-6)
 BUDGET_M = 50e-6
 BUDGET_SPEED = 0.01
 BUDGET_LANDING_M = 1e-3
+# The high-precision reference: the float64 kernel without the tail at this many times the stability
+# bound's substeps (and its contact substeps at least). The scheme is of first order in the substep
+# (semi-implicit Euler, and the contact split from the springs: net_kernel.sim.CONTACT_TRAVEL), so
+# the float64 reference's own distance from it shows what the scheme itself is worth.
+HIGH_SUBSTEPS = 4
 NUDGE = 1e-7  # relative: float32's epsilon (1.19e-7), rounded
 TENSIONS = ("mesh_tension", "cord_tension", "hem_tension")  # NetSpec's prestress, scaled by the tension yardstick
 
@@ -123,11 +128,14 @@ def _path_spec(cloth: NetSpec, path: dict) -> NetSpec:
                                kernel_fma=path["kernel_fma"], **tensions)
 
 
-def run_strike(topo, shot: dict, trace: bool, nudge: float = 0.0) -> dict:
+def run_strike(topo, shot: dict, trace: bool, nudge: float = 0.0, substeps_factor: int = 1) -> dict:
     """One strike on a net built from `topo`: its sleep tick, ticks awake and in the tail, CPU
     seconds, the second ball's outcome, and with `trace` the sampled knot positions; `nudge`
-    scales every free knot's offset from the built grid by 1 + nudge before the strike."""
+    scales every free knot's offset from the built grid by 1 + nudge before the strike;
+    substeps_factor multiplies the stability bound's substeps."""
     sim = NetSim(topo, DT)
+    if substeps_factor != 1:
+        sim = NetSim(topo, DT, substeps=sim.substeps * substeps_factor)
     if nudge:
         free = topo.knot_inv_mass > 0
         sim.knot_pos[free] = topo.knot_pos[free] + (sim.knot_pos[free] - topo.knot_pos[free]) * (1.0 + nudge)
@@ -208,25 +216,60 @@ def study(quick: bool = False, energies=ENERGIES, progress=None, float32: bool =
             progress(f"{shot['speed']:g} m/s at the {shot['point']}")
         ref_timed = run_strike(reference_topo, shot, False)
         ref = run_strike(reference_topo, shot, True)
+        high = run_strike(reference_topo, shot, True, substeps_factor=HIGH_SUBSTEPS)
+        end = SECOND_BALL_TICK if "second" in shot else MAX_TICKS
+        against_high = {"reference_high_knot_error_m": _error(high, ref, 0, end)}
+        if high["second"] is not None:
+            against_high["reference_high_second"] = _outcome_error(high["second"], ref["second"])
         for path, topo in zip(chosen, topos):
             timed = run_strike(topo, shot, False, path["nudge"])
             traced = run_strike(topo, shot, True, path["nudge"])
             row = {**path, "strike": index, "point": shot["point"], "speed_m_s": shot["speed"],
-                   "knot_error_m": _error(ref, traced, 0, SECOND_BALL_TICK if "second" in shot else MAX_TICKS),
+                   "knot_error_m": _error(ref, traced, 0, end), "high_knot_error_m": _error(high, traced, 0, end),
+                   **against_high,
                    "sleep_tick": timed["sleep_tick"],
                    "reference_sleep_tick": ref_timed["sleep_tick"], "awake_ticks": timed["awake_ticks"],
                    "tail_ticks": timed["tail_ticks"], "reference_awake_ticks": ref_timed["awake_ticks"],
                    "cpu_s": timed["cpu_s"], "reference_cpu_s": ref_timed["cpu_s"]}
             if ref["second"] is not None:
-                a, b = ref["second"], traced["second"]
-                row["second_ball"] = {
-                    "knot_error_m": _error(ref, traced, SECOND_BALL_TICK),
-                    "over": a["over"], "same_side": b is not None and a["over"] == b["over"],
-                    "speed_error": abs(b["speed"] - a["speed"]) / a["speed"] if b else math.inf,
-                    "landing_error_m": float(np.hypot(*np.subtract(b["landing"], a["landing"]))) if b else math.inf}
+                row["second_ball"] = {"knot_error_m": _error(ref, traced, SECOND_BALL_TICK), "over": ref["second"]["over"],
+                                      **_outcome_error(ref["second"], traced["second"])}
+            if high["second"] is not None:
+                row["high_second"] = _outcome_error(high["second"], traced["second"])
             rows.append(row)
     return {"net": f"{cloth.cols} x {cloth.rows}", "dt_s": DT, "sample_ticks": SAMPLE_TICKS, "nudge": NUDGE,
-            "rows": rows, "summary": summarise(rows, chosen)}
+            "rows": rows, "summary": summarise(rows, chosen), "reference_against_high": reference_against_high(rows)}
+
+
+def _outcome_error(a: dict, b: dict | None) -> dict:
+    """How far second ball b's outcome lies from a's: the same side of the net, the relative speed
+    difference, the landing points' distance (m); b None (it never left the net) misses them all."""
+    return {"same_side": b is not None and a["over"] == b["over"],
+            "speed_error": abs(b["speed"] - a["speed"]) / a["speed"] if b else math.inf,
+            "landing_error_m": float(np.hypot(*np.subtract(b["landing"], a["landing"]))) if b else math.inf}
+
+
+def _against_high(rows: list[dict], prefix: str) -> dict:
+    """Worst and median knot error and worst second-ball errors of `rows` against the
+    high-precision reference (prefix "": the path's own; "reference_": the float64 reference's)."""
+    knots = [r[f"{prefix}high_knot_error_m"] for r in rows]
+    balls = [r[f"{prefix}high_second"] for r in rows if f"{prefix}high_second" in r]
+    return {"worst_knot_error_m": max(knots), "median_knot_error_m": float(np.median(knots)),
+            "second_same_side": all(b["same_side"] for b in balls),
+            "worst_speed_error": max((b["speed_error"] for b in balls), default=0.0),
+            "worst_landing_error_m": max((b["landing_error_m"] for b in balls), default=0.0)}
+
+
+def _as_accurate(mine: dict, bounds: list[dict]) -> bool:
+    """Is a path's error against the high-precision reference (an _against_high dict) no larger than
+    the float64 reference's own or a yardstick's (`bounds`; the second ball within the outcome
+    budget of theirs), and does its second ball keep the side wherever theirs does?"""
+    return bool(mine["worst_knot_error_m"] <= max(b["worst_knot_error_m"] for b in bounds)
+                and mine["median_knot_error_m"] <= max(b["median_knot_error_m"] for b in bounds)
+                and (mine["second_same_side"] or not all(b["second_same_side"] for b in bounds))
+                and mine["worst_speed_error"] <= max(b["worst_speed_error"] for b in bounds) + BUDGET_SPEED
+                and mine["worst_landing_error_m"] <= max(b["worst_landing_error_m"] for b in bounds)
+                + BUDGET_LANDING_M)
 
 
 def _yardstick(path: dict) -> bool:
@@ -249,6 +292,9 @@ def summarise(rows: list[dict], chosen: list[dict]) -> list[dict]:
     tick's shift, whether it keeps every budget."""
     out = []
     yardsticks = [p["path"] for p in chosen if _yardstick(p)]
+    first = [r for r in rows if r["path"] == chosen[0]["path"]]  # every path's rows carry the reference's errors
+    bounds = [_against_high(first, "reference_")] + [_against_high([r for r in rows if r["path"] == y], "")
+                                                     for y in yardsticks]
     for path in chosen:
         mine = [r for r in rows if r["path"] == path["path"]]
         balls = [r["second_ball"] for r in mine if "second_ball" in r]
@@ -259,6 +305,7 @@ def summarise(rows: list[dict], chosen: list[dict]) -> list[dict]:
         same = all(b["same_side"] for b in balls)
         after = max((b["knot_error_m"] for b in balls), default=0.0)
         later = [r["sleep_tick"] - r["reference_sleep_tick"] for r in mine]
+        high = _against_high(mine, "")
         out.append({**path, "strikes": len(mine), "worst_knot_error_m": worst,
                     "worst_knot_error_strike": f"{worst_row['speed_m_s']:g} m/s at the {worst_row['point']}",
                     "worst_over_yardsticks": {y: _over(mine, [r for r in rows if r["path"] == y])
@@ -270,8 +317,14 @@ def summarise(rows: list[dict], chosen: list[dict]) -> list[dict]:
                     "sleep_later_ticks_median": float(np.median(later)),
                     "sleep_later_ticks_range": [min(later), max(later)],
                     "within_budget": bool(worst <= BUDGET_M and same and speed <= BUDGET_SPEED
-                                          and landing <= BUDGET_LANDING_M)})
+                                          and landing <= BUDGET_LANDING_M),
+                    "against_high": high, "as_accurate": _as_accurate(high, bounds)})
     return out
+
+
+def reference_against_high(rows: list[dict]) -> dict:
+    """The float64 reference's own errors against the high-precision reference (_against_high)."""
+    return _against_high([r for r in rows if r["path"] == rows[0]["path"]], "reference_")
 
 
 def markdown(result: dict) -> str:
@@ -291,6 +344,15 @@ def markdown(result: dict) -> str:
                      f"{s['awake_share'] * 100:.0f} % | {s['cpu_share'] * 100:.0f} % | "
                      f"{s['sleep_later_ticks_median'] * DT:.2f} s ({low:.2f} to {high:.2f}) | "
                      f"{'yes' if s['within_budget'] else 'no'} |")
+    lines += ["", f"Against the high-precision reference (float64 at {HIGH_SUBSTEPS}x the substeps, no tail):", "",
+              "| path | worst (median) knot error over the ring | second balls: same side, worst speed, worst landing "
+              "| as accurate as float64 |", "|---|---|---|---|"]
+    rows = [("float64, full kernel (the reference)", result["reference_against_high"], None)]
+    rows += [(s["path"], s["against_high"], s["as_accurate"]) for s in result["summary"]]
+    for name, high, verdict in rows:
+        lines.append(f"| {name} | {high['worst_knot_error_m'] * 1e3:.2f} mm ({high['median_knot_error_m'] * 1e3:.2f} mm) "
+                     f"| {'yes' if high['second_same_side'] else 'NO'}, {high['worst_speed_error'] * 100:.2f} %, "
+                     f"{high['worst_landing_error_m'] * 1e3:.1f} mm | {'-' if verdict is None else 'yes' if verdict else 'no'} |")
     return "\n".join(lines)
 
 
@@ -308,7 +370,11 @@ def text(result: dict) -> str:
             f"shown, not budgeted (a struck net amplifies any difference of its state some ten-million-fold within "
             f"0.3 s, bench/net_tail.py), and a strike's knot error over budget is shown against each "
             f"yardstick's on the same strike (the worst ratio); CPU is the net's alone, each path's against the full "
-            f"float64 kernel's in the same run.\n\n"
+            f"float64 kernel's in the same run. Then every path, and the float64 reference itself, against a "
+            f"high-precision reference, the float64 kernel at {HIGH_SUBSTEPS}x the substeps without the tail: a path is "
+            f"as accurate as float64 when its worst and median knot errors against it are no larger than the float64 "
+            f"reference's or a yardstick's, and its second balls keep their side and come within the outcome "
+            f"budget of theirs.\n\n"
             + markdown(result))
 
 

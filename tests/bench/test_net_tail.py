@@ -31,3 +31,10 @@ def test_the_quick_study_keeps_the_tail_budget_and_reports_every_strike_on_every
     # the default's promise (NetSpec.tail_energy): within 50 um of the full kernel, a tenth of a knot's radius
     assert default["worst_knot_error_m"] <= 50e-6 and default["within_budget"]
     assert set(default["worst_over_yardsticks"].values()) == {None}  # nothing over budget: nothing to compare
+    reference = result["reference_against_high"]
+    for s in result["summary"]:  # every path and the reference, against the float64 kernel at 4x the substeps
+        assert s["against_high"]["worst_knot_error_m"] >= s["against_high"]["median_knot_error_m"] > 0
+    assert reference["worst_knot_error_m"] > 0 and reference["second_same_side"]
+    # A path that steps the ring as the reference does, to the switch, errs as it does against the finer scheme.
+    tail = next(s for s in result["summary"] if s["path"] == f"float64, tail {tail_energy * 1e6:g} uJ")["against_high"]
+    assert abs(tail["worst_knot_error_m"] - reference["worst_knot_error_m"]) <= 50e-6  # the tail's budget (above)
