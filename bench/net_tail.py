@@ -64,6 +64,10 @@ BUDGET_LANDING_M = 1e-3
 # (semi-implicit Euler, and the contact split from the springs: net_kernel.sim.CONTACT_TRAVEL), so
 # the float64 reference's own distance from it shows what the scheme itself is worth.
 HIGH_SUBSTEPS = 4
+# A cheaper path is as accurate as float64 when its knot errors against the high-precision reference
+# exceed float64's own (or a yardstick's) by at most this share: a chosen bound, a tenth of what the
+# scheme itself already misses by, so what a path adds stays small beside what the substep costs.
+ACCURACY_SLACK = 0.1
 NUDGE = 1e-7  # relative: float32's epsilon (1.19e-7), rounded
 TENSIONS = ("mesh_tension", "cord_tension", "hem_tension")  # NetSpec's prestress, scaled by the tension yardstick
 
@@ -261,11 +265,12 @@ def _against_high(rows: list[dict], prefix: str) -> dict:
 
 
 def _as_accurate(mine: dict, bounds: list[dict]) -> bool:
-    """Is a path's error against the high-precision reference (an _against_high dict) no larger than
-    the float64 reference's own or a yardstick's (`bounds`; the second ball within the outcome
-    budget of theirs), and does its second ball keep the side wherever theirs does?"""
-    return bool(mine["worst_knot_error_m"] <= max(b["worst_knot_error_m"] for b in bounds)
-                and mine["median_knot_error_m"] <= max(b["median_knot_error_m"] for b in bounds)
+    """Is a path's knot error against the high-precision reference (an _against_high dict) within
+    ACCURACY_SLACK of the float64 reference's own or a yardstick's (`bounds`), its second balls
+    within the outcome budget of theirs, keeping the side wherever theirs do?"""
+    slack = 1.0 + ACCURACY_SLACK
+    return bool(mine["worst_knot_error_m"] <= slack * max(b["worst_knot_error_m"] for b in bounds)
+                and mine["median_knot_error_m"] <= slack * max(b["median_knot_error_m"] for b in bounds)
                 and (mine["second_same_side"] or not all(b["second_same_side"] for b in bounds))
                 and mine["worst_speed_error"] <= max(b["worst_speed_error"] for b in bounds) + BUDGET_SPEED
                 and mine["worst_landing_error_m"] <= max(b["worst_landing_error_m"] for b in bounds)
@@ -372,9 +377,9 @@ def text(result: dict) -> str:
             f"yardstick's on the same strike (the worst ratio); CPU is the net's alone, each path's against the full "
             f"float64 kernel's in the same run. Then every path, and the float64 reference itself, against a "
             f"high-precision reference, the float64 kernel at {HIGH_SUBSTEPS}x the substeps without the tail: a path is "
-            f"as accurate as float64 when its worst and median knot errors against it are no larger than the float64 "
-            f"reference's or a yardstick's, and its second balls keep their side and come within the outcome "
-            f"budget of theirs.\n\n"
+            f"as accurate as float64 when its worst and median knot errors against it exceed the float64 "
+            f"reference's or a yardstick's by at most {ACCURACY_SLACK:.0%}, and its "
+            f"second balls keep their side and come within the outcome budget of theirs.\n\n"
             + markdown(result))
 
 
