@@ -297,9 +297,8 @@ def summarise(rows: list[dict], chosen: list[dict]) -> list[dict]:
     tick's shift, whether it keeps every budget."""
     out = []
     yardsticks = [p["path"] for p in chosen if _yardstick(p)]
-    first = [r for r in rows if r["path"] == chosen[0]["path"]]  # every path's rows carry the reference's errors
-    bounds = [_against_high(first, "reference_")] + [_against_high([r for r in rows if r["path"] == y], "")
-                                                     for y in yardsticks]
+    bounds = [reference_against_high(rows)] + [_against_high([r for r in rows if r["path"] == y], "")
+                                               for y in yardsticks]
     for path in chosen:
         mine = [r for r in rows if r["path"] == path["path"]]
         balls = [r["second_ball"] for r in mine if "second_ball" in r]
@@ -328,7 +327,8 @@ def summarise(rows: list[dict], chosen: list[dict]) -> list[dict]:
 
 
 def reference_against_high(rows: list[dict]) -> dict:
-    """The float64 reference's own errors against the high-precision reference (_against_high)."""
+    """The float64 reference's own errors against the high-precision reference (_against_high; every
+    path's rows carry them, the first path's are taken)."""
     return _against_high([r for r in rows if r["path"] == rows[0]["path"]], "reference_")
 
 
