@@ -19,12 +19,16 @@ def test_snapshots_follow_the_match_clock_and_say_how_fast_it_runs(rig):
     # the wall clock's speed, then at its speed, then stands: the snapshots come every 10 ticks
     # (so at 50 Hz, then 100 Hz), then repeat the same tick at 100 Hz, and realtime_factor says
     # 0.5, 1, 0. Tolerance 0.002: a tick of 500 in the 1 s window the factor is measured over.
+    # On a loaded machine the ZeroMQ I/O thread may fall behind and the player's pipe reach its
+    # high-water mark: the gateway then drops a snapshot and counts it, so a gap is a multiple
+    # of 10 ticks and the received ones plus the counted drops make the rate.
     r = rig(remote=(Slot.A,), snapshot_hz=100, timeout_s=60.0)
     player = r.client()
     r.join(player)
     assert r.gateway.pacer.ticks == 10
     world = r.record["world"]
     phases = {"half": [], "full": [], "stand": []}
+    dropped = {}
     tick = 0
 
     def read(phase, wait_ms):
@@ -35,7 +39,7 @@ def test_snapshots_follow_the_match_clock_and_say_how_fast_it_runs(rig):
         return False
 
     for phase, ms, advance in (("half", 3000, 0.5), ("full", 2000, 1.0), ("stand", 2000, 0.0)):
-        start = tick
+        start, dropped_before = tick, r.gateway.counts["snapshots_dropped"]
         for k in range(1, ms + 1):
             r.clock.now += 0.001
             tick = start + int(k * advance)
@@ -49,12 +53,17 @@ def test_snapshots_follow_the_match_clock_and_say_how_fast_it_runs(rig):
         deadline = Deadline()
         while sum(map(len, phases.values())) < sent and not deadline.expired():
             read(phase, 100)
+        dropped[phase] = r.gateway.counts["snapshots_dropped"] - dropped_before
     for phase, expected_hz, factor in (("half", 50, 0.5), ("full", 100, 1.0), ("stand", 100, 0.0)):
         ticks = [t for t, _ in phases[phase]]
         steps = set(np.diff(ticks[1:]))
-        assert steps == ({0} if phase == "stand" else {10}), (phase, sorted(steps))
+        if phase == "stand":
+            assert steps == {0}, (phase, sorted(steps))
+        else:
+            assert all(step > 0 and step % 10 == 0 for step in steps), (phase, sorted(steps))
         seconds = {"half": 3, "full": 2, "stand": 2}[phase]
-        assert abs(len(ticks) - expected_hz * seconds) <= 2, (phase, len(ticks))
+        sent = len(ticks) + dropped[phase]
+        assert abs(sent - expected_hz * seconds) <= 2, (phase, len(ticks), dropped[phase])
         late = [f for _, f in phases[phase][len(ticks) // 2:]]  # after a full window in the phase
         assert max(abs(f - factor) for f in late) <= 0.002, (phase, late[:3])
 
