@@ -4,8 +4,8 @@ The default scene (the hanging cloth net in its own worker) is served with seat 
 player (processes.stress.observer: it sends no input, only heartbeats, and keeps the books of its
 session) and seat B by a bot player; spectators watch on the feed, a browser bridge shows the
 match to a few WebSocket browsers, and `--hogs` CPU hogs (processes.stress.hogs) spin beside it
-all from before the first serve until the end. After `--duration` s (or the match's end) the
-server is stopped, and every client must have been told why it ended.
+all from before the first serve until the end. After `--duration` s of play from the first serve
+(or the match's end) the server is stopped, and every client must have been told why it ended.
 
 Checks (the promises a served match makes on any machine):
 - no worker raised and the server did not end in a server error (restarts within the budget
@@ -71,6 +71,12 @@ def _browsers(url: str, n: int, seconds: float, seen: list[dict], errors: list) 
     return thread
 
 
+def _match_started(server: Server) -> bool:
+    """Has the first serve been played (both seats held), or has the server already ended?"""
+    tick = server.tick()
+    return tick is None or tick > 0
+
+
 def _still_bat_bound(still: dict) -> float:
     """m/s: the fastest the still bat may move, from the fastest ball the still player saw."""
     bat_mass = float(load_scene(SCENE).bats[0].mass)
@@ -114,6 +120,11 @@ def scenario(args, run: Run) -> dict:
         browsers = _browsers(url, args.busy_browsers, bound, seen, browser_errors)
         hogs.start()  # from before the first serve: the bot's seat starts the match
         player = run.add(bot(server.endpoint, bound, args.seed))
+        # The run's length counts from the first serve: the bot loads its kernels before it asks for
+        # its seat (seconds on a busy machine), and a server stopped before it is seated would leave
+        # it waiting for a welcome that never comes.
+        started = until(lambda: _match_started(server), START_S, 0.2)
+        check(result, started, f"the match did not start within {START_S:.0f} s: the bot was not seated")
         until(lambda: server.tick() is None, seconds)  # the run's length: --duration, or the match's end
         state = server.state() if server.tick() is not None else {}
         hogs.stop()
