@@ -69,6 +69,50 @@ def advance_ticks(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, 
     return ticks, n, reason, error
 
 
+@njit(inline="always")
+def _one_tick(h, w, bat_flat, bat_mass, bat_inertia, bat_motion, bat_tmp, ball_flat, method, gravity, drag_k, magnus_k,
+              rtol, atol, table, floor_z, net, posts, params, materials, work, scratch, adapt, event_rows):
+    """One tick of the bats, then the ball; returns (events, or ball_tick's error code < 0, the
+    ball's support before the tick, after it). The world record moves on only without an error."""
+    if bat_motion is not None:
+        bat_step(bat_flat, h, bat_mass, bat_inertia, bat_motion, bat_tmp)
+    support_before = w['ball_support']
+    n, support = ball_tick(ball_flat, h, support_before, (method, gravity, drag_k, magnus_k, rtol, atol),
+                           (table, floor_z, net, posts), bat_motion, params, materials, work, scratch, adapt,
+                           event_rows)
+    if n < 0 or h == 0.0:
+        return n, support_before, support
+    for e in range(n):
+        event_rows[e, 0] += w['time']  # event times become absolute, from this tick's exact start
+    w['ball_support'] = support
+    w['n_events'] = n
+    w['events_total'] += n
+    w['tick'] += 1
+    w['time'] = w['time'] + h
+    return n, support_before, support
+
+
+@njit(inline="always")
+def _stop_reason(n, support_before, support, w, ball_flat, gone_r2, gone_z, deadline):
+    """The STOP_* reason after a tick that ran (STOP_LIMIT: nothing needs attention)."""
+    if n > 0:
+        return STOP_EVENT
+    if ball_flat[0] * ball_flat[0] + ball_flat[1] * ball_flat[1] > gone_r2 or ball_flat[2] < gone_z:
+        return STOP_GONE
+    if support != support_before:
+        return STOP_SUPPORT
+    if w['time'] > deadline:
+        return STOP_DEADLINE
+    return STOP_LIMIT
+
+
+@njit(inline="always")
+def _inside(box, ball_flat):
+    """Is the ball's centre inside the (6,) lo xyz, hi xyz box?"""
+    return (box[0] <= ball_flat[0] <= box[3] and box[1] <= ball_flat[1] <= box[4]
+            and box[2] <= ball_flat[2] <= box[5])
+
+
 @njit(cache=True)
 def _advance(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_tmp, ball_flat, method, gravity, drag_k,
              magnus_k, rtol, atol, table, floor_z, net, posts, params, materials, work, scratch, adapt, event_rows,
@@ -76,33 +120,65 @@ def _advance(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_t
     """advance_ticks' loop, with its arguments and returns."""
     w = world[0]
     for k in range(n_max):
-        if bat_motion is not None:
-            bat_step(bat_flat, h, bat_mass, bat_inertia, bat_motion, bat_tmp)
-        support_before = w['ball_support']
-        n, support = ball_tick(ball_flat, h, support_before, (method, gravity, drag_k, magnus_k, rtol, atol),
-                               (table, floor_z, net, posts), bat_motion, params, materials, work, scratch, adapt,
-                               event_rows)
+        n, support_before, support = _one_tick(h, w, bat_flat, bat_mass, bat_inertia, bat_motion, bat_tmp, ball_flat,
+                                               method, gravity, drag_k, magnus_k, rtol, atol, table, floor_z, net,
+                                               posts, params, materials, work, scratch, adapt, event_rows)
         if n < 0:
             return k, 0, STOP_LIMIT, n
         if h == 0.0:
             return 0, 0, STOP_LIMIT, 0  # a zero-length tick ran the kernels and changed nothing
-        for e in range(n):
-            event_rows[e, 0] += w['time']  # event times become absolute, from this tick's exact start
-        w['ball_support'] = support
-        w['n_events'] = n
-        w['events_total'] += n
-        w['tick'] += 1
-        w['time'] = w['time'] + h
-        if n > 0:
-            return k + 1, n, STOP_EVENT, 0
-        if ball_flat[0] * ball_flat[0] + ball_flat[1] * ball_flat[1] > gone_r2 or ball_flat[2] < gone_z:
-            return k + 1, 0, STOP_GONE, 0
-        if support != support_before:
-            return k + 1, 0, STOP_SUPPORT, 0
-        if w['time'] > deadline:
-            return k + 1, 0, STOP_DEADLINE, 0
-        if watch is not None and (watch[0] <= ball_flat[0] <= watch[3] and watch[1] <= ball_flat[1] <= watch[4]
-                                  and watch[2] <= ball_flat[2] <= watch[5]):
+        reason = _stop_reason(n, support_before, support, w, ball_flat, gone_r2, gone_z, deadline)
+        if reason != STOP_LIMIT:
+            return k + 1, n, reason, 0
+        if watch is not None and _inside(watch, ball_flat):
             return k + 1, 0, STOP_WATCH, 0
     return n_max, 0, STOP_LIMIT, 0
 
+
+@njit(cache=True)
+def advance_run(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_tmp, ball_flat, method, gravity,
+                drag_k, magnus_k, rtol, atol, table, floor_z, net, posts, params, materials, work, scratch, adapt,
+                event_rows, gone_r2, gone_z, deadline, reach, record, run_ball, run_records):
+    """advance_ticks for a run of ticks near a cloth net (engine.world._run_near_net): the same
+    ticks, keeping what the net's run and its undo need, up to the first tick that needs
+    attention or ends with the ball outside `reach`.
+
+    Args:
+        n_max ... deadline: as advance_ticks (no watch box).
+        reach: (6,) lo xyz, hi xyz: stop after a tick that leaves the ball's centre outside it.
+        record: the state's whole record as bytes (uint8), of which world, bat_flat and ball_flat are views.
+        run_ball: (>= n_max, 2, 3): the ball's position m and velocity m/s at each tick's start.
+        run_records: (>= n_max, record's bytes) uint8: the record after each tick.
+
+    Returns:
+        As advance_ticks. An error at a tick after the first is no error: the state goes back to
+        the record after the tick before it and the run ends there (that tick may never happen:
+        the net may touch the ball first). An error at the first tick is returned as advance_ticks
+        returns it.
+    """
+    if bat_motion is not None and not _all_finite(bat_flat):
+        return 0, 0, STOP_LIMIT, ERR_BATS_BEFORE
+    w = world[0]
+    size = record.shape[0]
+    for k in range(n_max):
+        for i in range(3):
+            run_ball[k, 0, i] = ball_flat[i]
+            run_ball[k, 1, i] = ball_flat[3 + i]
+        n, support_before, support = _one_tick(h, w, bat_flat, bat_mass, bat_inertia, bat_motion, bat_tmp, ball_flat,
+                                               method, gravity, drag_k, magnus_k, rtol, atol, table, floor_z, net,
+                                               posts, params, materials, work, scratch, adapt, event_rows)
+        error = n if n < 0 else 0
+        if error == 0 and bat_motion is not None and not _all_finite(bat_flat):
+            error = ERR_BATS_AFTER
+        if error != 0:
+            if k == 0:
+                return (1 if error == ERR_BATS_AFTER else 0), 0, STOP_LIMIT, error
+            for b in range(size):
+                record[b] = run_records[k - 1, b]
+            return k, 0, STOP_LIMIT, 0
+        for b in range(size):
+            run_records[k, b] = record[b]
+        reason = _stop_reason(n, support_before, support, w, ball_flat, gone_r2, gone_z, deadline)
+        if reason != STOP_LIMIT or not _inside(reach, ball_flat):
+            return k + 1, n, reason, 0
+    return n_max, 0, STOP_LIMIT, 0

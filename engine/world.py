@@ -34,7 +34,16 @@ from engine.forces import drag_factor, magnus_factor
 from engine.geometry import FLOOR_Z, NET_BOX, POST_BOXES, TABLE_BOX, Body, box_sdf, disc_sdf
 from engine.integrators import METHODS, WORK_SHAPE
 from engine.scene import Scene, SceneError
-from engine.tick import ERR_BATS_AFTER, ERR_BATS_BEFORE, STOP_EVENT, STOP_LIMIT, STOP_NET, STOP_WATCH, advance_ticks
+from engine.tick import (
+    ERR_BATS_AFTER,
+    ERR_BATS_BEFORE,
+    STOP_EVENT,
+    STOP_LIMIT,
+    STOP_NET,
+    STOP_WATCH,
+    advance_run,
+    advance_ticks,
+)
 from net_kernel import NO_CONTACT, NetContact, NetSim, build_topology
 from net_kernel.sim import KNOT_RADIUS, NET_REACH, WAKE_MARGIN
 
@@ -216,6 +225,8 @@ class State:
     # A run of ticks near the net (_advance_with_cloth): the ball at each tick's start, the state after each.
     run_ball: np.ndarray | None = None  # (NET_RUN_TICKS, 2, 3) m, m/s
     run_records: np.ndarray | None = None  # (NET_RUN_TICKS,) physics_snapshot_dtype
+    record_bytes: np.ndarray | None = None  # (record's bytes,) uint8 view of `record`, for the run kernel
+    run_bytes: np.ndarray | None = None  # (NET_RUN_TICKS, record's bytes) uint8 view of run_records
 
 
 def initial_state(scene: Scene) -> State:
@@ -235,7 +246,7 @@ def initial_state(scene: Scene) -> State:
         motion[i, BAT_HALF_THICKNESS] = spec.half_thickness
     world = record["world"]
     net_sim = NetSim(build_topology(scene.cloth), scene.dt) if scene.cloth is not None and "net" in scene.effects else None
-    return State(
+    state = State(
         record=record,
         ball=ball,
         bats=bats,
@@ -250,8 +261,12 @@ def initial_state(scene: Scene) -> State:
         bat_tmp=np.zeros((3, 3)),
         net_sim=net_sim,
         run_ball=np.zeros((NET_RUN_TICKS, 2, 3)) if net_sim is not None else None,
-        run_records=np.zeros(NET_RUN_TICKS, record.dtype) if net_sim is not None else None,
     )
+    if net_sim is not None:
+        state.run_records = np.zeros(NET_RUN_TICKS, record.dtype)
+        state.record_bytes = record.view(np.uint8)
+        state.run_bytes = state.run_records.view(np.uint8).reshape(NET_RUN_TICKS, -1)
+    return state
 
 
 def copy_record(src: np.ndarray, dst: np.ndarray, index: int = 0) -> None:
@@ -334,6 +349,8 @@ def advance(model: Model, state: State, n_max: int, inputs: np.ndarray | None, e
         # variant too, which a worker would otherwise compile mid-run, silent for as long as
         # that takes (tens of seconds on a loaded machine: the supervisor took it for a stall).
         advance(model, state, n_max, None, events, h, gone_radius, gone_z, deadline, model.cloth_watch)
+        if state.run_bytes is not None:
+            _advance_run_kernel(model, state, 0, h, gone_radius, gone_z, deadline)  # a run of no ticks
     return _advance_kernel(model, state, n_max, inputs, events, h, gone_radius, gone_z, deadline, watch)
 
 
@@ -355,15 +372,20 @@ def _advance_kernel(model: Model, state: State, n_max: int, inputs: np.ndarray |
         model.drag_k, model.magnus_k, model.scene.rtol, model.scene.atol, model.table, model.floor_z, model.net,
         model.posts, model.ball_params, model.materials, state.work, state.scratch, state.adapt, state.event_rows,
         gone_radius * gone_radius, gone_z, deadline, watch)
+    if error:
+        _raise_advance(error, tick, ticks, model, state)
+    if n:
+        _copy_events(state, events, n, int(state.world[0]["tick"]) - 1)
+    return ticks, n, reason
+
+
+def _raise_advance(error: int, tick: int, ticks: int, model: Model, state: State) -> None:
+    """Raise SimulationError for a tick kernel's error code, after `ticks` ticks from `tick`."""
     if error == ERR_BATS_BEFORE:
         _check_bats(model, state, f"tick {tick}", "is", "before the tick; nothing was stepped")
     elif error == ERR_BATS_AFTER:
         _check_bats(model, state, f"ticks {tick}..{tick + ticks}", "became", "during the kernel's run")
-    elif error:
-        _raise(error, tick + ticks, model, state)
-    if n:
-        _copy_events(state, events, n, int(state.world[0]["tick"]) - 1)
-    return ticks, n, reason
+    _raise(error, tick + ticks, model, state)
 
 
 def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, h: float, gone_radius: float,
@@ -439,46 +461,50 @@ def _advance_with_cloth(model: Model, state: State, n_max: int, inputs, events, 
 
 def _run_near_net(model: Model, state: State, n_max: int, inputs, events: np.ndarray, h: float, gone_radius: float,
                   gone_z: float, deadline: float) -> tuple[int, int, int, NetContact]:
-    """_advance_with_cloth's ticks near the net: the ball's ticks one by one without the net, up to
-    n_max (at most NET_RUN_TICKS), a tick that needs the caller (an event, any STOP_* but the
-    limit), or the ball leaving the net's reach; then the net's run over them (NetStepper.step_run),
-    which stops at the first tick that touches the ball. The ticks after that one are undone (the
-    state after each was kept), so the result is the same bits as a tick at a time: only the ball's
-    ticks before a touch are stepped without the net, and those a tick at a time would step so too.
-    A worker's net answers the whole run in one hand-off.
+    """_advance_with_cloth's ticks near the net: the ball's ticks without the net, up to n_max (at
+    most NET_RUN_TICKS), a tick that needs the caller (an event, any STOP_* but the limit), or the
+    ball leaving the net's reach, in one kernel call (engine.tick.advance_run, which keeps the
+    ball at each tick's start and the state after each tick); then the net's run over them
+    (NetStepper.step_run), which stops at the first tick that touches the ball. The ticks after
+    that one are undone (back to the state kept after it), so the result is the same bits as a
+    tick at a time: only the ball's ticks before a touch are stepped without the net, and those a
+    tick at a time would step so too. A worker's net answers the whole run in one hand-off.
 
     Returns:
         (ticks kept, events of the last kept tick in `events`, its STOP_* reason, the net's contact
         in it, or one with NO_CONTACT).
     """
-    y, ball, records = state.ball_flat, state.run_ball, state.run_records
-    k = 0
-    n, reason = 0, STOP_LIMIT
-    while k < n_max:
-        ball[k, 0] = y[0:3]
-        ball[k, 1] = y[3:6]
-        try:
-            _, n, reason = _advance_kernel(model, state, 1, inputs, events, h, gone_radius, gone_z, deadline, None)
-        except SimulationError:
-            if k == 0:
-                raise
-            # A tick after a touch may never happen: undo it; if the net does not touch the
-            # ball before it, the next call steps it again, from the same state, and raises.
-            copy_record(records[k - 1:k], state.record)
-            n, reason = 0, STOP_LIMIT
-            break
-        inputs = None
-        copy_record(state.record, records, k)
-        k += 1
-        if n or reason != STOP_LIMIT or not _in_box(model.cloth_reach, y):
-            break
+    records = state.run_records
+    if inputs is not None:
+        _check_inputs(inputs, len(state.bats))
+        state.bat_flat[:, FORCE_AT:FORCE_AT + 3] = inputs[:, 0:3]
+        state.bat_flat[:, TORQUE_AT:TORQUE_AT + 3] = inputs[:, 3:6]
+    tick = int(state.world[0]["tick"])
+    k, n, reason, error = _advance_run_kernel(model, state, n_max, h, gone_radius, gone_z, deadline)
+    if error:
+        _raise_advance(error, tick, k, model, state)
+    if n:
+        _copy_events(state, events, n, tick + k - 1)
     mass = float(model.ball_params[P_MASS])
-    taken, contact = state.net_sim.step_run(ball[:k], float(model.ball_params[P_RADIUS]), 1.0 / mass,
+    taken, contact = state.net_sim.step_run(state.run_ball[:k], float(model.ball_params[P_RADIUS]), 1.0 / mass,
                                             model.cloth_watch)
     if taken < k:  # the net touched the ball before the run's last tick: back to the state after that tick
         copy_record(records[taken - 1:taken], state.record)
         n, reason = 0, STOP_LIMIT
     return taken, n, reason, contact
+
+
+def _advance_run_kernel(model: Model, state: State, n_max: int, h: float, gone_radius: float, gone_z: float,
+                        deadline: float) -> tuple[int, int, int, int]:
+    """engine.tick.advance_run on the state's arrays: (ticks, events, STOP_* reason, error code)."""
+    has_bats = len(state.bats) > 0
+    return advance_run(
+        n_max, h, state.world, state.bat_flat if has_bats else None, model.bat_mass, model.bat_inertia,
+        state.bat_motion if has_bats else None, state.bat_tmp, state.ball_flat[0:9], model.method, model.gravity,
+        model.drag_k, model.magnus_k, model.scene.rtol, model.scene.atol, model.table, model.floor_z, model.net,
+        model.posts, model.ball_params, model.materials, state.work, state.scratch, state.adapt, state.event_rows,
+        gone_radius * gone_radius, gone_z, deadline, model.cloth_reach, state.record_bytes, state.run_ball,
+        state.run_bytes)
 
 
 def _bats_pressing(model: Model, state: State, events: np.ndarray, ball_pos: np.ndarray, radius: float,
@@ -529,7 +555,9 @@ def _out_of_table(table: np.ndarray, y: np.ndarray, radius: float) -> None:
 
 def _in_box(box: np.ndarray, y: np.ndarray) -> bool:
     """Is the ball's centre (y[0:3]) inside the (6,) lo, hi box (the tick kernel's watch test)?"""
-    return all(box[i] <= y[i] <= box[3 + i] for i in range(3))
+    x, y1, z = y[0:3].tolist()  # Python floats: the same doubles, cheaper comparisons
+    lo_x, lo_y, lo_z, hi_x, hi_y, hi_z = box.tolist()
+    return lo_x <= x <= hi_x and lo_y <= y1 <= hi_y and lo_z <= z <= hi_z
 
 
 def _net_event(state: State, events: np.ndarray, k: int, p0, v0, contact, h: float) -> None:
