@@ -135,7 +135,7 @@ def test_bench_match_quick_json():
 
 def test_bench_match_sets_the_air_damped_match_beside_the_default():
     done = subprocess.run([sys.executable, "-m", "processes", "bench", "match", "--scene", "match,match_air",
-                           "--quick", "--ticks", "3000", "--json"],
+                           "--quick", "--ticks", "3000", "--repeat", "2", "--json"],
                           capture_output=True, text=True, timeout=DEADLINE_S, stdin=subprocess.DEVNULL)
     assert done.returncode == 0, done.stderr
     report = json.loads(done.stdout)
@@ -151,6 +151,18 @@ def test_bench_match_sets_the_air_damped_match_beside_the_default():
         assert one["processes"]["workers"]["net"]["awake_ticks"] == one["in_process"]["net_awake_ticks"]
         assert set(one["outcome"]) >= {"winner", "games", "points", "point_reasons"}
     assert air["realtime_factor_ratio"]["processes"] > 0.0
+    # --repeat 2: every scene's matches in worker processes twice, round by round; the ratio is the rounds' median
+    ratios = air["realtime_factor_ratio"]["processes_rounds"]
+    assert len(ratios) == 2 and air["realtime_factor_ratio"]["processes"] == pytest.approx(sum(ratios) / 2)
+    for one in (report, air):
+        assert len(one["processes"]["realtime_factors"]) == 2
+        assert one["processes"]["realtime_factor"] in one["processes"]["realtime_factors"]  # the median round's
+
+
+def test_bench_match_refuses_no_rounds():
+    done = subprocess.run([sys.executable, "-m", "processes", "bench", "match", "--repeat", "0", "--quick"],
+                          capture_output=True, text=True, timeout=DEADLINE_S, stdin=subprocess.DEVNULL)
+    assert done.returncode == 2 and "--repeat 0 must be >= 1" in done.stderr
 
 
 def test_bench_match_refuses_a_scene_without_a_match():
