@@ -144,7 +144,8 @@ def advance_run(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, ba
     attention or ends with the ball outside `reach`.
 
     Args:
-        n_max ... deadline: as advance_ticks (no watch box).
+        n_max ... deadline: as advance_ticks (no watch box); at most as many ticks as run_ball
+            and run_records have rows.
         reach: (6,) lo xyz, hi xyz: stop after a tick that leaves the ball's centre outside it.
         record: the state's whole record as bytes (uint8), of which world, bat_flat and ball_flat are views.
         run_ball: (>= n_max, 2, 3): the ball's position m and velocity m/s at each tick's start.
@@ -158,6 +159,7 @@ def advance_run(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, ba
     """
     if bat_motion is not None and not _all_finite(bat_flat):
         return 0, 0, STOP_LIMIT, ERR_BATS_BEFORE
+    n_max = min(n_max, run_ball.shape[0], run_records.shape[0])  # no more ticks than there are rows to keep
     w = world[0]
     size = record.shape[0]
     for k in range(n_max):
