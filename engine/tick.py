@@ -154,8 +154,8 @@ def advance_run(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, ba
     Returns:
         As advance_ticks. An error at a tick after the first is no error: the state goes back to
         the record after the tick before it and the run ends there (that tick may never happen:
-        the net may touch the ball first). An error at the first tick is returned as advance_ticks
-        returns it.
+        the net may touch the ball first; if it does not, the next run steps that tick first and
+        returns its error). An error at the first tick is returned as advance_ticks returns it.
     """
     if bat_motion is not None and not _all_finite(bat_flat):
         return 0, 0, STOP_LIMIT, ERR_BATS_BEFORE

@@ -358,10 +358,7 @@ def _advance_kernel(model: Model, state: State, n_max: int, inputs: np.ndarray |
                     gone_radius: float, gone_z: float, deadline: float, watch: np.ndarray | None) -> tuple[int, int, int]:
     """advance()'s kernel call for the ball and bats alone (a cloth net, if any, is the caller's to step)."""
     has_bats = len(state.bats) > 0
-    if inputs is not None and has_bats:
-        _check_inputs(inputs, len(state.bats))
-        state.bat_flat[:, FORCE_AT:FORCE_AT + 3] = inputs[:, 0:3]
-        state.bat_flat[:, TORQUE_AT:TORQUE_AT + 3] = inputs[:, 3:6]
+    _apply_inputs(state, inputs)
     tick = int(state.world[0]["tick"])
     # The bats' records may be written around _check_inputs (a restored record, a worker's
     # mailbox): the kernel refuses to step from a non-finite one (ERR_BATS_BEFORE, the state
@@ -377,6 +374,14 @@ def _advance_kernel(model: Model, state: State, n_max: int, inputs: np.ndarray |
     if n:
         _copy_events(state, events, n, int(state.world[0]["tick"]) - 1)
     return ticks, n, reason
+
+
+def _apply_inputs(state: State, inputs: np.ndarray | None) -> None:
+    """The bats' force and torque for the ticks to come (checked first); None keeps what they hold."""
+    if inputs is not None and len(state.bats) > 0:
+        _check_inputs(inputs, len(state.bats))
+        state.bat_flat[:, FORCE_AT:FORCE_AT + 3] = inputs[:, 0:3]
+        state.bat_flat[:, TORQUE_AT:TORQUE_AT + 3] = inputs[:, 3:6]
 
 
 def _raise_advance(error: int, tick: int, ticks: int, model: Model, state: State) -> None:
@@ -475,10 +480,7 @@ def _run_near_net(model: Model, state: State, n_max: int, inputs, events: np.nda
         in it, or one with NO_CONTACT).
     """
     records = state.run_records
-    if inputs is not None:
-        _check_inputs(inputs, len(state.bats))
-        state.bat_flat[:, FORCE_AT:FORCE_AT + 3] = inputs[:, 0:3]
-        state.bat_flat[:, TORQUE_AT:TORQUE_AT + 3] = inputs[:, 3:6]
+    _apply_inputs(state, inputs)
     tick = int(state.world[0]["tick"])
     k, n, reason, error = _advance_run_kernel(model, state, n_max, h, gone_radius, gone_z, deadline)
     if error:
