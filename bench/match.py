@@ -36,7 +36,8 @@ def _in_worker_processes(scene, ticks: int, seed: int) -> dict:
 def _bench_scene(scene, ticks: int, args: argparse.Namespace, rounds: list[dict]) -> dict:
     """One scene's `pingpong bench match` report: its matches in worker processes (lockstep), one a
     round, and the match in-process (same seed, so the same match). The worker processes' figures
-    are those of the round with the median realtime factor; every round's factor is listed."""
+    are those of the round with the median realtime factor (the lower middle one of an even count);
+    every round's factor is listed."""
     match = Match(scene, seed=args.seed)
     reference = match.play(max_ticks=ticks).summary()
     net = match.state.net_sim  # the cloth net's awake ticks: what it cost, to set beside the net worker's
@@ -82,8 +83,9 @@ def _arguments(parser: argparse.ArgumentParser) -> None:
                         help="stop each match after this many ticks (default: the scene's bound; --quick: 20000)")
     parser.add_argument("--repeat", type=int, default=1,
                         help="rounds of the scenes' worker-process matches, each round every scene in turn: each "
-                             "figure is the round with the median realtime factor, each ratio the median of the "
-                             "rounds' ratios (a machine whose speed drifts moves a round's scenes together)")
+                             "figure is the round with the median realtime factor (the lower middle one of an even "
+                             "count), each ratio the median of the rounds' ratios (a machine whose speed drifts moves "
+                             "a round's scenes together)")
 
 
 def _run(args: argparse.Namespace, progress=None) -> dict:

@@ -99,7 +99,8 @@ def _points_agree(still: dict, logged: list[dict]) -> str | None:
 def scenario(args, run: Run) -> dict:
     result = base("busy")
     shm_before = shm_names()
-    seconds, bound = args.duration, args.duration + SAFETY_S
+    # every client's own bound: the wait for the first serve, the run, and the safety net after it
+    seconds, bound = args.duration, START_S + args.duration + SAFETY_S
     hogs = CpuHogs(args.hogs)
     try:
         server = run.add(Server(run.tmp, players=2, scene=SCENE, snapshot_hz=args.hz, seconds=bound,
