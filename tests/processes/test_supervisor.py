@@ -66,7 +66,7 @@ def _started_by(pid: int, supervisor_pid: int) -> bool:
     for _ in range(3):
         try:
             pid = _parent(pid)
-        except (FileNotFoundError, ValueError, IndexError):
+        except (OSError, ValueError, IndexError):  # gone: no file, or ESRCH while it is being reaped
             return False
         if pid == supervisor_pid:
             return True
