@@ -42,8 +42,10 @@ modes (which hold a ring's large amplitudes) and left out between the others. Th
 scheme's own angle per tick is s h^2 / (2 sqrt(det A) sin theta_sub) d lam (theta_sub the
 substep's angle); it decays with the amplitude squared, at |mu|^2 a tick (kernels.modal).
 What it leaves out: energy exchange between modes of nearly equal frequency (the mesh's lowest
-ones are 0.5 Hz apart) and the in-plane motion's own dynamics (its lowest modes, tens of Hz,
-are not far above twice the lowest out-of-plane ones).
+ones are 0.5 Hz apart) and the in-plane motion's own dynamics: the match's net's lowest in-plane
+mode is near twice some of its lowest out-of-plane ones, a 2:1 internal resonance where first-
+order averaging does not hold (Nayfeh & Mook, ch. 6). `pingpong bench net-tail` measures what
+the tail errs on that net against the full kernel.
 
 These are the sim's own scheme's modes, not the continuous system's (expm of the ODE drifts
 further from what NetSim steps). They are computed once per (net, tick, substeps) on one BLAS

@@ -9,7 +9,7 @@ from net_kernel import reference
 from net_kernel.modes import linear_tail_refusal, net_modes, spring_jacobians, static_forces
 from net_kernel.sim import SLEEP_SPEED, SLEEP_TICKS
 from net_kernel.tail import LinearTail
-from net_kernel.topology import grid_spec, resolution_spec
+from net_kernel.topology import NetSpec, grid_spec, resolution_spec
 
 DT = 1e-3
 BALL_MASS = 2.7e-3
@@ -140,10 +140,17 @@ def test_the_closed_form_equals_the_linear_scheme_stepped(net):
             assert np.abs(pos[free, 1:] - modes.rest_pos[free, 1:] - stepped[:, 1:]).max() < 0.05 * np.abs(stepped[:, 1:]).max() + 1e-12
 
 
-def test_a_modes_frequency_rises_with_its_amplitude_as_the_averaged_quartic_energy_says(net):
+def test_a_modes_frequency_rises_with_its_amplitude_as_the_averaged_quartic_energy_says():
     # One out-of-plane mode at a time, its in-plane displacement at the static response to its
     # stretch (the correction's premise), stepped in the full kernel: the mode's phase against
     # the linear scheme's grows as the correction's phi(n) = delta (1 - |mu|^2n) / (1 - |mu|^2).
+    # The premise needs the in-plane modes well above twice the out-of-plane ones. On the default
+    # net the lowest in-plane mode (~14 Hz) is near twice some of the lowest out-of-plane ones, a
+    # 2:1 internal resonance where first-order averaging does not hold (Nayfeh & Mook 1979,
+    # ch. 6); so the check runs on the net with 10x stiffer springs and cord and the same
+    # pretension: its out-of-plane modes within 10 % of the default's, its lowest in-plane mode
+    # twice as high. What the tail errs on the match's net is measured by `pingpong bench net-tail`.
+    net = build_topology(resolution_spec(32, 6, dataclasses.replace(NetSpec(), spring_k=20000.0, cord_k=50000.0)))
     modes = net_modes(net, DT, NetSim(net, DT).substeps)
     full = build_topology(dataclasses.replace(net.spec, tail_energy=0.0))  # the full kernel throughout
     free, nf = modes.free, modes.free.size
