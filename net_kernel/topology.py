@@ -122,9 +122,9 @@ class NetSpec:
     # the playing surface (ITTF 2.2.4: "as close as possible").
     hem_gap: float = 0.004
     # Chosen, not measured: a hanging net's slowest sway (~5 Hz) loses most of its amplitude within
-    # a second. The mesh modes a ball excites (60-97 Hz at the struck point) then ring with damping
-    # ratio 0.004-0.006, and a struck 85 x 8 net falls asleep 3.1-3.7 s after the touch (`pingpong
-    # bench ringdown`). The air's own drag on the threads is far smaller: Lamb's low-Reynolds drag
+    # a second. The mesh modes a ball excites (tens of Hz at the struck point) then ring with a
+    # damping ratio below 0.01, and a struck 85 x 8 net falls asleep a few seconds after the touch
+    # (`pingpong bench ringdown` measures both). The air's own drag on the threads is far smaller: Lamb's low-Reynolds drag
     # on a cylinder (Lamb, Hydrodynamics, 6th ed., 1932, art. 343), F / L = 4 pi mu U /
     # (1/2 - gamma - ln(Re / 8)), on 0.5 mm threads at 0.01-0.1 m/s (Re 0.3-3, the upper end an
     # extrapolation), ~200 m of thread per m^2 of a 1 cm mesh and 0.18 kg/m^2, gives 0.08-0.3 /s.
