@@ -155,7 +155,9 @@ def _print_bench(report: dict, first: dict) -> None:
             awake_text += f", {info['tail_ticks']} in its linear tail"
         if info.get("net_runs"):
             awake_text += f", {info['net_ball_ticks']} ticks near the net in {info['net_runs']} hand-offs"
-        print(f"    {kind:<8} own work {info['busy_s']:.2f} s, hand-offs {info['handoff_s']:.2f} s{awake_text}")
+        split = [f"{who} {info[key]:.2f} s" for who, key in (("net", "handoff_net_s"), ("AI", "handoff_ai_s")) if key in info]
+        split_text = f" ({', '.join(split)})" if len(split) == 2 else ""
+        print(f"    {kind:<8} own work {info['busy_s']:.2f} s, hand-offs {info['handoff_s']:.2f} s{split_text}{awake_text}")
     share = f", net awake {r['net_awake_share']:.0%} of ticks" if "net_awake_share" in r else ""
     print(f"  in-process reference:        {r['wall_seconds']:.2f} s wall, {r['realtime_factor']:.1f}x realtime, "
           f"{r['us_per_tick']:.1f} us/tick (AI {r['ai_seconds']:.2f} s){share}")

@@ -328,9 +328,10 @@ class Supervisor:
                 # the physics' AI control ticks (since its last start): turns given to the AI worker,
                 # and forces it computed itself on the AIs' plans; its cloth net ticks: handed to
                 # the net worker with the ball (waited for), and without it (not waited for), and
-                # the ball ticks given again because the net's answer took longer than handoff_s
+                # the ball ticks given again because the net's answer took longer than handoff_s;
+                # its hand-offs' wall time split into the waits for the net and for the AI
                 **({k: w.report[k] for k in ("ai_turns", "ai_local_ticks", "net_ball_ticks", "net_runs", "net_free_ticks",
-                                             "net_turns_again", "bot_errors", "stopped")
+                                             "net_turns_again", "handoff_net_s", "handoff_ai_s", "bot_errors", "stopped")
                     if k in w.report} if w.kind == "physics" else {}),
                 # the AI worker's thinking between its turns, and the strokes it had to finish late
                 **({k: w.report[k] for k in ("think_s", "late_thoughts", "late_thinking_s", "turns", "longest_turn_s",

@@ -132,18 +132,21 @@ def _finish(control: Control, tick: int, busy: float, net, options: RunOptions, 
     """The physics' last words: stop the AI's and the net's turns, report the work and hand-offs.
 
     busy_s counts the physics' own work; the hand-offs to the AI and the net (and their work
-    inside them, which they report themselves) are reported apart, as handoff_s. The report
+    inside them, which they report themselves) are reported apart, as handoff_s, and split into
+    handoff_net_s and handoff_ai_s (what the physics waited for each). The report
     also carries the AI control ticks (turns given to the AI worker, forces computed here on
     the AIs' plans), the cloth net's ticks (handed to the net worker with the ball and waited
     for, or granted without it), the remote inputs refused by reason and the match's bot errors.
     """
-    handoff = _stop_net(net, options)
+    net_waits = _stop_net(net, options)
+    handoff = net_waits
     report = {"tick": tick}
     if net is not None:
         report.update(net_ball_ticks=net.ball_ticks, net_runs=net.runs, net_free_ticks=net.free_ticks,
-                      net_turns_again=net.turns_again)
+                      net_turns_again=net.turns_again, handoff_net_s=net_waits)
     if driver is not None:
         handoff += driver.waits
+        report.update(handoff_ai_s=driver.waits)
         options.ai_baton.stop()
         report.update(ai_turns=driver.turns, ai_local_ticks=driver.local)
         driver.close()

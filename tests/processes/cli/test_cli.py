@@ -131,6 +131,9 @@ def test_bench_match_quick_json():
     report = json.loads(done.stdout)
     assert report["same_match"] is True  # the lockstep match and the in-process one agree
     assert set(report["processes"]["workers"]) == {"physics", "net", "ai"}  # the default match: the cloth net
+    physics = report["processes"]["workers"]["physics"]
+    # The physics' hand-offs, split by whom it waited for: the net and the AI (no restarts here).
+    assert physics["handoff_net_s"] + physics["handoff_ai_s"] == pytest.approx(physics["handoff_s"], rel=1e-12)
 
 
 def test_bench_match_sets_the_air_damped_match_beside_the_default():

@@ -45,6 +45,8 @@ def test_lockstep_with_the_net_worker_equals_the_in_process_engine(net_scene, re
     # The ball met the net (ticks handed over with it) and left its reach (ticks granted without it).
     assert physics["net_ball_ticks"] > 0 and physics["net_free_ticks"] > 0
     assert physics["net_ball_ticks"] + physics["net_free_ticks"] <= net_scene.ticks
+    # No AI in this scene: the physics' hand-offs are all waits for the net's answers.
+    assert physics["handoff_net_s"] == physics["handoff_s"] > 0.0 and "handoff_ai_s" not in physics
     # The net worker stepped the net awake exactly as often as the in-process net (its cost, the same ticks).
     assert result.workers["net"]["awake_ticks"] == reference.state.net_sim.awake_ticks > 0
     assert first_difference(result.trace, reference.trace) is None
