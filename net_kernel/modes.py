@@ -68,7 +68,7 @@ from net_kernel.kernels.table import TABLE_Z
 from net_kernel.topology import SEMI_IMPLICIT, NetTopology
 
 # In-plane modes kept: the lowest of the undamped in-plane problem. A struck net's in-plane
-# motion below the tail's energy lives in a few tens of them (`pingpong bench accuracy`'s tail
+# motion below the tail's energy lives in a few tens of them (`pingpong bench net-tail`'s tail
 # rows measure what is lost).
 IN_PLANE_MODES = 64
 # The modes need dense matrices of the free knots' degrees of freedom (an eigh of n_free and

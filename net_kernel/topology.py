@@ -124,22 +124,22 @@ class NetSpec:
     # Chosen, not measured: a hanging net's slowest sway (~5 Hz) loses most of its amplitude within
     # a second. The mesh modes a ball excites (tens of Hz at the struck point) then ring with a
     # damping ratio below 0.01, and a struck 85 x 8 net falls asleep a few seconds after the touch
-    # (`pingpong bench ringdown` measures both). The air's own drag on the threads is far smaller: Lamb's low-Reynolds drag
-    # on a cylinder (Lamb, Hydrodynamics, 6th ed., 1932, art. 343), F / L = 4 pi mu U /
-    # (1/2 - gamma - ln(Re / 8)), on 0.5 mm threads at 0.01-0.1 m/s (Re 0.3-3, the upper end an
-    # extrapolation), ~200 m of thread per m^2 of a 1 cm mesh and 0.18 kg/m^2, gives 0.08-0.3 /s.
-    # A real net loses its energy to friction in its yarns and knots (Miguel et al., "Modeling and
-    # Estimation of Internal Friction in Cloth", SIGGRAPH Asia 2013), which the model lacks: no
-    # measurement of a net's or a cord's friction is published, and Dahl friction at the magnitudes
-    # fabric measurements support (bench/net_friction.py) leaves the net's slowest motion, the mesh
-    # swinging about its top cord, which bends no knot and stretches no thread to first order,
-    # ringing longer than this damping does. It stands until a struck net's free decay is measured.
-    # What it changes, against AIR_DAMPING_PHYSICAL: how long a struck net rings before it falls
-    # asleep (the net's awake ticks, the match's CPU and realtime factor), how far the bulge's waves
-    # carry its knots (the peak deflection), where the net is when the next ball arrives, and so
-    # the match's outcome.
+    # (`pingpong bench ringdown` measures both). The air's own drag on the threads is far smaller:
+    # Lamb's low-Reynolds drag on a cylinder (Lamb, Hydrodynamics, 6th ed., 1932, art. 343),
+    # F / L = 4 pi mu U / (1/2 - gamma - ln(Re / 8)), on 0.5 mm threads at 0.01-0.1 m/s (Re 0.3-3,
+    # the upper end an extrapolation), ~200 m of thread per m^2 of a 1 cm mesh and 0.18 kg/m^2,
+    # gives 0.08-0.3 /s. A real net loses its energy to friction in its yarns and knots
+    # (Miguel et al., "Modeling and Estimation of Internal Friction in Cloth", SIGGRAPH Asia 2013),
+    # which the model lacks: no measurement of a net's or a cord's friction is published, and Dahl
+    # friction at the magnitudes fabric measurements support (bench/net_friction.py) leaves the
+    # net's slowest motion, the mesh swinging about its top cord, which bends no knot and stretches
+    # no thread to first order, ringing longer than this damping does. It stands until a struck
+    # net's free decay is measured. What it changes, against AIR_DAMPING_PHYSICAL: how long a struck
+    # net rings before it falls asleep (the net's awake ticks, the match's CPU and realtime factor),
+    # how far the bulge's waves carry its knots (the peak deflection), where the net is when the
+    # next ball arrives, and so the match's outcome.
     air_damping: float = 5.0
-    # Chosen from `pingpong bench accuracy`'s tail rows: seeded strikes at 5-60 m/s stay within the
+    # Chosen from `pingpong bench net-tail`'s tail rows: seeded strikes at 5-60 m/s stay within the
     # 50 um budget (a tenth of a knot's radius) of the full kernel over their whole ring.
     tail_energy: float = 30e-6
     fix_posts: bool = True

@@ -146,9 +146,8 @@ def _finish(control: Control, tick: int, busy: float, net, options: RunOptions, 
                       net_turns_again=net.turns_again, handoff_net_s=net_waits)
     if driver is not None:
         handoff += driver.waits
-        report.update(handoff_ai_s=driver.waits)
         options.ai_baton.stop()
-        report.update(ai_turns=driver.turns, ai_local_ticks=driver.local)
+        report.update(ai_turns=driver.turns, ai_local_ticks=driver.local, handoff_ai_s=driver.waits)
         driver.close()
     if match is not None:
         report.update(remote_inputs_refused={} if remote is None else dict(remote.refused), bot_errors=match.bot_errors,
