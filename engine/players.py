@@ -169,6 +169,21 @@ class Seat:
         brake_force(self.mass, floats[me, 7:10], self.force)
         return me, fault, detail
 
+    def state(self) -> dict:
+        """What the seat decides on, as plain data (load_state): its own counts and action, and an
+        AI profile's BatAI.state. A bot's own objects are its own: they are not kept."""
+        return {"kind": self.kind, "force": self.force.copy(), "key": self.key, "decisions": self.decisions,
+                "faults": self.faults, "act_seconds": self.act_seconds,
+                "ai": self.bot.ai.state() if self.profile else None}
+
+    def load_state(self, state: dict) -> None:
+        """Become the seat whose state() this is (a bot keeps the objects it has)."""
+        self.kind, self.key = state["kind"], state["key"]
+        self.force[:] = state["force"]
+        self.decisions, self.faults, self.act_seconds = state["decisions"], state["faults"], state["act_seconds"]
+        if self.profile:
+            self.bot.ai.load_state(state["ai"])
+
     def _take(self, action) -> None:
         """The checked action becomes what the seat plays: its ctl row, or its raw force."""
         values = np.frombuffer(action, np.float64, ACTION_FLOATS) if isinstance(action, np.void) else \
@@ -233,6 +248,16 @@ class Players(dict):
             if seat.kind == ACTION_FORCE:
                 out[player] = seat.force
         return faults
+
+    def state(self) -> dict:
+        """Every seat's state() and the arm targets, picklable: the same scene's Players that loads
+        it (load_state) decides on as this one would, a bot's own objects aside."""
+        return {"ctl": self.ctl.copy(), "seats": {player: seat.state() for player, seat in self.items()}}
+
+    def load_state(self, state: dict) -> None:
+        self.ctl[:] = state["ctl"]
+        for player, seat in self.items():
+            seat.load_state(state["seats"][player])
 
     def wakes(self) -> tuple[float, float]:
         """(due, end) s: the earliest of every seat's wakes."""

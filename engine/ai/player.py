@@ -159,6 +159,8 @@ class BatAI:
         self._thinking_key = None
         self._thinking_due = math.inf
         self._thinking_left = False
+        self._thinking_args = None  # _think's arguments, and _thought_state() when it was made (state())
+        self._thinking_from = None
         self._thought = None
         self._memo = np.zeros(MEMO_SIZE, np.int64)
         # Not eager: the strokes still being thought out when due, and the time their turns spent
@@ -547,7 +549,9 @@ class BatAI:
             for _ in range(every):
                 start_time = start_time + h
             first_row += every
-        self._thinking = self._think(now, np.array(ball_flat, dtype=np.float64), end_sign, serve, start_time, first_row)
+        self._thinking_args = (now, np.array(ball_flat, dtype=np.float64), end_sign, serve, start_time, first_row)
+        self._thinking_from = self._thought_state()
+        self._thinking = self._think(*self._thinking_args)
         self._thinking_key = rally_key
         self._thinking_due = due
         self._thinking_left = True
@@ -573,6 +577,46 @@ class BatAI:
         """Think the stroke being thought out to its end."""
         while self.think_step():
             pass
+
+    def _thought_state(self) -> dict:
+        """What thinking a stroke out changes: its random draws, its stats and its answer."""
+        return {"rng": self.rng.bit_generator.state, "stats": dict(self.stats), "late_thoughts": self.late_thoughts,
+                "thought": self._thought}
+
+    def state(self) -> dict:
+        """Everything its decisions depend on, as plain data (picklable), for load_state.
+
+        A stroke still being thought out is kept as its generator's arguments and the state it
+        started from (random draws, stats): load_state makes the generator again, and since the
+        strokes do not depend on how the thinking is spread, it thinks the same stroke.
+        """
+        live = self._thinking is not None and self._thinking_left
+        thinking = None if self._thinking is None else ("live" if live else "done")
+        return {**(self._thinking_from if live else self._thought_state()),
+                "thinking": thinking, "thinking_args": self._thinking_args if live else None,
+                "thinking_key": self._thinking_key, "thinking_due": self._thinking_due,
+                "plan": self.plan, "plan_end": self._plan_end, "tracking": self._tracking, "ctl": self._ctl.copy(),
+                "turn_key": self.turn_key, "turn_seen_at": self.turn_seen_at, "planned_key": self.planned_key,
+                "late_thinking_s": self.late_thinking_s}
+
+    def load_state(self, state: dict) -> None:
+        """Become the BatAI whose state() this is (the same model, skill and player)."""
+        self.rng.bit_generator.state = state["rng"]
+        self.stats = dict(state["stats"])
+        self.late_thoughts, self.late_thinking_s = state["late_thoughts"], state["late_thinking_s"]
+        self._thought = state["thought"]
+        self.plan, self._plan_end, self._tracking = state["plan"], state["plan_end"], state["tracking"]
+        self._ctl[:] = state["ctl"]
+        self.turn_key, self.turn_seen_at, self.planned_key = state["turn_key"], state["turn_seen_at"], state["planned_key"]
+        self._thinking_key, self._thinking_due = state["thinking_key"], state["thinking_due"]
+        self._thinking_args = self._thinking_from = None
+        self._thinking, self._thinking_left = None, False
+        if state["thinking"] == "live":
+            self._thinking_args = state["thinking_args"]
+            self._thinking_from = self._thought_state()
+            self._thinking, self._thinking_left = self._think(*self._thinking_args), True
+        elif state["thinking"] == "done":
+            self._thinking = iter(())  # thought out: decide() plays self._thought when it is due
 
     def _track(self, plan: Plan | None, end_sign: int) -> None:
         """Write into self._ctl the plan's path and face normal, or the ready pose of end_sign without one."""

@@ -16,6 +16,8 @@ and removes them at the end. The blocks of a run, by name:
 | ai_view | physics snapshot | physics, ordered by ai_baton | ai |
 | ai_answer | ANSWER_DTYPE | ai, ordered by ai_baton | physics |
 | ai_local | LOCAL_DTYPE | physics | a restarted physics |
+| ai_journal, ai_journal_turns | physics snapshot ring of AI_JOURNAL_TURNS, and each one's (count, tick): the views of the turns answered, before their done | ai | a restarted ai |
+| ai_state | AI_STATE_DTYPE (SnapshotBlock): the AIs' pickled state after a turn, after its done | ai | a restarted ai |
 | remote_header, remote_inputs | Mailbox of REMOTE_INPUT_DTYPE (locked) | gateway posts | physics drains |
 | remote_applied, remote_acks | seqs applied per bat, REMOTE_ACK_DTYPE ring | physics | gateway |
 | seats | network.server.seats.SEAT_DTYPE (SnapshotBlock) | gateway | a restarted gateway |
@@ -55,6 +57,15 @@ MAX_BATS = 2
 ANSWER_DTYPE = ai_answer_dtype(MAX_BATS, CTL_SIZE)
 FAULT_TEXT_BYTES = ANSWER_DTYPE["fault_text"].base.itemsize
 LOCAL_DTYPE = ai_local_dtype(MAX_BATS)
+# What a restarted AI worker decides on from (processes.workers.ai.StateKeeper): the AIs' state
+# after a turn (engine.players.Players.state, the turn's count and its answer), pickled, and the
+# views of the turns answered since, replayed. Two AI profiles' plans, thoughts and random states
+# take a few kilobytes (a bot's own objects are not kept). The state is kept after every
+# AI_KEEP_EVERY-th turn is done, off the physics' path; the journal holds the turns since.
+AI_STATE_BYTES = 1 << 14
+AI_STATE_DTYPE = np.dtype([("size", "<i8"), ("data", "u1", (AI_STATE_BYTES,))])
+AI_KEEP_EVERY = 8
+AI_JOURNAL_TURNS = 2 * AI_KEEP_EVERY  # the turns since the state kept, and those of a keep cut short
 
 # The physics' hand-off of a run of ticks near the net to the net worker (engine.world's
 # _run_near_net), and the net's answer (NetSim.step_run's).
@@ -233,6 +244,9 @@ def build_layout(scene: Scene, kinds: list[str], ticks: int, trace: bool, frame_
             arena.shared_array("ai_view", snapshot, 1)
             arena.shared_array("ai_answer", ANSWER_DTYPE, 1).array["tick"] = -1
             arena.shared_array("ai_local", LOCAL_DTYPE, 1).array["tick"] = -1
+            arena.shared_array("ai_journal", snapshot, AI_JOURNAL_TURNS)
+            arena.shared_array("ai_journal_turns", np.int64, (AI_JOURNAL_TURNS, 2)).array[:, 0] = -1  # (count, tick)
+            arena.snapshot_block("ai_state", AI_STATE_DTYPE, 1)
             layout.ai_baton = Baton("ai", ctx, arena.shared_array("ai_baton", TICK_SLOT_DTYPE, 1).array)
         if "gateway" in kinds:
             layout._lock_dir = tempfile.mkdtemp(prefix=f"pingpong-{arena.run_id}-")

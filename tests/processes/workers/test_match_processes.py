@@ -101,12 +101,18 @@ def test_net_worker_killed_stepping_its_last_tail_ticks_is_restarted_and_stops(n
     assert result.ticks == TAIL_KILL
 
 
-def test_ai_worker_killed_mid_match_is_restarted_and_the_match_goes_on(no_leftovers):
-    # A restarted AI has lost its plan and its random state, so this run need not match the
-    # reference; it must finish, with every worker accounted for.
-    result = Supervisor(SCENE, 6_000, "lockstep", seed=5, crash_at_tick=2000, crash_worker="ai").run()
+# Seed 5's AI turns (the AI worker keeps its players' state after every AI_KEEP_EVERY = 8th):
+# the 8th, at tick 1720, leaves B's stroke still being thought out, so a worker killed after it
+# restarts from that state, the stroke kept as its generator's start; the first turns at or
+# after 2000 and 4170 are the 11th and 19th, so a restart there loads the state after the 8th
+# and 16th and answers the journal's later turns again.
+@pytest.mark.parametrize("crash_at", [1720, 2000, 4170])
+def test_ai_worker_killed_mid_match_resumes_and_stays_exact(no_leftovers, crash_at):
+    result = Supervisor(SCENE, 6_000, "lockstep", trace=True, seed=5, crash_at_tick=crash_at, crash_worker="ai").run()
     assert result.workers["ai"]["restarts"] == 1
     assert result.ticks == 6_000
+    _, trace = reference_trace(5, 6_000)
+    assert first_difference(result.trace, trace) is None  # without the state kept, it leaves the reference at 2421
 
 
 def test_replay_round_trip(tmp_path):
