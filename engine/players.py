@@ -255,6 +255,7 @@ class Players(dict):
         return {"ctl": self.ctl.copy(), "seats": {player: seat.state() for player, seat in self.items()}}
 
     def load_state(self, state: dict) -> None:
+        """Become the Players whose state() this is (the same scene's, made by make_players)."""
         self.ctl[:] = state["ctl"]
         for player, seat in self.items():
             seat.load_state(state["seats"][player])
