@@ -26,6 +26,7 @@ from net_kernel.kernels import (  # noqa: F401  (shared)
     TABLE_Z,
 )
 from net_kernel.kernels.grid32 import LANES as GRID32_LANES
+from net_kernel.kernels.grid32 import WORK32_LINES
 from net_kernel.kernels.modal import FREE_TAIL
 
 
@@ -177,8 +178,8 @@ def grid32_work(built, knot_inv_mass, blocks, variant):
     classes[[GRID_MESH, GRID_CORD, GRID_HEM, GRID_SHEAR], 0] = across_y
     classes[[GRID_VERTICAL, GRID_SHEAR], 1] = up_z
     return (built.copy(), np.zeros((2, 3, rows, width), dtype=np.float32), np.zeros((4, rows, width), dtype=np.float32),
-            inv_mass, table, np.zeros((blocks, GRID_WORK_ROWS, width + 1), dtype=np.float32), classes,
-            np.int64(variant), np.full(3, np.nan))
+            inv_mass, table, np.zeros((WORK32_LINES, (rows + 1) * width + 1), dtype=np.float32), classes,
+            np.int64(variant), np.full(3, np.nan), np.int64(blocks))
 
 
 def _grid32_t(oi, oj, vi, vj, dy, dz, k, c, k_rest):

@@ -1,27 +1,20 @@
-"""Knot steps of a grid net in float32 on offsets from its built grid: step_grid's model, 8 lanes a ymm register."""
+"""Knot steps of a grid net in float32 on offsets from its built grid: step_grid's model in flat loops over the grid."""
 import numpy as np
 from numba import njit, prange
 
 from net_kernel.kernels.grid import (
-    _BAND,
-    _D1,
-    _D2,
-    _EDGE,
-    _H,
-    _V,
     GRID_CLASSES,
     GRID_CORD,
     GRID_HEM,
     GRID_MESH,
     GRID_SHEAR,
     GRID_VERTICAL,
-    GRID_WORK_ROWS,
     free_ticks,
 )
 from net_kernel.kernels.table import TABLE_Z
 
-# step_grid's model and passes (net_kernel/kernels/grid.py: rows fused, in place, springs before
-# knots, a knot's 8 springs summed in the same order), with the arithmetic in float32 on offsets
+# step_grid's model (net_kernel/kernels/grid.py: in place, springs before knots, a knot's 8
+# springs summed in the same order), with the arithmetic in float32 on offsets
 # o = x - R from the net's built grid R (build_topology's knot_pos: the plane x = 0, columns a
 # apart along y, rows b apart along z). A spring's vector is then d = D + (o_j - o_i), D its
 # class's constant (0, +-a, b, ...) rounded once from float64: no per-spring geometry to load.
@@ -31,10 +24,19 @@ from net_kernel.kernels.table import TABLE_Z
 #
 # Layout: knot (r, c) sits at column p = c + 1 of rows padded to W = P + 1 columns, P the
 # smallest multiple of 8 above cols: column 0 and columns cols + 1 .. W - 1 are fixed pad knots
-# at offset 0. Every loop runs over P columns, a whole number of vectors, and needs no border
-# case: the springs that touch a pad are zeroed after each line (zeroed t, as step_grid's
-# missing springs). A spring's t is stored one column right of its first knot (work[row, p + 1]),
-# so a knot's left-hand terms are at p and its right-hand ones at p + 1, never at p - 1.
+# at offset 0. The rows are contiguous, so the grid is one flat array of rows W knots (knot
+# r W + p), and each spring class is one loop over it: from knot q to q + 1 (horizontal), q + W
+# (vertical), q + W + 1 (shear /) or q + W - 1 (shear \\). A substep is then a few long loops
+# (a pass per class, then a pass per axis over the knots), not a few per row, so the fixed cost
+# of entering a vectorised loop (its runtime alias checks, its remainder) is paid per class and
+# not again for every row of a net only a few rows high. The springs that touch a pad (or
+# join the end of one row to the start of the next) are computed and then zeroed, as step_grid's
+# missing springs. The scratch holds one flat line per class and axis: a spring's t is stored
+# one knot right of its first knot, horizontal ones at q + 1, the others (the bands between
+# rows r and r + 1) one row further, at q + W + 1 (shear \\: from q + 1 to q + W, at q + W + 1),
+# so knot q finds its left-hand and lower terms at q and q + 1 and its upper ones at q + W and
+# q + W + 1; the first row of the band lines (below the bottom row) and the last (above the top
+# row) stay zero.
 #
 # The knot step per axis: v' = b v + (h w) f - h g [z], x' = x + s v', with per-knot factors
 # recomputed each call from h (b = 1 - h drag, s = h for a free knot; b = 1, s = 0, h w = 0 for a
@@ -60,7 +62,10 @@ GRID32_EXACT, GRID32_FMA = 0, 1
 _FMA_FLAGS = {"contract"}
 LANES = 8  # float32 lanes of a ymm register: the padded row is a multiple of it
 # net32 entries (grid32_work)
-_REF, _STATE, _KNOT, _MASS, _TABLE, _WORK, _CLASS, _VARIANT, _CALL = range(9)
+_REF, _STATE, _KNOT, _MASS, _TABLE, _WORK, _CLASS, _VARIANT, _CALL, _BLOCKS = range(10)
+# lines of net32[_WORK], 3 axes each: t of the horizontal, vertical, shear / and shear \\ springs
+_H, _V, _D1, _D2 = 0, 3, 6, 9
+WORK32_LINES = 12
 # rows of net32[_KNOT]: the per-knot factors of the step (h w, b, h g, s)
 _HW, _B, _HG, _S = range(4)
 # columns of net32[_CLASS], per spring class: its built vector's y and z (x is 0: the built net
@@ -75,15 +80,16 @@ def grid32_work(built, knot_inv_mass, blocks, variant):
     Args:
         built: (3, rows, cols) m, the built grid R (NetTopology.knot_pos as axis, row, column).
         knot_inv_mass: (rows, cols) 1/kg, as step_grid's.
-        blocks: row blocks stepped in parallel (as step_grid's grid_work.shape[0]).
+        blocks: row blocks stepped in parallel (1 <= blocks <= rows; any count gives the same bits).
         variant: GRID32_* bits.
 
     Returns:
         net32, the last argument of the *32 kernels in place of grid_work: (R float64 (3, rows,
         cols), state float32 (2, 3, rows, W) [offset | velocity], per-knot step factors float32
         (4, rows, W), knot_inv_mass float32 (rows, W), the table's offset TABLE_Z - R_z float32
-        (rows, W), scratch float32 (blocks, GRID_WORK_ROWS, W + 1), per-class constants float32
-        (GRID_CLASSES, 5), variant, the (h, drag, gravity) float64 (3,) the step factors were made for).
+        (rows, W), scratch float32 (WORK32_LINES, (rows + 1) W + 1), per-class constants float32
+        (GRID_CLASSES, 5), variant, the (h, drag, gravity) float64 (3,) the step factors were made
+        for, blocks).
     """
     rows, cols = built.shape[1], built.shape[2]
     width = (cols // LANES + 1) * LANES + 1
@@ -103,170 +109,198 @@ def grid32_work(built, knot_inv_mass, blocks, variant):
     classes[GRID_SHEAR, _DZ] = np.float32(up_z)
     return (built.copy(), np.zeros((2, 3, rows, width), dtype=np.float32),
             np.zeros((4, rows, width), dtype=np.float32), inv_mass, table,
-            np.zeros((blocks, GRID_WORK_ROWS, width + 1), dtype=np.float32), classes, np.int64(variant),
-            np.full(3, np.nan))
+            np.zeros((WORK32_LINES, (rows + 1) * width + 1), dtype=np.float32), classes, np.int64(variant),
+            np.full(3, np.nan), np.int64(blocks))
 
 
 @njit(inline="always")
-def _spring32(o, v, ri, rj, i, j, q, dy, dz, k, c, k_rest, work, row):
-    """t = scale d of the spring from knot (ri, i) to (rj, j) into work[row : row + 3, q + 1], float32.
+def _line32(o, v, lo, hi, off, classes, kind, mirror, t, line, shift):
+    """t of the springs of class `kind` from flat knot q to q + off, q in [lo, hi), into
+    t[line : line + 3, q + shift], float32 (its built vector's y negated when `mirror`: shear \\).
 
     scale = (k (|d| - rest) + c (e . d) / |d|) / |d| = k + (c (e . d) / |d| - k rest) / |d|:
     step_grid's spring-damper with one root and one division instead of a root and two.
+    Indices are unsigned: numba then skips the negative-index test, and LLVM vectorises.
     """
-    d0 = o[0, rj, j] - o[0, ri, i]
-    d1 = dy + (o[1, rj, j] - o[1, ri, i])
-    d2 = dz + (o[2, rj, j] - o[2, ri, i])
-    e0 = v[0, rj, j] - v[0, ri, i]
-    e1 = v[1, rj, j] - v[1, ri, i]
-    e2 = v[2, rj, j] - v[2, ri, i]
-    length2 = d0 * d0 + d1 * d1 + d2 * d2
-    rate = e0 * d0 + e1 * d1 + e2 * d2
-    inv_len = np.float32(1.0) / np.sqrt(length2)
-    scale = k + inv_len * (c * rate * inv_len - k_rest)
-    work[row, q + 1] = scale * d0
-    work[row + 1, q + 1] = scale * d1
-    work[row + 2, q + 1] = scale * d2
-
-
-@njit(inline="always")
-def _line32(o, v, classes, ri, rj, qi, qj, kind, mirror, last, work, row):
-    """t of the P springs from (ri, p + qi) to (rj, p + qj), p in [0, P), of class `kind` (its built
-    vector's y negated when `mirror`: shear \\) into work[row : row + 3, p + 1];
-    only p in [1, last] join two knots of the net, the others touch a pad and are zeroed."""
-    width = o.shape[2] - 1
     u = np.uint64
     dy = -classes[kind, _DY] if mirror else classes[kind, _DY]
     dz, k, c, k_rest = classes[kind, _DZ], classes[kind, _K], classes[kind, _C], classes[kind, _KREST]
-    ri, rj, qi, qj = u(ri), u(rj), u(qi), u(qj)
-    for q in range(u(width)):
-        _spring32(o, v, ri, rj, qi + q, qj + q, q, dy, dz, k, c, k_rest, work, row)
-    for a in range(row, row + 3):
-        work[a, 1] = 0.0  # p = 0: from the left pad
-        for p in range(last + 1, width):
-            work[a, p + 1] = 0.0
+    off, shift = u(off), u(shift)
+    for q in range(u(lo), u(hi)):
+        j = q + off
+        d0 = o[0, j] - o[0, q]
+        d1 = dy + (o[1, j] - o[1, q])
+        d2 = dz + (o[2, j] - o[2, q])
+        e0 = v[0, j] - v[0, q]
+        e1 = v[1, j] - v[1, q]
+        e2 = v[2, j] - v[2, q]
+        length2 = d0 * d0 + d1 * d1 + d2 * d2
+        rate = e0 * d0 + e1 * d1 + e2 * d2
+        inv_len = np.float32(1.0) / np.sqrt(length2)
+        scale = k + inv_len * (c * rate * inv_len - k_rest)
+        t[line, q + shift] = scale * d0
+        t[line + 1, q + shift] = scale * d1
+        t[line + 2, q + shift] = scale * d2
 
 
 @njit(inline="always")
-def _band32(o, v, classes, r, cols, work, band):
-    """t of the springs between rows r and r + 1 into work[band : band + 9] (grid._grid_band's band)."""
-    _line32(o, v, classes, r, r + 1, 0, 0, GRID_VERTICAL, False, cols, work, band + _V)
-    # shear /: (r, p) to (r + 1, p + 1); shear \\: (r, p + 1) to (r + 1, p)
-    _line32(o, v, classes, r, r + 1, 0, 1, GRID_SHEAR, False, cols - 1, work, band + _D1)
-    _line32(o, v, classes, r, r + 1, 1, 0, GRID_SHEAR, True, cols - 1, work, band + _D2)
-
-
-@njit(inline="always")
-def _axis32(x_row, v_row, factors, r, below_left, below, below_right, horizontal, above_left, above, above_right,
-            floor, vertical):
-    """One axis of a row's knots stepped in place (step_grid's sum order); `vertical` (a constant bool):
-    z, with gravity and the playing surface (net_kernel/kernels/table.py) at the offset `floor`, which
-    pads and knots far above never reach."""
-    hw, b, hg, s = factors[_HW, r], factors[_B, r], factors[_HG, r], factors[_S, r]
-    for p in range(x_row.shape[0] - 1):
-        f = above_right[p + 1] - below_left[p]
-        f -= below[p + 1]
-        f -= below_right[p + 1]
-        f -= horizontal[p]
-        f += horizontal[p + 1]
-        f += above_left[p]
-        f += above[p + 1]
-        nv = b[p] * v_row[p] + hw[p] * f
-        if vertical:
-            nv -= hg[p]
-            z = x_row[p] + s[p] * nv
-            below_floor = z < floor[p]
-            x_row[p] = floor[p] if below_floor else z
-            v_row[p] = max(nv, np.float32(0.0)) if below_floor else nv
-        else:
-            v_row[p] = nv
-            x_row[p] += s[p] * nv
-
-
-@njit(inline="always")
-def _update_row32(state, factors, table, r, down, up, work):
-    """Row r's knots stepped in place, axis by axis."""
-    for k in range(2):
-        _axis32(state[0, k, r], state[1, k, r], factors, r, work[down + _D1 + k], work[down + _V + k],
-                work[down + _D2 + k], work[_H + k], work[up + _D2 + k], work[up + _V + k], work[up + _D1 + k],
-                table[r], False)
-    _axis32(state[0, 2, r], state[1, 2, r], factors, r, work[down + _D1 + 2], work[down + _V + 2],
-            work[down + _D2 + 2], work[_H + 2], work[up + _D2 + 2], work[up + _V + 2], work[up + _D1 + 2], table[r],
-            True)
-
-
-@njit(inline="always")
-def _edge_body(net32, cols, b, r0):
-    """Block b's first phase (grid._grid_edge): the band below its first row r0 (none for r0 = 0)."""
-    if r0 > 0:
-        state = net32[_STATE]
-        _band32(state[0], state[1], net32[_CLASS], r0 - 1, cols, net32[_WORK][b], _EDGE)
-
-
-@njit(inline="always")
-def _block_body(net32, cols, b, r0, r1):
-    """Block b's second phase (grid._grid_block): rows r0 .. r1 - 1 stepped in place."""
-    state, factors, table, scratch, classes = net32[_STATE], net32[_KNOT], net32[_TABLE], net32[_WORK], net32[_CLASS]
-    o, v = state[0], state[1]
-    rows = state.shape[2]
-    work = scratch[b]
-    n = work.shape[1]
+def _zero32(t, line, shift, r0, r1, width, last):
+    """Zero the t of rows r0 .. r1 - 1 (at t[line : line + 3, r width + q + shift]) whose first
+    knot's column q is outside [1, last]: springs from or to a pad, or from a row's end to the
+    next row's start."""
     for r in range(r0, r1):
-        up = _BAND + 9 * (r % 2)
-        down = _BAND + 9 * ((r + 1) % 2)
-        if r == r0:
-            for row in range(9):
-                for p in range(n):  # no springs below the bottom row; else this block's edge band
-                    work[down + row, p] = 0.0 if r == 0 else work[_EDGE + row, p]
-        if r == rows - 1 or r == r1 - 1:
-            for row in range(9):
-                for p in range(n):  # none above the top row; else block b + 1's edge
-                    work[up + row, p] = 0.0 if r == rows - 1 else scratch[b + 1, _EDGE + row, p]
+        base = r * width + shift
+        for a in range(line, line + 3):
+            t[a, base] = 0.0
+            for q in range(last + 1, width):
+                t[a, base + q] = 0.0
+
+
+@njit(inline="always")
+def _springs(o, v, t, classes, rows, width, cols, r0, r1):
+    """t of the springs of rows r0 .. r1 - 1 (o, v: the state as (3, rows W) flat knots): their
+    horizontal ones (the hem on the bottom row, the top cord on the top row) and the bands to the
+    row above (none above the top row)."""
+    mesh0, mesh1 = max(r0, 1), min(r1, rows - 1)
+    if r0 == 0 and rows > 1:
+        _line32(o, v, 0, width, 1, classes, GRID_HEM, False, t, _H, 1)
+    if mesh0 < mesh1:
+        _line32(o, v, mesh0 * width, mesh1 * width, 1, classes, GRID_MESH, False, t, _H, 1)
+    if r1 == rows:
+        _line32(o, v, (rows - 1) * width, rows * width - 1, 1, classes, GRID_CORD, False, t, _H, 1)
+    _zero32(t, _H, 1, r0, r1, width, cols - 1)
+    band1 = min(r1, rows - 1)  # bands from rows r0 .. band1 - 1 to the row above
+    if r0 < band1:
+        lo, hi = r0 * width, band1 * width
+        _line32(o, v, lo, hi, width, classes, GRID_VERTICAL, False, t, _V, width + 1)
+        # the last band's spring from the last knot would end past the grid: left out (a pad's, zeroed)
+        _line32(o, v, lo, hi - (band1 == rows - 1), width + 1, classes, GRID_SHEAR, False, t, _D1, width + 1)
+        _line32(o, v, lo + 1, hi + 1, width - 1, classes, GRID_SHEAR, True, t, _D2, width)
+        _zero32(t, _V, width + 1, r0, band1, width, cols)
+        _zero32(t, _D1, width + 1, r0, band1, width, cols - 1)
+        _zero32(t, _D2, width + 1, r0, band1, width, cols - 1)
+
+
+@njit(inline="always")
+def _axis32(o, v, a, factors, floor, t, lo, hi, width, vertical):
+    """Axis a of flat knots lo .. hi - 1 stepped in place (step_grid's sum order); `vertical` (a
+    constant bool): z, with gravity and the playing surface (net_kernel/kernels/table.py) at the
+    offset `floor`, which pads and knots far above never reach."""
+    u = np.uint64
+    one, up, up1 = u(1), u(width), u(width + 1)
+    h, vb, d1, d2 = _H + a, _V + a, _D1 + a, _D2 + a
+    for q in range(u(lo), u(hi)):
+        f = t[d1, q + up1] - t[d1, q]  # above-right - below-left
+        f -= t[vb, q + one]  # below
+        f -= t[d2, q + one]  # below-right
+        f -= t[h, q]  # left
+        f += t[h, q + one]  # right
+        f += t[d2, q + up]  # above-left
+        f += t[vb, q + up1]  # above
+        nv = factors[_B, q] * v[a, q] + factors[_HW, q] * f
+        if vertical:
+            nv -= factors[_HG, q]
+            z = o[a, q] + factors[_S, q] * nv
+            below_floor = z < floor[q]
+            o[a, q] = floor[q] if below_floor else z
+            v[a, q] = max(nv, np.float32(0.0)) if below_floor else nv
         else:
-            _band32(o, v, classes, r, cols, work, up)
-        kind = GRID_CORD if r == rows - 1 else (GRID_HEM if r == 0 else GRID_MESH)
-        _line32(o, v, classes, r, r, 0, 1, kind, False, cols - 1, work, _H)
-        _update_row32(state, factors, table, r, down, up, work)
+            v[a, q] = nv
+            o[a, q] += factors[_S, q] * nv
+
+
+@njit(inline="always")
+def _knots(o, v, t, factors, floor, width, r0, r1):
+    """Rows r0 .. r1 - 1 stepped in place, axis by axis, from the springs' t (factors (4, rows W),
+    floor (rows W): net32's, flat)."""
+    lo, hi = r0 * width, r1 * width
+    _axis32(o, v, 0, factors, floor, t, lo, hi, width, False)
+    _axis32(o, v, 1, factors, floor, t, lo, hi, width, False)
+    _axis32(o, v, 2, factors, floor, t, lo, hi, width, True)
+
+
+@njit(inline="always")
+def _flat(net32):
+    """net32's state, factors and table as flat knots: (3, n) offsets, (3, n) velocities, (4, n), (n,)."""
+    state = net32[_STATE]
+    n = state.shape[2] * state.shape[3]
+    return state[0].reshape(3, n), state[1].reshape(3, n), net32[_KNOT].reshape(4, n), net32[_TABLE].reshape(n)
+
+
+@njit(inline="always")
+def _springs_body(net32, cols, r0, r1):
+    o, v, _, _ = _flat(net32)
+    state = net32[_STATE]
+    _springs(o, v, net32[_WORK], net32[_CLASS], state.shape[2], state.shape[3], cols, r0, r1)
+
+
+@njit(inline="always")
+def _knots_body(net32, r0, r1):
+    o, v, factors, floor = _flat(net32)
+    _knots(o, v, net32[_WORK], factors, floor, net32[_STATE].shape[3], r0, r1)
 
 
 # Each phase compiled once per variant (its fastmath flags over the whole inlined phase); the
 # serial and the parallel kernels call the same compiled phases, so they give the same bits.
 @njit(cache=True, fastmath=False, error_model="numpy")
-def _edge_exact(net32, cols, b, r0):
-    _edge_body(net32, cols, b, r0)
+def _springs_exact(net32, cols, r0, r1):
+    _springs_body(net32, cols, r0, r1)
 
 
 @njit(cache=True, fastmath=_FMA_FLAGS, error_model="numpy")
-def _edge_fma(net32, cols, b, r0):
-    _edge_body(net32, cols, b, r0)
+def _springs_fma(net32, cols, r0, r1):
+    _springs_body(net32, cols, r0, r1)
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
-def _block_exact(net32, cols, b, r0, r1):
-    _block_body(net32, cols, b, r0, r1)
+def _knots_exact(net32, r0, r1):
+    _knots_body(net32, r0, r1)
 
 
 @njit(cache=True, fastmath=_FMA_FLAGS, error_model="numpy")
-def _block_fma(net32, cols, b, r0, r1):
-    _block_body(net32, cols, b, r0, r1)
+def _knots_fma(net32, r0, r1):
+    _knots_body(net32, r0, r1)
 
 
 @njit(inline="always")
-def _edge32(net32, cols, b, r0):
-    variant = net32[_VARIANT]
-    if variant == GRID32_FMA:
-        _edge_fma(net32, cols, b, r0)
-    else:
-        _edge_exact(net32, cols, b, r0)
+def _serial_body(net32, cols, n_steps):
+    """n_steps substeps on one thread, the row blocks in turn: the phases' bodies inlined into one
+    function, so a substep pays no call (and no views made again) between them."""
+    o, v, factors, floor = _flat(net32)
+    t, classes = net32[_WORK], net32[_CLASS]
+    rows, width = net32[_STATE].shape[2], net32[_STATE].shape[3]
+    blocks = net32[_BLOCKS]
+    for _ in range(n_steps):
+        for b in range(blocks):
+            _springs(o, v, t, classes, rows, width, cols, b * rows // blocks, (b + 1) * rows // blocks)
+        for b in range(blocks):
+            _knots(o, v, t, factors, floor, width, b * rows // blocks, (b + 1) * rows // blocks)
+
+
+@njit(cache=True, fastmath=False, error_model="numpy")
+def _serial_exact(net32, cols, n_steps):
+    _serial_body(net32, cols, n_steps)
+
+
+@njit(cache=True, fastmath=_FMA_FLAGS, error_model="numpy")
+def _serial_fma(net32, cols, n_steps):
+    _serial_body(net32, cols, n_steps)
 
 
 @njit(inline="always")
-def _block32(net32, cols, b, r0, r1):
-    variant = net32[_VARIANT]
-    if variant == GRID32_FMA:
-        _block_fma(net32, cols, b, r0, r1)
+def _springs32(net32, cols, r0, r1):
+    if net32[_VARIANT] == GRID32_FMA:
+        _springs_fma(net32, cols, r0, r1)
     else:
-        _block_exact(net32, cols, b, r0, r1)
+        _springs_exact(net32, cols, r0, r1)
+
+
+@njit(inline="always")
+def _knots32(net32, r0, r1):
+    if net32[_VARIANT] == GRID32_FMA:
+        _knots_fma(net32, r0, r1)
+    else:
+        _knots_exact(net32, r0, r1)
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
@@ -314,25 +348,22 @@ def _leave32(knot_state, knot_inv_mass, net32):
                 v[c] = np.float64(v32[c + 1]) if free else v[c]
 
 
-@njit(inline="always")
-def _steps32(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, net32):
-    """step_grid32's body: its row blocks in parallel where the caller is parallel, in turn where not."""
-    if n_steps <= 0:
-        return
-    rows, cols = knot_state.shape[2], knot_state.shape[3]
-    blocks = net32[_WORK].shape[0]
-    _enter32(knot_state, grid_params, gravity, drag, h, net32)
+@njit(cache=True, parallel={"fusion": False}, fastmath=False, error_model="numpy")
+def _parallel_steps(net32, cols, n_steps):
+    """n_steps substeps, the row blocks in parallel: all springs' t from the state before the
+    substep, then the knots, which read the t of the rows beside theirs. No parfor fusion:
+    numba cannot see the first phase's writes through net32 (a tuple) and would fuse the two
+    phases' loops into one, racing the t that the second phase reads."""
+    rows = net32[_STATE].shape[2]
+    blocks = net32[_BLOCKS]
     for _ in range(n_steps):
         for b in prange(blocks):
-            _edge32(net32, cols, b, b * rows // blocks)
+            _springs32(net32, cols, b * rows // blocks, (b + 1) * rows // blocks)
         for b in prange(blocks):
-            _block32(net32, cols, b, b * rows // blocks, (b + 1) * rows // blocks)
-    _leave32(knot_state, knot_inv_mass, net32)
+            _knots32(net32, b * rows // blocks, (b + 1) * rows // blocks)
 
 
-# No parfor fusion: numba cannot see the first phase's writes through net32 (a tuple) and would
-# fuse the two phases' loops into one, racing the edge bands it exists to order.
-@njit(cache=True, parallel={"fusion": False}, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy")
 def step_grid32(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, net32):
     """n_steps of step_grid's model in float32 on offsets from the built grid, row blocks in parallel.
 
@@ -343,15 +374,24 @@ def step_grid32(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_step
 
     Args:
         knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps: as step_grid.
-        net32: grid32_work's tuple for this net (its scratch blocks: the row blocks).
+        net32: grid32_work's tuple for this net (its blocks: the row blocks).
     """
-    _steps32(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, net32)
+    if n_steps > 0:
+        _enter32(knot_state, grid_params, gravity, drag, h, net32)
+        _parallel_steps(net32, knot_state.shape[3], n_steps)
+        _leave32(knot_state, knot_inv_mass, net32)
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
 def step_grid32_serial(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, net32):
     """step_grid32 on one thread (the same blocks and phases in turn, same bits). Args as step_grid32."""
-    _steps32(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, net32)  # prange is range here
+    if n_steps > 0:
+        _enter32(knot_state, grid_params, gravity, drag, h, net32)
+        if net32[_VARIANT] == GRID32_FMA:
+            _serial_fma(net32, knot_state.shape[3], n_steps)
+        else:
+            _serial_exact(net32, knot_state.shape[3], n_steps)
+        _leave32(knot_state, knot_inv_mass, net32)
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
