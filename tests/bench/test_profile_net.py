@@ -30,9 +30,10 @@ def test_profile_net_smoke():
     assert passes["step_us"] > 0 and passes["divider_floor_us"] > 0 and passes["long_rows"] is None  # 8 rows < 16
     assert passes["spring_floor_us"] > 0 and passes["spring_floor_no_divider_us"] > 0
     assert set(report["vectors"]) == {"grid springs (_grid_line)", "grid knots (_grid_update)",
-                                      "grid32 block (_block_exact)", "csr (step_knots_serial)",
-                                      "textbook scatter (step_knots_scatter)"}
-    assert report["vectors"]["grid32 block (_block_exact)"]["width"].endswith("/f32")  # float32 lanes
+                                      "grid32 springs (_springs_exact)", "grid32 knots (_knots_exact)",
+                                      "csr (step_knots_serial)", "textbook scatter (step_knots_scatter)"}
+    for name in ("grid32 springs (_springs_exact)", "grid32 knots (_knots_exact)"):
+        assert report["vectors"][name]["width"].endswith("/f32")  # float32 lanes
     awake = report["awake_ticks"]
     assert set(awake["us"]) == {"float64", "float32", "float32 fma"} and min(awake["us"].values()) > 0
 
