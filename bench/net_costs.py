@@ -130,7 +130,7 @@ def profile_backend(topo, backend: str, steps: int | None, parallel: bool = True
         inv_mass = topo.knot_inv_mass.reshape(rows, cols)
         if path == "grid":
             step = mod.step_grid if parallel else mod.step_grid_serial
-            work = np.zeros((blocks, kernels.GRID_WORK_ROWS, cols))
+            work = kernels.grid_work(rows, cols, blocks)
         else:
             step = mod.step_grid32 if parallel else mod.step_grid32_serial
             work = mod.grid32_work(topo.knot_pos.T.reshape(3, rows, cols).copy(), inv_mass, blocks, GRID32_PATHS[path])
@@ -296,42 +296,22 @@ def _layer() -> str:
 
 
 # ---------------------------------------------------------------------------------------------
-# The grid kernel taken apart: each of step_grid_serial's passes over a whole step, timed alone
-# (the same private loops the kernel calls, on the same state), beside the floor of the
+# The grid kernel taken apart: its two phases over a whole step (every spring class, then every
+# knot), timed alone on the same state, beside the floor of the
 # divider (a square root and a division per spring, float64, the springs' only long-latency
 # operations) and the same passes on a net of as many knots in rows 8 times longer.
 
 
 @njit(cache=True, error_model="numpy")
-def _pass_bands(state, params, work, reps):
+def _pass_springs(state, inv_mass, params, work, reps):
     for _ in range(reps):
-        for r in range(state.shape[2] - 1):
-            grid_kernels._grid_band(state[0], state[1], r, params, work, grid_kernels._BAND)  # noqa: SLF001
-
-
-@njit(cache=True, error_model="numpy")
-def _pass_rows(state, params, work, reps):
-    for _ in range(reps):
-        for r in range(state.shape[2]):
-            grid_kernels._grid_row(state[0], state[1], r, params, work)  # noqa: SLF001
+        grid_kernels._grid_springs(state, inv_mass, params, work, 0, state.shape[2])  # noqa: SLF001
 
 
 @njit(cache=True, error_model="numpy")
 def _pass_knots(state, inv_mass, work, h, reps):
-    band = grid_kernels._BAND  # noqa: SLF001
     for _ in range(reps):
-        for r in range(state.shape[2]):
-            grid_kernels._grid_update(state, inv_mass, r, band, band + 9, work, 9.81, 5.0, h)  # noqa: SLF001
-
-
-@njit(cache=True, error_model="numpy")
-def _pass_borders(state, inv_mass, work, h, reps):
-    band = grid_kernels._BAND  # noqa: SLF001
-    last = state.shape[3] - 1
-    for _ in range(reps):
-        for r in range(state.shape[2]):
-            grid_kernels._grid_border(state, inv_mass, r, 0, last, band, band + 9, work, 9.81, 5.0, h)  # noqa: SLF001
-            grid_kernels._grid_border(state, inv_mass, r, last, last - 1, band, band + 9, work, 9.81, 5.0, h)  # noqa: SLF001
+        grid_kernels._grid_knots(state, inv_mass, work, 9.81, 5.0, h, 0, state.shape[2])  # noqa: SLF001
 
 
 @njit(cache=True, error_model="numpy")
@@ -352,7 +332,7 @@ def _spring_t(d0, d1, d2, e0, e1, e2, length, inv_len, out, q):
 
 @njit(cache=True, error_model="numpy")
 def _spring_floor(x, v, out, lines, reps):
-    """The grid's spring arithmetic (_grid_line's) over `lines` rows of out.shape[1] springs, nothing else."""
+    """The grid's spring arithmetic (kernels.grid's _grid_line) over `lines` rows of out.shape[1] springs, nothing else."""
     n = out.shape[1]
     for _ in range(reps):
         for _ in range(lines):
@@ -408,7 +388,7 @@ def _grid_case(topo, rows: int, cols: int):
     state[1] = rng.normal(0.0, 1e-3, state[1].shape)
     inv_mass = np.full((rows, cols), float(np.max(topo.knot_inv_mass)))
     inv_mass[0] = 0.0  # the table's row stays fixed, as in a built net
-    return state, inv_mass, np.zeros((grid_kernels.GRID_WORK_ROWS, cols))
+    return state, inv_mass, grid_kernels.grid_work(rows, cols)
 
 
 def grid_passes(topo, target_s: float = 1.0) -> dict:
@@ -420,7 +400,7 @@ def grid_passes(topo, target_s: float = 1.0) -> dict:
         short rows' per-loop overhead costs; None below 16 rows), "divider_floor_us" (a root and
         a division for each of the net's springs), "spring_floor_us" and
         "spring_floor_no_divider_us" (_spring_floor, _spring_floor_no_divider for as many springs),
-        "step_us", "rest_us" (the step minus its passes: block set-up, band copies, calls)}.
+        "step_us", "rest_us" (the step minus its passes: chunk set-up, calls)}.
     """
     rows, cols = topo.spec.rows, topo.spec.cols
     budget = target_s / 8
@@ -430,21 +410,17 @@ def grid_passes(topo, target_s: float = 1.0) -> dict:
         params, h = topo.grid_params, 0.5 * topo.h_max
         # name: (µs per step, how many springs or knots the pass handles, "spring" or "knot")
         return {
-            "springs: vertical and shear bands": (_best_us(lambda r: _pass_bands(state, params, work, r), budget),
-                                                  (n_rows - 1) * (3 * n_cols - 2), "spring"),
-            "springs: horizontal rows": (_best_us(lambda r: _pass_rows(state, params, work, r), budget),
-                                         n_rows * (n_cols - 1), "spring"),
-            "knots: update (with borders)": (_best_us(lambda r: _pass_knots(state, inv_mass, work, h, r), budget),
-                                             n_rows * n_cols, "knot"),
-            "knots: the border columns alone": (_best_us(lambda r: _pass_borders(state, inv_mass, work, h, r),
-                                                         budget), 2 * n_rows, "knot"),
+            "springs: one loop a class": (_best_us(lambda r: _pass_springs(state, inv_mass, params, work, r), budget),
+                                          n_rows * (n_cols - 1) + (n_rows - 1) * (3 * n_cols - 2), "spring"),
+            "knots: update": (_best_us(lambda r: _pass_knots(state, inv_mass, work, h, r), budget),
+                              n_rows * n_cols, "knot"),
         }
 
     short = passes(rows, cols)
     long_rows = passes(max(2, rows // 8), cols * 8) if rows >= 16 else None
     state = np.zeros((2, 3, rows, cols))
     state[0] = topo.knot_pos.T.reshape(3, rows, cols)
-    work = np.zeros((1, grid_kernels.GRID_WORK_ROWS, cols))
+    work = grid_kernels.grid_work(rows, cols)
     inv_mass = topo.knot_inv_mass.reshape(rows, cols)
     step_us = _best_us(lambda r: kernels.step_grid_serial(state, inv_mass, topo.grid_params, topo.spec.gravity,
                                                           topo.spec.air_damping, 0.5 * topo.h_max, r, work), budget)
@@ -458,7 +434,7 @@ def grid_passes(topo, target_s: float = 1.0) -> dict:
     per_spring = topo.n_springs / (lines * (cols - 1))
     springs = [per_spring * _best_us(lambda r, f=f: f(x, v, np.empty((3, cols - 1)), lines, r), budget)
                for f in (_spring_floor, _spring_floor_no_divider)]
-    spent = sum(us for name, (us, _, _) in short.items() if name != "knots: the border columns alone")
+    spent = sum(us for us, _, _ in short.values())
     return {"rows": rows, "cols": cols, "passes": short, "long_rows": long_rows, "divider_floor_us": floor,
             "spring_floor_us": springs[0], "spring_floor_no_divider_us": springs[1], "step_us": step_us,
             "rest_us": step_us - spent}
@@ -468,9 +444,8 @@ def kernel_vectors(topo) -> dict:
     """vector_report of each kernel's loops for `topo`'s arrays: the grid's spring and knot passes, csr, textbook."""
     rows, cols = topo.spec.rows, topo.spec.cols
     state = np.zeros((2, 3, rows, cols))
-    work = np.zeros((grid_kernels.GRID_WORK_ROWS, cols))
+    work = grid_kernels.grid_work(rows, cols)
     inv_mass = topo.knot_inv_mass.reshape(rows, cols)
-    u = np.uint64
     net32 = kernels.grid32_work(topo.knot_pos.T.reshape(3, rows, cols).copy(), inv_mass, 1, kernels.GRID32_EXACT)
     pos, vel = topo.knot_pos.copy(), np.zeros_like(topo.knot_pos)
     h = 0.5 * topo.h_max
@@ -481,10 +456,10 @@ def kernel_vectors(topo) -> dict:
     textbook = (pos, vel, topo.knot_inv_mass, topo.spring_ij, topo.spring_rest, topo.spring_k, topo.spring_c, 9.81, 5.0,
                 h, pos.copy(), pos.copy(), vel.copy())
     return {
-        "grid springs (_grid_line)": vector_report(grid_kernels._grid_line, (  # noqa: SLF001
-            state[0], state[1], u(0), u(0), u(0), u(1), u(cols - 1), 1.0, 1.0, 1.0, work, 0)),
-        "grid knots (_grid_update)": vector_report(grid_kernels._grid_update, (  # noqa: SLF001
-            state, inv_mass, 0, 3, 12, work, 9.81, 5.0, h)),
+        "grid springs (_grid_springs)": vector_report(grid_kernels._grid_springs, (  # noqa: SLF001
+            state, inv_mass, topo.grid_params, work, 0, rows)),
+        "grid knots (_grid_knots)": vector_report(grid_kernels._grid_knots, (  # noqa: SLF001
+            state, inv_mass, work, 9.81, 5.0, h, 0, rows)),
         "grid32 springs (_springs_exact)": vector_report(grid32_kernels._springs_exact, (  # noqa: SLF001
             net32, cols, 0, rows)),
         "grid32 knots (_knots_exact)": vector_report(grid32_kernels._knots_exact, (net32, 0, rows)),  # noqa: SLF001

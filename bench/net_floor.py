@@ -92,7 +92,7 @@ def main() -> None:
     w = np.full((rows, cols), 60.0)
     state = np.zeros((2, 3, rows, cols))
     state[0] = topo.knot_pos.T.reshape(3, rows, cols)
-    work = np.zeros((1, kernels.GRID_WORK_ROWS, cols))
+    work = kernels.grid_work(rows, cols)
     inv_mass = topo.knot_inv_mass.reshape(rows, cols)
     h = 0.5 * topo.h_max
     u = np.uint64

@@ -18,7 +18,6 @@ from net_kernel.kernels import (  # noqa: F401  (shared)
     GRID_MESH,
     GRID_SHEAR,
     GRID_VERTICAL,
-    GRID_WORK_ROWS,
     KNOT_WORK_ROWS,
     NO_CONTACT,
     SPRING_WORK_COLS,

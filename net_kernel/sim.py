@@ -12,12 +12,12 @@ from net_kernel.kernels import (
     FREE_OUT_OF_REACH,
     GRID32_EXACT,
     GRID32_FMA,
-    GRID_WORK_ROWS,
     KNOT_WORK_ROWS,
     NO_CONTACT,
     SPRING_WORK_COLS,
     STEP_WORK_ROWS,
     TICK_BALL_ROWS,
+    grid_work,
 )
 from net_kernel.kernels.modal import FREE_TAIL
 from net_kernel.modes import NetModes, linear_tail_refusal, net_modes
@@ -191,7 +191,7 @@ class NetSim:
             self._grid_inv_mass = topo.knot_inv_mass.reshape(rows, cols)
             # One scratch block per row block; the block count changes no bit (kernels.step_grid).
             blocks = min(rows, max(1, numba.get_num_threads())) if parallel and backend == "numba" else 1
-            self._grid_work = np.zeros((blocks, GRID_WORK_ROWS, cols))
+            self._grid_work = grid_work(rows, cols, blocks)
             if spec.kernel_precision == FLOAT32:  # the float32 grid kernels (kernels.grid32), the same calls
                 self._step_grid = mod.step_grid32 if parallel else mod.step_grid32_serial
                 self._step_grid_tick = mod.step_grid32_tick

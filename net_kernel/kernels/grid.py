@@ -1,4 +1,4 @@
-"""Knot steps of a net on a regular grid (NetTopology.grid): step_knots' model and bits, fused row by row, in place."""
+"""Knot steps of a net on a regular grid (NetTopology.grid): step_knots' model and bits, in flat loops, in place."""
 import math
 
 import numpy as np
@@ -9,203 +9,194 @@ from net_kernel.kernels.table import TABLE_Z
 # Structured grid: the same model and the same arithmetic as step_knots, for nets built on a
 # regular grid (NetTopology.grid). Knot (r, c) finds its 8 springs by index arithmetic instead
 # of the CSR lists, spring parameters come per class (GRID_CLASSES) instead of per spring, and
-# the state is structure of arrays (knot_state below) so every loop runs along a row's
-# contiguous columns and vectorises. Spring and knot work are fused row by row: the forces of
-# the springs above row r go to a rolling scratch of a few rows, then row r's knots gather and
-# step, so nothing of size n_springs goes to memory and back.
+# the state is structure of arrays (knot_state below). The rows are contiguous, so the grid is
+# one flat array of rows x cols knots (knot q = r cols + c) and each spring class is one loop
+# over it: from knot q to q + 1 (horizontal), q + cols (vertical), q + cols + 1 (shear /) or
+# q + cols - 1 (shear \), then one loop per axis over the knots. A substep is a few long loops,
+# not a few per row: the fixed cost of entering a vectorised loop (its runtime alias checks, its
+# remainder) is paid per class, not again for every row of a net only a few rows high. The
+# springs that join a row's end to the next row's start are computed with the rest and zeroed,
+# which leaves a border knot's missing springs as zero terms.
 #
-# In place, yet every spring sees the old state (springs act before knots move): row r is
-# stepped only after the springs of rows r - 1, r and r + 1 that touch it were evaluated, and
-# no spring evaluated later reads row r. Row blocks run in parallel: first every block
-# evaluates the springs below its first row (the only ones that read a row another block
-# steps), then all blocks step their rows. One buffer is half the memory traffic of two: no
-# second buffer to stream out (and read for ownership) each step.
+# Scratch (grid_work): one flat line per class and axis. A spring's t is stored one knot right
+# of its first knot: horizontal ones at q + 1, the bands between rows r and r + 1 one row
+# further, at q + cols + 1 (shear \, from q to q + cols - 1, at q + cols). Knot q then finds
+# its lower and left-hand terms at q and q + 1 and its upper ones at q + cols and q + cols + 1;
+# the lines' first row (below the bottom row) and last (above the top row) stay zero.
+#
+# In place, yet every spring sees the old state (springs act before knots move). Serially the
+# net goes in chunks of CHUNK_ROWS rows, each chunk's springs (its rows' horizontal springs and
+# the bands to the row above) and then its knots: a chunk's springs read only its rows and the
+# next chunk's first row, which has not moved yet, and its knots read the band below, which the
+# chunk before evaluated before it moved anything. The chunks keep a large net's scratch in
+# cache. In parallel, row blocks evaluate all their springs, then all step their knots. One
+# buffer is half the memory traffic of two: no second buffer to stream out (and read for
+# ownership) each step.
 #
 # Bits: a knot sums its springs in the CSR slot order of build_topology (down-left, down,
 # down-right, left, right, up-left, up, up-right: increasing spring index), each spring's
 # scale is the same expression as step_knots', so step_grid gives step_knots' bits (a missing
-# spring at the border adds a +-0 term), for any number of blocks or threads.
+# spring at the border adds a +-0 term), for any number of blocks, chunks or threads.
 #
 # A spring's force is stored once as a vector t = scale (x_j - x_i) (force on its first knot
 # i; -t on j): -t is exactly scale (x_i - x_j), so the sums keep step_knots' bits, and the
 # knot pass adds 8 vectors instead of recomputing 8 differences and products.
 #
-# Loops: each writes one array (a scratch block or knot_state) so LLVM's runtime alias
+# Loops: each writes one array (a scratch line or knot_state) so LLVM's runtime alias
 # checks stay few enough to vectorise it: a knot pass that reads 19 arrays and writes 6 in
 # one loop stays scalar.
 
 # Spring classes of a grid net: rows of NetTopology.grid_params (k N/m, c N s/m, rest m).
 GRID_MESH, GRID_VERTICAL, GRID_SHEAR, GRID_CORD, GRID_HEM = 0, 1, 2, 3, 4
 GRID_CLASSES = 5
-# Scratch rows of one row block (grid_work[block]), each (cols,): the row's horizontal
-# springs' t (3 rows), two rolling bands of the springs between a row and the next
-# (vertical, shear / and shear \ t: 9 rows each), and the band below the block's first row.
-GRID_WORK_ROWS = 30
-_H, _BAND, _EDGE = 0, 3, 21
-_V, _D1, _D2 = 0, 3, 6  # offsets within a band
+# Lines of the scratch (grid_work[0]), 3 axes each: t of the horizontal, vertical, shear / and
+# shear \ springs.
+GRID_WORK_LINES = 12
+_H, _V, _D1, _D2 = 0, 3, 6, 9
+# Rows a serial step takes at a time (see above): the match's nets are one chunk.
+CHUNK_ROWS = 16
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
-def _grid_line(x, v, ri, rj, qi, qj, n, k, c, rest, work, row):
-    """t = scale (x_j - x_i) of n springs from knots (ri, qi + q) to (rj, qj + q) into work[row : row + 3, q].
+def grid_work(rows: int, cols: int, blocks: int = 1) -> np.ndarray:
+    """The grid kernels' scratch for a rows x cols net: (blocks, GRID_WORK_LINES, (rows + 1) cols + 1).
+
+    Its first axis is the number of row blocks step_grid runs in parallel (1 <= blocks <= rows;
+    any count gives the same bits); grid_work[0] holds the lines (each block writes its rows).
+    """
+    return np.zeros((blocks, GRID_WORK_LINES, (rows + 1) * cols + 1))
+
+
+@njit(inline="always")
+def _grid_line(x, v, lo, hi, off, k, c, rest, t, line, shift):
+    """t = scale (x_j - x_i) of the springs from flat knot q to q + off, q in [lo, hi), into
+    t[line : line + 3, q + shift].
 
     The scale is step_knots' expression, same operations in the same order. Indices are
     unsigned: numba then skips the negative-index test, and LLVM sees plain strides and
-    vectorises. Written out, not built from inline helpers: numba's IR inlining multiplied
-    the grid kernels' compile time (and the runtime was no better).
+    vectorises.
     """
-    for q in range(n):
-        i = qi + q
-        j = qj + q
-        d0 = x[0, rj, j] - x[0, ri, i]
-        d1 = x[1, rj, j] - x[1, ri, i]
-        d2 = x[2, rj, j] - x[2, ri, i]
-        e0 = v[0, rj, j] - v[0, ri, i]
-        e1 = v[1, rj, j] - v[1, ri, i]
-        e2 = v[2, rj, j] - v[2, ri, i]
+    u = np.uint64
+    off, shift = u(off), u(shift)
+    for q in range(u(lo), u(hi)):
+        j = q + off
+        d0 = x[0, j] - x[0, q]
+        d1 = x[1, j] - x[1, q]
+        d2 = x[2, j] - x[2, q]
+        e0 = v[0, j] - v[0, q]
+        e1 = v[1, j] - v[1, q]
+        e2 = v[2, j] - v[2, q]
         length2 = d0 * d0 + d1 * d1 + d2 * d2
         rate = e0 * d0 + e1 * d1 + e2 * d2
         length = math.sqrt(length2)
         inv_len = 1.0 / length
         scale = (k * (length - rest) + c * rate * inv_len) * inv_len
-        work[row, q] = scale * d0
-        work[row + 1, q] = scale * d1
-        work[row + 2, q] = scale * d2
+        t[line, q + shift] = scale * d0
+        t[line + 1, q + shift] = scale * d1
+        t[line + 2, q + shift] = scale * d2
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
-def _grid_band(x, v, r, params, work, band):
-    """t of the springs between rows r and r + 1 into the band at work[band : band + 9]."""
-    cols = x.shape[2]
-    u = np.uint64
-    ri, rj, n, zero, one = u(r), u(r + 1), u(cols), u(0), u(1)
-    k, c, rest = params[GRID_VERTICAL, 0], params[GRID_VERTICAL, 1], params[GRID_VERTICAL, 2]
-    _grid_line(x, v, ri, rj, zero, zero, n, k, c, rest, work, band + _V)
-    k, c, rest = params[GRID_SHEAR, 0], params[GRID_SHEAR, 1], params[GRID_SHEAR, 2]
-    _grid_line(x, v, ri, rj, zero, one, n - one, k, c, rest, work, band + _D1)  # shear /: (r, q) to (r + 1, q + 1)
-    _grid_line(x, v, ri, rj, one, zero, n - one, k, c, rest, work, band + _D2)  # shear \: (r, q + 1) to (r + 1, q)
-    # No spring leaves the last column: zeros there are the border's missing terms.
-    for row in range(band + _D1, band + _D2 + 3):
-        work[row, cols - 1] = 0.0
+@njit(inline="always")
+def _class_line(x, v, lo, hi, off, params, kind, t, line, shift):
+    _grid_line(x, v, lo, hi, off, params[kind, 0], params[kind, 1], params[kind, 2], t, line, shift)
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
-def _grid_row(x, v, r, params, work):
-    """t of row r's horizontal springs (the top cord on the last row) into work[_H : _H + 3]."""
-    cols = x.shape[2]
-    kind = GRID_CORD if r == x.shape[1] - 1 else (GRID_HEM if r == 0 else GRID_MESH)
-    u = np.uint64
-    _grid_line(x, v, u(r), u(r), u(0), u(1), u(cols - 1), params[kind, 0], params[kind, 1], params[kind, 2], work, _H)
-    for row in range(_H, _H + 3):
-        work[row, cols - 1] = 0.0
+@njit(inline="always")
+def _zero_wraps(t, line, first, last, cols):
+    """Zero the t at t[line : line + 3, first + m cols] for first + m cols <= last: springs that
+    join a row's end to the next row's start."""
+    for a in range(line, line + 3):
+        for slot in range(first, last + 1, cols):
+            t[a, slot] = 0.0
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
-def _grid_border(state, knot_inv_mass, r, q, ql, down, up, work, gravity, drag, h):
-    """Knot (r, q) on a border column stepped in place as _grid_update does; ql: the column of the
-    springs to its left (the zeroed last column when q = 0)."""
-    w = knot_inv_mass[r, q]
-    for k in range(3):
-        f = -work[down + _D1 + k, ql]
-        f -= work[down + _V + k, q]
-        f -= work[down + _D2 + k, q]
-        f -= work[_H + k, ql]
-        f += work[_H + k, q]
-        f += work[up + _D2 + k, ql]
-        f += work[up + _V + k, q]
-        f += work[up + _D1 + k, q]
-        g = gravity if k == 2 else 0.0
-        xi = state[0, k, r, q]
-        vi = state[1, k, r, q]
-        nv = vi + h * (w * f - drag * vi - g)
-        z = xi + h * nv
-        if k == 2 and w != 0.0 and z < TABLE_Z:  # the playing surface (net_kernel/kernels/table.py)
-            z = TABLE_Z
-            nv = max(nv, 0.0)
-        state[1, k, r, q] = vi if w == 0.0 else nv
-        state[0, k, r, q] = xi if w == 0.0 else z
+@njit(inline="always")
+def _springs(x, v, t, params, rows, cols, r0, r1):
+    """t of the springs of rows r0 .. r1 - 1 (x, v: the state as (3, rows cols) flat knots): their
+    horizontal ones (the hem on the bottom row, the top cord on the top row) and the bands to
+    the row above (none above the top row)."""
+    mesh0, mesh1 = max(r0, 1), min(r1, rows - 1)
+    if r0 == 0 and rows > 1:
+        _class_line(x, v, 0, cols, 1, params, GRID_HEM, t, _H, 1)
+    if mesh0 < mesh1:
+        _class_line(x, v, mesh0 * cols, mesh1 * cols, 1, params, GRID_MESH, t, _H, 1)
+    if r1 == rows:
+        _class_line(x, v, (rows - 1) * cols, rows * cols - 1, 1, params, GRID_CORD, t, _H, 1)
+    _zero_wraps(t, _H, (r0 + 1) * cols, r1 * cols, cols)  # from (r, cols - 1) to (r + 1, 0)
+    band1 = min(r1, rows - 1)  # bands from rows r0 .. band1 - 1 to the row above
+    if r0 < band1:
+        lo, hi = r0 * cols, band1 * cols
+        _class_line(x, v, lo, hi, cols, params, GRID_VERTICAL, t, _V, cols + 1)
+        # the last band's spring from the grid's last knot would end past it: left out (zeroed below)
+        _class_line(x, v, lo, hi - (band1 == rows - 1), cols + 1, params, GRID_SHEAR, t, _D1, cols + 1)
+        _class_line(x, v, lo, hi, cols - 1, params, GRID_SHEAR, t, _D2, cols)
+        _zero_wraps(t, _D1, (r0 + 2) * cols, (band1 + 1) * cols, cols)  # from (r, cols - 1) to (r + 2, 0)
+        _zero_wraps(t, _D2, (r0 + 1) * cols, band1 * cols, cols)  # from (r, 0) to (r, cols - 1)
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
-def _grid_update(state, knot_inv_mass, r, down, up, work, gravity, drag, h):
-    """Row r's symplectic Euler step in place: v' = v + h (w f - drag v - g), x' = x + h v'; fixed (w = 0) knots kept.
+@njit(inline="always")
+def _knots(x, v, w, t, cols, lo, hi, gravity, drag, h):
+    """Flat knots lo .. hi - 1 stepped in place, axis by axis: v' = v + h (w f - drag v - g),
+    x' = x + h v'; fixed (w = 0) knots kept.
 
-    The force f on knot (r, q) sums its springs' t in CSR slot order: -t of the springs of
-    which it is the second knot (below-left, below, below-right, left), +t of the others
-    (right, above-left, above, above-right).
+    The force f on knot q sums its springs' t in CSR slot order: -t of the springs of which it
+    is the second knot (below-left, below, below-right, left), +t of the others (right,
+    above-left, above, above-right).
     """
-    cols = state.shape[3]
-    last = cols - 1
-    w_row = knot_inv_mass[r]
-    for k in range(3):
-        g = gravity if k == 2 else 0.0  # - 0.0 is exact: step_knots' bits on x and y
-        x_row = state[0, k, r]
-        v_row = state[1, k, r]
-        below_left, below, below_right = work[down + _D1 + k], work[down + _V + k], work[down + _D2 + k]
-        horizontal = work[_H + k]
-        above_left, above, above_right = work[up + _D2 + k], work[up + _V + k], work[up + _D1 + k]
-        for q in range(1, last):
-            f = -below_left[q - 1]  # shear / from below-left
-            f -= below[q]  # vertical from below
-            f -= below_right[q]  # shear \ from below-right
-            f -= horizontal[q - 1]  # horizontal, left
-            f += horizontal[q]  # horizontal, right
-            f += above_left[q - 1]  # shear \ to above-left
-            f += above[q]  # vertical to above
-            f += above_right[q]  # shear / to above-right
-            w = w_row[q]
-            xi = x_row[q]
-            vi = v_row[q]
+    u = np.uint64
+    one, up, up1 = u(1), u(cols), u(cols + 1)
+    for a in range(3):
+        g = gravity if a == 2 else 0.0  # - 0.0 is exact: step_knots' bits on x and y
+        h_line, v_line, d1, d2 = _H + a, _V + a, _D1 + a, _D2 + a
+        for q in range(u(lo), u(hi)):
+            f = -t[d1, q]  # shear / from below-left
+            f -= t[v_line, q + one]  # vertical from below
+            f -= t[d2, q + one]  # shear \ from below-right
+            f -= t[h_line, q]  # horizontal, left
+            f += t[h_line, q + one]  # horizontal, right
+            f += t[d2, q + up]  # shear \ to above-left
+            f += t[v_line, q + up1]  # vertical to above
+            f += t[d1, q + up1]  # shear / to above-right
+            wq = w[q]
+            xi = x[a, q]
+            vi = v[a, q]
             # Fixed knots by a 0/1 factor, not a select: with `vi if w == 0.0 else nv` LLVM
             # sinks the force sum under the condition and loads the 8 terms with masked loads
             # (vmaskmovpd), a slower pass. Same bits: 1.0 * y is y, and vi + 0.0 * y is vi (a
             # -0.0 velocity becomes +0.0).
-            free = 1.0 if w != 0.0 else 0.0
-            nv = vi + free * (h * (w * f - drag * vi - g))
-            v_row[q] = nv
-            x_row[q] = xi + free * (h * nv)
-        if k == 2:
+            free = 1.0 if wq != 0.0 else 0.0
+            nv = vi + free * (h * (wq * f - drag * vi - g))
+            v[a, q] = nv
+            x[a, q] = xi + free * (h * nv)
+        if a == 2:
             # The playing surface (net_kernel/kernels/table.py): fixed knots never start below it,
             # so only free ones are moved; a pass of its own keeps the force loop free of branches.
-            for q in range(1, last):
-                z = x_row[q]
+            for q in range(u(lo), u(hi)):
+                z = x[2, q]
                 below = z < TABLE_Z
-                x_row[q] = TABLE_Z if below else z
-                v_row[q] = max(v_row[q], 0.0) if below else v_row[q]
-    # Border columns: the springs missing to the left sit in the zeroed last column.
-    _grid_border(state, knot_inv_mass, r, 0, last, down, up, work, gravity, drag, h)
-    _grid_border(state, knot_inv_mass, r, last, last - 1, down, up, work, gravity, drag, h)
+                x[2, q] = TABLE_Z if below else z
+                v[2, q] = max(v[2, q], 0.0) if below else v[2, q]
+
+
+@njit(inline="always")
+def _flat(knot_state, knot_inv_mass):
+    """The state as flat knots: (3, n) positions, (3, n) velocities, (n,) inverse masses."""
+    n = knot_state.shape[2] * knot_state.shape[3]
+    return knot_state[0].reshape(3, n), knot_state[1].reshape(3, n), knot_inv_mass.reshape(n)
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
-def _grid_edge(state, params, grid_work, b, r0):
-    """Block b's first phase: the band below its first row r0 into grid_work[b, _EDGE:] (none for r0 = 0)."""
-    if r0 > 0:
-        _grid_band(state[0], state[1], r0 - 1, params, grid_work[b], _EDGE)
+def _grid_springs(knot_state, knot_inv_mass, params, grid_work, r0, r1):
+    """step_grid's first phase for rows r0 .. r1 - 1 (a row block)."""
+    x, v, _ = _flat(knot_state, knot_inv_mass)
+    _springs(x, v, grid_work[0], params, knot_state.shape[2], knot_state.shape[3], r0, r1)
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
-def _grid_block(state, knot_inv_mass, params, gravity, drag, h, grid_work, b, r0, r1):
-    """Block b's second phase: step rows r0 .. r1 - 1 in place; the band above r1 - 1 is block b + 1's edge."""
-    x = state[0]
-    v = state[1]
-    rows, cols = x.shape[1], x.shape[2]
-    work = grid_work[b]
-    for r in range(r0, r1):
-        up = _BAND + 9 * (r % 2)
-        down = _BAND + 9 * ((r + 1) % 2)
-        if r == r0:
-            for row in range(9):
-                for q in range(cols):  # no springs below the bottom row; else this block's edge band
-                    work[down + row, q] = 0.0 if r == 0 else work[_EDGE + row, q]
-        if r == rows - 1 or r == r1 - 1:
-            for row in range(9):
-                for q in range(cols):  # none above the top row; else block b + 1's edge, evaluated before it moved row r1
-                    work[up + row, q] = 0.0 if r == rows - 1 else grid_work[b + 1, _EDGE + row, q]
-        else:
-            _grid_band(x, v, r, params, work, up)
-        _grid_row(x, v, r, params, work)
-        _grid_update(state, knot_inv_mass, r, down, up, work, gravity, drag, h)
+def _grid_knots(knot_state, knot_inv_mass, grid_work, gravity, drag, h, r0, r1):
+    """step_grid's second phase for rows r0 .. r1 - 1 (a row block)."""
+    x, v, w = _flat(knot_state, knot_inv_mass)
+    cols = knot_state.shape[3]
+    _knots(x, v, w, grid_work[0], cols, r0 * cols, r1 * cols, gravity, drag, h)
 
 
 @njit(cache=True, parallel=True, fastmath=False, error_model="numpy")
@@ -213,9 +204,9 @@ def step_grid(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps,
     """n_steps semi-implicit Euler steps of a grid net in place, row blocks in parallel; step_knots' model and bits.
 
     Every spring is evaluated on the state at the step's start (springs act before knots
-    move), though the state is updated in place (see the notes above). Row blocks (one per
-    grid_work block) run in parallel in two phases a step and never write what another
-    block reads in the same phase. Bit-for-bit the same for any number of blocks or threads.
+    move), though the state is updated in place (see the notes above): the row blocks first
+    evaluate all their springs, then step their knots. Bit-for-bit the same for any number of
+    blocks or threads.
 
     Args:
         knot_state: (2, 3, rows, cols), [position m | velocity m/s], axis, row, column; knot
@@ -226,30 +217,30 @@ def step_grid(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps,
         drag: 1/s, linear air damping of free knots.
         h: s, the step; stable below NetTopology.h_max.
         n_steps: steps to take (>= 0).
-        grid_work: (blocks, GRID_WORK_ROWS, cols) scratch, 1 <= blocks <= rows: that many row
-            blocks step in parallel.
+        grid_work: grid_work(rows, cols, blocks): that many row blocks step in parallel.
     """
     rows = knot_state.shape[2]
     blocks = grid_work.shape[0]
     for _ in range(n_steps):
         for b in prange(blocks):
-            _grid_edge(knot_state, grid_params, grid_work, b, b * rows // blocks)
+            _grid_springs(knot_state, knot_inv_mass, grid_params, grid_work, b * rows // blocks,
+                          (b + 1) * rows // blocks)
         for b in prange(blocks):
-            _grid_block(knot_state, knot_inv_mass, grid_params, gravity, drag, h, grid_work, b, b * rows // blocks,
+            _grid_knots(knot_state, knot_inv_mass, grid_work, gravity, drag, h, b * rows // blocks,
                         (b + 1) * rows // blocks)
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
 def step_grid_serial(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, grid_work):
-    """step_grid on one thread (the same blocks and phases in turn, same bits). Args as step_grid."""
-    rows = knot_state.shape[2]
-    blocks = grid_work.shape[0]
+    """step_grid on one thread, chunk by chunk (CHUNK_ROWS; same bits). Args as step_grid (its blocks unused)."""
+    x, v, w = _flat(knot_state, knot_inv_mass)
+    t = grid_work[0]
+    rows, cols = knot_state.shape[2], knot_state.shape[3]
     for _ in range(n_steps):
-        for b in range(blocks):
-            _grid_edge(knot_state, grid_params, grid_work, b, b * rows // blocks)
-        for b in range(blocks):
-            _grid_block(knot_state, knot_inv_mass, grid_params, gravity, drag, h, grid_work, b, b * rows // blocks,
-                        (b + 1) * rows // blocks)
+        for r0 in range(0, rows, CHUNK_ROWS):
+            r1 = min(r0 + CHUNK_ROWS, rows)
+            _springs(x, v, t, grid_params, rows, cols, r0, r1)
+            _knots(x, v, w, t, cols, r0 * cols, r1 * cols, gravity, drag, h)
 
 
 @njit(cache=True, fastmath=False)

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from net_kernel.assembly import innermost_loops, vector_report
-from net_kernel.kernels import GRID_WORK_ROWS, grid
+from net_kernel.kernels import grid
 
 _LISTING = """\
 kernel:
@@ -38,8 +38,8 @@ def test_innermost_loops_are_counted_by_register_width():
 def test_the_grid_spring_loop_is_packed():
     rows, cols = 4, 12
     state = np.zeros((2, 3, rows, cols))
-    u = np.uint64
-    report = vector_report(grid._grid_line, (state[0], state[1], u(0), u(0), u(0), u(1), u(cols - 1), 1.0, 1.0, 1.0,
-                                             np.zeros((GRID_WORK_ROWS, cols)), 0))
+    params = np.ones((grid.GRID_CLASSES, 3))
+    report = vector_report(grid._grid_springs, (state, np.ones((rows, cols)), params, grid.grid_work(rows, cols), 0,
+                                                rows))
     assert report["lanes"] >= 2 and report["packed_ops"] > 0  # x86-64 has at least SSE2's 2 float64 lanes
     assert report["scalar_loops"] < report["loops"]

@@ -100,7 +100,7 @@ def _fused_run(topo, ticks, speed, mod=kernels):
     sim = NetSim(topo, dt=DT)  # for its substeps, h and far test only
     state = np.zeros((2, 3, rows, cols))
     state[0] = topo.rest_pos.T.reshape(3, rows, cols)
-    work = np.zeros((1, kernels.GRID_WORK_ROWS, cols))
+    work = kernels.grid_work(rows, cols)
     ball = np.zeros((4, 3))
     near = np.zeros(topo.n_knots, dtype=np.int64)
     impulse = np.zeros(3)
@@ -136,7 +136,7 @@ def _loop_run(topo, ticks, speed, collide):
     state = np.zeros((2, 3, rows, cols))
     state[0] = topo.rest_pos.T.reshape(3, rows, cols)
     knot_pos, knot_vel = state[0].reshape(3, -1).T, state[1].reshape(3, -1).T
-    work = np.zeros((1, kernels.GRID_WORK_ROWS, cols))
+    work = kernels.grid_work(rows, cols)
     inv_mass = topo.knot_inv_mass.reshape(rows, cols)
     hit_impulse, end = np.zeros(3), np.zeros(3)
     pos, vel = np.array([-0.05, 0.0, 0.08]), np.array([speed, 0.0, 0.0])
@@ -215,7 +215,7 @@ def _whole_ticks(topo, mod, ticks, speed):
     spec = topo.spec
     sim = NetSim(topo, dt=DT)  # for its substeps, reach and scratch only
     state = sim._state.copy()  # noqa: SLF001 (the grid state NetSim steps)
-    work = np.zeros((1, kernels.GRID_WORK_ROWS, spec.cols))
+    work = kernels.grid_work(spec.rows, spec.cols)
     ball, near = np.zeros((kernels.TICK_BALL_ROWS, 3)), np.zeros(topo.n_knots, dtype=np.int64)
     box, impulse, offset = np.zeros((2, 3)), np.zeros(3), np.zeros(3)
     pos, vel = np.array([-0.05, 0.0, 0.08]), np.array([speed, 0.0, 0.0])

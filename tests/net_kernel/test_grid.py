@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from net_kernel import NetSim, NetSpec, build_topology, grid_spec, kernels, make_topology, reference
-from net_kernel.kernels import GRID_WORK_ROWS
+from net_kernel.kernels import grid_work
 from tests.helpers.net import perturbed
 
 STEPS = 7
@@ -21,7 +21,7 @@ def _state(topo, seed):
 
 def _grid_steps(mod, name, topo, state, steps, blocks=1):
     h = 0.5 * topo.h_max
-    work = np.zeros((blocks, GRID_WORK_ROWS, topo.spec.cols))
+    work = grid_work(topo.spec.rows, topo.spec.cols, blocks)
     inv_mass = topo.knot_inv_mass.reshape(topo.spec.rows, topo.spec.cols)
     getattr(mod, name)(state, inv_mass, topo.grid_params, 9.81, 5.0, h, steps, work)
 
@@ -74,7 +74,7 @@ def test_blocks_threads_and_steps_per_call_give_the_same_bits():
                                 ("step_grid", 8, 1), ("step_grid_serial", 3, STEPS)):
         state = start.copy()
         for _ in range(calls):
-            work = np.zeros((blocks, GRID_WORK_ROWS, topo.spec.cols))
+            work = grid_work(topo.spec.rows, topo.spec.cols, blocks)
             getattr(kernels, name)(state, topo.knot_inv_mass.reshape(8, 24), topo.grid_params, 9.81, 5.0,
                                    0.5 * topo.h_max, STEPS // calls, work)
         results.append(state)

@@ -62,7 +62,7 @@ def test_float32_kernel_against_float64():
     topo, state, inv_mass, built, h = _case(seed=1)
     f64, f32 = state.copy(), state.copy()
     kernels.step_grid_serial(f64, inv_mass, topo.grid_params, 9.81, 5.0, h, STEPS,
-                             np.zeros((1, kernels.GRID_WORK_ROWS, topo.spec.cols)))
+                             kernels.grid_work(topo.spec.rows, topo.spec.cols))
     kernels.step_grid32_serial(f32, inv_mass, topo.grid_params, 9.81, 5.0, h, STEPS,
                                kernels.grid32_work(built, inv_mass, 1, kernels.GRID32_EXACT))
     x_tol, v_tol = _tolerances(topo, h, STEPS)

@@ -5,7 +5,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from net_kernel import NetSim, build_topology, grid_spec, kernels, reference
-from net_kernel.kernels import GRID_WORK_ROWS, TABLE_Z
+from net_kernel.kernels import TABLE_Z, grid_work
 from net_kernel.sim import BALL_MASS
 from net_kernel.topology import resolution_spec
 
@@ -41,7 +41,7 @@ def _grid(mod, topo, pos, vel, h):
     state[0] = pos.T.reshape(3, rows, cols)
     state[1] = vel.T.reshape(3, rows, cols)
     mod.step_grid_serial(state, topo.knot_inv_mass.reshape(rows, cols), topo.grid_params, 9.81, 5.0, h, STEPS,
-                         np.zeros((1, GRID_WORK_ROWS, cols)))
+                         grid_work(rows, cols))
     return state[0].reshape(3, -1).T, state[1].reshape(3, -1).T
 
 
