@@ -4,12 +4,12 @@ Run: `.venv/bin/python bench/net_floor.py [--cols 184 --rows 16] [--zmm]`. Each 
 step (CPU time of this thread, best of 5), next to kernels.step_grid_serial timed the same way,
 with the register width its loop compiled to (net_kernel.assembly):
 - roots: a root and a division per spring (float64, exact), and nothing else: the divider;
-- springs: the grid kernel's spring arithmetic (_grid_line's: 12 loads, |L|, rate, scale, 3
-  stores) per spring, in plain contiguous loops of one row's length;
+- springs: the grid kernel's spring arithmetic (kernels.grid._grid_line's: 12 loads, |L|, rate,
+  scale, 3 stores) per spring, in plain contiguous loops of one row's length;
 - springs without the divider: the same with 1/|L| from a float32 root and division and one
   float64 Newton step (what a divider-free spring would cost; no kernel rounds this way);
-- knots: the knot pass (_grid_update's: 8 spring terms, velocity and position update) per knot
-  and axis.
+- knots: the knot pass (kernels.grid._knots's: 8 spring terms, velocity and position update) per
+  knot and axis, one flat loop over the grid as the kernel's.
 The step cannot be faster than springs + knots unless the loops overlap, which they do not (one
 writes what the other reads). --zmm compiles everything for 512-bit vectors (LLVM prefers 256
 bits on these CPUs: NUMBA_CPU_FEATURES with the host's features and -prefer-256-bit), to see
@@ -38,26 +38,25 @@ from net_kernel.topology import build_topology, grid_spec  # noqa: E402
 
 @njit(cache=True, error_model="numpy")
 def _knots(t, x, v, w, reps):
-    rows, cols = w.shape
+    n = w.shape[0] - 1
     for _ in range(reps):
-        for r in range(rows):
-            for k in range(3):
-                a, b, c, hh, d, e, f8 = t[k], t[3 + k], t[6 + k], t[9 + k], t[12 + k], t[15 + k], t[18 + k]
-                xr, vr, wr = x[k, r], v[k, r], w[r]
-                for q in range(1, cols - 1):
-                    f = -a[q - 1]
-                    f -= b[q]
-                    f -= c[q]
-                    f -= hh[q - 1]
-                    f += hh[q]
-                    f += d[q - 1]
-                    f += e[q]
-                    f += f8[q]
-                    wq, xi, vi = wr[q], xr[q], vr[q]
-                    free = 1.0 if wq != 0.0 else 0.0
-                    nv = vi + free * (1e-5 * (wq * f - 5.0 * vi))
-                    vr[q] = nv
-                    xr[q] = xi + free * (1e-5 * nv)
+        for k in range(3):
+            a, b, c, hh, d, e, f8 = t[k], t[3 + k], t[6 + k], t[9 + k], t[12 + k], t[15 + k], t[18 + k]
+            xr, vr = x[k], v[k]
+            for q in range(1, n):
+                f = -a[q - 1]
+                f -= b[q]
+                f -= c[q]
+                f -= hh[q - 1]
+                f += hh[q]
+                f += d[q - 1]
+                f += e[q]
+                f += f8[q]
+                wq, xi, vi = w[q], xr[q], vr[q]
+                free = 1.0 if wq != 0.0 else 0.0
+                nv = vi + free * (1e-5 * (wq * f - 5.0 * vi))
+                vr[q] = nv
+                xr[q] = xi + free * (1e-5 * nv)
 
 
 def _best(call, reps):
@@ -87,15 +86,14 @@ def main() -> None:
     x = 0.01 * np.arange(cols + 1) + 1e-4 * rng.random((3, cols + 1))
     v = 1e-3 * rng.random((3, cols + 1))
     line_out = np.empty((3, cols - 1))
-    t = 1e-3 * rng.random((21, cols))
-    xs, vs = rng.random((3, rows, cols)), 1e-3 * rng.random((3, rows, cols))
-    w = np.full((rows, cols), 60.0)
+    t = 1e-3 * rng.random((21, rows * cols))
+    xs, vs = rng.random((3, rows * cols)), 1e-3 * rng.random((3, rows * cols))
+    w = np.full(rows * cols, 60.0)
     state = np.zeros((2, 3, rows, cols))
     state[0] = topo.knot_pos.T.reshape(3, rows, cols)
     work = kernels.grid_work(rows, cols)
     inv_mass = topo.knot_inv_mass.reshape(rows, cols)
     h = 0.5 * topo.h_max
-    u = np.uint64
     rows_out = {
         "roots (1/sqrt per spring)": (
             _best(lambda r: net_profile._divider_floor(length2, out, r), args.reps),  # noqa: SLF001
@@ -112,8 +110,7 @@ def main() -> None:
         "step_grid_serial (the kernel)": (
             _best(lambda r: kernels.step_grid_serial(state, inv_mass, topo.grid_params, 9.81, 5.0, h, r, work),
                   args.reps),
-            vector_report(grid._grid_line, (state[0], state[1], u(0), u(0), u(0), u(1), u(cols - 1), 1.0, 1.0,  # noqa: SLF001
-                                            1.0, work[0], 0))),
+            vector_report(grid._grid_springs, (state, inv_mass, topo.grid_params, work, 0, rows))),  # noqa: SLF001
     }
     print(f"net {cols} x {rows}: {topo.n_knots} knots, {n_springs} springs; µs per step, this thread's CPU time, "
           f"best of 5; {'512-bit vectors preferred' if args.zmm else 'the compiler default width'}")

@@ -1,7 +1,7 @@
 """Numba kernels of the net: knot steps (semi-implicit and implicit Euler) and the ball's contact.
 
 One module per layout or concern: csr (knot steps over the CSR adjacency, any topology), grid
-(the same step on a regular grid, fused row by row), grid32 (the grid step in float32 on offsets
+(the same step on a regular grid, in flat loops over it), grid32 (the grid step in float32 on offsets
 from the built grid, a NetSpec option), implicit (backward Euler by conjugate gradients),
 contact (the ball against the knots, and a grid net's whole tick with the ball near), modal
 (the linear tail in closed form: the motion's energy, modal coordinates, the state at a tick,

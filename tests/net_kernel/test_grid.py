@@ -37,11 +37,13 @@ def _csr_steps(topo, pos, vel, steps):
     return pos, vel
 
 
-# The default fixing, free posts (border columns step), free table row (bottom row steps).
-NETS = [grid_spec(24, 8), grid_spec(24, 8, fix_posts=False, fix_table=True), grid_spec(9, 5, fix_table=True)]
+# The default fixing, free posts (border columns step), free table row (bottom row steps), and a
+# net taller than kernels.grid.CHUNK_ROWS (the serial kernel's chunks meet inside it).
+NETS = [grid_spec(24, 8), grid_spec(24, 8, fix_posts=False, fix_table=True), grid_spec(9, 5, fix_table=True),
+        grid_spec(7, 2 * kernels.grid.CHUNK_ROWS + 5)]
 
 
-@pytest.mark.parametrize("spec", NETS, ids=["hanging", "free_posts", "tied"])
+@pytest.mark.parametrize("spec", NETS, ids=["hanging", "free_posts", "tied", "tall"])
 def test_grid_equals_csr_bit_for_bit(spec):
     topo = build_topology(spec)
     state, pos, vel = _state(topo, seed=11)
