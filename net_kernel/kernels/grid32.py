@@ -309,13 +309,14 @@ def _enter32(knot_state, grid_params, gravity, drag, h, net32):
     (kept while those stay the same: the same bits as making them anew) and the class constants."""
     ref, state, factors, inv_mass, classes = net32[_REF], net32[_STATE], net32[_KNOT], net32[_MASS], net32[_CLASS]
     rows, cols = ref.shape[1], ref.shape[2]
+    # Indexed in place, not through per-row views: a view costs more than a row's conversions.
+    u = np.uint64
+    one = u(1)
     for a in range(3):
         for r in range(rows):
-            x, v, ref_row = knot_state[0, a, r], knot_state[1, a, r], ref[a, r]
-            o32, v32 = state[0, a, r], state[1, a, r]
-            for c in range(cols):
-                o32[c + 1] = np.float32(x[c] - ref_row[c])
-                v32[c + 1] = np.float32(v[c])
+            for c in range(u(cols)):
+                state[0, a, r, c + one] = np.float32(knot_state[0, a, r, c] - ref[a, r, c])
+                state[1, a, r, c + one] = np.float32(knot_state[1, a, r, c])
     made = net32[_CALL]
     if not (made[0] == h and made[1] == drag and made[2] == gravity):  # NaN at first: always made once
         made[0], made[1], made[2] = h, drag, gravity
@@ -338,14 +339,14 @@ def _leave32(knot_state, knot_inv_mass, net32):
     """net32's float32 state back into the float64 state, free knots only (a fixed knot keeps its bits)."""
     ref, state = net32[_REF], net32[_STATE]
     rows, cols = ref.shape[1], ref.shape[2]
+    u = np.uint64
+    one = u(1)
     for a in range(3):
         for r in range(rows):
-            x, v, ref_row, w = knot_state[0, a, r], knot_state[1, a, r], ref[a, r], knot_inv_mass[r]
-            o32, v32 = state[0, a, r], state[1, a, r]
-            for c in range(cols):
-                free = w[c] != 0.0
-                x[c] = ref_row[c] + np.float64(o32[c + 1]) if free else x[c]
-                v[c] = np.float64(v32[c + 1]) if free else v[c]
+            for c in range(u(cols)):
+                if knot_inv_mass[r, c] != 0.0:
+                    knot_state[0, a, r, c] = ref[a, r, c] + np.float64(state[0, a, r, c + one])
+                    knot_state[1, a, r, c] = np.float64(state[1, a, r, c + one])
 
 
 @njit(cache=True, parallel={"fusion": False}, fastmath=False, error_model="numpy")
