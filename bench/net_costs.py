@@ -303,15 +303,31 @@ def _layer() -> str:
 
 
 @njit(cache=True, error_model="numpy")
+def _grid_springs(state, inv_mass, params, work):
+    """Every spring of the grid (kernels.grid's chunk halves, all rows as one chunk)."""
+    x, v, _ = grid_kernels._flat(state, inv_mass)  # noqa: SLF001
+    rows, cols = state.shape[2], state.shape[3]
+    grid_kernels._horizontal(x, v, work[0], params, rows, cols, 0, rows)  # noqa: SLF001
+    grid_kernels._bands(x, v, work[0], params, rows, cols, 0, rows - 1)  # noqa: SLF001
+
+
+@njit(cache=True, error_model="numpy")
+def _grid_knots(state, inv_mass, work, h):
+    """Every knot of the grid stepped from the springs' t in `work`."""
+    x, v, w = grid_kernels._flat(state, inv_mass)  # noqa: SLF001
+    grid_kernels._knots(x, v, w, work[0], state.shape[3], 0, w.shape[0], 9.81, 5.0, h)  # noqa: SLF001
+
+
+@njit(cache=True, error_model="numpy")
 def _pass_springs(state, inv_mass, params, work, reps):
     for _ in range(reps):
-        grid_kernels._grid_springs(state, inv_mass, params, work, 0, state.shape[2])  # noqa: SLF001
+        _grid_springs(state, inv_mass, params, work)
 
 
 @njit(cache=True, error_model="numpy")
 def _pass_knots(state, inv_mass, work, h, reps):
     for _ in range(reps):
-        grid_kernels._grid_knots(state, inv_mass, work, 9.81, 5.0, h, 0, state.shape[2])  # noqa: SLF001
+        _grid_knots(state, inv_mass, work, h)
 
 
 @njit(cache=True, error_model="numpy")
@@ -456,10 +472,8 @@ def kernel_vectors(topo) -> dict:
     textbook = (pos, vel, topo.knot_inv_mass, topo.spring_ij, topo.spring_rest, topo.spring_k, topo.spring_c, 9.81, 5.0,
                 h, pos.copy(), pos.copy(), vel.copy())
     return {
-        "grid springs (_grid_springs)": vector_report(grid_kernels._grid_springs, (  # noqa: SLF001
-            state, inv_mass, topo.grid_params, work, 0, rows)),
-        "grid knots (_grid_knots)": vector_report(grid_kernels._grid_knots, (  # noqa: SLF001
-            state, inv_mass, work, 9.81, 5.0, h, 0, rows)),
+        "grid springs (_horizontal, _bands)": vector_report(_grid_springs, (state, inv_mass, topo.grid_params, work)),
+        "grid knots (_knots)": vector_report(_grid_knots, (state, inv_mass, work, h)),
         "grid32 springs (_springs_exact)": vector_report(grid32_kernels._springs_exact, (  # noqa: SLF001
             net32, cols, 0, rows)),
         "grid32 knots (_knots_exact)": vector_report(grid32_kernels._knots_exact, (net32, 0, rows)),  # noqa: SLF001

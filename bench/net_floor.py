@@ -32,7 +32,6 @@ from numba import njit  # noqa: E402
 from bench import net_costs as net_profile  # noqa: E402
 from net_kernel import kernels  # noqa: E402
 from net_kernel.assembly import vector_report  # noqa: E402
-from net_kernel.kernels import grid  # noqa: E402
 from net_kernel.topology import build_topology, grid_spec  # noqa: E402
 
 
@@ -110,7 +109,7 @@ def main() -> None:
         "step_grid_serial (the kernel)": (
             _best(lambda r: kernels.step_grid_serial(state, inv_mass, topo.grid_params, 9.81, 5.0, h, r, work),
                   args.reps),
-            vector_report(grid._grid_springs, (state, inv_mass, topo.grid_params, work, 0, rows))),  # noqa: SLF001
+            vector_report(net_profile._grid_springs, (state, inv_mass, topo.grid_params, work))),  # noqa: SLF001
     }
     print(f"net {cols} x {rows}: {topo.n_knots} knots, {n_springs} springs; µs per step, this thread's CPU time, "
           f"best of 5; {'512-bit vectors preferred' if args.zmm else 'the compiler default width'}")

@@ -110,10 +110,9 @@ def _zero_wraps(t, line, first, last, cols):
 
 
 @njit(inline="always")
-def _springs(x, v, t, params, rows, cols, r0, r1):
-    """t of the springs of rows r0 .. r1 - 1 (x, v: the state as (3, rows cols) flat knots): their
-    horizontal ones (the hem on the bottom row, the top cord on the top row) and the bands to
-    the row above (none above the top row)."""
+def _horizontal(x, v, t, params, rows, cols, r0, r1):
+    """t of the horizontal springs of rows r0 .. r1 - 1 (x, v: the state as (3, rows cols) flat
+    knots): the hem on the bottom row, the top cord on the top row."""
     mesh0, mesh1 = max(r0, 1), min(r1, rows - 1)
     if r0 == 0 and rows > 1:
         _class_line(x, v, 0, cols, 1, params, GRID_HEM, t, _H, 1)
@@ -122,15 +121,19 @@ def _springs(x, v, t, params, rows, cols, r0, r1):
     if r1 == rows:
         _class_line(x, v, (rows - 1) * cols, rows * cols - 1, 1, params, GRID_CORD, t, _H, 1)
     _zero_wraps(t, _H, (r0 + 1) * cols, r1 * cols, cols)  # from (r, cols - 1) to (r + 1, 0)
-    band1 = min(r1, rows - 1)  # bands from rows r0 .. band1 - 1 to the row above
-    if r0 < band1:
-        lo, hi = r0 * cols, band1 * cols
+
+
+@njit(inline="always")
+def _bands(x, v, t, params, rows, cols, r0, r1):
+    """t of the bands from rows r0 .. r1 - 1 to the row above (r1 <= rows - 1): vertical, shear / and \\."""
+    if r0 < r1:
+        lo, hi = r0 * cols, r1 * cols
         _class_line(x, v, lo, hi, cols, params, GRID_VERTICAL, t, _V, cols + 1)
         # the last band's spring from the grid's last knot would end past it: left out (zeroed below)
-        _class_line(x, v, lo, hi - (band1 == rows - 1), cols + 1, params, GRID_SHEAR, t, _D1, cols + 1)
+        _class_line(x, v, lo, hi - (r1 == rows - 1), cols + 1, params, GRID_SHEAR, t, _D1, cols + 1)
         _class_line(x, v, lo, hi, cols - 1, params, GRID_SHEAR, t, _D2, cols)
-        _zero_wraps(t, _D1, (r0 + 2) * cols, (band1 + 1) * cols, cols)  # from (r, cols - 1) to (r + 2, 0)
-        _zero_wraps(t, _D2, (r0 + 1) * cols, band1 * cols, cols)  # from (r, 0) to (r, cols - 1)
+        _zero_wraps(t, _D1, (r0 + 2) * cols, (r1 + 1) * cols, cols)  # from (r, cols - 1) to (r + 2, 0)
+        _zero_wraps(t, _D2, (r0 + 1) * cols, r1 * cols, cols)  # from (r, 0) to (r, cols - 1)
 
 
 @njit(inline="always")
@@ -184,19 +187,32 @@ def _flat(knot_state, knot_inv_mass):
     return knot_state[0].reshape(3, n), knot_state[1].reshape(3, n), knot_inv_mass.reshape(n)
 
 
+@njit(inline="always")
+def _chunks(x, v, w, t, params, rows, cols, r0, r1, top, gravity, drag, h):
+    """Rows r0 .. r1 - 1 stepped CHUNK_ROWS at a time, each chunk's springs then its knots; the
+    bands from rows below `top` only (the one from row top, if any, is evaluated already)."""
+    for c0 in range(r0, r1, CHUNK_ROWS):
+        c1 = min(c0 + CHUNK_ROWS, r1)
+        _horizontal(x, v, t, params, rows, cols, c0, c1)
+        _bands(x, v, t, params, rows, cols, c0, min(c1, top))
+        _knots(x, v, w, t, cols, c0 * cols, c1 * cols, gravity, drag, h)
+
+
 @njit(cache=True, fastmath=False, error_model="numpy")
-def _grid_springs(knot_state, knot_inv_mass, params, grid_work, r0, r1):
-    """step_grid's first phase for rows r0 .. r1 - 1 (a row block)."""
+def _grid_edge(knot_state, knot_inv_mass, params, grid_work, r0):
+    """step_grid's first phase for a row block from row r0 > 0: the band below it, evaluated before
+    any block moves a knot (it reads row r0 - 1, which the block below steps)."""
     x, v, _ = _flat(knot_state, knot_inv_mass)
-    _springs(x, v, grid_work[0], params, knot_state.shape[2], knot_state.shape[3], r0, r1)
+    _bands(x, v, grid_work[0], params, knot_state.shape[2], knot_state.shape[3], r0 - 1, r0)
 
 
 @njit(cache=True, fastmath=False, error_model="numpy")
-def _grid_knots(knot_state, knot_inv_mass, grid_work, gravity, drag, h, r0, r1):
-    """step_grid's second phase for rows r0 .. r1 - 1 (a row block)."""
+def _grid_block(knot_state, knot_inv_mass, params, grid_work, gravity, drag, h, r0, r1):
+    """step_grid's second phase for the row block r0 .. r1 - 1: its rows in chunks, the band above
+    its top row being the next block's edge (none above the net's top row)."""
     x, v, w = _flat(knot_state, knot_inv_mass)
-    cols = knot_state.shape[3]
-    _knots(x, v, w, grid_work[0], cols, r0 * cols, r1 * cols, gravity, drag, h)
+    rows, cols = knot_state.shape[2], knot_state.shape[3]
+    _chunks(x, v, w, grid_work[0], params, rows, cols, r0, r1, r1 - 1, gravity, drag, h)
 
 
 @njit(cache=True, parallel=True, fastmath=False, error_model="numpy")
@@ -204,9 +220,9 @@ def step_grid(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps,
     """n_steps semi-implicit Euler steps of a grid net in place, row blocks in parallel; step_knots' model and bits.
 
     Every spring is evaluated on the state at the step's start (springs act before knots
-    move), though the state is updated in place (see the notes above): the row blocks first
-    evaluate all their springs, then step their knots. Bit-for-bit the same for any number of
-    blocks or threads.
+    move), though the state is updated in place (see the notes above): each block first
+    evaluates the band below its first row (the only springs it shares with the block below),
+    then steps its rows in chunks. Bit-for-bit the same for any number of blocks or threads.
 
     Args:
         knot_state: (2, 3, rows, cols), [position m | velocity m/s], axis, row, column; knot
@@ -222,11 +238,10 @@ def step_grid(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps,
     rows = knot_state.shape[2]
     blocks = grid_work.shape[0]
     for _ in range(n_steps):
+        for b in prange(1, blocks):
+            _grid_edge(knot_state, knot_inv_mass, grid_params, grid_work, b * rows // blocks)
         for b in prange(blocks):
-            _grid_springs(knot_state, knot_inv_mass, grid_params, grid_work, b * rows // blocks,
-                          (b + 1) * rows // blocks)
-        for b in prange(blocks):
-            _grid_knots(knot_state, knot_inv_mass, grid_work, gravity, drag, h, b * rows // blocks,
+            _grid_block(knot_state, knot_inv_mass, grid_params, grid_work, gravity, drag, h, b * rows // blocks,
                         (b + 1) * rows // blocks)
 
 
@@ -237,10 +252,7 @@ def step_grid_serial(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n
     t = grid_work[0]
     rows, cols = knot_state.shape[2], knot_state.shape[3]
     for _ in range(n_steps):
-        for r0 in range(0, rows, CHUNK_ROWS):
-            r1 = min(r0 + CHUNK_ROWS, rows)
-            _springs(x, v, t, grid_params, rows, cols, r0, r1)
-            _knots(x, v, w, t, cols, r0 * cols, r1 * cols, gravity, drag, h)
+        _chunks(x, v, w, t, grid_params, rows, cols, 0, rows, rows - 1, gravity, drag, h)
 
 
 @njit(cache=True, fastmath=False)

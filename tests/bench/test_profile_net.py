@@ -29,7 +29,7 @@ def test_profile_net_smoke():
     assert set(passes["passes"]) >= {"springs: one loop a class", "knots: update"}
     assert passes["step_us"] > 0 and passes["divider_floor_us"] > 0 and passes["long_rows"] is None  # 8 rows < 16
     assert passes["spring_floor_us"] > 0 and passes["spring_floor_no_divider_us"] > 0
-    assert set(report["vectors"]) == {"grid springs (_grid_springs)", "grid knots (_grid_knots)",
+    assert set(report["vectors"]) == {"grid springs (_horizontal, _bands)", "grid knots (_knots)",
                                       "grid32 springs (_springs_exact)", "grid32 knots (_knots_exact)",
                                       "csr (step_knots_serial)", "textbook scatter (step_knots_scatter)"}
     for name in ("grid32 springs (_springs_exact)", "grid32 knots (_knots_exact)"):

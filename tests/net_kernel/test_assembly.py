@@ -39,7 +39,7 @@ def test_the_grid_spring_loop_is_packed():
     rows, cols = 4, 12
     state = np.zeros((2, 3, rows, cols))
     params = np.ones((grid.GRID_CLASSES, 3))
-    report = vector_report(grid._grid_springs, (state, np.ones((rows, cols)), params, grid.grid_work(rows, cols), 0,
-                                                rows))
+    report = vector_report(grid._grid_block, (state, np.ones((rows, cols)), params, grid.grid_work(rows, cols), 9.81,
+                                              5.0, 1e-5, 0, rows))
     assert report["lanes"] >= 2 and report["packed_ops"] > 0  # x86-64 has at least SSE2's 2 float64 lanes
     assert report["scalar_loops"] < report["loops"]

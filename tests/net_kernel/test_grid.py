@@ -67,17 +67,20 @@ def test_grid_equals_reference(spec):
     np.testing.assert_allclose(state, twin, rtol=0, atol=1e-15)
 
 
-def test_blocks_threads_and_steps_per_call_give_the_same_bits():
-    topo = build_topology(grid_spec(24, 8))
+@pytest.mark.parametrize("spec", [NETS[0], NETS[3]], ids=["hanging", "tall"])
+def test_blocks_threads_and_steps_per_call_give_the_same_bits(spec):
+    topo = build_topology(spec)
+    rows, cols = spec.rows, spec.cols
     start, _, _ = _state(topo, seed=13)
     results = []
-    # Blocks of one row (8) and of uneven sizes (3: 2, 3, 3 rows) exercise every block border.
+    # Blocks of one row (rows) and of uneven sizes (3) exercise every block border; on the tall net
+    # the blocks also step in chunks (kernels.grid.CHUNK_ROWS) that end inside them.
     for name, blocks, calls in (("step_grid_serial", 1, 1), ("step_grid", 1, 1), ("step_grid", 3, 1),
-                                ("step_grid", 8, 1), ("step_grid_serial", 3, STEPS)):
+                                ("step_grid", rows, 1), ("step_grid_serial", 3, STEPS)):
         state = start.copy()
         for _ in range(calls):
-            work = grid_work(topo.spec.rows, topo.spec.cols, blocks)
-            getattr(kernels, name)(state, topo.knot_inv_mass.reshape(8, 24), topo.grid_params, 9.81, 5.0,
+            work = grid_work(rows, cols, blocks)
+            getattr(kernels, name)(state, topo.knot_inv_mass.reshape(rows, cols), topo.grid_params, 9.81, 5.0,
                                    0.5 * topo.h_max, STEPS // calls, work)
         results.append(state)
     for other in results[1:]:
