@@ -189,7 +189,7 @@ class NetSim:
             self._pos = [self._state[0].reshape(3, n).T] * 2
             self._vel = [self._state[1].reshape(3, n).T] * 2
             self._grid_inv_mass = topo.knot_inv_mass.reshape(rows, cols)
-            # One scratch block per row block; the block count changes no bit (kernels.step_grid).
+            # Row blocks a parallel step runs (one a thread); their count changes no bit (kernels.step_grid).
             blocks = min(rows, max(1, numba.get_num_threads())) if parallel and backend == "numba" else 1
             self._grid_work = grid_work(rows, cols, blocks)
             if spec.kernel_precision == FLOAT32:  # the float32 grid kernels (kernels.grid32), the same calls
