@@ -29,9 +29,10 @@ from net_kernel.kernels.table import TABLE_Z
 # the bands to the row above) and then its knots: a chunk's springs read only its rows and the
 # next chunk's first row, which has not moved yet, and its knots read the band below, which the
 # chunk before evaluated before it moved anything. The chunks keep a large net's scratch in
-# cache. In parallel, row blocks evaluate all their springs, then all step their knots. One
-# buffer is half the memory traffic of two: no second buffer to stream out (and read for
-# ownership) each step.
+# cache. In parallel, every row block first evaluates the band below its first row (the only
+# springs that read a row another block steps), then all blocks step their rows in chunks, each
+# leaving the band above its top row to the block above. One buffer is half the memory traffic
+# of two: no second buffer to stream out (and read for ownership) each step.
 #
 # Bits: a knot sums its springs in the CSR slot order of build_topology (down-left, down,
 # down-right, left, right, up-left, up, up-right: increasing spring index), each spring's
