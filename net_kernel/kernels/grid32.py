@@ -240,8 +240,10 @@ def _knots_body(net32, r0, r1):
     _knots(o, v, net32[_WORK], factors, floor, net32[_STATE].shape[3], r0, r1)
 
 
-# Each phase compiled once per variant (its fastmath flags over the whole inlined phase); the
-# serial and the parallel kernels call the same compiled phases, so they give the same bits.
+# Each phase compiled once per variant (its fastmath flags over the whole inlined phase) for the
+# parallel kernel; the serial kernel inlines the same bodies into one function per variant
+# (_serial_*). The exact variant is IEEE in both; with FMA the same expressions are fused alike
+# (tests/net_kernel/test_grid32.py steps both variants serially and in parallel, bit for bit).
 @njit(cache=True, fastmath=False, error_model="numpy")
 def _springs_exact(net32, cols, r0, r1):
     _springs_body(net32, cols, r0, r1)
