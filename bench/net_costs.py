@@ -348,7 +348,8 @@ def _spring_t(d0, d1, d2, e0, e1, e2, length, inv_len, out, q):
 
 @njit(cache=True, error_model="numpy")
 def _spring_floor(x, v, out, lines, reps):
-    """The grid's spring arithmetic (kernels.grid's _grid_line) over `lines` rows of out.shape[1] springs, nothing else."""
+    """The grid's spring arithmetic (kernels.grid's _grid_line) over `lines` rows of out.shape[1]
+    springs, nothing else."""
     n = out.shape[1]
     for _ in range(reps):
         for _ in range(lines):
