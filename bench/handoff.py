@@ -5,11 +5,12 @@ Each method does N round trips between this process and one child:
 - shared-memory spin ping-pong: both sides spin on a shared counter (no kernel, burns a core
   each; on 2 shared cores it is at the mercy of the scheduler);
 - multiprocessing.Queue round trip (pickling and a feeder thread);
-- lockstep hand-off: what the physics does for one AI turn (processes.workers.ai_driver.AIDriver
-  and processes.workers.ai): copy the state into the shared `ai_view` record, give the baton and
-  wait until the turn is done; the worker copies the view, writes its answer into the shared
-  `ai_answer` record (ANSWER_DTYPE) and hands back, and the hub reads the answer. The baton
-  orders the two sides, so no lock is taken.
+- lockstep hand-off: a turn the physics gives and waits for (the net's, processes.workers.remote_net,
+  through a Baton): copy the state into a shared view record, give the baton and wait until the
+  turn is done; the worker copies the view, writes an answer record (an AI's, ANSWER_DTYPE) and
+  hands back, and the hub reads the answer. The baton orders the two sides, so no lock is
+  taken. (The AI's turns are queued instead, processes.runtime.handoff.TurnQueue: the physics
+  waits for an answer only when it is not there a decision delay later.)
 """
 from __future__ import annotations
 
@@ -56,7 +57,7 @@ def _queue_child(qa, qb, n):
 
 
 def _handoff_child(layout, baton, n_bats):
-    """The AI worker's side of a turn, without the thinking (processes.workers.ai.ai_worker)."""
+    """A worker's side of a turn: copy the view, write an answer record."""
     arena = Arena.attach(layout)
     baton.attach(arena["slot"].array)
     view = arena["ai_view"].array
@@ -68,7 +69,7 @@ def _handoff_child(layout, baton, n_bats):
         if tick is None:
             break
         copy_record(view, snap)
-        record[0]["inputs"][0, 0:3] = snap[0]["ball"]["vel"]
+        record[0]["ctl"][0, 0:3] = snap[0]["ball"]["vel"]
         record[0]["tick"] = tick
         copy_record(record, answer)
         baton.done(tick)
@@ -165,7 +166,7 @@ def _measure_handoff(ctx, n: int) -> float:
                 copy_record(record, view, 0)
                 baton.give(tick)
                 baton.wait_done(tick, TIMEOUT)
-                if answer[0]["tick"] != tick or answer[0]["inputs"][0, 0] != tick:
+                if answer[0]["tick"] != tick or answer[0]["ctl"][0, 0] != tick:
                     raise RuntimeError(f"hand-off {tick}: the answer is not the turn's")
         us = _time(handoff, n)
         baton.stop()

@@ -1,16 +1,19 @@
 """`pingpong bench match`: a whole match in worker processes (lockstep) against the in-process
-reference, same scene and seed, so the same match: realtime factors, time per worker, the net's
-awake and tail shares."""
+reference, same scene and seed, so the same match, timed back to back in every round: realtime
+factors and their ratio, time per worker, the share of the wall time in which two workers
+worked at once, the net's awake and tail shares; `--timeline PNG` draws the workers' timeline."""
 from __future__ import annotations
 
 import argparse
 import statistics
+import tempfile
 from dataclasses import replace
 
 from bench.study import Study
 from bench.study import run as run_study
 from engine.match import Match
 from engine.scene import SceneError, load_scene
+from processes.runtime import timeline as timelines
 from processes.supervisor import Supervisor
 
 
@@ -27,45 +30,69 @@ def _scene_of(name: str, args: argparse.Namespace):
 
 
 def _in_worker_processes(scene, ticks: int, seed: int) -> dict:
-    """One headless lockstep match in worker processes: its summary, startup and workers' reports."""
-    result = Supervisor(scene, ticks, "lockstep", seed=seed).run()
+    """One headless lockstep match in worker processes: its summary, startup, workers' reports,
+    the shares of its wall time in which none, one and two or more workers worked
+    (processes.runtime.timeline.busy_share) and the workers' timelines."""
+    with tempfile.TemporaryDirectory(prefix="pingpong-timeline-") as directory:
+        result = Supervisor(scene, ticks, "lockstep", seed=seed, timeline_dir=directory).run()
+        marks = timelines.load(directory)
     multi = result.match_summary(seed)
-    return {"summary": multi, "startup_seconds": result.startup_seconds, "workers": result.workers}
+    start = float(marks["physics"]["t"][0])
+    end = max(float(m["t"][-1]) for m in marks.values())
+    return {"summary": multi, "startup_seconds": result.startup_seconds, "workers": result.workers,
+            "working": timelines.busy_share(marks, start, end), "timeline": marks}
 
 
-def _bench_scene(scene, ticks: int, args: argparse.Namespace, rounds: list[dict]) -> dict:
-    """One scene's `pingpong bench match` report: its matches in worker processes (lockstep), one a
-    round, and the match in-process (same seed, so the same match). The worker processes' figures
-    are those of the round with the median realtime factor (the lower middle one of an even count);
-    every round's factor is listed."""
-    match = Match(scene, seed=args.seed)
-    reference = match.play(max_ticks=ticks).summary()
-    net = match.state.net_sim  # the cloth net's awake ticks: what it cost, to set beside the net worker's
+def _in_process(scene, ticks: int, seed: int) -> dict:
+    """The same match in this process (the reference): its summary and the cloth net's counts."""
+    match = Match(scene, seed=seed)
+    summary = match.play(max_ticks=ticks).summary()
+    net = match.state.net_sim
+    return {"summary": summary, "net": None if net is None else (net.awake_ticks, net.tail_ticks)}
+
+
+def _median_index(values: list[float]) -> int:
+    """The index of the median value (the lower middle one of an even count)."""
+    return sorted(range(len(values)), key=values.__getitem__)[(len(values) - 1) // 2]
+
+
+def _bench_scene(scene, args: argparse.Namespace, rounds: list[dict], references: list[dict]) -> dict:
+    """One scene's `pingpong bench match` report: its matches in worker processes (lockstep) and
+    in-process (same seed, so the same match), one of each a round, back to back. Each side's
+    figures are those of its round with the median realtime factor; every round's factors and
+    ratio (worker processes / in-process) are listed, and the median of the ratios."""
     factors = [r["summary"]["realtime_factor"] for r in rounds]
-    median = rounds[sorted(range(len(rounds)), key=factors.__getitem__)[(len(rounds) - 1) // 2]]
+    in_factors = [r["summary"]["realtime_factor"] for r in references]
+    median = rounds[_median_index(factors)]
     multi = median["summary"]
+    one = references[_median_index(in_factors)]
+    reference = one["summary"]
+    ratios = [f / g for f, g in zip(factors, in_factors)]
     return {
         "scene": scene.name,
         "net": scene.net_kind,
         "best_of": scene.match.best_of,
         "seed": args.seed,
         "same_match": all(r["summary"]["games"] == reference["games"] and r["summary"]["points"] == reference["points"]
-                          for r in rounds),
+                          and r["summary"]["ticks"] == reference["ticks"] for r in [*rounds, *references]),
         "sim_seconds": multi["sim_seconds"],
         "processes": {"wall_seconds": multi["wall_seconds"], "realtime_factor": multi["realtime_factor"],
                       "realtime_factors": factors,
                       "startup_seconds": median["startup_seconds"], "workers": median["workers"],
+                      "working": median["working"],
                       "us_per_tick": 1e6 * multi["wall_seconds"] / max(multi["ticks"], 1)},
+        "over_in_process": {"median": statistics.median(ratios), "rounds": ratios},
         "in_process": {"wall_seconds": reference["wall_seconds"], "realtime_factor": reference["realtime_factor"],
-                       "ai_seconds": reference["ai_seconds"],
+                       "realtime_factors": in_factors, "ai_seconds": reference["ai_seconds"],
                        "us_per_tick": 1e6 * reference["wall_seconds"] / max(reference["ticks"], 1),
-                       **({"net_awake_ticks": net.awake_ticks,
-                           "net_awake_share": net.awake_ticks / max(reference["ticks"], 1),
-                           "net_tail_ticks": net.tail_ticks,
-                           "net_tail_share": net.tail_ticks / max(reference["ticks"], 1),
-                           "net_asleep_share": max(reference["ticks"] - net.awake_ticks - net.tail_ticks, 0)
-                           / max(reference["ticks"], 1)} if net is not None else {})},
-        "target": "the cloth match in worker processes at >= 0.40 of match_rigid's realtime factor in the same run",
+                       **({"net_awake_ticks": one["net"][0],
+                           "net_awake_share": one["net"][0] / max(reference["ticks"], 1),
+                           "net_tail_ticks": one["net"][1],
+                           "net_tail_share": one["net"][1] / max(reference["ticks"], 1),
+                           "net_asleep_share": max(reference["ticks"] - one["net"][0] - one["net"][1], 0)
+                           / max(reference["ticks"], 1)} if one["net"] is not None else {})},
+        "target": "worker processes / in-process >= 1.5 for the cloth match, >= 1.2 for the rigid one; the cloth "
+                  "match in worker processes >= 0.70 of the rigid one's realtime factor in the same run",
         # The cloth net's chosen damping (NetSpec.air_damping; scenes/match_air.toml: the air's own drag).
         "air_damping_per_s": scene.cloth.air_damping if scene.cloth is not None else None,
         "outcome": {key: multi[key] for key in ("winner", "games", "points", "points_won", "mean_rally_shots",
@@ -85,7 +112,12 @@ def _arguments(parser: argparse.ArgumentParser) -> None:
                         help="rounds of the scenes' worker-process matches, each round every scene in turn: each "
                              "figure is the round with the median realtime factor (the lower middle one of an even "
                              "count), each ratio the median of the rounds' ratios (a machine whose speed drifts moves "
-                             "a round's scenes together)")
+                             "a round's scenes together); each round times every scene in worker processes and in-process, "
+                             "back to back")
+    parser.add_argument("--timeline", metavar="PNG", default=None,
+                        help="draw the first scene's median round as a timeline: per worker, when it works, waits (for "
+                             "whom) and idles, over --timeline-seconds of wall time where the physics waited most")
+    parser.add_argument("--timeline-seconds", type=float, default=1.5, help="the timeline's span of wall time, s")
 
 
 def _run(args: argparse.Namespace, progress=None) -> dict:
@@ -101,18 +133,24 @@ def _run(args: argparse.Namespace, progress=None) -> dict:
         raise ValueError(f"--ticks {args.ticks} must be >= 1")
     if args.repeat < 1:
         raise ValueError(f"--repeat {args.repeat} must be >= 1")
+    if args.timeline_seconds <= 0:
+        raise ValueError(f"--timeline-seconds {args.timeline_seconds} must be > 0")
     scenes = [_scene_of(name, args) for name in names]
     rounds: list[list[dict]] = [[] for _ in scenes]
+    references: list[list[dict]] = [[] for _ in scenes]
     for r in range(args.repeat):
         for k, (scene, ticks) in enumerate(scenes):
             if progress is not None:
-                progress(f"{scene.name}: in worker processes (round {r + 1} of {args.repeat})")
+                progress(f"{scene.name}: in worker processes, then in-process (round {r + 1} of {args.repeat})")
             rounds[k].append(_in_worker_processes(scene, ticks, args.seed))
-    reports = []
-    for (scene, ticks), scene_rounds in zip(scenes, rounds):
-        if progress is not None:
-            progress(f"{scene.name}: in-process")
-        reports.append(_bench_scene(scene, ticks, args, scene_rounds))
+            references[k].append(_in_process(scene, ticks, args.seed))
+    reports = [_bench_scene(scene, args, scene_rounds, scene_references)
+               for (scene, _), scene_rounds, scene_references in zip(scenes, rounds, references)]
+    if args.timeline is not None:
+        first = rounds[0]
+        median = first[_median_index([r["summary"]["realtime_factor"] for r in first])]
+        reports[0]["timeline"] = draw_timeline(median["timeline"], args.timeline, args.timeline_seconds,
+                                               f"{scenes[0][0].name}, seed {args.seed}")
     report = reports[0]
     if len(reports) > 1:
         firsts = [r["summary"]["realtime_factor"] for r in rounds[0]]
@@ -158,9 +196,66 @@ def _print_bench(report: dict, first: dict) -> None:
         split = [f"{who} {info[key]:.2f} s" for who, key in (("net", "handoff_net_s"), ("AI", "handoff_ai_s")) if key in info]
         split_text = f" ({', '.join(split)})" if len(split) == 2 else ""
         print(f"    {kind:<8} own work {info['busy_s']:.2f} s, hand-offs {info['handoff_s']:.2f} s{split_text}{awake_text}")
+    working = p["working"]
+    print(f"    two or more workers at work {working['two']:.0%} of the wall time, one {working['one']:.0%}, "
+          f"none {working['none']:.0%}")
     share = f", net awake {r['net_awake_share']:.0%} of ticks" if "net_awake_share" in r else ""
+    in_rounds = r["realtime_factors"]
+    in_median = f", the median of {len(in_rounds)} rounds ({', '.join(f'{x:.1f}' for x in in_rounds)})" \
+        if len(in_rounds) > 1 else ""
     print(f"  in-process reference:        {r['wall_seconds']:.2f} s wall, {r['realtime_factor']:.1f}x realtime, "
-          f"{r['us_per_tick']:.1f} us/tick (AI {r['ai_seconds']:.2f} s){share}")
+          f"{r['us_per_tick']:.1f} us/tick (AI {r['ai_seconds']:.2f} s){share}{in_median}")
+    over = report["over_in_process"]
+    rounds_text = f" (rounds {', '.join(f'{x:.2f}' for x in over['rounds'])})" if len(over["rounds"]) > 1 else ""
+    print(f"  worker processes / in-process: {over['median']:.2f}x{rounds_text}")
+    if "timeline" in report:
+        t = report["timeline"]
+        print(f"  timeline: {t['path']} ({t['seconds']:.2f} s of wall time from {t['from_s']:.2f} s)")
+
+
+def draw_timeline(marks: dict, path: str, seconds: float, title: str) -> dict:
+    """Draw the workers' timelines over `seconds` of wall time where the physics waited most (a
+    window starting at one of its waits) into the PNG `path`; returns what it drew."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    start = float(marks["physics"]["t"][0])
+    end = max(float(m["t"][-1]) for m in marks.values())
+    p_starts, p_lengths, p_states = timelines.intervals(marks["physics"], end)
+    waits = (p_states == timelines.WAIT_NET) | (p_states == timelines.WAIT_AI)
+    best, best_wait = start, -1.0
+    for s in p_starts[waits][:: max(1, int(waits.sum()) // 400)]:  # candidate windows: a few hundred waits
+        lo = s - 0.05 * seconds
+        inside = waits & (p_starts >= lo) & (p_starts < lo + seconds)
+        total = float(p_lengths[inside].sum())
+        if total > best_wait:
+            best, best_wait = lo, total
+    lo, hi = max(best, start), max(best, start) + seconds
+    colours = {timelines.WORK: "tab:green", timelines.THINK: "tab:olive", timelines.WAIT_NET: "tab:red",
+               timelines.WAIT_AI: "tab:orange"}
+    rows = [kind for kind in ("physics", "net", "ai") if kind in marks]
+    fig, ax = plt.subplots(figsize=(12, 1.0 + 0.7 * len(rows)))
+    for y, kind in enumerate(reversed(rows)):
+        starts, lengths, states = timelines.intervals(marks[kind], end)
+        keep = (starts + lengths > lo) & (starts < hi)
+        for state, colour in colours.items():
+            chosen = keep & (states == state)
+            spans = [(1e3 * (max(s, lo) - lo), 1e3 * (min(s + n, hi) - max(s, lo)))
+                     for s, n in zip(starts[chosen], lengths[chosen])]
+            ax.broken_barh(spans, (y - 0.35, 0.7), facecolors=colour, linewidth=0)
+    ax.set_yticks(range(len(rows)), list(reversed(rows)))
+    ax.set_xlim(0, 1e3 * seconds)
+    ax.set_xlabel(f"ms of wall time from {lo - start:.2f} s after the physics started (white: idle)")
+    handles = [plt.Rectangle((0, 0), 1, 1, color=c) for c in colours.values()]
+    ax.legend(handles, [timelines.STATE_NAMES[s] for s in colours], loc="upper center", ncol=4,
+              bbox_to_anchor=(0.5, 1.25), frameon=False)
+    ax.set_title(title, loc="left", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return {"path": str(path), "from_s": lo - start, "seconds": seconds,
+            "working": timelines.busy_share(marks, lo, hi)}
 
 
 STUDY = Study(run=_run, report=_report, add_arguments=_arguments, quick="a best-of-1 match of at most 20000 ticks")

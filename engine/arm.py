@@ -21,10 +21,13 @@ BAT_FLOATS = BAT_DTYPE.itemsize // 8
 # (mass kg; inertia kg m^2 about a diameter, the face turns about one; kp, kd: (rad/s)^2 and
 # rad/s gains of the position loop; k_angle, d_angle: of the face; its limits max_force N,
 # max_torque N m, max_speed m/s), the pose to hold without a path (m) and the face normal to
-# turn to (unit), then the path: the number of segments and up to MAX_SEGMENTS of them.
+# turn to (unit), the number of segments of the path, what the arm does (CTL_KIND: ARM_TARGET
+# tracks the path or holds the pose, ARM_FORCE applies the raw force and torque at CTL_FORCE,
+# N and N m, ARM_BRAKE brakes the bat), then the path: up to MAX_SEGMENTS segments.
 (CTL_MASS, CTL_INERTIA, CTL_KP, CTL_KD, CTL_K_ANGLE, CTL_D_ANGLE, CTL_MAX_FORCE, CTL_MAX_TORQUE,
  CTL_MAX_SPEED) = range(9)
-CTL_HOLD, CTL_NORMAL, CTL_N_SEGMENTS, CTL_SEGMENTS = 9, 12, 15, 16
+CTL_HOLD, CTL_NORMAL, CTL_N_SEGMENTS, CTL_KIND, CTL_FORCE, CTL_SEGMENTS = 9, 12, 15, 16, 17, 23
+ARM_TARGET, ARM_FORCE, ARM_BRAKE = 0, 1, 2  # engine.bot's ACTION_TARGET and ACTION_FORCE, and the idle arm
 MAX_SEGMENTS = ARM_SEGMENTS  # backswing, swing, follow-through
 CTL_SIZE = CTL_SEGMENTS + MAX_SEGMENTS * SEG_WIDTH
 
@@ -106,24 +109,49 @@ def bat_control(now, bat, ctl, out):
 
 @njit(cache=True)
 def control_bats(now, bats, ctl, players, out):
-    """bat_control for several bats in one call.
+    """Every controlled bat's force and torque now, from its current state and its ctl row, in one
+    call: bat_control for ARM_TARGET, the row's raw force for ARM_FORCE, _brake for ARM_BRAKE.
 
     Args:
         now: s. bats: (n_bats, BAT_FLOATS) every bat's record as float64. ctl: (n, CTL_SIZE) what
-            each controlled bat tracks. players: (n,) int64, the bat each ctl row drives.
+            each controlled bat's arm does. players: (n,) int64, the bat each ctl row drives.
         out: (n_bats, 6) written at the rows of players: force N, torque N m.
     """
     for k in range(players.shape[0]):
-        bat_control(now, bats[players[k]], ctl[k], out[players[k]])
+        kind = int(ctl[k, CTL_KIND])
+        row = out[players[k]]
+        if kind == ARM_TARGET:
+            bat_control(now, bats[players[k]], ctl[k], row)
+        elif kind == ARM_FORCE:
+            for i in range(6):
+                row[i] = ctl[k, CTL_FORCE + i]
+        else:
+            _brake(ctl[k, CTL_MASS], bats[players[k], BAT_VEL:BAT_VEL + 3], row)
 
 
-# An idle arm (its input expired, or no player holds the seat) stops its bat instead of letting
-# it coast off (a coasting bat leaves the wire's +-8 m and no snapshot can be sent any more):
-# force = -mass * BRAKE_PER_S * bat velocity, at most BRAKE_MAX_N, from the bat's velocity at
-# the start of every tick it holds for. The AI arm's own damping and weakest limit; below the
-# clip a tick of dt takes BRAKE_PER_S * dt of the speed away (6 % at the bundled scenes' 1 ms).
+# An idle arm (its input expired, its player's decision failed, or none has been applied yet)
+# stops its bat instead of letting it coast off (a coasting bat leaves the wire's +-8 m and no
+# snapshot can be sent any more): force = -mass * BRAKE_PER_S * bat velocity, at most
+# BRAKE_MAX_N, no torque, from the bat's velocity when the force is computed. The AI arm's own
+# damping and weakest limit; below the clip a tick of dt takes BRAKE_PER_S * dt of the speed
+# away (6 % at the bundled scenes' 1 ms).
 BRAKE_PER_S = 60.0  # 1/s, engine.ai.BatAI.KD
 BRAKE_MAX_N = 50.0  # N, the novice arm's max_force_n
+
+
+@njit(cache=True, inline="always")
+def _brake(mass, vel, out):
+    """brake_force inside control_bats: the same law, from the bat's velocity at the control tick."""
+    norm = 0.0
+    for i in range(3):
+        out[i] = -mass * BRAKE_PER_S * vel[i]
+        norm += out[i] * out[i]
+    norm = math.sqrt(norm)
+    if norm > BRAKE_MAX_N:
+        for i in range(3):
+            out[i] *= BRAKE_MAX_N / norm
+    for i in range(3, 6):
+        out[i] = 0.0
 
 
 def brake_force(mass: float, vel, out: np.ndarray) -> np.ndarray:

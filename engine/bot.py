@@ -61,6 +61,11 @@ class Bot:
         player: 0 (A, at x < 0) or 1 (B, at x > 0). end_sign: -1 for A, +1 for B.
         normal: (3,) the face normal towards the other end, (-end_sign, 0, 0).
         rng: a numpy Generator seeded from the match's seed and the player, for repeatable play.
+        latency: s from an observation to the control tick from which the action decided on it
+            is played (the scene's match.decision_latency in whole control periods,
+            engine.match.decision_delay): a player's visuomotor delay. The action is played
+            until a later one takes effect; its arm target is tracked by the arm's PD law on the
+            bat's state at each control tick, so plan a path for when it takes effect.
     Class attributes a bot may set:
         arm: the AI profile ("pro", "club", "novice") whose arm limits (force, torque, speed)
             drive this bot's bat.
@@ -69,6 +74,7 @@ class Bot:
 
     arm = "pro"
     budget_s: float | None = None
+    latency: float
     player: int
     end_sign: int
     normal: np.ndarray

@@ -160,19 +160,13 @@ def net_snapshot_dtype(n_knots: int) -> np.dtype:
 def ai_answer_dtype(max_bats: int, ctl_size: int) -> np.dtype:
     """The AIs' answer to one decision turn (the AI worker writes it, the physics reads it).
 
-    tick: the tick it answers; mask: a bit per AI bat; inputs: (max_bats, 6) force N and torque
-    N m of every AI bat; key: the decision key it was made under; due, end: s, the AIs' wakes
-    (engine.ai.BatAI.wakes); ctl: (max_bats, ctl_size) each AI's controller row (engine.arm's
-    CTL_* layout), in the order of the scene's AI bats, so the physics can evaluate the force
-    law itself until the next decision; fault: (max_bats,) per bat, engine.bot.FAULTS index of
-    what went wrong with its player's decision (0: nothing), fault_text: what, in words.
+    turn: the turn's number (processes.runtime.handoff.TurnQueue), tick: the tick it was decided
+    at; key: the decision key it was made under; due, end: s, the AIs' wakes
+    (engine.ai.BatAI.wakes); ctl: (max_bats, ctl_size) each AI's plan after it (engine.arm's
+    CTL_* layout), in the order of the scene's AI bats, which the physics plays from the tick
+    the decision takes effect; fault: (max_bats,) per bat, engine.bot.FAULTS index of what went
+    wrong with its player's decision (0: nothing), fault_text: what, in words.
     """
-    return np.dtype([("tick", "<i8"), ("mask", "<i8"), ("inputs", "<f8", (max_bats, 6)), ("key", "<i8", (4,)),
-                     ("due", "<f8"), ("end", "<f8"), ("ctl", "<f8", (max_bats, ctl_size)),
-                     ("fault", "<i4", (max_bats,)), ("fault_text", "S240", (max_bats,))])
-
-
-def ai_local_dtype(max_bats: int) -> np.dtype:
-    """The bats' inputs the physics computed itself at its last control tick without a turn:
-    tick, and inputs (max_bats, 6) force N and torque N m (a restarted physics takes them up)."""
-    return np.dtype([("tick", "<i8"), ("inputs", "<f8", (max_bats, 6))])
+    return np.dtype([("turn", "<i8"), ("tick", "<i8"), ("key", "<i8", (4,)), ("due", "<f8"), ("end", "<f8"),
+                     ("ctl", "<f8", (max_bats, ctl_size)), ("fault", "<i4", (max_bats,)),
+                     ("fault_text", "S240", (max_bats,))])

@@ -12,7 +12,9 @@ context="forkserver" (numba's threads make fork() after a kernel has run unsafe)
 
 The agent is a bot (engine.bot.Bot) in an engine.match.Match, at its end's seat: each step is
 one control period; its action is an ACTION_DTYPE record made from the action vector, checked
-and played exactly as a bot's (engine.players.Seat), and the observation vector is the bot's
+and played exactly as a bot's (engine.players.Seat), from the control tick a decision delay
+after the observation it answers (engine.match.decision_delay: the scene's
+match.decision_latency, a player's reaction), and the observation vector is the bot's
 OBSERVATION_DTYPE record, field by field (OBSERVATION_NAMES). Rewards and ends come from the
 referee: the agent's strikes, its returns bouncing on the opponent's court, the point.
 

@@ -1,20 +1,25 @@
 """A whole match in one process: physics, referee, the AIs and the server's toss.
 
-This is the reference the multi-process match must reproduce bit for bit in lockstep. At each
-AI control tick B (every P ticks) the bats take the forces and torques the AIs decided from the
-state at B - P, and the AIs decide anew from the state at B; the physics then steps to B + P;
-the referee judges each tick's contact events; a decided rally is followed by the next
-server's toss.
+This is the reference the multi-process match must reproduce bit for bit in lockstep. A player
+is a brain and an arm. At each AI control tick B (every P ticks) the players decide from the
+state at B (their plans: an arm target to track, a raw force, or the idle arm's brake), and the
+plans decided at B - D take effect (D = decision_delay: match.decision_latency in whole control
+periods); the arm law (engine.arm.control_bats) then turns the plans in effect and the bats'
+state at B into the forces and torques held until B + P; the physics steps to B + P; the referee
+judges each tick's contact events; a decided rally is followed by the next server's toss.
 
-The one control period of latency is what lets the physics and the AI run at the same time in
-separate processes: the AI thinks about the state at B while the physics steps B .. B + P, and
-nothing waits unless the AI is slower than P ticks of physics. It is also nearer a player than
-no latency at all: a human's visuomotor delay is 100 ms and more, P is 4 ms.
+The decision latency is what lets the physics and the AI run at the same time in separate
+processes: the AI thinks about the state at B while the physics steps B .. B + D, and nothing
+waits unless the AI is slower than D ticks of physics. It is a player's too: between seeing and
+a new movement lies a human's visuomotor delay of 100-200 ms (the profiles' reaction times,
+engine.ai.skill, start there), while the arm's own feedback (the PD law on the bat's current
+state, a reflex and the muscles' stiffness) acts at once.
 """
 from __future__ import annotations
 
 import hashlib
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Protocol
@@ -22,6 +27,7 @@ from typing import Protocol
 import numpy as np
 
 from engine import equipment
+from engine.arm import ARM_BRAKE, BAT_FLOATS, CTL_KIND, CTL_MASS, CTL_SIZE, control_bats
 from engine.bot import ON_BOT_ERROR, BotError, bot_source, is_bot_spec
 from engine.dtypes import CONTACT_DTYPE, POINT_DTYPE, physics_snapshot_dtype
 from engine.players import DEFAULT_BUDGET_S, Players, make_players
@@ -87,6 +93,13 @@ def control_period(scene: Scene) -> int:
     return max(1, int(round(1.0 / (scene.match.ai_hz * scene.dt))))
 
 
+def decision_delay(scene: Scene) -> int:
+    """Ticks from a decision to the control tick its plan takes effect: match.decision_latency in
+    whole control periods, at least one."""
+    period = control_period(scene)
+    return period * max(1, int(round(scene.match.decision_latency / (period * scene.dt))))
+
+
 def make_ais(scene: Scene, model, seed: int, eager: bool = True, budget_s: float | None = DEFAULT_BUDGET_S,
              interrupt: bool = False) -> Players:
     """The player of every bat that has one (an AI profile or a bot), seeded from the match seed
@@ -95,19 +108,28 @@ def make_ais(scene: Scene, model, seed: int, eager: bool = True, budget_s: float
     eager=False: each AI profile thinks a stroke out only in the steps its think_step is given
     (and what is left when it is due), as the AI worker does between its turns; the same strokes.
     """
-    return make_players(scene, model, seed, control_period(scene), eager=eager, budget_s=budget_s, interrupt=interrupt)
+    return make_players(scene, model, seed, control_period(scene), decision_delay(scene), eager=eager,
+                        budget_s=budget_s, interrupt=interrupt)
 
 
-def ai_inputs(players: Players, tick: int, now: float, ball_flat: np.ndarray, bats: np.ndarray, rally,
-              inputs: np.ndarray) -> list:
-    """Every player's force and torque from one state: the one function both the in-process match
-    and the AI worker call, so lockstep runs compute bit for bit the same inputs.
+def ai_decide(players: Players, tick: int, now: float, ball_flat: np.ndarray, bats: np.ndarray, rally) -> list:
+    """Every player's decision from one state, into its plan (players.ctl): the one function both
+    the in-process match and the AI worker call, so lockstep runs decide bit for bit the same.
 
     ball_flat: (9,) the ball; bats: the (n_bats,) BAT_DTYPE array; rally: the state's
-    RALLY_DTYPE record; inputs: (n_bats, 6), written at the players' rows. Returns the
-    decisions' faults [(player, fault, detail)] (engine.bot.FAULTS names).
+    RALLY_DTYPE record. Returns the decisions' faults [(player, fault, detail)] (engine.bot.FAULTS
+    names).
     """
-    return players.control(tick, now, ball_flat, bats, rally, inputs)
+    return players.decide(tick, now, ball_flat, bats, rally)
+
+
+def idle_arms(model, ai_bats: list[int]) -> np.ndarray:
+    """(len(ai_bats), CTL_SIZE): the plans in effect before any decision took effect: each arm
+    brakes its bat (engine.arm.ARM_BRAKE)."""
+    arms = np.zeros((len(ai_bats), CTL_SIZE))
+    arms[:, CTL_KIND] = ARM_BRAKE
+    arms[:, CTL_MASS] = model.bat_mass[ai_bats]
+    return arms
 
 
 def point_row(point: PointRecord, tick: int) -> np.ndarray:
@@ -123,14 +145,6 @@ def point_from_row(row) -> PointRecord:
                        int(row["shots"]), tuple(int(v) for v in row["score_after"]))
 
 
-def _rows(rows: list[int]):
-    """An index for the rows `rows` of a (n_bats, 6) array: a slice when they are consecutive
-    (an assignment through a slice is far cheaper than through a list index), else an integer array."""
-    if rows and rows == list(range(rows[0], rows[-1] + 1)):
-        return slice(rows[0], rows[-1] + 1)
-    return np.array(rows, np.int64)
-
-
 # A fault of a player's decision: (player index, tick of the decision, engine.players fault name, detail).
 Fault = tuple[int, int, str, str]
 
@@ -140,54 +154,57 @@ class PlayerDriver(Protocol):
     same in another process and gives the same bits (the physics worker's, which asks the AI
     worker). Any object with these members fits.
 
-    At each AI control tick the match calls collect(), then request(); a decision requested at
-    one control tick is collected, and applied, at the next.
+    At each AI control tick B the match calls collect(), then request(); the plans decided at
+    B - match.delay take effect at B.
     """
 
-    def collect(self, match: Match) -> list[Fault]:
-        """Leave the decision of the previous control tick in match.ai_next; returns its faults."""
+    def collect(self, match: Match, tick: int) -> list[Fault]:
+        """Write the plans decided at tick - match.delay, if any decision was taken then, into
+        match.arm; returns that decision's faults."""
 
     def request(self, match: Match, now: float) -> None:
         """Start the players' decision from the match's state now (s of simulated time)."""
 
-    def resume(self, tick: int, period: int) -> None:
-        """After the match was restored at `tick` (control period `period` ticks): pick up the
-        decision that was in flight."""
+    def resume(self, match: Match, tick: int) -> None:
+        """After the match was restored at `tick`: the plans in effect into match.arm, and the
+        decisions in flight taken up again."""
 
 
 class LocalAI:
     """The players in this process (the reference PlayerDriver): each control tick they decide at
-    once. The faults of a decision reach the match with it, at the next control tick, as the AI
+    once, and their plans and faults wait match.delay ticks to reach the match, as the AI
     worker's do."""
 
     def __init__(self, ais: Players):
         self.ais = ais
-        self.faults: list[Fault] = []
+        self.pending: deque = deque()  # (tick it takes effect, plans, faults), oldest first
 
-    def collect(self, match: Match) -> list[Fault]:
-        """request() already wrote match.ai_next; the faults of that decision."""
-        faults, self.faults = self.faults, []
+    def collect(self, match: Match, tick: int) -> list[Fault]:
+        if not self.pending or self.pending[0][0] != tick:
+            return []
+        _, plans, faults = self.pending.popleft()
+        match.arm[:] = plans
         return faults
 
-    def resume(self, tick: int, period: int) -> None:
-        """Nothing was in flight: the players here decide within request()."""
+    def resume(self, match: Match, tick: int) -> None:
+        """Nothing to take up: this driver lives as long as its match."""
 
     def request(self, match: Match, now: float) -> None:
         tick = int(match._world_q[0])
-        faults = ai_inputs(self.ais, tick, now, match.state.ball_flat, match.state.bats, match.rally_record,
-                           match.ai_next)
-        self.faults = [(player, tick, fault, detail) for player, fault, detail in faults]
+        faults = ai_decide(self.ais, tick, now, match.state.ball_flat, match.state.bats, match.rally_record)
+        self.pending.append((tick + match.delay, self.ais.ctl.copy(),
+                             [(player, tick, fault, detail) for player, fault, detail in faults]))
 
 
 class Match:
     """A match between the scene's two bats, judged by the referee, AIs where the scene has them.
 
-    At each AI control tick the match calls ai_driver.collect(match), which must leave in
-    match.ai_next the AIs' decision from the previous control tick, applies it, then
-    ai_driver.request(match, now), which starts the decision from the state now (to be collected
-    at the next control tick); collect returns the faults of the decision it collected (the
-    contract: PlayerDriver). By default the players run here (LocalAI, the
-    reference); the physics worker passes a driver that asks the AI worker.
+    At each AI control tick the match calls ai_driver.collect(match, tick), which writes into
+    match.arm the plans decided `delay` ticks before (if any) and returns their faults, turns the
+    plans in effect into the bats' forces (engine.arm.control_bats on the bats' state now), then
+    calls ai_driver.request(match, now), which starts the decision from the state now (the
+    contract: PlayerDriver). By default the players run here (LocalAI, the reference); the
+    physics worker passes a driver that asks the AI worker.
 
     A player's decision that goes wrong (engine.players: it raised, was malformed, non-finite,
     oversized or overran its budget_s of CPU) is recorded in bot_errors when it is collected;
@@ -215,10 +232,12 @@ class Match:
         self.ais = make_ais(scene, self.model, seed, budget_s=budget_s) if ai_driver is None else {}
         self.ai_driver: PlayerDriver = ai_driver or LocalAI(self.ais)
         self.ai_bats = [i for i, bat in enumerate(scene.bats) if bat.skill is not None]
-        self._ai_rows = _rows(self.ai_bats)
+        self._ai_players = np.array(self.ai_bats, np.int64)
         self.inputs = np.zeros((len(scene.bats), 6))  # held by the bats until the next control tick
-        self.ai_next = np.zeros((len(scene.bats), 6))  # the AIs' decision, applied at the next control tick
+        self.arm = idle_arms(self.model, self.ai_bats)  # the AI bats' plans in effect (engine.arm's ctl rows)
         self.ai_every = control_period(scene)
+        self.delay = decision_delay(scene)
+        self._bat_floats = self.state.bats.view(np.float64).reshape(len(scene.bats), BAT_FLOATS)
         # Per call of tick(), which runs once a control period or more often: its Python is part
         # of every chunk the physics worker steps, so its constants and views are made here once.
         # The world record's words, read through typed memoryviews (cheaper than numpy fields):
@@ -264,8 +283,8 @@ class Match:
     def restore(self, record, points: list[PointRecord]) -> None:
         """Resume from a saved record and the point log (a restarted physics worker).
 
-        The AIs' decision in flight is not in the record: it belongs to the driver, whose
-        resume(tick, period) picks it up again (the AI worker keeps its last answer).
+        The plans in effect and the decisions in flight are not in the record: they belong to the
+        driver, whose resume(match, tick) takes them up again (the AI worker keeps its answers).
         """
         self.state.ball[0] = record["ball"]
         self.state.bats[:] = record["bats"]
@@ -279,14 +298,14 @@ class Match:
         self.rally = int(rally["rally"])
         self.rally_started = float(rally["rally_started"])
         self._sync_rally()
-        self.ai_driver.resume(int(self.state.world[0]["tick"]), self.ai_every)
+        self.ai_driver.resume(self, int(self.state.world[0]["tick"]))
 
     def tick(self, max_ticks: int = 1) -> PointRecord | None:
         """Advance up to max_ticks ticks, stopping where the match must act; returns a point
         record when a rally was decided.
 
-        Each call starts, at the AI's control ticks, by asking the AIs for their inputs; then
-        the engine advances until the next control tick, a contact event (judged here), the ball
+        Each call starts, at the AI's control ticks, with the plans that take effect, the forces
+        they give and the AIs' next decision; then the engine advances until the next control tick, a contact event (judged here), the ball
         leaving the area or coming to rest, or the rally's time limit, all checked tick by tick
         inside the kernel, so any max_ticks gives the same match.
         """
@@ -297,14 +316,15 @@ class Match:
             every = self.ai_every
             if tick % every == 0:
                 started = time.perf_counter()
-                faults = self.ai_driver.collect(self)
+                faults = self.ai_driver.collect(self, tick)
                 if faults:
                     self._faults(faults)
                     if self.stopped is not None:
                         self.ticks_done = self.n_events = 0
                         return None
-                self.inputs[self._ai_rows] = self.ai_next[self._ai_rows]
-                self.ai_driver.request(self, self._world_d[1])
+                now = self._world_d[1]
+                control_bats(now, self._bat_floats, self.arm, self._ai_players, self.inputs)
+                self.ai_driver.request(self, now)
                 self.ai_seconds += time.perf_counter() - started
                 inputs = self.inputs
             n_max = min(n_max, every - tick % every)

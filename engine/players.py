@@ -4,10 +4,11 @@ shown, how its answer is checked, and the force law that plays it.
 At a control tick a seat whose player may decide differently (a bot: always; an AI profile:
 when BatAI.wakes says so, or the rally's key changed) gets a fresh observation and answers; the
 answer is checked (engine.bot.check_action) against its arm's limits and, within its CPU time
-budget, becomes the seat's arm target (its row of the ctl array that engine.arm.control_bats
-tracks) or its raw force and torque. A decision that raises, returns something malformed or
-non-finite, or overruns is a fault: the seat's arm brakes the bat instead (engine.arm.brake_force)
-and the fault is returned, for the match to record and act on (engine.match.Match).
+budget, becomes the seat's plan: its row of the ctl array, an arm target that
+engine.arm.control_bats tracks or a raw force and torque. A decision that raises, returns
+something malformed or non-finite, or overruns is a fault: the seat's plan becomes the idle arm's
+brake (engine.arm.ARM_BRAKE) and the fault is returned, for the match to record and act on
+(engine.match.Match). The match plays a plan decision_delay ticks after it was decided.
 """
 from __future__ import annotations
 
@@ -20,11 +21,11 @@ import numpy as np
 
 from engine.ai import SKILLS, BatAI
 from engine.ai.bot import ProfileBot
-from engine.arm import (BAT_FLOATS, CTL_D_ANGLE, CTL_HOLD, CTL_INERTIA, CTL_K_ANGLE, CTL_KD, CTL_KP, CTL_MASS,
-                        CTL_MAX_FORCE, CTL_MAX_SPEED, CTL_MAX_TORQUE, CTL_N_SEGMENTS, CTL_NORMAL, CTL_SEGMENTS,
-                        CTL_SIZE, brake_force, control_bats)
-from engine.bot import (A_FORCE, A_HOLD, A_SEGMENTS, ACTION_FLOATS, ACTION_FORCE, ACTION_TARGET, Bot, bot_name,
-                        check_action, is_bot_spec, load_bot, new_observation)
+from engine.arm import (ARM_BRAKE, ARM_FORCE, ARM_TARGET, BAT_FLOATS, CTL_D_ANGLE, CTL_FORCE, CTL_HOLD, CTL_INERTIA,
+                        CTL_K_ANGLE, CTL_KD, CTL_KIND, CTL_KP, CTL_MASS, CTL_MAX_FORCE, CTL_MAX_SPEED, CTL_MAX_TORQUE,
+                        CTL_N_SEGMENTS, CTL_NORMAL, CTL_SEGMENTS, CTL_SIZE, control_bats)
+from engine.bot import (A_FORCE, A_HOLD, A_SEGMENTS, ACTION_FLOATS, ACTION_FORCE, Bot, bot_name, check_action,
+                        is_bot_spec, load_bot, new_observation)
 from engine.dtypes import BAT_DTYPE, OBSERVATION_DTYPE
 from engine.rules import Phase, next_striker
 
@@ -89,8 +90,7 @@ class Seat:
         self.budget_s = None if self.profile else (bot.budget_s if bot.budget_s is not None else budget_s)
         self.interrupt = interrupt and self.budget_s is not None and math.isfinite(self.budget_s)
         self.hang_s = max(HANG_MIN_S, HANG_FACTOR * self.budget_s) if self.interrupt else None
-        self.kind = ACTION_TARGET
-        self.force = np.zeros(6)  # the raw action (ACTION_FORCE) or the brake after a fault
+        ctl[CTL_KIND] = ARM_TARGET
         self.obs = new_observation()
         self.view = self.obs.view()
         self.view.flags.writeable = False  # the bot's: it reads, never writes, what the seat shows
@@ -100,10 +100,15 @@ class Seat:
         self.faults = 0
         self.act_seconds = 0.0  # CPU time of the bot's decisions
 
+    @property
+    def kind(self) -> int:
+        """What its arm plays: engine.arm.ARM_TARGET, ARM_FORCE or ARM_BRAKE."""
+        return int(self.ctl[CTL_KIND])
+
     def needs_decision(self, key, now: float) -> bool:
         """Whether the player may answer differently now: always for a bot; for an AI profile,
         when the key changed or the clock reached its wakes (engine.ai.BatAI.wakes)."""
-        if not self.profile or self.kind != ACTION_TARGET or key != self.key:
+        if not self.profile or self.kind != ARM_TARGET or key != self.key:
             return True
         due, end = self.bot.wakes()
         return now >= due or now > end
@@ -111,7 +116,7 @@ class Seat:
     def wakes(self) -> tuple[float, float]:
         """(due, end) s: until the first `now >= due` or `now > end` no decision of this seat can
         change anything (-inf, -inf: ask at every control tick)."""
-        if not self.profile or self.kind != ACTION_TARGET:
+        if not self.profile or self.kind != ARM_TARGET:
             return -math.inf, -math.inf
         return self.bot.wakes()
 
@@ -165,35 +170,33 @@ class Seat:
                 return None
             fault, detail = problem
         self.faults += 1
-        self.kind = ACTION_FORCE  # the idle arm's brake until the next good decision
-        brake_force(self.mass, floats[me, 7:10], self.force)
+        self.ctl[CTL_KIND] = ARM_BRAKE  # the idle arm's brake until the next good decision
         return me, fault, detail
 
     def state(self) -> dict:
-        """What the seat decides on, as plain data (load_state): its own counts and action, and an
-        AI profile's BatAI.state. A bot's own objects are its own: they are not kept."""
-        return {"kind": self.kind, "force": self.force.copy(), "key": self.key, "decisions": self.decisions,
-                "faults": self.faults, "act_seconds": self.act_seconds,
+        """What the seat decides on, as plain data (load_state): its own counts, and an AI profile's
+        BatAI.state (its plan is its row of Players.ctl). A bot's own objects are its own: they are
+        not kept."""
+        return {"key": self.key, "decisions": self.decisions, "faults": self.faults, "act_seconds": self.act_seconds,
                 "ai": self.bot.ai.state() if self.profile else None}
 
     def load_state(self, state: dict) -> None:
         """Become the seat whose state() this is (a bot keeps the objects it has)."""
-        self.kind, self.key = state["kind"], state["key"]
-        self.force[:] = state["force"]
+        self.key = state["key"]
         self.decisions, self.faults, self.act_seconds = state["decisions"], state["faults"], state["act_seconds"]
         if self.profile:
             self.bot.ai.load_state(state["ai"])
 
     def _take(self, action) -> None:
-        """The checked action becomes what the seat plays: its ctl row, or its raw force."""
+        """The checked action becomes the seat's plan: its ctl row's arm target, or its raw force."""
         values = np.frombuffer(action, np.float64, ACTION_FLOATS) if isinstance(action, np.void) else \
             _floats(action, 0, ACTION_FLOATS)
-        if int(action["kind"]) == ACTION_FORCE:
-            self.kind = ACTION_FORCE
-            self.force[:] = values[A_FORCE:A_FORCE + 6]
-            return
-        self.kind = ACTION_TARGET
         ctl = self.ctl
+        if int(action["kind"]) == ACTION_FORCE:
+            ctl[CTL_KIND] = ARM_FORCE
+            ctl[CTL_FORCE:CTL_FORCE + 6] = values[A_FORCE:A_FORCE + 6]
+            return
+        ctl[CTL_KIND] = ARM_TARGET
         ctl[CTL_HOLD:CTL_HOLD + 6] = values[A_HOLD:A_HOLD + 6]  # hold, then normal
         ctl[CTL_N_SEGMENTS] = int(action["n_segments"])
         ctl[CTL_SEGMENTS:] = values[A_SEGMENTS:]
@@ -225,12 +228,12 @@ class Players(dict):
             self._bats = bats
         return self._floats
 
-    def control(self, tick: int, now: float, ball_flat: np.ndarray, bats: np.ndarray, rally, out: np.ndarray) -> list:
-        """Every seat's force and torque into out[player], after the decisions that may change.
+    def decide(self, tick: int, now: float, ball_flat: np.ndarray, bats: np.ndarray, rally) -> list:
+        """The decisions of every seat that may decide differently now: their plans (rows of ctl).
 
         Args:
             tick, now: the state's tick and time (s). ball_flat: (9,) the ball. bats: the
-                (n_bats,) BAT_DTYPE array. rally: its RALLY_DTYPE record. out: (n_bats, 6).
+                (n_bats,) BAT_DTYPE array. rally: its RALLY_DTYPE record.
 
         Returns:
             The faults of this control tick: [(player, fault, detail)], engine.bot.FAULTS names.
@@ -243,10 +246,6 @@ class Players(dict):
                 fault = seat.decide(tick, now, ball_flat, floats, rally, key)
                 if fault is not None:
                     faults.append(fault)
-        control_bats(now, floats, self.ctl, self.players, out)
-        for player, seat in self.items():
-            if seat.kind == ACTION_FORCE:
-                out[player] = seat.force
         return faults
 
     def state(self) -> dict:
@@ -287,7 +286,7 @@ class Players(dict):
                      np.zeros((len(bats), 6)))
 
 
-def make_players(scene, model, seed: int, control_every: int, eager: bool = True,
+def make_players(scene, model, seed: int, control_every: int, delay: int, eager: bool = True,
                  budget_s: float | None = DEFAULT_BUDGET_S, interrupt: bool = False) -> Players:
     """The seat of every bat the scene gives a player (bat.skill: an AI profile or a bot spec).
 
@@ -313,9 +312,9 @@ def make_players(scene, model, seed: int, control_every: int, eager: bool = True
         else:
             name = spec
             bot = ProfileBot(model, player, SKILLS[spec], spec, seed=seed * 1000 + player,
-                             control_every=control_every, eager=eager)
+                             control_every=control_every, delay=delay, eager=eager)
         end_sign = -1 if player == 0 else 1
-        bot.player, bot.end_sign = player, end_sign
+        bot.player, bot.end_sign, bot.latency = player, end_sign, delay * model.dt
         bot.normal = np.array([-end_sign, 0.0, 0.0])
         bot.rng = np.random.default_rng(seed * 1000 + player)
         try:

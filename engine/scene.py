@@ -85,6 +85,12 @@ class MatchSpec:
     best_of: int = 5
     first_server: str = "a"
     ai_hz: float = 100.0  # control rate of the AI (scenes/match.toml says why); forces are held between its updates
+    # s from a player's decision to the control tick its plan takes effect, in whole control
+    # periods, at least one (engine.match.decision_delay). Half the fastest profile's reaction
+    # time (pro 0.10 s, engine.ai.skill): within a human's visuomotor delay of 100-200 ms, so a
+    # stroke starts when its reaction time says, and long enough for the AI worker to think
+    # while the physics steps on.
+    decision_latency: float = 0.05
     max_rally_s: float = 10.0  # a rally still undecided after this long is judged out of play
     toss_speed: float = 2.6  # m/s upwards: the toss rises ~34 cm (ITTF 2.6.2: at least 16 cm)
 
@@ -425,7 +431,8 @@ def _read_match(r: _Reader, data: dict, effects: frozenset[str], bats: tuple[Bat
     if missing or len(bats) != 2:
         raise r.fail("effects", f"effect 'referee' needs the table, net, floor and both bats; missing: "
                                 f"{', '.join(missing) or 'a second bat'}")
-    m = r.table(data.get("match", {}), "match", ("best_of", "first_server", "ai_hz", "max_rally_s", "toss_speed"))
+    m = r.table(data.get("match", {}), "match", ("best_of", "first_server", "ai_hz", "decision_latency", "max_rally_s",
+                                                   "toss_speed"))
     best_of = r.number(m, "best_of", "match.best_of", 5, low=1, high=9)
     if best_of != int(best_of) or int(best_of) % 2 == 0:
         raise r.fail("match.best_of", f"must be an odd whole number, got {best_of}")
@@ -433,6 +440,7 @@ def _read_match(r: _Reader, data: dict, effects: frozenset[str], bats: tuple[Bat
         best_of=int(best_of),
         first_server=r.string(m, "first_server", "match.first_server", "a", BAT_NAMES),
         ai_hz=r.number(m, "ai_hz", "match.ai_hz", 100.0, low=10.0, high=2000.0),
+        decision_latency=r.number(m, "decision_latency", "match.decision_latency", 0.05, low=0.0, high=0.3),
         max_rally_s=r.number(m, "max_rally_s", "match.max_rally_s", 10.0, low=1.0, high=120.0),
         toss_speed=r.number(m, "toss_speed", "match.toss_speed", 2.6, low=1.8, high=5.0),
     )

@@ -113,6 +113,7 @@ class Supervisor:
         slow_turn_s: fault injection for tests: every incarnation of `crash_worker` answers each
             turn (the AI, the net) or steps each match tick (the physics) this much later.
         on_bot_error, bot_budget_s: engine.match.Match's on_bot_error and budget_s.
+        timeline_dir: each worker writes its timeline there (RunOptions.timeline_dir).
     """
 
     def __init__(self, scene: Scene, ticks: int, mode: str = "lockstep", trace: bool = False,
@@ -120,7 +121,7 @@ class Supervisor:
                  crash_worker: str = "physics", gateway=None, players_timeout: float = PLAYERS_TIMEOUT_S,
                  handoff_s: float = RunOptions.handoff_s, slow_turn_s: float = 0.0, crash_kind: str = "kill",
                  restart_budget: int = RESTART_BUDGET, on_bot_error: str = "point",
-                 bot_budget_s: float | None = DEFAULT_BUDGET_S):
+                 bot_budget_s: float | None = DEFAULT_BUDGET_S, timeline_dir: str | None = None):
         self.scene = scene
         self.ticks = ticks
         self.mode = mode
@@ -134,7 +135,7 @@ class Supervisor:
         self.options = RunOptions(ticks=ticks, mode=mode, trace=trace, seed=seed, frame_every=frame_every,
                                   players_timeout=players_timeout, gateway=gateway, handoff_s=handoff_s,
                                   crash_kind=crash_kind, on_bot_error=on_bot_error,
-                                  bot_budget_s=bot_budget_s)
+                                  bot_budget_s=bot_budget_s, timeline_dir=timeline_dir)
         if restart_budget < 0:
             raise ValueError(f"restart_budget must be >= 0 (restarts within {RESTART_WINDOW_S:.0f} s), "
                              f"got {restart_budget}")
@@ -150,7 +151,7 @@ class Supervisor:
     def _start(self, worker: _Worker) -> None:
         parent, child = self._ctx.Pipe()
         layout = self.layout
-        options = replace(self.options, ai_baton=layout.ai_baton, net_baton=layout.net_baton,
+        options = replace(self.options, ai_queue=layout.ai_queue, net_baton=layout.net_baton,
                           lock_path=layout.lock_path, start_event=layout.start_event,
                           crash_at_tick=self.crash_at_tick if worker.restarts == 0 and worker.kind == self.crash_worker
                           else None,
@@ -326,11 +327,11 @@ class Supervisor:
                 **({"gateway": w.report.get("gateway", {})} if w.kind == "gateway" else {}),
                 **({k: w.report[k] for k in ("remote_inputs_refused", "remote_brake_ticks") if k in w.report}),
                 # the physics' AI control ticks (since its last start): turns given to the AI worker,
-                # and forces it computed itself on the AIs' plans; its cloth net ticks: handed to
+                # those that gave none, and the turns whose answer it waited for; its cloth net ticks: handed to
                 # the net worker with the ball (waited for), and without it (not waited for), and
                 # the ball ticks given again because the net's answer took longer than handoff_s;
                 # its hand-offs' wall time split into the waits for the net and for the AI
-                **({k: w.report[k] for k in ("ai_turns", "ai_local_ticks", "net_ball_ticks", "net_runs", "net_free_ticks",
+                **({k: w.report[k] for k in ("ai_turns", "ai_local_ticks", "ai_waited_turns", "net_ball_ticks", "net_runs", "net_free_ticks",
                                              "net_turns_again", "handoff_net_s", "handoff_ai_s", "bot_errors", "stopped")
                     if k in w.report} if w.kind == "physics" else {}),
                 # the AI worker's thinking between its turns, and the strokes it had to finish late

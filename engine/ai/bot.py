@@ -23,14 +23,14 @@ class ProfileBot(Bot):
     Args:
         model: engine.world.Model of the match scene (BatAI predicts the ball with it).
         player: 0 or 1. skill: the profile. name: its name ("pro" ...). seed, control_every,
-            eager: BatAI's.
+            delay, eager: BatAI's.
     """
 
     budget_s = None  # the engine's own AI thinks as long as a stroke takes (BatAI spreads it)
 
     def __init__(self, model, player: int, skill: Skill, name: str, seed: int, control_every: int = 1,
-                 eager: bool = True):
-        self.ai = BatAI(model, player, skill, seed=seed, control_every=control_every, eager=eager)
+                 delay: int = 0, eager: bool = True):
+        self.ai = BatAI(model, player, skill, seed=seed, control_every=control_every, delay=delay, eager=eager)
         self.arm = name
         self._obs = None
         self._action = new_action()

@@ -96,6 +96,10 @@ class BatAI:
         player: 0 (A) or 1 (B); its bat is model bat `player`.
         skill: a Skill. seed: for its random numbers.
         control_every: ticks between the calls of control (the match's AI control period).
+        delay: ticks from a decision to the control tick its plan takes effect (the match's
+            decision_delay, a whole number of control periods; 0: at once, as control() plays
+            it). A stroke is decided `delay` ticks before it is to start, as planned from the
+            bat's state then carried forward at its velocity.
         eager: think a stroke out at once when it starts; False leaves it to think_step (the AI
             worker thinks between its turns), finish_thinking doing what is left when it is due.
             Either way the same strokes, bit for bit.
@@ -122,7 +126,8 @@ class BatAI:
     K_ANGLE = 40.0**2
     D_ANGLE = 2 * 40.0
 
-    def __init__(self, model, player: int, skill: Skill, seed: int, control_every: int = 1, eager: bool = True):
+    def __init__(self, model, player: int, skill: Skill, seed: int, control_every: int = 1, delay: int = 0,
+                 eager: bool = True):
         self.model = model
         self.player = player
         self.skill = skill
@@ -154,10 +159,12 @@ class BatAI:
         self.turn_seen_at = 0.0
         self.planned_key = None
         self.control_every = control_every
+        self.delay = delay
         self.eager = eager
-        self._thinking = None  # the generator of _think for _thinking_key, played from _thinking_due
+        self._thinking = None  # the generator of _think for _thinking_key, decided at _thinking_due
         self._thinking_key = None
         self._thinking_due = math.inf
+        self._thinking_start = math.inf  # s: when the stroke decided at _thinking_due starts (its plan takes effect)
         self._thinking_left = False
         self._thinking_args = None  # _think's arguments, and _thought_state() when it was made (state())
         self._thinking_from = None
@@ -511,8 +518,8 @@ class BatAI:
                 self.late_thinking_s += time.perf_counter() - started
                 self.late_thoughts += 1
             if self._thinking_key == rally_key and my_turn:
-                self.plan = self._make_plan(self._thought, now, floats[BAT_POS:BAT_POS + 3].copy(),
-                                            floats[BAT_VEL:BAT_VEL + 3].copy())
+                start, vel = self._thinking_start, floats[BAT_VEL:BAT_VEL + 3].copy()
+                self.plan = self._make_plan(self._thought, start, floats[BAT_POS:BAT_POS + 3] + vel * (start - now), vel)
                 self._plan_end = self.plan.segments[-1].t1 if self.plan is not None else -math.inf
             self._thinking = None
         if self.plan is not None and now > self._plan_end:
@@ -537,23 +544,27 @@ class BatAI:
 
     def _start_thinking(self, now: float, ball_flat: np.ndarray, rally_key, end_sign: int, serve: bool) -> None:
         """Start thinking out the stroke for rally_key from the ball's state now; it is played from
-        the first control tick after the reaction time (none for a service), as if thought out
-        there (see _think): the ball's path from now on is known, so the thinking can start now
-        and be spread over the control ticks in between (think_step)."""
+        the first control tick after the reaction time (none for a service) that is at least the
+        decision delay away, as if thought out there (see _think), and decided `delay` ticks
+        before: the ball's path from now on is known, so the thinking can start now and be spread
+        over the control ticks in between (think_step)."""
         self.finish_thinking()  # one still unfinished: its random draws come first
         self.planned_key = rally_key
         due = self.turn_seen_at + (0.0 if serve else self.skill.reaction_s)
         h, every = self.model.dt, self.control_every
         start_time, first_row = now, 0
-        while not start_time >= due:  # the control ticks ahead, in the world clock's own arithmetic
+        while not (start_time >= due and first_row >= self.delay):  # in the world clock's own arithmetic
             for _ in range(every):
                 start_time = start_time + h
             first_row += every
+        decide_at = now
+        for _ in range(first_row - self.delay):
+            decide_at = decide_at + h
         self._thinking_args = (now, np.array(ball_flat, dtype=np.float64), end_sign, serve, start_time, first_row)
         self._thinking_from = self._thought_state()
         self._thinking = self._think(*self._thinking_args)
         self._thinking_key = rally_key
-        self._thinking_due = due
+        self._thinking_due, self._thinking_start = decide_at, start_time
         self._thinking_left = True
         if self.eager:
             self.finish_thinking()
@@ -595,6 +606,7 @@ class BatAI:
         return {**(self._thinking_from if live else self._thought_state()),
                 "thinking": thinking, "thinking_args": self._thinking_args if live else None,
                 "thinking_key": self._thinking_key, "thinking_due": self._thinking_due,
+                "thinking_start": self._thinking_start,
                 "plan": self.plan, "plan_end": self._plan_end, "tracking": self._tracking, "ctl": self._ctl.copy(),
                 "turn_key": self.turn_key, "turn_seen_at": self.turn_seen_at, "planned_key": self.planned_key,
                 "late_thinking_s": self.late_thinking_s}
@@ -609,6 +621,7 @@ class BatAI:
         self._ctl[:] = state["ctl"]
         self.turn_key, self.turn_seen_at, self.planned_key = state["turn_key"], state["turn_seen_at"], state["planned_key"]
         self._thinking_key, self._thinking_due = state["thinking_key"], state["thinking_due"]
+        self._thinking_start = state["thinking_start"]
         self._thinking_args = self._thinking_from = None
         self._thinking, self._thinking_left = None, False
         if state["thinking"] == "live":

@@ -151,3 +151,91 @@ class Baton:
         answer with the slot's tick would pass the old answer off as the new one's)."""
         self._words[2] = tick
         self._done.release()
+
+
+QUEUE_WORDS = 3  # a TurnQueue's shared words: turns posted, turns answered, command (RUN or STOP)
+
+
+class TurnQueue:
+    """Turns in order, from a hub to one worker that answers each in turn: the hub posts turn 1,
+    2, ... without waiting and waits (bounded) only for the answer it needs, so the worker may
+    work several turns behind; the turns' data cross through shared rings indexed by the turn's
+    number, which the counts order (processes.workers.ai_driver).
+
+    Args:
+        name: for messages. ctx: the multiprocessing context the workers are started from.
+        words: a (QUEUE_WORDS,) int64 shared array (processes.runtime.shm.SharedArray.array).
+
+    Each side posts a semaphore after it moves its count and sleeps on the other's only when the
+    count it waits for has not moved (spinning SPIN_S first, as a Baton does): a side that finds
+    its count moved does not take the post, which a later wait then takes and finds nothing
+    new behind. The counts live in shared memory, so a restarted worker, or hub, goes on from them.
+    """
+
+    def __init__(self, name: str, ctx, words: np.ndarray):
+        self.name = name
+        self._posted = ctx.Semaphore(0)
+        self._answered = ctx.Semaphore(0)
+        self.attach(words)
+
+    def __getstate__(self):
+        return {"name": self.name, "_posted": self._posted, "_answered": self._answered, "_words": None}
+
+    def attach(self, words: np.ndarray) -> "TurnQueue":
+        """Point at the shared (QUEUE_WORDS,) int64 words: 0 turns posted, 1 answered, 2 command."""
+        self._words = memoryview(words.view("<i8")).cast("B").cast("q")
+        return self
+
+    @property
+    def posted(self) -> int:
+        """Turns posted so far (the newest turn's number)."""
+        return self._words[0]
+
+    @property
+    def answered(self) -> int:
+        """Turns answered so far (the newest answer's turn)."""
+        return self._words[1]
+
+    # hub side
+    def post(self) -> int:
+        """Post the next turn (its data already written); returns its number."""
+        words = self._words
+        words[0] += 1
+        self._posted.release()
+        return words[0]
+
+    def wait_answered(self, turn: int, timeout: float, give_up: float, on_wait) -> None:
+        """Wait until turn `turn` is answered. Every `timeout` s without an answer: on_wait(turn)
+        (a heartbeat: the worker may be restarting, and goes on from the counts); raises
+        HandoffTimeout after `give_up` s."""
+        words = self._words
+        deadline = time.monotonic() + give_up
+        while words[1] < turn:
+            if not _acquire(self._answered, timeout):
+                on_wait(turn)
+                if time.monotonic() > deadline:
+                    raise HandoffTimeout(f"{self.name}: turn {turn} was not answered within {give_up} s "
+                                         f"(answered {words[1]} of {words[0]})")
+
+    def stop(self) -> None:
+        self._words[2] = STOP
+        self._posted.release()
+
+    # worker side
+    @property
+    def stopped(self) -> bool:
+        """Told to stop (also seen by a worker restarted after the stop's post)."""
+        return self._words[2] == STOP
+
+    def wait_posted(self, after: int, timeout: float) -> bool:
+        """Wait until a turn after `after` is posted, or a stop; False after `timeout` s without either."""
+        words = self._words
+        while words[0] <= after and words[2] != STOP:
+            if not _acquire(self._posted, timeout):
+                return False
+        return True
+
+    def answer(self, turn: int) -> None:
+        """Turn `turn` is answered (its answer already written)."""
+        self._words[1] = turn
+        self._answered.release()

@@ -1,30 +1,29 @@
-"""The AI worker: one controller per AI-driven bat. It only decides forces, never sets positions.
+"""The AI worker: one controller per AI-driven bat. It only decides plans, never sets positions.
 
-At an AI control tick where the AIs must decide, the physics worker copies the state into the
-AI's view and gives it its turn, then steps on; the AI computes every AI's force and torque
-from the view with engine.match.ai_inputs (the very function the in-process match calls) and
-writes them, with what each AI's controller tracks (its ctl row: the planned path, the face
-normal, gains and limits), into the `ai_answer` record before it says the turn is done; the
-physics reads it after that, at the next control tick. The baton orders the two sides (as for
-`ai_view` and the net's `net_io`), so the answer needs no lock. Asked again for the tick it last
-did (the physics restarted, or timed out waiting), it answers with its last answer again rather
-than deciding twice: the AIs' plans and random draws move on once per decision, as in the
-reference. A restarted AI worker goes on from the players' state it kept and the turns it
-journalled since (StateKeeper), so a killed AI worker leaves the match as the reference plays it.
+At an AI control tick B where the AIs must or may decide (processes.workers.ai_driver), the
+physics worker copies the state into the next slot of the `ai_views` ring, posts the turn on the
+queue (processes.runtime.handoff.TurnQueue) and steps on. The AI takes the turns in order,
+decides from each view with engine.match.ai_decide (the very function the in-process match
+calls) and writes the plans after it (each AI's ctl row: the planned path, the face normal,
+gains and limits, or a raw force, or the brake), the decision key and the AIs' wakes into the
+turn's slot of `ai_answers` before it counts the turn answered. The physics puts the plans in
+effect match.delay ticks after B (engine.match.decision_delay), waiting only if the answer is not
+there yet, so the AI thinks while the physics steps. A restarted AI worker goes on from the
+players' state it kept and the turns it journalled since (StateKeeper), then from the queue's
+counts, so a killed AI worker leaves the match as the reference plays it.
 
 Most control ticks need no decision: while the rally key, the striker and the serve stay as they
 were and the world clock has not reached the AIs' wakes (BatAI.wakes: a stroke thought out is
-due, a plan runs out), BatAI.decide changes nothing and the force is bat_control of the bat's
-state and the published ctl rows alone. The physics worker then computes that force itself with
-the same numba function (control_bats) and gives no turn: the AI is asked only when a decision
-can change (a few times a rally instead of 100 times a simulated second). The force law stays
-the AI's, its plan crosses only from the AI to the physics, and the bats still get forces only.
+due, a plan runs out), BatAI.decide changes nothing and no turn is given: the physics plays the
+plans in effect with the arm law (engine.arm.control_bats) itself. The AI is asked only when a
+decision can change (a few times a rally instead of 100 times a simulated second); the plans
+cross only from the AI to the physics, and the bats still get forces only.
 
 A stroke is thought out between the turns (BatAI.think_step) while the physics steps on: the AI
-polls for a turn between think steps (each mostly 10-50 us), so a turn waits at most for the step
-under way. A stroke starts when the ball changes hands and is played only after the reaction
-time, and what is not thought out by then is finished at that turn (BatAI.finish_thinking). The
-strokes are the same, bit for bit, however the thinking was spread.
+looks for a posted turn between think steps (each mostly 10-50 us). A stroke starts when the ball
+changes hands and is decided only a decision delay before it is played, and what is not thought
+out by then is finished at that turn (BatAI.finish_thinking). The strokes are the same, bit for
+bit, however the thinking was spread.
 """
 from __future__ import annotations
 
@@ -36,14 +35,16 @@ import numpy as np
 
 from engine.bot import FAULT_CODES
 from engine.dtypes import physics_snapshot_dtype
-from engine.match import ai_inputs, make_ais
+from engine.match import ai_decide, make_ais
 from engine.world import build_model, copy_record
-from processes.runtime.handoff import NO_TURN, HandoffTimeout
 from processes.runtime.shm import Arena
 from processes.runtime.control import Control, crash
+from processes.runtime.timeline import IDLE, THINK, WORK, Timeline
 from processes.workers.layout import (AI_KEEP_EVERY, AI_STATE_BYTES, AI_STATE_DTYPE, ANSWER_DTYPE, FAULT_TEXT_BYTES,
                                       decision_key)
 from processes.workers.options import RunOptions
+
+
 
 class Answerer:
     """The AI side of a turn: the AIs' decision from one state, as an ANSWER_DTYPE record.
@@ -61,18 +62,16 @@ class Answerer:
         self.rally = self.snap[0]["rally"]
         self.world = self.snap[0]["world"]
         self.record = np.zeros(1, ANSWER_DTYPE)
-        self.inputs = self.record["inputs"][0][:n_bats]
         self.ctl = self.record["ctl"][0][:len(ais)]
-        self.record["mask"] = sum(1 << player for player in ais)
         self.faults = 0
 
-    def answer(self, view: np.ndarray, tick: int) -> np.ndarray:
-        """Decide from view[0] (a physics snapshot record) for `tick`; returns self.record, (1,)."""
+    def answer(self, view: np.ndarray, turn: int) -> np.ndarray:
+        """Decide from view[0] (a physics snapshot record) for turn `turn`; returns self.record, (1,)."""
         copy_record(view, self.snap)  # our own copy, byte for byte: the AIs keep views into it
         rally = self.rally
         phase, server, striker = int(rally["phase"]), int(rally["server"]), int(rally["striker"])
-        faults = ai_inputs(self.ais, int(self.world["tick"]), float(self.world["time"]), self.ball_flat, self.bats,
-                           rally, self.inputs)
+        tick = int(self.world["tick"])
+        faults = ai_decide(self.ais, tick, float(self.world["time"]), self.ball_flat, self.bats, rally)
         record = self.record
         record["fault"] = 0
         for player, fault, detail in faults:
@@ -84,7 +83,7 @@ class Answerer:
         record["key"] = decision_key(int(rally["rally"]), int(rally["shots"]), phase, server, striker)
         record["due"], record["end"] = self.ais.wakes()
         self.ctl[:] = self.ais.ctl
-        record["tick"] = tick
+        record["turn"], record["tick"] = turn, tick
         return record
 
 
@@ -106,20 +105,20 @@ class StateKeeper:
     def __init__(self, arena: Arena, ais, answerer: Answerer):
         self.block = arena["ai_state"]
         self.views = arena["ai_journal"].array
-        self.turns = arena["ai_journal_turns"].array  # (count, tick) of each view; count -1: torn or none
+        self.turns = arena["ai_journal_turns"].array  # (turn, tick) of each view; turn -1: torn or none
         self.ais = ais
         self.answerer = answerer
         self.record = np.zeros(1, AI_STATE_DTYPE)
-        self.seq = 0  # turns answered
+        self.seq = 0  # the last turn journalled
 
-    def write(self, view: np.ndarray, tick: int) -> None:
-        """Journal the turn about to be done: its view (the state it was decided from)."""
-        self.seq += 1
-        k = self.seq % len(self.turns)
-        self.turns[k, 0] = -1  # torn until its count is written, last
-        self.turns[k, 1] = tick
+    def write(self, view: np.ndarray, turn: int) -> None:
+        """Journal turn `turn` before its answer is published: its view (the state it is decided from)."""
+        self.seq = turn
+        k = turn % len(self.turns)
+        self.turns[k, 0] = -1  # torn until its turn is written, last
+        self.turns[k, 1] = int(view[0]["world"]["tick"])
         copy_record(view, self.views, k)
-        self.turns[k, 0] = self.seq
+        self.turns[k, 0] = turn
 
     def keep(self, tick: int) -> None:
         """Publish the state after the turn just done (`tick`), if it is an AI_KEEP_EVERY-th."""
@@ -133,9 +132,9 @@ class StateKeeper:
         self.record["data"][0][:len(data)] = np.frombuffer(data, np.uint8)
         self.block.publish(self.record, tick)
 
-    def load(self) -> int | None:
-        """A restart: load the state kept and answer the journal's later turns again; returns the
-        tick of the last turn answered, or None (a fresh run)."""
+    def load(self, publish) -> int:
+        """A restart: load the state kept and decide the journal's later turns again, calling
+        publish(turn, record) for each; returns the last turn decided (0: a fresh run)."""
         seq = 0
         if self.block.version >= 2:
             self.block.snapshot(self.record)
@@ -144,86 +143,94 @@ class StateKeeper:
             self.ais.load_state(state)
             self.answerer.record[:] = answer
             self.answerer.faults = faults
-        later = sorted((int(count), int(tick), k) for k, (count, tick) in enumerate(self.turns) if count > seq)
-        if [count for count, _, _ in later] != list(range(seq + 1, seq + 1 + len(later))):
+        later = sorted((int(turn), k) for k, (turn, tick) in enumerate(self.turns) if turn > seq)
+        if [turn for turn, _ in later] != list(range(seq + 1, seq + 1 + len(later))):
             raise RuntimeError(f"the AI's journal lacks turns after turn {seq} (it holds "
-                               f"{[count for count, _, _ in later]}): AI_JOURNAL_TURNS = {len(self.turns)} is too few")
-        for count, tick, k in later:
-            self.answerer.answer(self.views[k:k + 1], tick)
-            seq = count
+                               f"{[turn for turn, _ in later]}): AI_JOURNAL_TURNS = {len(self.turns)} is too few")
+        for turn, k in later:
+            publish(turn, self.answerer.answer(self.views[k:k + 1], turn))
+            seq = turn
         self.seq = seq
         if seq:
             for seat in self.ais.values():
                 if not seat.profile:
                     print(f"pingpong ai worker: restarted; bot {seat.name} starts afresh (a bot's own state is not "
                           f"kept)", file=sys.stderr, flush=True)
-        if later:
-            return later[-1][1]
-        return int(self.answerer.record[0]["tick"]) if seq else None
+        return seq
 
 
 def ai_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
-    """options: seed, ai_baton, bot_budget_s; crash_at_tick, crash_kind (tests: end this process
+    """options: seed, ai_queue, bot_budget_s; crash_at_tick, crash_kind (tests: end this process
     after its first turn at or after that tick); slow_turn_s (tests: answer each turn that much later).
     A bot's hung decision is interrupted (SIGALRM)."""
     model = build_model(scene)
     ais = make_ais(scene, model, options.seed, eager=False, budget_s=options.bot_budget_s, interrupt=True)
     thinkers = ais.thinkers
-    baton = options.ai_baton.attach(arena["ai_baton"].array)
-    answer = arena["ai_answer"].array
-    view = arena["ai_view"].array
+    queue = options.ai_queue.attach(arena["ai_queue"].array)
+    answers = arena["ai_answers"].array
+    views = arena["ai_views"].array
+    size = len(views)
     answerer = Answerer(ais, len(scene.bats))
     keeper = StateKeeper(arena, ais, answerer)
     crash_at = options.crash_at_tick
     ais.warm_up()
-    last_tick = keeper.load()  # a restart: the answer to this tick is kept, and what the AIs were after it
+
+    def publish(turn: int, record: np.ndarray) -> None:
+        """A turn's answer into its slot, then counted (one not yet counted: a replayed one may be)."""
+        if turn > queue.answered:
+            copy_record(record, answers, turn % size)
+            queue.answer(turn)
+
+    done = keeper.load(publish)  # a restart: the turns decided so far, and what the AIs were after them
     control.start(0)
+    timeline = Timeline(options.timeline_dir, "ai") if options.timeline_dir is not None else None
     busy = think = longest = 0.0
     turns = 0
     try:
         while True:
-            thinker = next((ai for ai in thinkers if ai.thinking), None)
-            if thinker is not None:  # think a step, unless a turn came meanwhile
-                tick = baton.try_turn()
-                if tick == NO_TURN:
-                    t1 = time.perf_counter()
-                    thinker.think_step()
-                    think += time.perf_counter() - t1
-                    control.beat(int(control.row["tick"]))
-                    continue
-            else:
-                try:
-                    tick = baton.wait_turn(Control.HEARTBEAT_S)
-                except HandoffTimeout:
-                    control.beat(int(control.row["tick"]))  # idle: still alive, still listening
-                    continue
-            if tick is None:
+            if queue.posted > done:
+                if timeline is not None:
+                    timeline.mark(WORK)
+                t0 = time.perf_counter()
+                turn = done + 1
+                view = views[turn % size:turn % size + 1]
+                keeper.write(view, turn)
+                record = answerer.answer(keeper.views[turn % len(keeper.turns):turn % len(keeper.turns) + 1], turn)
+                tick = int(record[0]["tick"])
+                if options.slow_turn_s:
+                    time.sleep(options.slow_turn_s)  # fault injection: a descheduled worker, not synchronisation
+                publish(turn, record)
+                done = turn
+                took = time.perf_counter() - t0
+                longest = max(longest, took)
+                turns += 1
+                keeper.keep(tick)  # off the physics' path: it has its answer
+                busy += time.perf_counter() - t0
+                if crash_at is not None and tick >= crash_at:
+                    crash(options.crash_kind, tick)
+                control.beat(tick)
+                continue
+            if queue.stopped:
                 break
-            t0 = time.perf_counter()
-            new_turn = tick != last_tick
-            if new_turn:
-                answerer.answer(view, tick)
-                keeper.write(view, tick)
-                last_tick = tick
-            copy_record(answerer.record, answer)
-            took = time.perf_counter() - t0
-            busy += took
-            longest = max(longest, took)
-            turns += 1
-            if options.slow_turn_s:
-                time.sleep(options.slow_turn_s)  # fault injection: a descheduled worker, not synchronisation
-            baton.done(tick)
-            if new_turn:  # off the physics' path: it has its answer
-                t2 = time.perf_counter()
-                keeper.keep(tick)
-                busy += time.perf_counter() - t2
-            if crash_at is not None and tick >= crash_at:
-                crash(options.crash_kind, tick)
-            control.beat(tick)
+            thinker = next((ai for ai in thinkers if ai.thinking), None)
+            if thinker is not None:  # think a step, then look for a turn again
+                if timeline is not None:
+                    timeline.mark(THINK)
+                t1 = time.perf_counter()
+                thinker.think_step()
+                think += time.perf_counter() - t1
+                control.beat(int(control.row["tick"]))
+                continue
+            if timeline is not None:
+                timeline.mark(IDLE)
+            if not queue.wait_posted(done, Control.HEARTBEAT_S):
+                control.beat(int(control.row["tick"]))  # idle: still alive, still listening
         busy += think
+        if timeline is not None:
+            timeline.save()
         control.finish(busy, 0.0, {"tick": int(control.row["tick"]), "busy_s": busy, "think_s": think,
                                    "late_thoughts": sum(ai.late_thoughts for ai in thinkers),
                                    "late_thinking_s": sum(ai.late_thinking_s for ai in thinkers),
                                    "turns": turns, "longest_turn_s": longest, "bot_faults": answerer.faults})
     finally:
-        del view, answer, baton, answerer
+        del views, answers, answerer, keeper

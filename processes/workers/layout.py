@@ -13,9 +13,9 @@ and removes them at the end. The blocks of a run, by name:
 | frames | physics snapshot every frame_every ticks (replays) | physics | supervisor |
 | net_a, net_b | net snapshot (SnapshotBlock), published into each in turn | net | physics, a restarted net, gateway |
 | net_io | NET_IO_DTYPE | physics and net, ordered by net_baton | both |
-| ai_view | physics snapshot | physics, ordered by ai_baton | ai |
-| ai_answer | ANSWER_DTYPE | ai, ordered by ai_baton | physics |
-| ai_local | LOCAL_DTYPE | physics | a restarted physics |
+| ai_queue | TurnQueue's words: turns posted, turns answered, command | physics the first, ai the second | both |
+| ai_views | physics snapshot ring of ai_ring_size: turn k's state in slot k % size, before its post | physics | ai, a restarted physics |
+| ai_answers | ANSWER_DTYPE ring of ai_ring_size: turn k's answer in slot k % size, before its count | ai | physics |
 | ai_journal, ai_journal_turns | physics snapshot ring of AI_JOURNAL_TURNS, and each one's (count, tick): the views of the turns answered, before their done | ai | a restarted ai |
 | ai_state | AI_STATE_DTYPE (SnapshotBlock): the AIs' pickled state after a turn, after its done | ai | a restarted ai |
 | remote_header, remote_inputs | Mailbox of REMOTE_INPUT_DTYPE (locked) | gateway posts | physics drains |
@@ -34,15 +34,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from engine.arm import CTL_SIZE
-from engine.dtypes import (CONTACT_DTYPE, POINT_DTYPE, ai_answer_dtype, ai_local_dtype, net_snapshot_dtype,
-                           physics_snapshot_dtype)
+from engine.dtypes import CONTACT_DTYPE, POINT_DTYPE, ai_answer_dtype, net_snapshot_dtype, physics_snapshot_dtype
+from engine.match import control_period, decision_delay
 from engine.rules import Phase, next_striker
 from engine.scene import Scene
 from engine.world import NET_RUN_TICKS
 from net_kernel import build_topology
 from processes.network.server.seats import SEAT_DTYPE
 from processes.runtime.control import STATUS_DTYPE
-from processes.runtime.handoff import TICK_SLOT_DTYPE, Baton
+from processes.runtime.handoff import QUEUE_WORDS, TICK_SLOT_DTYPE, Baton, TurnQueue
 from processes.runtime.locks import HOLDER_DTYPE, LockTable
 from processes.runtime.mailbox import MAILBOX_HEADER
 from processes.runtime.shm import Arena
@@ -56,7 +56,6 @@ POINT_LOG_CAPACITY = 1 << 12  # a best-of-9 match has at most a few hundred rall
 MAX_BATS = 2
 ANSWER_DTYPE = ai_answer_dtype(MAX_BATS, CTL_SIZE)
 FAULT_TEXT_BYTES = ANSWER_DTYPE["fault_text"].base.itemsize
-LOCAL_DTYPE = ai_local_dtype(MAX_BATS)
 # What a restarted AI worker decides on from (processes.workers.ai.StateKeeper): the AIs' state
 # after a turn (engine.players.Players.state, the turn's count and its answer), pickled, and the
 # views of the turns answered since, replayed. Two AI profiles' plans, thoughts and random states
@@ -153,8 +152,16 @@ RUN_LOCK_NAMES = ("remote_inputs",)
 def decision_key(rally: int, shots: int, phase: int, server: int, striker: int) -> tuple[int, int, int, int]:
     """What the AIs' decisions depend on besides the clock and the ball: (rally, shots) (the rally
     key, which changes whenever the ball changes hands), the player to strike next and whether
-    that strike is a service (the arguments of engine.match.ai_inputs); ANSWER_DTYPE's "key"."""
+    that strike is a service (what engine.players.decision_key reads); ANSWER_DTYPE's "key"."""
     return (rally, shots, next_striker(phase, server, striker), int(phase == Phase.WAITING_SERVE))
+
+
+def ai_ring_size(scene: Scene) -> int:
+    """Slots of the AI's rings of views and answers: a turn's slot is taken again only after its
+    plans took effect (the physics waits for that), and at most one turn a control tick is given,
+    so the turns of one decision delay, the one being given and one whose slot a killed physics
+    may have been writing fit."""
+    return decision_delay(scene) // control_period(scene) + 3
 
 
 def write_ack(ring: np.ndarray, tick: int, input_seq) -> None:
@@ -186,23 +193,23 @@ def read_ack(ring: np.ndarray, tick: int) -> tuple[int, int] | None:
 class RunLayout:
     """A run's shared memory and the synchronisation objects its workers are handed.
 
-    arena: every block of the table above that the run's workers need. ai_baton, net_baton:
-    the turns' batons (None without that worker). lock_path: the lock table's file (a run with a
+    arena: every block of the table above that the run's workers need. ai_queue: the AI's turns
+    (None without an AI worker); net_baton: the net's turns' baton (None without a net worker). lock_path: the lock table's file (a run with a
     gateway, else None). start_event: set while every remote seat is held (a run with a gateway).
     """
 
     arena: Arena
-    ai_baton: Baton | None = None
+    ai_queue: TurnQueue | None = None
     net_baton: Baton | None = None
     lock_path: str | None = None
     start_event: Event | None = None
     _lock_dir: str | None = None
 
     def stop_turns(self) -> None:
-        """Stop the batons: a worker waiting for its turn exits at once."""
-        for baton in (self.ai_baton, self.net_baton):
-            if baton is not None:
-                baton.stop()
+        """Stop the turns: a worker waiting for its turn exits at once."""
+        for turns in (self.ai_queue, self.net_baton):
+            if turns is not None:
+                turns.stop()
 
     def close(self) -> None:
         """Remove every segment and the lock table's file (after the workers are gone)."""
@@ -239,15 +246,17 @@ def build_layout(scene: Scene, kinds: list[str], ticks: int, trace: bool, frame_
             arena.shared_array("net_io", NET_IO_DTYPE, 1)
             layout.net_baton = Baton("net", ctx, arena.shared_array("net_baton", TICK_SLOT_DTYPE, 1).array)
         if "ai" in kinds:
-            # The view and the answer are ordered by the baton (its semaphores are full barriers),
-            # so neither needs a seqlock or a lock. Tick -1: none yet.
-            arena.shared_array("ai_view", snapshot, 1)
-            arena.shared_array("ai_answer", ANSWER_DTYPE, 1).array["tick"] = -1
-            arena.shared_array("ai_local", LOCAL_DTYPE, 1).array["tick"] = -1
+            # The views and the answers are ordered by the queue's counts (a slot is written before
+            # the count that covers it moves, and x86-64 keeps stores in order), so neither needs a
+            # seqlock or a lock. Turn and tick -1: none yet.
+            ring = ai_ring_size(scene)
+            arena.shared_array("ai_views", snapshot, ring)
+            answers = arena.shared_array("ai_answers", ANSWER_DTYPE, ring).array
+            answers["turn"], answers["tick"] = -1, -1
             arena.shared_array("ai_journal", snapshot, AI_JOURNAL_TURNS)
             arena.shared_array("ai_journal_turns", np.int64, (AI_JOURNAL_TURNS, 2)).array[:, 0] = -1  # (count, tick)
             arena.snapshot_block("ai_state", AI_STATE_DTYPE, 1)
-            layout.ai_baton = Baton("ai", ctx, arena.shared_array("ai_baton", TICK_SLOT_DTYPE, 1).array)
+            layout.ai_queue = TurnQueue("ai", ctx, arena.shared_array("ai_queue", np.int64, QUEUE_WORDS).array)
         if "gateway" in kinds:
             layout._lock_dir = tempfile.mkdtemp(prefix=f"pingpong-{arena.run_id}-")
             layout.lock_path = str(Path(layout._lock_dir) / "locks")

@@ -38,6 +38,7 @@ from net_kernel.sim import compile_kernels
 from processes.runtime.handoff import HandoffTimeout
 from processes.runtime.shm import Arena
 from processes.runtime.control import Control, crash
+from processes.runtime.timeline import IDLE, WORK, Timeline
 from processes.workers.layout import NET_BLOCKS, NetIO
 from processes.workers.options import RunOptions
 
@@ -114,6 +115,14 @@ def _answer(sim: NetSim, row: NetIO, ball: np.ndarray, radius: float, inv_mass: 
     return taken
 
 
+def _finish(control: Control, sim: NetSim, net_tick: int, busy: float, steps: int, timeline: Timeline | None) -> None:
+    """The net's last words: its timeline, its work and its ticks, awake and in the tail."""
+    if timeline is not None:
+        timeline.save()
+    control.finish(busy, 0.0, {"tick": net_tick, "busy_s": busy, "steps": steps, "awake_ticks": sim.awake_ticks,
+                               "tail_ticks": sim.tail_ticks})
+
+
 def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
     """options: net_baton (processes.runtime.handoff.Baton); crash_at_tick, crash_kind (tests: end this process
     after publishing the state after the run that holds that tick and before saying it is done, the
@@ -140,10 +149,13 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
     answered = None  # the first tick of the run answered in net_io, once this incarnation has written one
     answered_end = None  # the tick after that run's last stepped tick
     control.start(net_tick)
+    timeline = Timeline(options.timeline_dir, "net") if options.timeline_dir is not None else None
     busy = 0.0
     steps = 0
     try:
         while True:
+            if timeline is not None:
+                timeline.mark(IDLE)
             try:
                 stop = baton.wait_turn(Control.HEARTBEAT_S) is None
             except HandoffTimeout:
@@ -154,6 +166,8 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
                     control.beat(net_tick)
                     continue
             t0 = time.perf_counter()
+            if timeline is not None:
+                timeline.mark(WORK)
             # First the free ticks granted so far (a nudge, or the ones before a ball tick).
             free_from = net_tick
             while net_tick < row.granted:
@@ -225,8 +239,7 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
                 crash(options.crash_kind, options.crash_at_tick)
             baton.done(tick)
             control.beat(tick)
-        control.finish(busy, 0.0, {"tick": net_tick, "busy_s": busy, "steps": steps, "awake_ticks": sim.awake_ticks,
-                                       "tail_ticks": sim.tail_ticks})
+        _finish(control, sim, net_tick, busy, steps, timeline)
     finally:
         row.close()
         del blocks

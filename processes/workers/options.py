@@ -11,7 +11,7 @@ if TYPE_CHECKING:  # for the annotations only: the options module stays cheap to
     from multiprocessing.synchronize import Event
 
     from processes.network.server.gateway import GatewayConfig
-    from processes.runtime.handoff import Baton
+    from processes.runtime.handoff import Baton, TurnQueue
 
 # A served match waits this long for its remote players to take their seats, then starts.
 PLAYERS_TIMEOUT_S = 300.0
@@ -30,8 +30,8 @@ class RunOptions:
         seed: the match's seed. frame_every: keep a snapshot every this many ticks (replays), 0: none.
         players_timeout: s, a served match waits this long for its remote players, then starts.
         gateway: the gateway's configuration, for a scene with the effect "remote".
-        ai_baton, net_baton: the batons of the AI's and the net's turns
-            (None: no such worker). lock_path: the run's lock table (a run with a gateway).
+        ai_queue, net_baton: the AI's turns (processes.runtime.handoff.TurnQueue) and the net's
+            turns' baton (None: no such worker). lock_path: the run's lock table (a run with a gateway).
         start_event: set by the gateway while every remote seat is held (a run with a gateway).
         handoff_s: s, the physics waits this long for the AI's or the net's answer to a turn,
             then gives the turn again (a restarted worker takes it) and waits again.
@@ -40,6 +40,8 @@ class RunOptions:
             busy machine does (0: never).
         on_bot_error: "point" or "stop" (engine.match.Match). bot_budget_s: CPU s a bot's
             decision may take (engine.players).
+        timeline_dir: a directory into which each worker writes its timeline at its end
+            (processes.runtime.timeline: when it worked, waited and for whom), None: none kept.
     """
 
     ticks: int
@@ -51,7 +53,7 @@ class RunOptions:
     frame_every: int = 0
     players_timeout: float = PLAYERS_TIMEOUT_S
     gateway: GatewayConfig | None = None
-    ai_baton: Baton | None = None
+    ai_queue: TurnQueue | None = None
     net_baton: Baton | None = None
     lock_path: str | None = None
     start_event: Event | None = None
@@ -59,6 +61,7 @@ class RunOptions:
     slow_turn_s: float = 0.0
     on_bot_error: str = "point"
     bot_budget_s: float | None = DEFAULT_BUDGET_S
+    timeline_dir: str | None = None
 
     def __post_init__(self):
         if self.mode not in ("lockstep", "realtime"):

@@ -13,6 +13,7 @@ from engine.match import Match, point_from_row, point_row
 from engine.world import State, build_model, copy_record, initial_state, new_events, step
 from processes.runtime.control import Control, crash
 from processes.runtime.shm import Arena
+from processes.runtime.timeline import WORK, Timeline
 from processes.workers.ai_driver import AIDriver
 from processes.workers.options import RunOptions
 from processes.workers.remote_inputs import RemoteInputs
@@ -78,7 +79,7 @@ def physics_worker(control: Control, arena: Arena, scene, options: RunOptions) -
     options: ticks (total to reach), mode ("lockstep" | "realtime"), trace (bool),
         crash_at_tick, crash_kind (int or None: end this process right after publishing that tick, by
         SIGKILL or an exception), slow_turn_s (tests: a match's every tick takes that much longer),
-        and for a match: seed, ai_baton (when the scene has AI bats), lock_path (when it has remote players).
+        and for a match: seed, ai_queue (when the scene has AI bats), lock_path (when it has remote players).
     """
     if scene.match is not None:
         return _match_worker(control, arena, scene, options)
@@ -96,6 +97,7 @@ def physics_worker(control: Control, arena: Arena, scene, options: RunOptions) -
     net = _remote_net(control, arena, options, state)
     tick = int(state.world[0]["tick"])
     start_wall = control.start(tick)
+    timeline = _timeline(options, "physics", net)
     pacer = _Pacer(start_wall, model.dt, control.row) if options.mode == "realtime" else None
     n_ticks = options.ticks
     busy = 0.0
@@ -108,7 +110,7 @@ def physics_worker(control: Control, arena: Arena, scene, options: RunOptions) -
         out.publish(tick, events, n)
         busy += time.perf_counter() - t0
         control.beat(tick)
-    _finish(control, tick, busy, net, options)
+    _finish(control, tick, busy, net, options, timeline=timeline)
 
 
 def _remote_net(control: Control, arena: Arena, options: RunOptions, state: State) -> RemoteNet | None:
@@ -117,6 +119,19 @@ def _remote_net(control: Control, arena: Arena, options: RunOptions, state: Stat
         return None
     state.net_sim = RemoteNet(control, arena, options, state.world[0], state.net_sim)
     return state.net_sim
+
+
+def _timeline(options: RunOptions, kind: str, *waiters) -> Timeline | None:
+    """The worker's timeline if the run keeps them, marked working from now; the stand-ins that
+    wait for other workers (RemoteNet, AIDriver; None: absent) mark their waits in it."""
+    if options.timeline_dir is None:
+        return None
+    timeline = Timeline(options.timeline_dir, kind)
+    timeline.mark(WORK)
+    for waiter in waiters:
+        if waiter is not None:
+            waiter.timeline = timeline
+    return timeline
 
 
 def _stop_net(net, options: RunOptions) -> float:
@@ -128,14 +143,14 @@ def _stop_net(net, options: RunOptions) -> float:
 
 
 def _finish(control: Control, tick: int, busy: float, net, options: RunOptions, match: Match | None = None,
-            driver=None, remote=None) -> None:
+            driver=None, remote=None, timeline: Timeline | None = None) -> None:
     """The physics' last words: stop the AI's and the net's turns, report the work and hand-offs.
 
     busy_s counts the physics' own work; the hand-offs to the AI and the net (and their work
     inside them, which they report themselves) are reported apart, as handoff_s, and split into
     handoff_net_s and handoff_ai_s (what the physics waited for each). The report
-    also carries the AI control ticks (turns given to the AI worker, forces computed here on
-    the AIs' plans), the cloth net's ticks (handed to the net worker with the ball and waited
+    also carries the AI control ticks (turns given to the AI worker, and those that gave none;
+    the turns whose answer was waited for), the cloth net's ticks (handed to the net worker with the ball and waited
     for, or granted without it), the remote inputs refused by reason and the match's bot errors.
     """
     net_waits = _stop_net(net, options)
@@ -146,8 +161,9 @@ def _finish(control: Control, tick: int, busy: float, net, options: RunOptions, 
                       net_turns_again=net.turns_again, handoff_net_s=net_waits)
     if driver is not None:
         handoff += driver.waits
-        options.ai_baton.stop()
-        report.update(ai_turns=driver.turns, ai_local_ticks=driver.local, handoff_ai_s=driver.waits)
+        options.ai_queue.stop()
+        report.update(ai_turns=driver.turns, ai_local_ticks=driver.local, ai_waited_turns=driver.waited,
+                      handoff_ai_s=driver.waits)
         driver.close()
     if match is not None:
         report.update(remote_inputs_refused={} if remote is None else dict(remote.refused), bot_errors=match.bot_errors,
@@ -157,6 +173,8 @@ def _finish(control: Control, tick: int, busy: float, net, options: RunOptions, 
     if remote is not None:
         remote.close()
     report.update(busy_s=busy - handoff, handoff_s=handoff)
+    if timeline is not None:
+        timeline.save()
     control.finish(busy - handoff, handoff, report)
 
 
@@ -195,6 +213,7 @@ def _match_worker(control: Control, arena: Arena, scene, options: RunOptions) ->
     tick = int(world["tick"])
     points_logged = len(match.referee.points)
     start_wall = control.start(tick)
+    timeline = _timeline(options, "physics", net, driver)
     remote = RemoteInputs(arena, options, match) if "remote" in scene.effects else None
     # A served match waits for its remote players before the first serve, then pauses while a
     # seat is empty (a dropped player's grace), unless the first wait ran out (then it plays on)
@@ -239,4 +258,4 @@ def _match_worker(control: Control, arena: Arena, scene, options: RunOptions) ->
         if options.slow_turn_s:
             time.sleep(options.slow_turn_s)  # fault injection: a physics on a busy machine, not synchronisation
         control.beat(tick)
-    _finish(control, tick, busy, net, options, match, driver, remote)
+    _finish(control, tick, busy, net, options, match, driver, remote, timeline)

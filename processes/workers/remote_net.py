@@ -10,6 +10,7 @@ from net_kernel import NO_CONTACT, NetContact, NetSim
 from net_kernel.sim import ball_far_from_box
 from processes.runtime.control import Control
 from processes.runtime.shm import Arena
+from processes.runtime.timeline import WAIT_NET, WORK, Timeline
 from processes.workers.layout import NetIO
 from processes.workers.options import RunOptions
 
@@ -43,6 +44,7 @@ class RemoteNet:
 
     def __init__(self, control: Control, arena: Arena, options: RunOptions, world, local: NetSim):
         self.control = control
+        self.timeline: Timeline | None = None  # the physics' (its waits for the net are marked), or None
         self.local = local
         self.world = world
         self.baton = options.net_baton.attach(arena["net_baton"].array)
@@ -121,9 +123,13 @@ class RemoteNet:
         row.inv_mass = ball_inv_mass
         row.turn += 1
         self.baton.give(tick)
+        if self.timeline is not None:
+            self.timeline.mark(WAIT_NET)
         # The net may still be stepping free ticks, or restarting: stay alive and ask again (a
         # new turn; net_io still holds the run).
         self.baton.wait_done_or_retry(tick, self.handoff_s, NET_GIVE_UP_S, self._ask_again)
+        if self.timeline is not None:
+            self.timeline.mark(WORK)
         self._sleeping = bool(row.sleeping)
         self._tail_until = row.tail_until
         self.box[:] = row.box

@@ -48,7 +48,7 @@ def test_a_bot_that_writes_to_its_observation_faults_and_moves_nothing():
     before = match.state.ball.copy()
     match.tick()  # tick 0: the decision is taken (and fails) from the state as tossed
     assert np.array_equal(match.state.ball["pos"][0][:2], before["pos"][0][:2])  # the toss is vertical: x, y stay
-    match.play(max_ticks=20)
+    match.play(max_ticks=match.delay + 10)  # the fault reaches the match with the decision, a delay later
     assert match.bot_errors[0]["fault"] == "raised" and "read-only" in match.bot_errors[0]["detail"]
 
 
@@ -83,7 +83,7 @@ def test_a_failing_bot_stops_the_match_when_told_to():
     result = match.play(max_ticks=6000)
     every = control_period(match.scene)
     assert match.stopped is not None and len(match.bot_errors) == 1
-    assert result.ticks == bots.FAIL_AT * every  # stopped when the failed decision was collected
+    assert result.ticks == (bots.FAIL_AT - 1) * every + match.delay  # stopped when the failed decision took effect
     assert "RuntimeError: no idea what to do" in result.stopped
 
 

@@ -1,6 +1,9 @@
-"""The physics follows the AIs' plans between their decisions (processes.workers.ai.PlanFollower):
-the AIs asked only when a decision can change, in this process, give the same match bit for bit
-as the AIs deciding at every control tick (engine.match.LocalAI, the reference)."""
+"""The AIs asked only when a decision can change (processes.workers.ai_driver.AIDriver's rule:
+the decision key changed, or the clock reached the wakes of the last answer), their plans played
+by the match's arm in between, give the same match bit for bit as the AIs deciding at every
+control tick (engine.match.LocalAI, the reference)."""
+from collections import deque
+
 import numpy as np
 import pytest
 
@@ -8,46 +11,47 @@ from engine.dtypes import physics_snapshot_dtype
 from engine.match import Match, make_ais
 from engine.scene import load_scene
 from processes.workers.ai import Answerer
-from processes.workers.ai_driver import PlanFollower
 from processes.workers.layout import decision_key
 
 SCENE = load_scene("match_rigid")
 
 
 class _Follow:
-    """An ai_driver: at a control tick that needs a decision, the AI worker's Answerer decides
-    from a copy of the state (as from the AI's view); otherwise PlanFollower computes the forces
-    on the last answer's plans, as the physics worker does. A stroke being thought out gets
-    `think_steps` of BatAI.think_step per control tick, the rest when due (as between turns)."""
+    """An ai_driver: at a control tick where the last answer's key or wakes say a decision can
+    change, the AI worker's Answerer decides from a copy of the state (as from the AI's view),
+    and its plans take effect match.delay ticks later; at the others nobody decides. A stroke
+    being thought out gets `think_steps` of BatAI.think_step per control tick, the rest when due
+    (as between turns)."""
 
     def __init__(self, scene, seed: int, think_steps: int):
         match = Match(scene, seed)  # only for its model: the AIs must be built as the reference's
         self.ais = make_ais(scene, match.model, seed, eager=False)
         self.answerer = Answerer(self.ais, len(scene.bats))
-        self.plans = PlanFollower(scene)
         self.view = np.zeros(1, physics_snapshot_dtype(len(scene.bats)))
         self.think_steps = think_steps
+        self.pending = deque()
+        self.known = None  # (key, due, end) of the last answer
         self.decisions = self.followed = 0
-        self.floats = None
 
-    def collect(self, match: Match) -> list:
-        """Nothing to wait for: request() wrote match.ai_next; no faults (no bots)."""
-        return []
+    def collect(self, match: Match, tick: int) -> list:
+        if self.pending and self.pending[0][0] == tick:
+            match.arm[:] = self.pending.popleft()[1]
+        return []  # no bots, no faults
+
+    def resume(self, match: Match, tick: int) -> None:
+        raise AssertionError("not restored")
 
     def request(self, match: Match, now: float) -> None:
         ref = match.referee
         key = decision_key(match.rally, ref.shots, int(ref.phase), ref.server, ref.striker)
-        if self.plans.needs_decision(key, now):
+        if self.known is None or key != self.known[0] or now >= self.known[1] or now > self.known[2]:
             match.save(self.view)
-            record = self.answerer.answer(self.view, int(match.state.world[0]["tick"]))
-            players = self.plans.players
-            match.ai_next[players] = record["inputs"][0][players]
-            self.plans.take(record[0])
+            record = self.answerer.answer(self.view, self.decisions + 1)[0]
+            tick = int(match.state.world[0]["tick"])
+            self.pending.append((tick + match.delay, record["ctl"][:len(self.ais)].copy()))
+            self.known = (tuple(int(v) for v in record["key"]), float(record["due"]), float(record["end"]))
             self.decisions += 1
         else:
-            if self.floats is None:
-                self.floats = match.state.bats.view(np.float64).reshape(len(match.state.bats), -1)
-            self.plans.control(now, self.floats, match.ai_next)
             self.followed += 1
         for ai in self.ais.thinkers:
             for _ in range(self.think_steps):

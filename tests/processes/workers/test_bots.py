@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.dtypes import physics_snapshot_dtype
-from engine.match import Match, control_period, match_scene
+from engine.match import Match, control_period, decision_delay, match_scene
 from engine.scene import load_scene
 from processes.supervisor import Supervisor, first_difference
 from tests import bots
@@ -72,5 +72,5 @@ def test_a_bot_stops_a_match_in_processes_when_told_to(no_leftovers):
     scene = match_scene(BASE, bots.spec("NotANumber"), "pro", best_of=1)
     result = Supervisor(scene, TICKS, "lockstep", seed=1, on_bot_error="stop", bot_budget_s=BUDGET_S).run()
     every = control_period(scene)
-    assert result.ticks == bots.FAIL_AT * every
+    assert result.ticks == (bots.FAIL_AT - 1) * every + decision_delay(scene)  # when the failed decision took effect
     assert result.workers["physics"]["stopped"].startswith(f"bot {bots.spec('NotANumber')} (player A) at tick")

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from engine.dtypes import physics_snapshot_dtype
+from engine.geometry import Body
 from engine.match import Match, point_row
 from engine.replay import read, write
 from engine.scene import load_scene
@@ -13,9 +14,11 @@ SCENE = load_scene("match")
 TICKS = 12_000
 
 
-def reference_trace(seed, ticks, tail=None):
+def reference_trace(seed, ticks, tail=None, in_flight=None):
     """(match, trace) of the in-process match; `tail`, a (ticks + 1,) bool array if given, gets
-    whether its cloth net was in its linear tail after each tick."""
+    whether its cloth net was in its linear tail after each tick; `in_flight`, a (ticks + 1,) int
+    array if given, how many decisions that change a plan were in flight after each tick (taken,
+    their plans not yet in effect: the AI worker was given a turn for each)."""
     match = Match(SCENE, seed=seed)
     trace = np.zeros(ticks + 1, physics_snapshot_dtype(len(SCENE.bats)))
     match.save(trace, 0)
@@ -24,7 +27,20 @@ def reference_trace(seed, ticks, tail=None):
         match.save(trace, k + 1)
         if tail is not None:
             tail[k + 1] = match.state.net_sim.in_tail
+        if in_flight is not None:
+            plans = [match.arm] + [entry[1] for entry in match.ai_driver.pending]
+            in_flight[k + 1] = sum(not np.array_equal(a, b) for a, b in zip(plans, plans[1:]))
     return match, trace
+
+
+def first_net_touch(seed: int, ticks: int) -> int:
+    """The tick of the in-process match's first contact with the cloth net."""
+    match = Match(SCENE, seed=seed)
+    while int(match.state.world[0]["tick"]) < ticks:
+        match.tick()
+        if any(int(ev["body"]) == Body.NET for ev in match.events[:match.n_events]):
+            return int(match.state.world[0]["tick"]) - 1
+    raise AssertionError(f"seed {seed}: the ball does not touch the net in {ticks} ticks")
 
 
 def test_an_ai_scene_starts_an_ai_worker_and_a_plain_one_does_not():
@@ -43,30 +59,28 @@ def test_lockstep_match_equals_the_in_process_match_bit_for_bit(no_leftovers):
                                   expected[["winner", "reason", "shots", "score_after"]])
 
 
-# Seed 5's last control tick before 4321 (4320) needs no decision: the forces the physics
-# computed itself are taken up from ai_local; before 4175 (4170) the AIs decide (the rally key
-# changed): their turn is in flight when the physics dies.
-# A physics worker that raises (any exception) is restarted as one that dies.
-@pytest.mark.parametrize("crash_at, kind", [(4321, "kill"), (4175, "kill"), (4175, "raise")])
-def test_physics_worker_killed_mid_match_resumes_and_stays_exact(no_leftovers, crash_at, kind):
+# A physics worker killed with no decision in flight, with one and with two (taken up from the
+# AI's rings), at the first such tick after 4000 of seed 5's match; one that raises (any
+# exception) is restarted as one that dies.
+@pytest.mark.parametrize("in_flight, kind", [(0, "kill"), (1, "kill"), (2, "kill"), (1, "raise")])
+def test_physics_worker_killed_mid_match_resumes_and_stays_exact(no_leftovers, in_flight, kind):
+    flights = np.zeros(TICKS + 1, np.int64)
+    _, trace = reference_trace(5, TICKS, in_flight=flights)
+    crash_at = 4000 + int(np.argmax(flights[4000:] == in_flight))
+    assert flights[crash_at] == in_flight, f"seed 5 has no tick after 4000 with {in_flight} decisions in flight"
     result = Supervisor(SCENE, TICKS, "lockstep", trace=True, seed=5, crash_at_tick=crash_at, crash_kind=kind).run()
     assert result.workers["physics"]["restarts"] == 1
     assert result.workers["physics"]["raised"] == (kind == "raise")
-    _, trace = reference_trace(5, TICKS)
     assert first_difference(result.trace, trace) is None
 
 
-# Seed 5's match first touches the net at tick 15781: the net worker is handed the ticks the
-# ball may touch the net, and before that the net sleeps.
-NET_TOUCH = 15_781
-
-
 def test_net_worker_killed_mid_match_resumes_and_stays_exact(no_leftovers):
-    # SIGKILLed as the ball meets the net: the restarted worker resumes from the state it published
-    # and the match goes on as in process.
-    ticks = NET_TOUCH + 500
+    # SIGKILLed as the ball first meets the net (before that the net sleeps): the restarted
+    # worker resumes from the state it published and the match goes on as in process.
+    touch = first_net_touch(5, 40_000)
+    ticks = touch + 500
     _, trace = reference_trace(5, ticks)
-    result = Supervisor(SCENE, ticks, "lockstep", trace=True, seed=5, crash_at_tick=NET_TOUCH,
+    result = Supervisor(SCENE, ticks, "lockstep", trace=True, seed=5, crash_at_tick=touch,
                         crash_worker="net").run()
     assert result.workers["net"]["restarts"] == 1
     assert first_difference(result.trace, trace) is None
@@ -101,18 +115,17 @@ def test_net_worker_killed_stepping_its_last_tail_ticks_is_restarted_and_stops(n
     assert result.ticks == TAIL_KILL
 
 
-# Seed 5's AI turns (the AI worker keeps its players' state after every AI_KEEP_EVERY = 8th):
-# the 8th, at tick 1720, leaves B's stroke still being thought out, so a worker killed after it
-# restarts from that state, the stroke kept as its generator's start; the first turns at or
-# after 2000 and 4170 are the 11th and 19th, so a restart there loads the state after the 8th
-# and 16th and answers the journal's later turns again.
+# The AI worker keeps its players' state after every AI_KEEP_EVERY = 8th turn and journals the
+# turns since: killed after its first turn at or after these ticks of seed 5's match (early,
+# with strokes still being thought out, and later), it restarts from the state kept, decides
+# the journal's later turns again and goes on from the queue's counts.
 @pytest.mark.parametrize("crash_at", [1720, 2000, 4170])
 def test_ai_worker_killed_mid_match_resumes_and_stays_exact(no_leftovers, crash_at):
     result = Supervisor(SCENE, 6_000, "lockstep", trace=True, seed=5, crash_at_tick=crash_at, crash_worker="ai").run()
     assert result.workers["ai"]["restarts"] == 1
     assert result.ticks == 6_000
     _, trace = reference_trace(5, 6_000)
-    assert first_difference(result.trace, trace) is None  # without the state kept, it leaves the reference at 2421
+    assert first_difference(result.trace, trace) is None
 
 
 def test_replay_round_trip(tmp_path):
