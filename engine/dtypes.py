@@ -158,15 +158,15 @@ def net_snapshot_dtype(n_knots: int) -> np.dtype:
 
 
 def ai_answer_dtype(max_bats: int, ctl_size: int) -> np.dtype:
-    """The AIs' answer to one decision turn (the AI worker writes it, the physics reads it).
+    """The AIs' answer to one turn, a control tick's state (the AI worker writes it, the physics
+    reads it).
 
-    turn: the turn's number (processes.runtime.handoff.TurnQueue), tick: the tick it was decided
-    at; key: the decision key it was made under; due, end: s, the AIs' wakes
-    (engine.ai.BatAI.wakes); ctl: (max_bats, ctl_size) each AI's plan after it (engine.arm's
-    CTL_* layout), in the order of the scene's AI bats, which the physics plays from the tick
-    the decision takes effect; fault: (max_bats,) per bat, engine.bot.FAULTS index of what went
-    wrong with its player's decision (0: nothing), fault_text: what, in words.
+    turn: the turn's number (processes.runtime.handoff.TurnQueue), tick: the control tick whose
+    state it answers; changed: 1 if a player decided there, 0 if none could decide differently;
+    ctl: (max_bats, ctl_size) each AI's plan after it (engine.arm's CTL_* layout), in the order of
+    the scene's AI bats, which the physics plays from the tick the decision takes effect; fault:
+    (max_bats,) per bat, engine.bot.FAULTS index of what went wrong with its player's decision
+    (0: nothing), fault_text: what, in words.
     """
-    return np.dtype([("turn", "<i8"), ("tick", "<i8"), ("key", "<i8", (4,)), ("due", "<f8"), ("end", "<f8"),
-                     ("ctl", "<f8", (max_bats, ctl_size)), ("fault", "<i4", (max_bats,)),
-                     ("fault_text", "S240", (max_bats,))])
+    return np.dtype([("turn", "<i8"), ("tick", "<i8"), ("changed", "<i8"), ("ctl", "<f8", (max_bats, ctl_size)),
+                     ("fault", "<i4", (max_bats,)), ("fault_text", "S240", (max_bats,))])

@@ -212,6 +212,7 @@ class Players(dict):
         self.ctl = ctl
         self._bats = None  # the bats array last seen, and its float64 view
         self._floats = None
+        self.decided = False  # whether a seat decided at the last decide(): otherwise nothing changed
 
     @property
     def thinkers(self) -> list[BatAI]:
@@ -241,11 +242,14 @@ class Players(dict):
         floats = self.bat_floats(bats)
         key = decision_key(rally)
         faults = []
+        decided = False
         for seat in self.values():
             if seat.needs_decision(key, now):
+                decided = True
                 fault = seat.decide(tick, now, ball_flat, floats, rally, key)
                 if fault is not None:
                     faults.append(fault)
+        self.decided = decided
         return faults
 
     def state(self) -> dict:

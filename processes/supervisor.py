@@ -326,16 +326,16 @@ class Supervisor:
                 "handoff_s": float(status[w.index]["handoff_s"]),
                 **({"gateway": w.report.get("gateway", {})} if w.kind == "gateway" else {}),
                 **({k: w.report[k] for k in ("remote_inputs_refused", "remote_brake_ticks") if k in w.report}),
-                # the physics' AI control ticks (since its last start): turns given to the AI worker,
-                # those that gave none, and the turns whose answer it waited for; its cloth net ticks: handed to
+                # the physics' AI turns (since its last start), one a control tick: those at which a
+                # player decided, and those whose answer it waited for; its cloth net ticks: handed to
                 # the net worker with the ball (waited for), and without it (not waited for), and
                 # the ball ticks given again because the net's answer took longer than handoff_s;
                 # its hand-offs' wall time split into the waits for the net and for the AI
-                **({k: w.report[k] for k in ("ai_turns", "ai_local_ticks", "ai_waited_turns", "net_ball_ticks", "net_runs", "net_free_ticks",
+                **({k: w.report[k] for k in ("ai_turns", "ai_decisions", "ai_waited_turns", "net_ball_ticks", "net_runs", "net_free_ticks",
                                              "net_turns_again", "handoff_net_s", "handoff_ai_s", "bot_errors", "stopped")
                     if k in w.report} if w.kind == "physics" else {}),
                 # the AI worker's thinking between its turns, and the strokes it had to finish late
-                **({k: w.report[k] for k in ("think_s", "late_thoughts", "late_thinking_s", "turns", "longest_turn_s",
+                **({k: w.report[k] for k in ("think_s", "late_thoughts", "late_thinking_s", "turns", "decisions", "longest_turn_s",
                                              "bot_faults") if k in w.report} if w.kind == "ai" else {}),
                 # the cloth net's ticks stepped awake (its cost: a sleeping net's ticks cost nothing)
                 # and held in its linear tail (a count each)

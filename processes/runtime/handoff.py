@@ -166,10 +166,12 @@ class TurnQueue:
         name: for messages. ctx: the multiprocessing context the workers are started from.
         words: a (QUEUE_WORDS,) int64 shared array (processes.runtime.shm.SharedArray.array).
 
-    Each side posts a semaphore after it moves its count and sleeps on the other's only when the
-    count it waits for has not moved (spinning SPIN_S first, as a Baton does): a side that finds
-    its count moved does not take the post, which a later wait then takes and finds nothing
-    new behind. The counts live in shared memory, so a restarted worker, or hub, goes on from them.
+    A side sleeps on the other's semaphore only when the count it waits for has not moved,
+    spinning SPIN_S first as a Baton does (a worker whose turns come every few tens of
+    microseconds then never sleeps, and a post to it costs the hub no system call: glibc's
+    sem_post enters the kernel only to wake a sleeper); a side that finds its count moved does
+    not take the post, which a later wait then takes and finds nothing new behind. The counts
+    live in shared memory, so a restarted worker, or hub, goes on from them.
     """
 
     def __init__(self, name: str, ctx, words: np.ndarray):

@@ -1,26 +1,25 @@
 """The AI worker: one controller per AI-driven bat. It only decides plans, never sets positions.
 
-At an AI control tick B where the AIs must or may decide (processes.workers.ai_driver), the
-physics worker copies the state into the next slot of the `ai_views` ring, posts the turn on the
-queue (processes.runtime.handoff.TurnQueue) and steps on. The AI takes the turns in order,
-decides from each view with engine.match.ai_decide (the very function the in-process match
-calls) and writes the plans after it (each AI's ctl row: the planned path, the face normal,
-gains and limits, or a raw force, or the brake), the decision key and the AIs' wakes into the
-turn's slot of `ai_answers` before it counts the turn answered. The physics puts the plans in
-effect match.delay ticks after B (engine.match.decision_delay), waiting only if the answer is not
-there yet, so the AI thinks while the physics steps. A restarted AI worker goes on from the
-players' state it kept and the turns it journalled since (StateKeeper), then from the queue's
-counts, so a killed AI worker leaves the match as the reference plays it.
+At every AI control tick B the physics worker copies the state into the next slot of the
+`ai_views` ring, posts the turn on the queue (processes.runtime.handoff.TurnQueue) and steps
+on. The AI takes the turns in order and lets the players decide from each view with
+engine.match.ai_decide (the very function the in-process match calls), then writes the plans
+after it (each AI's ctl row: the planned path, the face normal, gains and limits, or a raw
+force, or the brake) and whether a player decided into the turn's slot of `ai_answers` before
+it counts the turn answered. The physics puts the plans in effect match.delay ticks after B
+(engine.match.decision_delay), waiting only if the answer is not there yet, so the AI thinks
+while the physics steps. A restarted AI worker goes on from the players' state it kept and the
+decisions it journalled since (StateKeeper), then from the queue's counts, so a killed AI
+worker leaves the match as the reference plays it.
 
-Most control ticks need no decision: while the rally key, the striker and the serve stay as they
-were and the world clock has not reached the AIs' wakes (BatAI.wakes: a stroke thought out is
-due, a plan runs out), BatAI.decide changes nothing and no turn is given: the physics plays the
-plans in effect with the arm law (engine.arm.control_bats) itself. The AI is asked only when a
-decision can change (a few times a rally instead of 100 times a simulated second); the plans
+Most turns need no decision: while the rally key, the striker and the serve stay as they were
+and the world clock has not reached the AIs' wakes (BatAI.wakes: a stroke is to be decided, a
+plan runs out), Players.decide lets nobody decide, and the turn costs a few microseconds; the
+physics plays the plans in effect with the arm law (engine.arm.control_bats) itself. The plans
 cross only from the AI to the physics, and the bats still get forces only.
 
 A stroke is thought out between the turns (BatAI.think_step) while the physics steps on: the AI
-looks for a posted turn between think steps (each mostly 10-50 us). A stroke starts when the ball
+answers the turns posted meanwhile between think steps (each mostly 10-50 us). A stroke starts when the ball
 changes hands and is decided only a decision delay before it is played, and what is not thought
 out by then is finished at that turn (BatAI.finish_thinking). The strokes are the same, bit for
 bit, however the thinking was spread.
@@ -40,8 +39,7 @@ from engine.world import build_model, copy_record
 from processes.runtime.shm import Arena
 from processes.runtime.control import Control, crash
 from processes.runtime.timeline import IDLE, THINK, WORK, Timeline
-from processes.workers.layout import (AI_KEEP_EVERY, AI_STATE_BYTES, AI_STATE_DTYPE, ANSWER_DTYPE, FAULT_TEXT_BYTES,
-                                      decision_key)
+from processes.workers.layout import AI_KEEP_EVERY, AI_STATE_BYTES, AI_STATE_DTYPE, ANSWER_DTYPE, FAULT_TEXT_BYTES
 from processes.workers.options import RunOptions
 
 
@@ -69,62 +67,61 @@ class Answerer:
         """Decide from view[0] (a physics snapshot record) for turn `turn`; returns self.record, (1,)."""
         copy_record(view, self.snap)  # our own copy, byte for byte: the AIs keep views into it
         rally = self.rally
-        phase, server, striker = int(rally["phase"]), int(rally["server"]), int(rally["striker"])
         tick = int(self.world["tick"])
         faults = ai_decide(self.ais, tick, float(self.world["time"]), self.ball_flat, self.bats, rally)
         record = self.record
         record["fault"] = 0
+        record["changed"] = self.ais.decided
         for player, fault, detail in faults:
             record["fault"][0][player] = FAULT_CODES[fault]
             record["fault_text"][0][player] = detail.encode("utf-8", "replace")[:FAULT_TEXT_BYTES]
             print(f"pingpong ai worker: bot {self.ais[player].name} (player {'AB'[player]}) at tick {tick}: "
                   f"{fault}: {detail}", file=sys.stderr, flush=True)
             self.faults += 1
-        record["key"] = decision_key(int(rally["rally"]), int(rally["shots"]), phase, server, striker)
-        record["due"], record["end"] = self.ais.wakes()
         self.ctl[:] = self.ais.ctl
         record["turn"], record["tick"] = turn, tick
         return record
 
 
 class StateKeeper:
-    """What a restarted AI worker decides on from: the AIs' state after a turn, and a journal of
-    the views of the turns answered since.
+    """What a restarted AI worker decides on from: the AIs' state after a decision, and a journal
+    of the views of the decisions since.
 
-    Each turn's view goes into the `ai_journal` ring before the turn is done (one record copy on
-    the physics' path); after every AI_KEEP_EVERY-th turn is done, off that path, the worker
-    pickles its players' state (engine.players.Players.state), the turn's count and its answer
-    into `ai_state`. A restarted worker loads that state and answers the journal's later turns
-    again from their views: the same decisions, bit for bit (the strokes do not depend on how
-    the thinking was spread), so with AI profiles in the seats a killed AI worker leaves the
-    match as the reference plays it. A bot's own objects are not kept (pickling them at every
-    decision would cost what the bot is made of): a restarted worker's bot starts afresh from
-    the scene, and says so.
+    The view of each turn at which a player decided goes into the `ai_journal` ring before the
+    turn is counted answered (one record copy); after every AI_KEEP_EVERY-th decision is
+    answered, the worker pickles its players' state (engine.players.Players.state), the
+    decision's count and its answer into `ai_state`. A restarted worker loads that state and
+    decides the journal's later views again: the same decisions, bit for bit (the strokes do not
+    depend on how the thinking was spread; at the turns in between nobody decided, which changes
+    nothing), so with AI profiles in the seats a killed AI worker leaves the match as the
+    reference plays it. A bot's own objects are not kept (pickling them at every decision would
+    cost what the bot is made of): a restarted worker's bot starts afresh from the scene, and
+    says so.
     """
 
     def __init__(self, arena: Arena, ais, answerer: Answerer):
         self.block = arena["ai_state"]
         self.views = arena["ai_journal"].array
-        self.turns = arena["ai_journal_turns"].array  # (turn, tick) of each view; turn -1: torn or none
+        self.entries = arena["ai_journal_turns"].array  # (turn, tick, decision) of each view; turn -1: torn or none
         self.ais = ais
         self.answerer = answerer
         self.record = np.zeros(1, AI_STATE_DTYPE)
-        self.seq = 0  # the last turn journalled
+        self.decisions = 0  # the decisions journalled
 
-    def write(self, view: np.ndarray, turn: int) -> None:
-        """Journal turn `turn` before its answer is published: its view (the state it is decided from)."""
-        self.seq = turn
-        k = turn % len(self.turns)
-        self.turns[k, 0] = -1  # torn until its turn is written, last
-        self.turns[k, 1] = int(view[0]["world"]["tick"])
+    def write(self, view: np.ndarray, turn: int, tick: int) -> None:
+        """Journal the decision of turn `turn` before it is counted answered: its view."""
+        self.decisions += 1
+        k = self.decisions % len(self.entries)
+        self.entries[k, 0] = -1  # torn until its turn is written, last
+        self.entries[k, 1], self.entries[k, 2] = tick, self.decisions
         copy_record(view, self.views, k)
-        self.turns[k, 0] = turn
+        self.entries[k, 0] = turn
 
     def keep(self, tick: int) -> None:
-        """Publish the state after the turn just done (`tick`), if it is an AI_KEEP_EVERY-th."""
-        if self.seq % AI_KEEP_EVERY:
+        """Publish the state after the decision just answered (`tick`), if it is an AI_KEEP_EVERY-th."""
+        if self.decisions % AI_KEEP_EVERY:
             return
-        data = pickle.dumps((self.seq, self.ais.state(), self.answerer.record.copy(), self.answerer.faults),
+        data = pickle.dumps((self.decisions, self.ais.state(), self.answerer.record.copy(), self.answerer.faults),
                             protocol=pickle.HIGHEST_PROTOCOL)
         if len(data) > AI_STATE_BYTES:
             raise RuntimeError(f"the AIs' state takes {len(data)} bytes, above AI_STATE_BYTES = {AI_STATE_BYTES}")
@@ -132,31 +129,31 @@ class StateKeeper:
         self.record["data"][0][:len(data)] = np.frombuffer(data, np.uint8)
         self.block.publish(self.record, tick)
 
-    def load(self, publish) -> int:
-        """A restart: load the state kept and decide the journal's later turns again, calling
-        publish(turn, record) for each; returns the last turn decided (0: a fresh run)."""
-        seq = 0
+    def load(self, publish) -> None:
+        """A restart: load the state kept and decide the journal's later views again, calling
+        publish(turn, record) for each."""
+        decisions = 0
         if self.block.version >= 2:
             self.block.snapshot(self.record)
             size = int(self.record["size"][0])
-            seq, state, answer, faults = pickle.loads(self.record["data"][0][:size].tobytes())
+            decisions, state, answer, faults = pickle.loads(self.record["data"][0][:size].tobytes())
             self.ais.load_state(state)
             self.answerer.record[:] = answer
             self.answerer.faults = faults
-        later = sorted((int(turn), k) for k, (turn, tick) in enumerate(self.turns) if turn > seq)
-        if [turn for turn, _ in later] != list(range(seq + 1, seq + 1 + len(later))):
-            raise RuntimeError(f"the AI's journal lacks turns after turn {seq} (it holds "
-                               f"{[turn for turn, _ in later]}): AI_JOURNAL_TURNS = {len(self.turns)} is too few")
-        for turn, k in later:
+        later = sorted((int(d), int(turn), k) for k, (turn, tick, d) in enumerate(self.entries)
+                       if turn >= 0 and d > decisions)
+        if [d for d, _, _ in later] != list(range(decisions + 1, decisions + 1 + len(later))):
+            raise RuntimeError(f"the AI's journal lacks decisions after decision {decisions} (it holds "
+                               f"{[d for d, _, _ in later]}): AI_JOURNAL_TURNS = {len(self.entries)} is too few")
+        for d, turn, k in later:
             publish(turn, self.answerer.answer(self.views[k:k + 1], turn))
-            seq = turn
-        self.seq = seq
-        if seq:
+            decisions = d
+        self.decisions = decisions
+        if decisions:
             for seat in self.ais.values():
                 if not seat.profile:
                     print(f"pingpong ai worker: restarted; bot {seat.name} starts afresh (a bot's own state is not "
                           f"kept)", file=sys.stderr, flush=True)
-        return seq
 
 
 def ai_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
@@ -181,7 +178,8 @@ def ai_worker(control: Control, arena: Arena, scene, options: RunOptions) -> Non
             copy_record(record, answers, turn % size)
             queue.answer(turn)
 
-    done = keeper.load(publish)  # a restart: the turns decided so far, and what the AIs were after them
+    keeper.load(publish)  # a restart: what the AIs were after their last decision answered
+    done = queue.answered
     control.start(0)
     timeline = Timeline(options.timeline_dir, "ai") if options.timeline_dir is not None else None
     busy = think = longest = 0.0
@@ -194,18 +192,21 @@ def ai_worker(control: Control, arena: Arena, scene, options: RunOptions) -> Non
                 t0 = time.perf_counter()
                 turn = done + 1
                 view = views[turn % size:turn % size + 1]
-                keeper.write(view, turn)
-                record = answerer.answer(keeper.views[turn % len(keeper.turns):turn % len(keeper.turns) + 1], turn)
+                record = answerer.answer(view, turn)
                 tick = int(record[0]["tick"])
+                decided = ais.decided
+                if decided:
+                    keeper.write(view, turn, tick)
                 if options.slow_turn_s:
                     time.sleep(options.slow_turn_s)  # fault injection: a descheduled worker, not synchronisation
                 publish(turn, record)
                 done = turn
-                took = time.perf_counter() - t0
-                longest = max(longest, took)
                 turns += 1
-                keeper.keep(tick)  # off the physics' path: it has its answer
-                busy += time.perf_counter() - t0
+                if decided:
+                    keeper.keep(tick)  # off the physics' path: it has its answer
+                took = time.perf_counter() - t0
+                busy += took
+                longest = max(longest, took)
                 if crash_at is not None and tick >= crash_at:
                     crash(options.crash_kind, tick)
                 control.beat(tick)
@@ -231,6 +232,7 @@ def ai_worker(control: Control, arena: Arena, scene, options: RunOptions) -> Non
         control.finish(busy, 0.0, {"tick": int(control.row["tick"]), "busy_s": busy, "think_s": think,
                                    "late_thoughts": sum(ai.late_thoughts for ai in thinkers),
                                    "late_thinking_s": sum(ai.late_thinking_s for ai in thinkers),
-                                   "turns": turns, "longest_turn_s": longest, "bot_faults": answerer.faults})
+                                   "turns": turns, "decisions": keeper.decisions, "longest_turn_s": longest,
+                                   "bot_faults": answerer.faults})
     finally:
         del views, answers, answerer, keeper

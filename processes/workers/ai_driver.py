@@ -17,7 +17,6 @@ from engine.world import copy_record
 from processes.runtime.control import Control
 from processes.runtime.shm import Arena
 from processes.runtime.timeline import WAIT_AI, WORK, Timeline
-from processes.workers.layout import decision_key
 from processes.workers.options import RunOptions
 
 # A wait for an answer beats every options.handoff_s (the AI worker may be restarting, and goes
@@ -29,20 +28,18 @@ class AIDriver:
     """An ai_driver for engine.match.Match whose players decide in the AI worker, match.delay
     ticks ahead of the physics.
 
-    request() at control tick B gives the AI worker a turn (the state into the next slot of the
-    `ai_views` ring, then the queue's post) and returns at once, when the AIs must decide or may:
-    while a turn is unanswered, or when the newest answer's wakes say a decision can change
-    (the decision key changed, or the clock reached the AIs' due or end: BatAI.wakes). Otherwise
-    the AIs' decision would change nothing and no turn is given. collect() at B + match.delay
-    waits (bounded) for the answer of the turn given at B, if one was, and puts its plans in
-    effect (match.arm). A turn the AIs did not need changes nothing in them (Players.decide
-    decides only where a decision can change), so giving one more is never wrong, and the
-    plans, the faults and the AIs' random draws are the reference's bit for bit.
+    request() at every control tick B writes the state into the next slot of the `ai_views` ring
+    and posts it on the queue, and returns at once: the AI worker takes the turns in order and
+    lets the players decide where a decision can change (Players.decide: the decision key
+    changed, or the clock reached a player's wakes), which at most control ticks is nowhere.
+    collect() at B + match.delay waits (bounded) until the AI has answered B's turn and, if a
+    player decided there, puts the plans in effect (match.arm) and returns the faults. The
+    players decide in the AI worker from exactly the states they decide from in-process, in the
+    same order, so the plans, the faults and the AIs' random draws are the reference's bit for bit.
     """
 
     def __init__(self, control: Control, arena: Arena, options: RunOptions, scene):
         self.control = control
-        self.timeline: Timeline | None = None  # the physics' (its waits for the AI are marked), or None
         self.queue = options.ai_queue.attach(arena["ai_queue"].array)
         self.handoff_s = options.handoff_s
         self.views = arena["ai_views"].array
@@ -50,44 +47,28 @@ class AIDriver:
         self.n_ai = sum(1 for bat in scene.bats if bat.skill is not None)
         self.pending: deque = deque()  # (tick, turn) of the turns given whose plans are yet to take effect
         self.given = -1  # the tick of the newest turn given
-        self._known = (0, None, 0.0, 0.0)  # (turn, key, due, end) of the newest answer read
+        self.timeline: Timeline | None = None  # the physics' (its waits for the AI are marked), or None
         self.waits = 0.0  # wall time spent waiting for the AI (its work beyond our own)
-        self.turns = self.local = self.waited = 0  # control ticks that gave a turn, that did not; collects that waited
-
-    def _needs_turn(self, key, now: float) -> bool:
-        """Whether the AIs may decide differently now (see the class)."""
-        posted = self.queue.posted
-        if posted == 0 or self.queue.answered < posted:
-            return True
-        turn, known_key, due, end = self._known
-        if turn != posted:
-            answer = self.answers[posted % len(self.answers)]
-            known_key = tuple(int(v) for v in answer["key"])
-            due, end = float(answer["due"]), float(answer["end"])
-            self._known = (posted, known_key, due, end)
-        return key != known_key or now >= due or now > end
+        self.turns = self.waited = self.decided = 0  # turns given; of them, waited for; decided by a player
 
     def request(self, match: Match, now: float) -> None:
         tick = int(match.state.world[0]["tick"])
         if tick <= self.given:
             return  # given before a restart, from the same state
-        ref = match.referee
-        if not self._needs_turn(decision_key(match.rally, ref.shots, int(ref.phase), ref.server, ref.striker), now):
-            self.local += 1
-            return
         turn = self.queue.posted + 1
-        if self.pending and turn - self.pending[0][1] >= len(self.views) - 1:
-            raise RuntimeError(f"ai: {len(self.pending)} turns in flight fill the ring of {len(self.views)} "
+        size = len(self.views)
+        if self.pending and turn - self.pending[0][1] >= size - 1:
+            raise RuntimeError(f"ai: {len(self.pending)} turns in flight fill the ring of {size} "
                                "(processes.workers.layout.ai_ring_size)")
-        copy_record(match.state.record, self.views, turn % len(self.views))
+        copy_record(match.state.record, self.views, turn % size)
         self.queue.post()
         self.pending.append((tick, turn))
         self.given = tick
         self.turns += 1
 
     def collect(self, match: Match, tick: int) -> list:
-        """The plans of the turn given at tick - match.delay into match.arm; returns its faults
-        [(player, tick, fault, detail)]."""
+        """The plans of the turn given at tick - match.delay into match.arm, if a player decided
+        there; returns its faults [(player, tick, fault, detail)]."""
         if not self.pending or self.pending[0][0] != tick - match.delay:
             return []
         given, turn = self.pending.popleft()
@@ -104,6 +85,9 @@ class AIDriver:
         if int(answer["turn"]) != turn or int(answer["tick"]) != given:
             raise RuntimeError(f"ai: the answer in turn {turn}'s slot is turn {int(answer['turn'])} of tick "
                                f"{int(answer['tick'])}, not of tick {given}")
+        if not answer["changed"]:
+            return []
+        self.decided += 1
         match.arm[:] = answer["ctl"][:self.n_ai]
         faults = []
         for player in match.ai_bats:
@@ -114,7 +98,7 @@ class AIDriver:
 
     def resume(self, match: Match, tick: int) -> None:
         """After a restart at `tick`: the turns still to take effect from the rings, and the plans
-        in effect from the newest answer before them (the idle arms before any)."""
+        in effect from the answer of the turn before them, which holds the plans after it."""
         size = len(self.views)
         period = match.ai_every
         first = -(-tick // period) * period  # the first control tick still to do
@@ -127,6 +111,7 @@ class AIDriver:
                 self.given = given
         before = self.pending[0][1] - 1 if self.pending else posted
         if before >= 1:
+            self.queue.wait_answered(before, self.handoff_s, AI_GIVE_UP_S, self.control.beat)
             answer = self.answers[before % size]
             if int(answer["turn"]) != before:
                 raise RuntimeError(f"ai: restarted at tick {tick}, the answer of turn {before} is no longer kept")

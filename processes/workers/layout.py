@@ -16,8 +16,8 @@ and removes them at the end. The blocks of a run, by name:
 | ai_queue | TurnQueue's words: turns posted, turns answered, command | physics the first, ai the second | both |
 | ai_views | physics snapshot ring of ai_ring_size: turn k's state in slot k % size, before its post | physics | ai, a restarted physics |
 | ai_answers | ANSWER_DTYPE ring of ai_ring_size: turn k's answer in slot k % size, before its count | ai | physics |
-| ai_journal, ai_journal_turns | physics snapshot ring of AI_JOURNAL_TURNS, and each one's (count, tick): the views of the turns answered, before their done | ai | a restarted ai |
-| ai_state | AI_STATE_DTYPE (SnapshotBlock): the AIs' pickled state after a turn, after its done | ai | a restarted ai |
+| ai_journal, ai_journal_turns | physics snapshot ring of AI_JOURNAL_TURNS, and each one's (turn, tick, decision): the views of the turns a player decided at, before they are counted answered | ai | a restarted ai |
+| ai_state | AI_STATE_DTYPE (SnapshotBlock): the AIs' pickled state after a decision, after it is counted answered | ai | a restarted ai |
 | remote_header, remote_inputs | Mailbox of REMOTE_INPUT_DTYPE (locked) | gateway posts | physics drains |
 | remote_applied, remote_acks | seqs applied per bat, REMOTE_ACK_DTYPE ring | physics | gateway |
 | seats | network.server.seats.SEAT_DTYPE (SnapshotBlock) | gateway | a restarted gateway |
@@ -36,7 +36,6 @@ import numpy as np
 from engine.arm import CTL_SIZE
 from engine.dtypes import CONTACT_DTYPE, POINT_DTYPE, ai_answer_dtype, net_snapshot_dtype, physics_snapshot_dtype
 from engine.match import control_period, decision_delay
-from engine.rules import Phase, next_striker
 from engine.scene import Scene
 from engine.world import NET_RUN_TICKS
 from net_kernel import build_topology
@@ -57,14 +56,14 @@ MAX_BATS = 2
 ANSWER_DTYPE = ai_answer_dtype(MAX_BATS, CTL_SIZE)
 FAULT_TEXT_BYTES = ANSWER_DTYPE["fault_text"].base.itemsize
 # What a restarted AI worker decides on from (processes.workers.ai.StateKeeper): the AIs' state
-# after a turn (engine.players.Players.state, the turn's count and its answer), pickled, and the
-# views of the turns answered since, replayed. Two AI profiles' plans, thoughts and random states
-# take a few kilobytes (a bot's own objects are not kept). The state is kept after every
-# AI_KEEP_EVERY-th turn is done, off the physics' path; the journal holds the turns since.
+# after a decision (engine.players.Players.state, the decision's count and its answer), pickled,
+# and the views of the decisions since, replayed. Two AI profiles' plans, thoughts and random
+# states take a few kilobytes (a bot's own objects are not kept). The state is kept after every
+# AI_KEEP_EVERY-th decision is answered, off the physics' path; the journal holds the decisions since.
 AI_STATE_BYTES = 1 << 14
 AI_STATE_DTYPE = np.dtype([("size", "<i8"), ("data", "u1", (AI_STATE_BYTES,))])
 AI_KEEP_EVERY = 8
-AI_JOURNAL_TURNS = 2 * AI_KEEP_EVERY  # the turns since the state kept, and those of a keep cut short
+AI_JOURNAL_TURNS = 2 * AI_KEEP_EVERY  # the decisions since the state kept, and those of a keep cut short
 
 # The physics' hand-off of a run of ticks near the net to the net worker (engine.world's
 # _run_near_net), and the net's answer (NetSim.step_run's).
@@ -149,18 +148,11 @@ REMOTE_ACK_RING = 1024  # ticks (1 s at 1 kHz): a reader this late gets None, ne
 RUN_LOCK_NAMES = ("remote_inputs",)
 
 
-def decision_key(rally: int, shots: int, phase: int, server: int, striker: int) -> tuple[int, int, int, int]:
-    """What the AIs' decisions depend on besides the clock and the ball: (rally, shots) (the rally
-    key, which changes whenever the ball changes hands), the player to strike next and whether
-    that strike is a service (what engine.players.decision_key reads); ANSWER_DTYPE's "key"."""
-    return (rally, shots, next_striker(phase, server, striker), int(phase == Phase.WAITING_SERVE))
-
-
 def ai_ring_size(scene: Scene) -> int:
     """Slots of the AI's rings of views and answers: a turn's slot is taken again only after its
-    plans took effect (the physics waits for that), and at most one turn a control tick is given,
-    so the turns of one decision delay, the one being given and one whose slot a killed physics
-    may have been writing fit."""
+    plans took effect (the physics waits for that), and one turn a control tick is given, so the
+    turns of one decision delay, the one being given and one whose slot a killed physics may have
+    been writing fit.""" 
     return decision_delay(scene) // control_period(scene) + 3
 
 
@@ -254,7 +246,7 @@ def build_layout(scene: Scene, kinds: list[str], ticks: int, trace: bool, frame_
             answers = arena.shared_array("ai_answers", ANSWER_DTYPE, ring).array
             answers["turn"], answers["tick"] = -1, -1
             arena.shared_array("ai_journal", snapshot, AI_JOURNAL_TURNS)
-            arena.shared_array("ai_journal_turns", np.int64, (AI_JOURNAL_TURNS, 2)).array[:, 0] = -1  # (count, tick)
+            arena.shared_array("ai_journal_turns", np.int64, (AI_JOURNAL_TURNS, 3)).array[:, 0] = -1  # (turn, tick, decision)
             arena.snapshot_block("ai_state", AI_STATE_DTYPE, 1)
             layout.ai_queue = TurnQueue("ai", ctx, arena.shared_array("ai_queue", np.int64, QUEUE_WORDS).array)
         if "gateway" in kinds:

@@ -149,8 +149,8 @@ def _finish(control: Control, tick: int, busy: float, net, options: RunOptions, 
     busy_s counts the physics' own work; the hand-offs to the AI and the net (and their work
     inside them, which they report themselves) are reported apart, as handoff_s, and split into
     handoff_net_s and handoff_ai_s (what the physics waited for each). The report
-    also carries the AI control ticks (turns given to the AI worker, and those that gave none;
-    the turns whose answer was waited for), the cloth net's ticks (handed to the net worker with the ball and waited
+    also carries the AI's turns (one a control tick), those at which a player decided and those
+    whose answer was waited for, the cloth net's ticks (handed to the net worker with the ball and waited
     for, or granted without it), the remote inputs refused by reason and the match's bot errors.
     """
     net_waits = _stop_net(net, options)
@@ -162,7 +162,7 @@ def _finish(control: Control, tick: int, busy: float, net, options: RunOptions, 
     if driver is not None:
         handoff += driver.waits
         options.ai_queue.stop()
-        report.update(ai_turns=driver.turns, ai_local_ticks=driver.local, ai_waited_turns=driver.waited,
+        report.update(ai_turns=driver.turns, ai_decisions=driver.decided, ai_waited_turns=driver.waited,
                       handoff_ai_s=driver.waits)
         driver.close()
     if match is not None:
