@@ -85,7 +85,7 @@ _FLAT_TOL = 1e-12
 # Out-of-plane modes, the lowest, whose pairwise detuning P_mn (see the module's docstring) is
 # computed (the pairs cost a quadratic form in the springs each; between others it is left out).
 DETUNED_MODES = 100
-_CACHE_VERSION = 3
+_CACHE_VERSION = 4
 
 
 @dataclass(frozen=True, eq=False)
@@ -110,6 +110,11 @@ class NetModes:
             (2K, 2 n_free) their absolute values.
         in_inverse: (2K, 2K) complex: w = in_inverse @ (a, a') at the start.
         in_log_r, in_theta: (2K,) ln |mu| and arg mu of the in-plane tick eigenvalues.
+        compliance: (3,) m/N, the largest diagonal entry, over the free knots, of the inverse of
+            the linearised stiffness along x (out of plane) and along y and z (in plane): a knot
+            displaced by u from the rest shape along one axis holds at least u^2 / (2
+            compliance) of elastic energy in the linear model, so while the net's energy above
+            rest is E no knot is farther than sqrt(2 E compliance) from it along that axis.
         dt, substeps: the tick (s) and its substeps these modes step.
     """
 
@@ -132,6 +137,7 @@ class NetModes:
     in_inverse: np.ndarray
     in_log_r: np.ndarray
     in_theta: np.ndarray
+    compliance: np.ndarray
     dt: float
     substeps: int
 
@@ -233,6 +239,11 @@ def build_modes(topo: NetTopology, dt: float, substeps: int) -> NetModes:
     k = min(IN_PLANE_MODES, 2 * nf)
     psi = psi[:, :k]
     lam_in = lam_in[:k]
+    # The compliance diagonal, sum over modes of shape^2 / eigenvalue (mass-normalised shapes).
+    # An in-plane mode without stiffness (none in a tensioned net) would leave the bound infinite.
+    in_plane = ((psi / root2[:, None]) ** 2 / lam_in).sum(axis=1).reshape(nf, 2).max(axis=0) \
+        if lam_in.min() > 0 else np.full(2, np.inf)
+    compliance = np.array([float(((phi / root[:, None]) ** 2 / lam).sum(axis=1).max()), *in_plane])
     d = psi.T @ (c_yz / np.outer(root2, root2)) @ psi + g * np.eye(k)
     eye = np.eye(k)
     step = np.block([[eye - h * h * np.diag(lam_in), h * (eye - h * d)], [-h * np.diag(lam_in), eye - h * d]])
@@ -251,7 +262,7 @@ def build_modes(topo: NetTopology, dt: float, substeps: int) -> NetModes:
         in_pos_abs=_read_only(np.abs(in_pos)),
         in_vel_abs=_read_only(np.abs(in_vel)),
         in_inverse=_read_only(np.linalg.inv(vecs)), in_log_r=_read_only(np.log(np.abs(vals))),
-        in_theta=_read_only(np.angle(vals)), dt=float(dt), substeps=int(substeps))
+        in_theta=_read_only(np.angle(vals)), compliance=_read_only(compliance), dt=float(dt), substeps=int(substeps))
 
 
 def detuning(topo: NetTopology, pos: np.ndarray, free: np.ndarray, out_shape: np.ndarray, lam: np.ndarray,

@@ -19,7 +19,7 @@ from net_kernel.kernels import (
     TICK_BALL_ROWS,
     grid_work,
 )
-from net_kernel.kernels.modal import FREE_TAIL
+from net_kernel.kernels.modal import FREE_TAIL, potential_energy
 from net_kernel.modes import NetModes, linear_tail_refusal, net_modes
 from net_kernel.tail import LinearTail
 from net_kernel.topology import FLOAT32, IMPLICIT, NetTopology
@@ -49,6 +49,14 @@ WAKE_MARGIN = 0.05  # m
 # an awake net can be without looking at it, which lets the engine step the net without the ball
 # while the ball is out of that reach (step_free).
 NET_REACH = 0.25  # m
+# A struck net's bound (NetSim.bound_box): no knot is farther from the rest shape, along an axis,
+# than sqrt(2 E compliance) while its energy above rest is at most E (the linear model,
+# net_kernel.modes.NetModes.compliance), and the energy only falls while nothing touches the net
+# (its dashpots and the air take it away). The energy is taken this many times over: the
+# scheme's own energy is not exactly monotone from substep to substep, and the linear model is
+# the hanging net's (its threads stiffen as they stretch, which keeps a knot nearer for the
+# same energy). NetSim checks the bound at every free tick it is given for.
+BOUND_ENERGY_FACTOR = 2.0
 # m: a linear tail's box (every knot's place from the switch on) stays within this of the built
 # box: the engine steps the ball tick by tick near a tail or a sleeping net only within the built
 # box grown by WAKE_MARGIN (engine.world's cloth_watch), so a tail reaching farther stays awake.
@@ -95,6 +103,11 @@ def _checked_substeps(topo: NetTopology, dt: float, substeps: int | None, implic
             "net_kernel.topology.stability_bound); "
             f"use substeps >= {need} (or substeps=None), or solver='implicit'")
     return substeps
+
+
+class NetBoundError(RuntimeError):
+    """A knot left the box NetSim.bound_box promised: a caller may have stepped a tick without
+    the ball that the ball could have touched."""
 
 
 class NetContact(NamedTuple):
@@ -220,6 +233,8 @@ class NetSim:
         self.box = net_box(topo.rest_pos)
         self._built = self.box.copy()
         self._reach = self.box + np.array([[-NET_REACH], [NET_REACH]])  # (2, 3) m, the built box grown
+        self.bound: np.ndarray | None = None  # (2, 3) m, bound_box's while it holds (the free ticks check it)
+        self._rest_box: np.ndarray | None = None  # (2, 3) m, the box of the modes' rest shape
         self._probe = (np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(3), np.zeros(3))
         self.kernel_calls = 0
         self.cg_iterations = 0
@@ -264,6 +279,7 @@ class NetSim:
         tail_ticks >= 0, they are the switch state of a linear tail that has run that many ticks
         (quiet_ticks its sleep count at the switch)."""
         self.tail = None
+        self.bound = None
         self._pos[self._cur][:] = knot_pos
         self._vel[self._cur][:] = knot_vel
         self.sleeping = bool(sleeping)
@@ -310,6 +326,32 @@ class NetSim:
         self.kernel_calls += 1
         return hit != NO_CONTACT
 
+    def bound_box(self) -> np.ndarray | None:
+        """(2, 3) m: lo and hi corners of a box that holds every knot from now on, for as long as
+        nothing touches the net (BOUND_ENERGY_FACTOR says how), within the built box grown by
+        NET_REACH; None for a net without modes (no linear tail). The free ticks stepped from now
+        on check it (a knot outside raises NetBoundError), until the ball next comes near.
+
+        A caller that knows the ball stays farther from this box than an awake net's reach may
+        step those ticks without the ball (step_free): NetSim.step takes them so too (ball_far
+        on the knots' own box, which lies inside), the same bits.
+        """
+        if self.tail_refusal is not None:
+            return None
+        modes = self.modes()
+        pos, vel = self.knot_pos, self.knot_vel
+        topo = self.topo
+        kinetic = 0.5 * float(np.einsum("i,ij,ij->", topo.knot_mass, vel, vel))
+        energy = kinetic + float(potential_energy(pos, topo.knot_mass, topo.knot_inv_mass, topo.spring_ij,
+                                                  topo.spring_rest, topo.spring_k, topo.spec.gravity)) - modes.rest_energy
+        reach = np.sqrt(2.0 * BOUND_ENERGY_FACTOR * max(energy, 0.0) * modes.compliance)
+        if self._rest_box is None:
+            self._rest_box = net_box(modes.rest_pos)
+        rest = self._rest_box
+        bound = np.array([np.maximum(rest[0] - reach, self._reach[0]), np.minimum(rest[1] + reach, self._reach[1])])
+        self.bound = bound
+        return bound
+
     def wake(self) -> None:
         """Wake the net (contact, or the caller moved a knot): out of sleep or the tail, into the full kernel."""
         if self.tail is not None:
@@ -346,6 +388,8 @@ class NetSim:
                 invariant checked after every tick).
         """
         far = self.ball_far(ball_pos, ball_vel, ball_radius)
+        if not far:
+            self.bound = None  # the ball may touch: a bound of before no longer holds
         if self.tail is not None:
             if far:
                 self._advance_tail(1)
@@ -529,6 +573,10 @@ class NetSim:
         return (f"a knot of the net is more than NET_REACH = {NET_REACH} m outside the box it was built in (knots now "
                 f"span {self.box.tolist()} m): the net blew up")
 
+    def _out_of_bound(self) -> str:
+        return (f"a knot of the net left the box bound_box promised ({self.bound.tolist()} m; knots now span "
+                f"{self.box.tolist()} m): BOUND_ENERGY_FACTOR = {BOUND_ENERGY_FACTOR} is too small for this net")
+
     def step_run(self, ball: np.ndarray, ball_radius: float, ball_inv_mass: float,
                  free_outside: np.ndarray) -> tuple[int, NetContact]:
         """A run of ticks with the ball near, up to the first that touches it: tick j as step() with
@@ -574,22 +622,26 @@ class NetSim:
     def _free_run(self, ticks: int) -> int:
         """Up to `ticks` free ticks of an awake grid net in one kernel call (step_free's); returns the ticks taken."""
         topo = self.topo
+        reach = self._reach if self.bound is None else self.bound  # the bound promised lies within the reach
         if self._step_free_tail is not None and self._has_modes():
             taken, self.quiet_ticks, status = self._step_free_tail(
                 self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag, self.h,
-                self.substeps, self._grid_work, ticks, SLEEP_SPEED, SLEEP_TICKS, self.quiet_ticks, self._reach,
+                self.substeps, self._grid_work, ticks, SLEEP_SPEED, SLEEP_TICKS, self.quiet_ticks, reach,
                 self.box, topo.knot_mass, topo.knot_inv_mass, topo.spring_ij, topo.spring_rest, topo.spring_k,
                 self.modes().rest_energy, self.tail_energy)
         else:
             taken, self.quiet_ticks, status = self._step_grid_free(
                 self._state, self._grid_inv_mass, topo.grid_params, self.gravity, self.drag, self.h,
-                self.substeps, self._grid_work, ticks, SLEEP_SPEED, SLEEP_TICKS, self.quiet_ticks, self._reach,
+                self.substeps, self._grid_work, ticks, SLEEP_SPEED, SLEEP_TICKS, self.quiet_ticks, reach,
                 self.box)
         self.kernel_calls += 1
         self.awake_ticks += taken
         if status == FREE_NOT_FINITE:
             raise FloatingPointError(NOT_FINITE)
         if status == FREE_OUT_OF_REACH:
+            if self.bound is not None and not (self._reach[0] > self.box[0]).any() \
+                    and not (self.box[1] > self._reach[1]).any():
+                raise NetBoundError(self._out_of_bound())
             raise FloatingPointError(self._out_of_reach())
         if status == FREE_ASLEEP:
             self.sleeping = True

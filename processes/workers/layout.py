@@ -77,6 +77,8 @@ NET_IO_DTYPE = np.dtype([
     ("sleeping", "<i8"),  # the net sleeps after the run
     ("tail_until", "<i8"),  # -1, or the tick at which the linear tail holding the net after the run falls asleep
     ("box", "<f8", (2, 3)),  # m, lo and hi corners of the knots' box after the run (NetSim.box)
+    ("bounded", "<i8"),  # 1: `bound` holds the awake net's knots from the run's end until a ball comes near
+    ("bound", "<f8", (2, 3)),  # m, lo and hi corners of that box (NetSim.bound_box)
     ("granted", "<i8"),  # the physics: the net may step every tick below this without the ball
     ("turn", "<i8"),  # the physics: two a run, odd while its fields are written (a repeated turn counts again)
     ("served", "<i8"),  # the worker: the last turn it answered
@@ -115,6 +117,7 @@ class NetIO:
     toi = _net_float("toi")
     sleeping = _net_int("sleeping")
     tail_until = _net_int("tail_until")
+    bounded = _net_int("bounded")
     granted = _net_int("granted")
     turn = _net_int("turn")
     served = _net_int("served")
@@ -128,12 +131,13 @@ class NetIO:
         self.impulse = record["impulse"]
         self.offset = record["offset"]
         self.box = record["box"]
+        self.bound = record["bound"]
 
     def close(self) -> None:
         """Drop every view of the shared record (before its segment is closed)."""
         self._ints.release()
         self._floats.release()
-        del self.array, self.ball, self.impulse, self.offset, self.box
+        del self.array, self.ball, self.impulse, self.offset, self.box, self.bound
 
 # One remote input on its way to the physics worker (the remote-input mailbox's record).
 REMOTE_INPUT_DTYPE = np.dtype([("tick", "<i8"), ("seq", "<u8"), ("bat", "<i8"), ("inputs", "<f8", (6,))])

@@ -112,6 +112,12 @@ def _answer(sim: NetSim, row: NetIO, ball: np.ndarray, radius: float, inv_mass: 
     row.offset[:] = contact.offset
     row.sleeping = int(sim.sleeping)
     row.box[:] = sim.box
+    # An awake net's box for the ticks to come: the physics steps on without waiting while the
+    # ball stays far from it (processes.workers.remote_net), and the free ticks check it.
+    bound = sim.bound_box() if not sim.sleeping and sim.tail is None else None
+    row.bounded = bound is not None
+    if bound is not None:
+        row.bound[:] = bound
     return taken
 
 

@@ -36,7 +36,11 @@ class RemoteNet:
     NetSim.step returns early: the stand-in keeps the box the net froze in (from net_io after each
     ball tick). So does a net in its linear tail (net_kernel/tail.py) and a ball far from the box
     that holds the tail's knots: NetSim.step only counts such a tick, so the stand-in grants it
-    free, and knows from the net's last answer the tick at which the tail falls asleep. What it
+    free, and knows from the net's last answer the tick at which the tail falls asleep. So does
+    an awake net and a ball far from the box its energy bounds the knots to until the ball next
+    comes near (NetSim.bound_box, from the net's last answer): NetSim.step takes such a tick
+    free (the knots' own box lies inside), so the stand-in grants it and the net worker steps
+    it on the other core, checking the bound. What it
     knows of `sleeping` otherwise comes from the net's last answer, so after free ticks, in which
     the net may have fallen asleep or into its tail, it may still think the net awake: that costs
     a hand-off more, never a different bit (the net worker then steps exactly as NetSim.step would).
@@ -61,6 +65,8 @@ class RemoteNet:
         self._sleeping = False
         self._tail_until = -1  # the tick at which the tail of the last answer falls asleep (-1: no tail)
         self.box = local.box.copy()
+        self._bounded = False  # whether `bound` holds the awake net's knots (the net's last answer)
+        self.bound = np.zeros((2, 3))
         self._nudged = -TAIL_NUDGE_TICKS  # the tick of the last wake-up for free ticks
 
     @property
@@ -97,16 +103,26 @@ class RemoteNet:
         count = len(ball)
         first = int(self.world["tick"]) - count
         j = 0
+        granted = False
         while j < count:
             tick = first + j
             tail = self._tail_until > tick  # the net's state at this tick's start
-            if not ((self._sleeping or tail or 0 <= self._tail_until <= tick) and ball_far_from_box(
-                    self.box, True, local.knot_radius, local.dt, ball[j, 0], ball[j, 1], ball_radius)):
+            if self._sleeping or tail or 0 <= self._tail_until <= tick:
+                if not ball_far_from_box(self.box, True, local.knot_radius, local.dt, ball[j, 0], ball[j, 1],
+                                         ball_radius):
+                    break
+            elif not (self._bounded and ball_far_from_box(self.bound, False, local.knot_radius, local.dt, ball[j, 0],
+                                                          ball[j, 1], ball_radius)):
                 break
-            if tail:  # a tick of the tail: counted free (NetSim.step with the ball far)
+            if not self._sleeping and not 0 <= self._tail_until <= tick:
+                # A tick of the tail, or of an awake net far from its bound: stepped free (NetSim.step
+                # with the ball far from the knots' own box, which lies inside, does so too).
                 self.io.granted = tick + 1
                 self.free_ticks += 1
+                granted = True
             j += 1
+        if granted and not self.in_tail:
+            self.baton.nudge()  # an awake net's ticks: the net worker steps them on the other core
         if j == count:
             self._none[:] = 0.0
             return count, NetContact(NO_CONTACT, self._none, self._none)
@@ -133,6 +149,9 @@ class RemoteNet:
         self._sleeping = bool(row.sleeping)
         self._tail_until = row.tail_until
         self.box[:] = row.box
+        self._bounded = bool(row.bounded)
+        if self._bounded:
+            self.bound[:] = row.bound
         self.waits += time.perf_counter() - started
         self.ball_ticks += row.taken
         self.runs += 1

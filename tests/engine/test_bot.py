@@ -1,4 +1,6 @@
 """The bot API: what a bot sees, what it may answer, and what a match does when it fails."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -127,3 +129,18 @@ def test_a_bad_bot_spec_says_what_is_wrong(tmp_path):
         load_bot(f"{broken}:Bot")
     with pytest.raises(SceneError, match="a bot"):
         match_scene(BASE, "grandmaster", "pro")
+
+
+@pytest.mark.parametrize("latency, delay", [(0.0, 10), (0.02, 20), (0.05, 50), (0.054, 50)])
+def test_an_action_is_played_from_the_control_tick_a_decision_latency_later(latency, delay):
+    # Steady decides a raw force from tick 0 on; before its first decision takes effect the idle
+    # arm brakes the bat at rest (no force). The latency counts in whole control periods, at least one.
+    scene = match_scene(BASE, bots.spec("Steady"), "pro", best_of=1)
+    scene = replace(scene, match=replace(scene.match, decision_latency=latency))
+    match = Match(scene, seed=3, budget_s=BUDGET_S)
+    assert match.delay == delay
+    forces = []
+    for _ in range(delay + 10):
+        match.tick(1)
+        forces.append(float(match.state.bats["force"][0][1]))
+    assert forces[:delay] == [0.0] * delay and forces[delay] == 0.5  # the action's force, from tick `delay` on

@@ -3,6 +3,7 @@ from dataclasses import replace
 
 import pytest
 
+from engine.match import decision_delay
 from engine.scene import SCENES_DIR, SceneError, load_scene, with_overrides
 from net_kernel.topology import AIR_DAMPING_PHYSICAL
 
@@ -79,3 +80,13 @@ def test_overrides_are_validated():
     with pytest.raises(SceneError, match=r"dt: must be in \(0.0, 0.05\]"):
         with_overrides(scene, dt=float("nan"))
     assert with_overrides(scene, dt=0.002).ticks == 2500
+
+
+def test_the_decision_latency_is_checked_and_counts_in_whole_control_periods():
+    with pytest.raises(SceneError, match=r"match.decision_latency: must be in \[0.0, 0.3\], got 0.5"):
+        load_scene("match_rigid", {"match.decision_latency": 0.5})
+    with pytest.raises(SceneError, match="match.decision_latency: must be a number"):
+        load_scene("match_rigid", {"match.decision_latency": "soon"})
+    assert decision_delay(load_scene("match_rigid")) == 50  # 0.05 s at dt 1 ms: five control periods of 10 ticks
+    assert decision_delay(load_scene("match_rigid", {"match.decision_latency": 0.0})) == 10  # at least one period
+    assert decision_delay(load_scene("match_rigid", {"match.decision_latency": 0.1, "match.ai_hz": 50})) == 100

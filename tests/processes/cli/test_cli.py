@@ -124,8 +124,10 @@ def test_bad_integrator_exits_2():
     assert done.returncode == 2 and "integrator: must be one of" in done.stderr
 
 
-def test_bench_match_quick_json():
-    done = subprocess.run([sys.executable, "-m", "processes", "bench", "match", "--quick", "--json"],
+def test_bench_match_quick_json(tmp_path):
+    picture = tmp_path / "timeline.png"
+    done = subprocess.run([sys.executable, "-m", "processes", "bench", "match", "--quick", "--json",
+                           "--timeline", str(picture)],
                           capture_output=True, text=True, timeout=DEADLINE_S, stdin=subprocess.DEVNULL)
     assert done.returncode == 0, done.stderr
     report = json.loads(done.stdout)
@@ -134,6 +136,15 @@ def test_bench_match_quick_json():
     physics = report["processes"]["workers"]["physics"]
     # The physics' hand-offs, split by whom it waited for: the net and the AI (no restarts here).
     assert physics["handoff_net_s"] + physics["handoff_ai_s"] == pytest.approx(physics["handoff_s"], rel=1e-12)
+    # One turn a control tick; the players decided at some of them.
+    ticks = round(report["sim_seconds"] / 0.001)  # the match scene's dt
+    assert physics["ai_turns"] == -(-ticks // 10) and 0 < physics["ai_decisions"] < physics["ai_turns"]
+    # The round's ratio to the in-process match, and the shares of its wall time by workers at work.
+    ratio = report["over_in_process"]
+    assert ratio["rounds"] == [ratio["median"]]
+    assert ratio["median"] == pytest.approx(report["processes"]["realtime_factor"] / report["in_process"]["realtime_factor"])
+    assert sum(report["processes"]["working"].values()) == pytest.approx(1.0)
+    assert report["timeline"]["path"] == str(picture) and picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_bench_match_sets_the_air_damped_match_beside_the_default():

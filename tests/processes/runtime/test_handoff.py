@@ -1,4 +1,4 @@
-"""Lockstep hand-offs: bounded in both directions; `pingpong bench handoff` smoke run."""
+"""Lockstep hand-offs and queued turns: bounded in both directions; `pingpong bench handoff` smoke run."""
 import json
 import subprocess
 import sys
@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from processes.runtime.handoff import TICK_SLOT_DTYPE, Baton, HandoffTimeout
+from processes.runtime.handoff import QUEUE_WORDS, TICK_SLOT_DTYPE, Baton, HandoffTimeout, TurnQueue
 from processes.runtime.shm import Arena
 from tests.waits import DEADLINE_S
 
@@ -53,6 +53,62 @@ def test_call_to_a_worker_that_never_answers_times_out(ctx, no_leftovers):
         with pytest.raises(HandoffTimeout, match="no turn given within 0.1 s"):
             Baton("idle", ctx, arena.shared_array("slot2", TICK_SLOT_DTYPE, 1).array).wait_turn(0.1)
         del baton
+    finally:
+        arena.close()
+
+
+def _answer_turns(layout, queue):
+    """A TurnQueue's worker: answers each turn with ten times its datum, in order, until stopped."""
+    arena = Arena.attach(layout)
+    queue.attach(arena["words"].array)
+    data, answers = arena["data"].array, arena["answers"].array
+    done = queue.answered
+    while queue.wait_posted(done, 10) and not (queue.stopped and queue.posted == done):
+        while queue.posted > done:
+            done += 1
+            answers[done % len(answers)] = data[done % len(data)] * 10
+            queue.answer(done)
+    del queue, data, answers
+    arena.close()
+
+
+def test_turn_queue_answers_every_turn_in_order_and_the_hub_waits_only_for_what_it_needs(ctx, procs, no_leftovers):
+    arena = Arena()
+    try:
+        words = arena.shared_array("words", np.int64, QUEUE_WORDS).array
+        data = arena.shared_array("data", np.dtype("<i8"), 8).array
+        answers = arena.shared_array("answers", np.dtype("<i8"), 8).array
+        queue = TurnQueue("test", ctx, words)
+        worker = ctx.Process(target=_answer_turns, args=(arena.layout(), queue))
+        procs.append(worker)
+        worker.start()
+        for turn in range(1, 201):
+            data[turn % 8] = turn
+            assert queue.post() == turn
+            if turn > 4:  # the answer needed four turns behind: the worker works ahead of need
+                queue.wait_answered(turn - 4, DEADLINE_S, DEADLINE_S, lambda t: None)
+                assert answers[(turn - 4) % 8] == (turn - 4) * 10  # visible once counted
+        queue.wait_answered(200, DEADLINE_S, DEADLINE_S, lambda t: None)
+        assert queue.answered == 200
+        queue.stop()
+        worker.join(DEADLINE_S)
+        assert worker.exitcode == 0
+        del words, data, answers, queue
+    finally:
+        arena.close()
+
+
+def test_a_turn_nobody_answers_times_out_naming_it(ctx, no_leftovers):
+    arena = Arena()
+    try:
+        queue = TurnQueue("mute", ctx, arena.shared_array("words", np.int64, QUEUE_WORDS).array)
+        queue.post()
+        beats = []
+        with pytest.raises(HandoffTimeout, match=r"mute: turn 1 was not answered within 0.3 s \(answered 0 of 1\)"):
+            queue.wait_answered(1, 0.1, 0.3, beats.append)
+        assert beats and set(beats) == {1}  # a heartbeat at every bounded wait
+        assert not queue.wait_posted(1, 0.05)  # the worker's side: nothing after turn 1
+        del queue
     finally:
         arena.close()
 
