@@ -1,18 +1,19 @@
-"""Lockstep hand-offs: the hub worker (physics) gives another worker its turn for a tick and
-waits, bounded, until that worker is done.
+"""Lockstep hand-offs: the hub worker (physics) gives another worker its turn and waits,
+bounded, until that worker is done (a Baton: the net's runs), or posts turns in order and waits
+only for the answer it needs (a TurnQueue: the AI's control ticks).
 
 A Baton is a pair of POSIX semaphores (futex-backed, so a waiting worker sleeps in the kernel
 and costs no CPU) plus a shared tick slot; the data itself crosses through shared records that
-the turn orders (the AI's view and answer, the net's net_io) and SnapshotBlocks, never through
-the baton, so nothing is pickled per tick. The hub calls only the workers a tick needs (a
-sleeping net, an AI control tick that needs no decision, the ball in free flight wake nobody),
-always in the same order, which keeps lockstep deterministic.
+the turns order (the net's net_io, the AI's rings of views and answers) and SnapshotBlocks,
+never through the semaphores, so nothing is pickled per tick. The hub gives turns in the same
+order whatever the timing, which keeps lockstep deterministic.
 
-Both sides spin briefly (SPIN_S, polling the semaphore without blocking) before they sleep.
-glibc's sem_post makes the futex wake-up call only when a waiter is asleep, so when the other
-side answers within the spin nobody enters the kernel: no wake-up, and above all no wake-up
-preemption, where the woken worker takes the CPU from the one that woke it. `pingpong bench
-handoff` measures a hand-off against a plain semaphore ping-pong.
+Both sides spin briefly (SPIN_S) before they sleep, and a sleeping worker says so in a shared
+word: the hub posts a wake-up only to a sleeper (glibc's sem_post enters the kernel only to
+wake one), so when the other side is at work or answers within the spin nobody enters the
+kernel: no wake-up, and above all no wake-up preemption, where the woken worker takes the CPU
+from the one that woke it. `pingpong bench handoff` measures a hand-off against a plain
+semaphore ping-pong.
 """
 from __future__ import annotations
 
@@ -25,12 +26,16 @@ class HandoffTimeout(TimeoutError):
     """A worker did not take or finish its turn within the bound."""
 
 
-TICK_SLOT_DTYPE = np.dtype([("tick", "<i8"), ("command", "<i8"), ("done_tick", "<i8")])
+TICK_SLOT_DTYPE = np.dtype([("tick", "<i8"), ("command", "<i8"), ("done_tick", "<i8"), ("asleep", "<i8")])
 RUN, STOP = 1, 2
-NO_TURN = -1  # try_turn: no turn given (ticks are >= 0)
+NO_TURN = -1  # wait_turn: no turn given, work pending (ticks are >= 0)
 # How long a side polls before it sleeps: about one AI turn or ten physics ticks, so a turn
 # answered in that time costs no system call; a longer wait sleeps and costs no CPU.
 SPIN_S = 100e-6
+# A sleeping worker that tells the hub so (Baton.wait_turn with pending, TurnQueue.wait_posted)
+# looks again at least this often: the bound on a wake-up lost between its flag and the hub's
+# shared state, whose stores cross on no barrier.
+NAP_S = 5e-3
 
 
 def _acquire(semaphore, timeout: float) -> bool:
@@ -64,7 +69,8 @@ class Baton:
         return {"name": self.name, "_go": self._go, "_done": self._done, "_words": None}
 
     def attach(self, slot: np.ndarray) -> "Baton":
-        """Point at the shared (1,) TICK_SLOT_DTYPE slot: words 0 tick, 1 command, 2 tick done."""
+        """Point at the shared (1,) TICK_SLOT_DTYPE slot: words 0 tick, 1 command, 2 tick done,
+        3 the worker sleeps (1) or not (0)."""
         self._words = memoryview(slot.view("<i8")).cast("B").cast("q")
         return self
 
@@ -114,8 +120,16 @@ class Baton:
                 self.give(tick)
 
     def nudge(self) -> None:
-        """Wake the worker without a turn: it rereads the shared state it works from."""
-        self._go.release()
+        """Wake the worker without a turn, if it sleeps: it rereads the shared state it works from.
+
+        A worker at work or spinning rereads that state before it sleeps (wait_turn's `pending`),
+        so only a sleeper is posted: a post to a sleeper costs the hub a system call and often
+        its core, which the woken worker takes.
+        """
+        words = self._words
+        if words[3]:
+            words[3] = 0
+            self._go.release()
 
     def stop(self) -> None:
         self._words[1] = STOP
@@ -127,19 +141,39 @@ class Baton:
         """Told to stop: also seen by a worker restarted after the stop's wake-up went to the one it replaces."""
         return self._words[1] == STOP
 
-    def wait_turn(self, timeout: float) -> int | None:
-        """The tick to do, None when told to stop; raises HandoffTimeout after `timeout` s."""
-        if not _acquire(self._go, timeout):
-            raise HandoffTimeout(f"{self.name}: no turn given within {timeout} s")
-        if self._words[1] == STOP:
-            return None
-        return self._words[0]
+    def wait_turn(self, timeout: float, pending=None) -> int | None:
+        """The tick to do, None when told to stop, NO_TURN when pending() says there is work
+        without a turn (the worker's own test of the shared state a nudge would point it to);
+        raises HandoffTimeout after `timeout` s.
 
-    def try_turn(self) -> int | None:
-        """wait_turn without waiting: the tick to do, None when told to stop, NO_TURN when no
-        turn was given (a worker with work of its own polls between its pieces of work)."""
-        if not self._go.acquire(False):
-            return NO_TURN
+        Spins SPIN_S, then says it sleeps and sleeps NAP_S at a time, looking at
+        pending() between naps: the flag and the hub's shared state cross on no barrier, so a
+        nudge may be missed, for a nap at most.
+        """
+        if self._go.acquire(False):
+            return self._turn()
+        words = self._words
+        clock = time.perf_counter
+        started = clock()
+        while True:
+            if pending is not None and pending():
+                return NO_TURN
+            elapsed = clock() - started
+            if elapsed < SPIN_S:
+                if self._go.acquire(False):
+                    return self._turn()
+                continue
+            if elapsed > timeout:
+                raise HandoffTimeout(f"{self.name}: no turn given within {timeout} s")
+            words[3] = 1
+            woken = pending is None or not pending()
+            woken = woken and self._go.acquire(timeout=min(NAP_S if pending is not None else timeout,
+                                                           max(timeout - elapsed, 0.0)))
+            words[3] = 0
+            if woken:
+                return self._turn()
+
+    def _turn(self) -> int | None:
         if self._words[1] == STOP:
             return None
         return self._words[0]
@@ -153,7 +187,7 @@ class Baton:
         self._done.release()
 
 
-QUEUE_WORDS = 3  # a TurnQueue's shared words: turns posted, turns answered, command (RUN or STOP)
+QUEUE_WORDS = 4  # a TurnQueue's shared words: turns posted, turns answered, command (RUN or STOP), worker asleep
 
 
 class TurnQueue:
@@ -167,11 +201,14 @@ class TurnQueue:
         words: a (QUEUE_WORDS,) int64 shared array (processes.runtime.shm.SharedArray.array).
 
     A side sleeps on the other's semaphore only when the count it waits for has not moved,
-    spinning SPIN_S first as a Baton does (a worker whose turns come every few tens of
-    microseconds then never sleeps, and a post to it costs the hub no system call: glibc's
-    sem_post enters the kernel only to wake a sleeper); a side that finds its count moved does
-    not take the post, which a later wait then takes and finds nothing new behind. The counts
-    live in shared memory, so a restarted worker, or hub, goes on from them.
+    watching the count for SPIN_S first. The worker says in a shared word that it sleeps, and
+    the hub posts the semaphore only then: a post to a sleeper costs the hub a system call and
+    often its core (the woken worker takes it), and a worker at work or spinning sees the count
+    move without one. The flag and the count cross on no barrier, so a sleeping worker naps
+    NAP_S at a time and looks at the count between naps; a hub about to wait for an answer
+    wakes a sleeper first. A side that finds its count moved does not take the post, which a
+    later wait then takes and finds nothing new behind. The counts live in shared memory, so a
+    restarted worker, or hub, goes on from them.
     """
 
     def __init__(self, name: str, ctx, words: np.ndarray):
@@ -184,7 +221,8 @@ class TurnQueue:
         return {"name": self.name, "_posted": self._posted, "_answered": self._answered, "_words": None}
 
     def attach(self, words: np.ndarray) -> "TurnQueue":
-        """Point at the shared (QUEUE_WORDS,) int64 words: 0 turns posted, 1 answered, 2 command."""
+        """Point at the shared (QUEUE_WORDS,) int64 words: 0 turns posted, 1 answered, 2 command,
+        3 the worker sleeps (1) or not (0)."""
         self._words = memoryview(words.view("<i8")).cast("B").cast("q")
         return self
 
@@ -200,10 +238,12 @@ class TurnQueue:
 
     # hub side
     def post(self) -> int:
-        """Post the next turn (its data already written); returns its number."""
+        """Post the next turn (its data already written), waking the worker if it sleeps; returns its number."""
         words = self._words
         words[0] += 1
-        self._posted.release()
+        if words[3]:
+            words[3] = 0
+            self._posted.release()
         return words[0]
 
     def wait_answered(self, turn: int, timeout: float, give_up: float, on_wait) -> None:
@@ -211,6 +251,9 @@ class TurnQueue:
         (a heartbeat: the worker may be restarting, and goes on from the counts); raises
         HandoffTimeout after `give_up` s."""
         words = self._words
+        if words[1] < turn and words[3]:
+            words[3] = 0
+            self._posted.release()
         deadline = time.monotonic() + give_up
         while words[1] < turn:
             if not _acquire(self._answered, timeout):
@@ -232,9 +275,18 @@ class TurnQueue:
     def wait_posted(self, after: int, timeout: float) -> bool:
         """Wait until a turn after `after` is posted, or a stop; False after `timeout` s without either."""
         words = self._words
+        clock = time.perf_counter
+        started = clock()
         while words[0] <= after and words[2] != STOP:
-            if not _acquire(self._posted, timeout):
+            now = clock()
+            if now - started < SPIN_S:
+                continue
+            if now - started > timeout:
                 return False
+            words[3] = 1
+            if words[0] <= after and words[2] != STOP:
+                self._posted.acquire(timeout=NAP_S)
+            words[3] = 0
         return True
 
     def answer(self, turn: int) -> None:

@@ -163,7 +163,7 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
             if timeline is not None:
                 timeline.mark(IDLE)
             try:
-                stop = baton.wait_turn(Control.HEARTBEAT_S) is None
+                stop = baton.wait_turn(Control.HEARTBEAT_S, lambda: row.granted > net_tick) is None
             except HandoffTimeout:
                 # A sleeping net: still alive, still listening; or restarted after the physics said
                 # stop (the worker it replaces died stepping the last free ticks): finish them.

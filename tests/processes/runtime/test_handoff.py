@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from processes.runtime.handoff import QUEUE_WORDS, TICK_SLOT_DTYPE, Baton, HandoffTimeout, TurnQueue
+from processes.runtime.handoff import NO_TURN, QUEUE_WORDS, TICK_SLOT_DTYPE, Baton, HandoffTimeout, TurnQueue
 from processes.runtime.shm import Arena
 from tests.waits import DEADLINE_S
 
@@ -53,6 +53,26 @@ def test_call_to_a_worker_that_never_answers_times_out(ctx, no_leftovers):
         with pytest.raises(HandoffTimeout, match="no turn given within 0.1 s"):
             Baton("idle", ctx, arena.shared_array("slot2", TICK_SLOT_DTYPE, 1).array).wait_turn(0.1)
         del baton
+    finally:
+        arena.close()
+
+
+def test_a_nudge_posts_only_to_a_sleeping_worker_which_looks_for_its_work_first(ctx, no_leftovers):
+    arena = Arena()
+    try:
+        slot = arena.shared_array("slot", TICK_SLOT_DTYPE, 1).array
+        baton = Baton("net", ctx, slot)
+        baton.nudge()  # the worker is not asleep: it rereads the shared state before it sleeps
+        assert not baton._go.acquire(False)
+        slot["asleep"] = 1
+        baton.nudge()  # asleep: woken
+        assert baton._go.acquire(False) and slot["asleep"][0] == 0
+        granted = [3]
+        assert baton.wait_turn(1.0, lambda: granted[0] > 2) == NO_TURN  # work pending: no sleep
+        with pytest.raises(HandoffTimeout, match="net: no turn given within 0.05 s"):
+            baton.wait_turn(0.05, lambda: granted[0] > 5)  # none: it sleeps, looking between naps
+        assert slot["asleep"][0] == 0  # awake again
+        del slot, baton
     finally:
         arena.close()
 
