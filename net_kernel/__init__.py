@@ -4,7 +4,8 @@ from net_kernel.jit_cache import use_source_keyed_cache
 use_source_keyed_cache()  # before any kernel is decorated (net_kernel/jit_cache.py says why)
 
 from net_kernel.kernels import NO_CONTACT, collide_ball, knot_speed_max, step_knots, step_knots_implicit, step_knots_serial  # noqa: E402
-from net_kernel.sim import BACKENDS, NetBoundError, NetContact, NetSim  # noqa: E402
+from net_kernel.bound import NetBoundError  # noqa: E402
+from net_kernel.sim import BACKENDS, NetContact, NetSim  # noqa: E402
 from net_kernel.topology import (  # noqa: E402
     IMPLICIT,
     NET_HEIGHT,

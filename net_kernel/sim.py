@@ -19,7 +19,8 @@ from net_kernel.kernels import (
     TICK_BALL_ROWS,
     grid_work,
 )
-from net_kernel.kernels.modal import FREE_TAIL, potential_energy
+from net_kernel.bound import NetBoundError, knot_bound, out_of_bound
+from net_kernel.kernels.modal import FREE_TAIL
 from net_kernel.modes import NetModes, linear_tail_refusal, net_modes
 from net_kernel.tail import LinearTail
 from net_kernel.topology import FLOAT32, IMPLICIT, NetTopology
@@ -49,14 +50,6 @@ WAKE_MARGIN = 0.05  # m
 # an awake net can be without looking at it, which lets the engine step the net without the ball
 # while the ball is out of that reach (step_free).
 NET_REACH = 0.25  # m
-# A struck net's bound (NetSim.bound_box): no knot is farther from the rest shape, along an axis,
-# than sqrt(2 E compliance) while its energy above rest is at most E (the linear model,
-# net_kernel.modes.NetModes.compliance), and the energy only falls while nothing touches the net
-# (its dashpots and the air take it away). The energy is taken this many times over: the
-# scheme's own energy is not exactly monotone from substep to substep, and the linear model is
-# the hanging net's (its threads stiffen as they stretch, which keeps a knot nearer for the
-# same energy). NetSim checks the bound at every free tick it is given for.
-BOUND_ENERGY_FACTOR = 2.0
 # m: a linear tail's box (every knot's place from the switch on) stays within this of the built
 # box: the engine steps the ball tick by tick near a tail or a sleeping net only within the built
 # box grown by WAKE_MARGIN (engine.world's cloth_watch), so a tail reaching farther stays awake.
@@ -103,11 +96,6 @@ def _checked_substeps(topo: NetTopology, dt: float, substeps: int | None, implic
             "net_kernel.topology.stability_bound); "
             f"use substeps >= {need} (or substeps=None), or solver='implicit'")
     return substeps
-
-
-class NetBoundError(RuntimeError):
-    """A knot left the box NetSim.bound_box promised: a caller may have stepped a tick without
-    the ball that the ball could have touched."""
 
 
 class NetContact(NamedTuple):
@@ -328,7 +316,7 @@ class NetSim:
 
     def bound_box(self) -> np.ndarray | None:
         """(2, 3) m: lo and hi corners of a box that holds every knot from now on, for as long as
-        nothing touches the net (BOUND_ENERGY_FACTOR says how), within the built box grown by
+        nothing touches the net (net_kernel.bound.knot_bound), within the built box grown by
         NET_REACH; None for a net without modes (no linear tail). The free ticks stepped from now
         on check it (a knot outside raises NetBoundError), until the ball next comes near.
 
@@ -339,18 +327,10 @@ class NetSim:
         if self.tail_refusal is not None:
             return None
         modes = self.modes()
-        pos, vel = self.knot_pos, self.knot_vel
-        topo = self.topo
-        kinetic = 0.5 * float(np.einsum("i,ij,ij->", topo.knot_mass, vel, vel))
-        energy = kinetic + float(potential_energy(pos, topo.knot_mass, topo.knot_inv_mass, topo.spring_ij,
-                                                  topo.spring_rest, topo.spring_k, topo.spec.gravity)) - modes.rest_energy
-        reach = np.sqrt(2.0 * BOUND_ENERGY_FACTOR * max(energy, 0.0) * modes.compliance)
         if self._rest_box is None:
             self._rest_box = net_box(modes.rest_pos)
-        rest = self._rest_box
-        bound = np.array([np.maximum(rest[0] - reach, self._reach[0]), np.minimum(rest[1] + reach, self._reach[1])])
-        self.bound = bound
-        return bound
+        self.bound = knot_bound(self.topo, modes, self.knot_pos, self.knot_vel, self._rest_box, self._reach)
+        return self.bound
 
     def wake(self) -> None:
         """Wake the net (contact, or the caller moved a knot): out of sleep or the tail, into the full kernel."""
@@ -574,8 +554,7 @@ class NetSim:
                 f"span {self.box.tolist()} m): the net blew up")
 
     def _out_of_bound(self) -> str:
-        return (f"a knot of the net left the box bound_box promised ({self.bound.tolist()} m; knots now span "
-                f"{self.box.tolist()} m): BOUND_ENERGY_FACTOR = {BOUND_ENERGY_FACTOR} is too small for this net")
+        return out_of_bound(self.bound, self.box)
 
     def step_run(self, ball: np.ndarray, ball_radius: float, ball_inv_mass: float,
                  free_outside: np.ndarray) -> tuple[int, NetContact]:

@@ -5,7 +5,8 @@ import pytest
 
 from engine.scene import load_scene
 from net_kernel import NetBoundError, NetSim, build_topology
-from net_kernel.sim import BALL_MASS, BALL_RADIUS, BOUND_ENERGY_FACTOR
+from net_kernel.bound import BOUND_ENERGY_FACTOR
+from net_kernel.sim import BALL_MASS, BALL_RADIUS
 
 SPEC = load_scene("match").cloth  # the match's net: 85 x 8 knots, float32 grid kernels, the linear tail
 DT = 1e-3
