@@ -177,7 +177,7 @@ class LocalAI:
 
     def __init__(self, ais: Players):
         self.ais = ais
-        self.pending: deque = deque()  # (tick it takes effect, plans, faults), oldest first
+        self.pending: deque = deque()  # (tick it takes effect, plans, faults) of each decision, oldest first
 
     def collect(self, match: Match, tick: int) -> list[Fault]:
         if not self.pending or self.pending[0][0] != tick:
@@ -192,8 +192,9 @@ class LocalAI:
     def request(self, match: Match, now: float) -> None:
         tick = int(match._world_q[0])
         faults = ai_decide(self.ais, tick, now, match.state.ball_flat, match.state.bats, match.rally_record)
-        self.pending.append((tick + match.delay, self.ais.ctl.copy(),
-                             [(player, tick, fault, detail) for player, fault, detail in faults]))
+        if self.ais.decided:  # otherwise the plans stay as they are
+            self.pending.append((tick + match.delay, self.ais.ctl.copy(),
+                                 [(player, tick, fault, detail) for player, fault, detail in faults]))
 
 
 class Match:
