@@ -121,6 +121,12 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
     reason = GoodbyeReason.SHUTDOWN
     try:
         control.start({"endpoint": gateway.endpoint, "feed": gateway.feed_endpoint})
+        if blocks is not None and newest_state(blocks, knots):
+            # The net's state as the net worker started (published before it said it was ready,
+            # so before the run started), before any session is served: every session, also one
+            # welcomed before the loop's first look at the net, gets it after its welcome
+            # (NetFeed.latest), where a feed message it subscribed too late for would be lost.
+            gateway.service_net(*view.show(knots[0], 0))
         # Heartbeats and timeouts also from a thread of their own: the copies of the physics' and
         # the net's states below wait, outside the gateway's lock, for writers a busy machine may
         # deschedule mid-write.
