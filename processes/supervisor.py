@@ -27,7 +27,7 @@ import numpy as np
 from engine.dtypes import CONTACT_DTYPE, physics_snapshot_dtype
 from engine.players import DEFAULT_BUDGET_S
 from engine.scene import Scene
-from processes.network.server.gateway import GatewayConfig
+from processes.network.server.config import GatewayConfig
 from processes.runtime.control import READY_TIMEOUT_S, STARTUP_LIMIT_S, WorkerState, worker_main
 from processes.runtime.shm import Arena
 from processes.workers import (PLAYERS_TIMEOUT_S, RunLayout, RunOptions, build_layout, worker_modules, worker_target,

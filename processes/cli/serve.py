@@ -30,7 +30,7 @@ def serve_command(args: argparse.Namespace) -> int:
     from engine.world import SimulationError
     from processes.cli.common import bot_budget_s, with_players
     from processes.network.client.client import load_curve_key
-    from processes.network.server.gateway import GatewayConfig
+    from processes.network.server.config import GatewayConfig
     from processes.supervisor import Supervisor, WorkerFailed
 
     try:

@@ -207,7 +207,7 @@ def main(argv: list[str]) -> int:
     from dataclasses import replace
 
     from engine.scene import load_scene, with_remote_players
-    from processes.network.server.gateway import GatewayConfig
+    from processes.network.server.config import GatewayConfig
     from processes.supervisor import Supervisor
 
     # The rigid-net match by default: the stress tool loads the gateway, and a cloth net's worker

@@ -19,7 +19,8 @@ import zmq
 
 from engine.dtypes import net_snapshot_dtype, physics_snapshot_dtype
 from net_kernel import NetSim, build_topology
-from processes.network.server.gateway import STATS_EVERY_S, Gateway, GatewayConfig
+from processes.network.server.config import GatewayConfig
+from processes.network.server.gateway import STATS_EVERY_S, Gateway
 from processes.network.server.seats import SeatStore
 from processes.network.wire import GoodbyeReason, Slot
 from processes.runtime.control import Control, StopRequested, crash

@@ -10,7 +10,7 @@ from processes.runtime.control import CRASH_KINDS
 if TYPE_CHECKING:  # for the annotations only: the options module stays cheap to import
     from multiprocessing.synchronize import Event
 
-    from processes.network.server.gateway import GatewayConfig
+    from processes.network.server.config import GatewayConfig
     from processes.runtime.handoff import Baton, TurnQueue
 
 # A served match waits this long for its remote players to take their seats, then starts.

@@ -4,7 +4,8 @@ import numpy as np
 
 from engine.dtypes import physics_snapshot_dtype
 from processes.network.client.client import Client
-from processes.network.server.gateway import Gateway, GatewayConfig
+from processes.network.server.config import GatewayConfig
+from processes.network.server.gateway import Gateway
 from processes.network.wire import Kind, Slot
 from tests.waits import DEADLINE_S, Deadline
 

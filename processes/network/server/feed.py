@@ -11,12 +11,17 @@ from collections import Counter
 import zmq
 
 from processes.network import wire
+from processes.network.server.guard import ConnectionGuard
 from processes.network.wire import NET_HZ
+
+# What libzmq may hold for one feed subscriber: subscribers send only their subscription.
+FEED_HELD_BYTES = 64 * 1024
 
 
 def feed_socket(zctx, config, endpoint: str, own_io_thread: bool, max_frame_bytes: int):
     """The PUB socket bound to `endpoint`: SNDHWM messages per subscriber at most (then that
-    subscriber's newest are dropped), never blocking; a CURVE server with the sessions' keys.
+    subscriber's newest are dropped), never blocking; a CURVE server with the sessions' keys;
+    and its ConnectionGuard, started (close it before the socket).
 
     config: the gateway's GatewayConfig (sndhwm, sndbuf, curve keys). own_io_thread: put it on
     libzmq's I/O thread 1. max_frame_bytes: MAXMSGSIZE, what a subscriber may send (subscriptions).
@@ -37,8 +42,10 @@ def feed_socket(zctx, config, endpoint: str, own_io_thread: bool, max_frame_byte
         feed.curve_secretkey = config.curve_secret_key
         if config.curve_public_key:
             feed.curve_publickey = config.curve_public_key
+    guard = ConnectionGuard(feed, FEED_HELD_BYTES, config.connections_limit, prefix="feed_")
     feed.bind(endpoint)
-    return feed
+    guard.start()
+    return feed, guard
 
 
 class NetFeed:

@@ -77,12 +77,13 @@ import numpy as np
 import zmq
 
 from processes.network import wire
+from processes.network.server.config import ROUTER_RCVHWM, GatewayConfig
 from processes.network.server.feed import NetFeed, feed_socket
+from processes.network.server.guard import FRAME_OVERHEAD_BYTES, ConnectionGuard
 from processes.network.server.pacing import SnapshotPacer
 from processes.network.server.seats import SeatStore
-from processes.network.wire import (DEFAULT_GRACE_S, DEFAULT_HEARTBEAT_S, DEFAULT_MAX_SPECTATORS, DEFAULT_SNAPSHOT_HZ,
-                                    DEFAULT_SNDHWM, DEFAULT_TIMEOUT_S, INPUT_HOLD_S, MAX_BAD, MAX_FRAME_BYTES, NO_TOKEN,
-                                    GoodbyeReason, InputMode, Kind, RejectReason, Role, Slot)
+from processes.network.wire import (MAX_BAD, MAX_FRAME_BYTES, NO_TOKEN, GoodbyeReason, InputMode, Kind, RejectReason,
+                                    Role, Slot)
 
 MAX_STRANGERS_TOLD = 4096  # connections without a session told goodbye, remembered so each is told once
 MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messages
@@ -96,45 +97,6 @@ _HEARTBEAT_PREFIX = wire.MAGIC + struct.pack("<HBB", wire.PROTOCOL_VERSION, Kind
 _HEARTBEAT_SIZE = wire.SIZES[Kind.HEARTBEAT]
 _HELLO_PREFIX = wire.MAGIC + struct.pack("<HB", wire.PROTOCOL_VERSION, Kind.HELLO)
 _SEQ_TICK = struct.Struct("<Qq")
-
-
-@dataclass(frozen=True)
-class GatewayConfig:
-    """How the gateway talks to its peers.
-
-    bind: ZeroMQ endpoint; port 0 or * picks a free port (see Gateway.endpoint).
-    snapshot_hz: snapshots per second to every session. heartbeat_s: a heartbeat at least this
-    often. timeout_s: a silent peer is dropped after this long. grace_s: a dropped player's
-    seat waits this long for its token. input_hold_s: s of match time, the physics lets go of a
-    player's input this long after it applied it unless another came, and brakes the bat. sndhwm: messages queued per peer before its snapshots
-    are dropped. sndbuf: the kernel's send buffer per connection in bytes, 0: the OS default.
-    max_spectators: more are told "full". curve_secret_key, curve_public_key: Z85 keys of the
-    server (`pingpong keys DIR`): every session and the feed are then encrypted and a client
-    must know the public key to connect at all (libzmq accepts any client key pair: no ZAP
-    handler runs). feed: spectators take snapshots and events from the PUB feed (False: on
-    their sessions, one send each, as protocol version 1 did: the fan-out it replaces, kept to
-    measure against); it needs a tcp:// bind. feed_bind: the feed's endpoint; "": the session's
-    host on a free port. stats_path: a JSON file the gateway writes its counters to (atomically)
-    every second and when it ends, whether the match ended or it was stopped; "": none.
-    pause_for_players: the served match (its physics worker) pauses while a remote seat is
-    empty once every seat was held (False: it plays on against the empty seat's idle arm).
-    """
-
-    bind: str = "tcp://127.0.0.1:0"
-    snapshot_hz: int = DEFAULT_SNAPSHOT_HZ
-    heartbeat_s: float = DEFAULT_HEARTBEAT_S
-    timeout_s: float = DEFAULT_TIMEOUT_S
-    grace_s: float = DEFAULT_GRACE_S
-    sndhwm: int = DEFAULT_SNDHWM
-    sndbuf: int = 0
-    max_spectators: int = DEFAULT_MAX_SPECTATORS
-    input_hold_s: float = INPUT_HOLD_S
-    curve_secret_key: bytes = b""  # Z85; set: every session is CURVE-encrypted and the server authenticated
-    curve_public_key: bytes = b""  # Z85, the secret key's public half
-    feed: bool = True
-    feed_bind: str = ""
-    stats_path: str = ""
-    pause_for_players: bool = True
 
 
 @dataclass
@@ -213,6 +175,7 @@ class Gateway:
         self.router.setsockopt(zmq.ROUTER_MANDATORY, 1)
         self.router.setsockopt(zmq.SNDHWM, config.sndhwm)
         self.router.setsockopt(zmq.MAXMSGSIZE, MAX_FRAME_BYTES)
+        self.router.setsockopt(zmq.RCVHWM, ROUTER_RCVHWM)
         if config.sndbuf:
             self.router.setsockopt(zmq.SNDBUF, config.sndbuf)
         if config.curve_secret_key:  # before bind: the handshake is chosen per connection at accept
@@ -220,15 +183,18 @@ class Gateway:
             self.router.curve_secretkey = config.curve_secret_key
             if config.curve_public_key:
                 self.router.curve_publickey = config.curve_public_key
+        self.guard = ConnectionGuard(self.router, config.max_held_bytes, config.connections_limit)  # before bind
         self.router.bind(_any_port(config.bind))
         self.endpoint = self.router.getsockopt_string(zmq.LAST_ENDPOINT)
+        self.guard.start()
         self.feed = None  # the PUB socket of spectators' snapshots and events
+        self.feed_guard: ConnectionGuard | None = None
         self.feed_endpoint = ""
         self.feed_port = 0
         self.feed_seq = 0
         if config.feed and self.endpoint.startswith("tcp://"):
-            self.feed = feed_socket(zctx, config, _any_port(config.feed_bind or self.endpoint.rsplit(":", 1)[0] + ":0"),
-                                    self._two_io_threads, MAX_FRAME_BYTES)
+            feed_bind = _any_port(config.feed_bind or self.endpoint.rsplit(":", 1)[0] + ":0")
+            self.feed, self.feed_guard = feed_socket(zctx, config, feed_bind, self._two_io_threads, MAX_FRAME_BYTES)
             self.feed_endpoint = self.feed.getsockopt_string(zmq.LAST_ENDPOINT)
             self.feed_port = int(self.feed_endpoint.rsplit(":", 1)[1])
         self._beat = bytearray(wire.encode(Kind.HEARTBEAT, tick=0, ack=0))
@@ -264,11 +230,15 @@ class Gateway:
 
     def stats(self) -> dict:
         """Counters: sessions, inputs, refusals, drops by reason, snapshots sent and dropped."""
-        out = dict(sorted({**self.counts, **(self.net.counts if self.net is not None else {})}.items()))
+        net_counts = self.net.counts if self.net is not None else {}
+        feed_counts = self.feed_guard.counts if self.feed_guard is not None else {}
+        out = dict(sorted({**self.counts, **net_counts, **self.guard.counts, **feed_counts}.items()))
         for reason, n in self.drops.by_reason.items():
             out[f"dropped.{reason}"] = out.get(f"dropped.{reason}", 0) + n
         out["dropped_total"] = sum(v for k, v in out.items() if k.startswith("dropped."))
+        out["disconnected_total"] = sum(v for k, v in out.items() if "disconnected." in k)
         out["sessions"] = len(self.sessions)
+        out["connections"] = self.guard.connections
         out["spectators"] = sum(1 for s in self.sessions.values() if s.role == Role.SPECTATOR)
         out["feed_port"] = self.feed_port
         return out
@@ -342,10 +312,13 @@ class Gateway:
         handled = 0
         while handled < MAX_MESSAGES_PER_POLL:
             try:
-                frames = self.router.recv_multipart(flags=zmq.NOBLOCK, copy=True)
+                parts = self.router.recv_multipart(flags=zmq.NOBLOCK, copy=False)
             except zmq.Again:
                 break
             handled += 1
+            frames = [part.bytes for part in parts]
+            # what this connection's libzmq pipe no longer holds (the guard bounds the rest)
+            self.guard.took(parts[-1].get(zmq.SRCFD), sum(map(len, frames[1:])) + FRAME_OVERHEAD_BYTES * len(frames))
             self.handle(frames)
         return handled
 
@@ -678,8 +651,10 @@ class Gateway:
         """Close the sockets; what is still queued (the goodbyes of shutdown) gets up to linger_ms
         to leave (linger 0 discarded them: `pingpong stress` saw bots miss their goodbye)."""
         self._stop_heartbeats()
+        self.guard.close()
         self.router.close(linger=linger_ms)
         if self.feed is not None:
+            self.feed_guard.close()
             self.feed.close(linger=0)  # a snapshot nobody took yet is worth nothing after the end
 
 

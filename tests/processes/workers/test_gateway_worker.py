@@ -9,7 +9,7 @@ import pytest
 from engine.dtypes import physics_snapshot_dtype
 from engine.scene import SceneError, load_scene, parse_scene, with_remote_players
 from processes.runtime import shm
-from processes.network.server.gateway import GatewayConfig
+from processes.network.server.config import GatewayConfig
 from processes.supervisor import workers_for
 from tests.helpers.commands import ROOT
 

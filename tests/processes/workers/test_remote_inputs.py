@@ -57,7 +57,7 @@ def served(tmp_path, no_leftovers):
     from processes.runtime.mailbox import MAILBOX_HEADER, Mailbox
     from processes.workers.remote_inputs import RemoteInputs
     from processes.workers.options import RunOptions
-    from processes.network.server.gateway import GatewayConfig
+    from processes.network.server.config import GatewayConfig
 
     scene = with_remote_players(load_scene("match_rigid"), 2)
     arena = shm.Arena()

@@ -19,7 +19,8 @@ from engine.scene import load_scene
 from engine.world import build_model, initial_state
 from processes.network.client.client import Client
 from processes.network.client.session import SessionOptions, run_session
-from processes.network.server.gateway import Gateway, GatewayConfig
+from processes.network.server.config import GatewayConfig
+from processes.network.server.gateway import Gateway
 from processes.network.client.keyboard import STEP_M, STROKE_M, IterableKeys, KeyboardPilot, TerminalKeys, parse_keys, top_view
 from processes.network.client.prediction import Predictor
 from processes.network.wire import Slot

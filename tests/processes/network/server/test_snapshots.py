@@ -9,7 +9,8 @@ import zmq
 
 from engine.scene import load_scene
 from processes.network import wire
-from processes.network.server.gateway import Gateway, GatewayConfig
+from processes.network.server.config import GatewayConfig
+from processes.network.server.gateway import Gateway
 from processes.network.wire import Kind, Slot
 from tests.waits import DEADLINE_S, Deadline
 
