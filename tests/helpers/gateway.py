@@ -73,9 +73,13 @@ class Rig:
         raise AssertionError(f"the gateway never got there within {DEADLINE_S:.0f} s; counts: {self.gateway.counts}")
 
     def join(self, client):
+        """Hello, welcome, and the client's first heartbeat received: the session is confirmed
+        before the test moves the clock."""
         client.hello()
         message = self.until(client, lambda m: m.kind in (Kind.WELCOME, Kind.REJECT))
+        beats = self.gateway.counts["heartbeats_received"]
         client.accept(message)
+        self.settle(lambda: self.gateway.counts["heartbeats_received"] > beats)
         return message
 
     def close(self):

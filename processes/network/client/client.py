@@ -154,8 +154,10 @@ class Client:
         self.heartbeat_s = message["heartbeat_ms"] / 1000.0
         # the document's rule: a server silent for max(timeout_ms, SERVER_SILENCE_BEATS heartbeats) is gone
         self.timeout_s = max(message["timeout_ms"], wire.SERVER_SILENCE_BEATS * message["heartbeat_ms"]) / 1000.0
-        self._next_beat = time.monotonic() + self.heartbeat_s
         self.subscribe(message["feed_port"])
+        # a heartbeat at once: the server keeps the place of a session that answered its welcome
+        self.send(Kind.HEARTBEAT, ack=message.seq)
+        self._next_beat = time.monotonic() + self.heartbeat_s
         return True
 
     def subscribe(self, port: int) -> None:

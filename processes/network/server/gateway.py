@@ -87,6 +87,10 @@ from processes.network.wire import (MAX_BAD, MAX_FRAME_BYTES, NO_TOKEN, GoodbyeR
 
 MAX_STRANGERS_TOLD = 4096  # connections without a session told goodbye, remembered so each is told once
 MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messages
+# A session that sends nothing after its hello for this many heartbeat periods is told goodbye
+# (timeout) and holds no place. A live client answers its welcome at once (docs/protocol.md), so one
+# still silent a heartbeat period after its hello gives its place to a new hello that finds them full.
+CONFIRM_HEARTBEATS = 3
 SWEEPS_PER_HEARTBEAT = 10  # passes over every session (timeouts, heartbeats) per heartbeat period
 STATS_EVERY_S = 1.0  # the worker writes its counters to GatewayConfig.stats_path this often
 STOP_DRAIN_S = 0.2  # s after its goodbyes a stopping gateway still answers (a hello: reject shutting_down)
@@ -112,6 +116,8 @@ class _Session:
     input_seq: int = 0  # seq of the last input accepted
     bad: int = 0
     snapshots_dropped: int = 0
+    confirmed: bool = False  # it sent a valid message after its hello: a live peer, not a bare hello
+    opened: float = 0.0
 
 
 @dataclass
@@ -336,6 +342,7 @@ class Gateway:
             seq, tick = _SEQ_TICK.unpack_from(data, 8)
             if tick >= 0:  # else: decode below names the fault
                 session.last_seen = now
+                session.confirmed = True
                 session.seq_in = max(session.seq_in, seq)
                 self.counts["heartbeats_received"] += 1
                 return
@@ -363,6 +370,7 @@ class Gateway:
                 self._goodbye_stranger(identity)
             return
         session.last_seen = now
+        session.confirmed = True
         session.seq_in = max(session.seq_in, message.seq)
         if message.kind == Kind.INPUT:
             self._input(session, message)
@@ -405,9 +413,10 @@ class Gateway:
             return
         name = message["name"]
         if message["role"] == Role.SPECTATOR:
-            spectators = sum(1 for s in self.sessions.values() if s.role == Role.SPECTATOR)
-            if spectators >= self.config.max_spectators:
-                self._reject(identity, RejectReason.FULL, f"{spectators} spectators already watch")
+            spectators = [s for s in self.sessions.values() if s.role == Role.SPECTATOR]
+            if len(spectators) >= self.config.max_spectators and not self._evict_unconfirmed(spectators, now):
+                self._reject(identity, RejectReason.FULL, f"{len(spectators)} spectators already watch; "
+                             f"retry in {self._retry_s(spectators, now):g} s")
                 return
             session = self._open(identity, Role.SPECTATOR, Slot.NONE, name, now, message.seq)
             self.counts["spectators_joined"] += 1
@@ -426,10 +435,16 @@ class Gateway:
             self.counts["rejoined"] += 1
         else:
             seat = self._free_seat(wanted, now)
+            holders = [self.sessions[s.identity] for s in self.seats.values()
+                       if s.remote and s.identity in self.sessions and (wanted == Slot.NONE or s.slot == wanted)]
+            if seat is None and self._evict_unconfirmed(holders, now):
+                seat = self._free_seat(wanted, now)
             if seat is None:
                 remote = [s.slot.name for s in self.seats.values() if s.remote]
                 detail = (f"seat {wanted.name} is played by the AI" if wanted != Slot.NONE and not self.seats[wanted].remote
                           else f"remote seats {'/'.join(remote) or 'none'} are taken")
+                if any(not h.confirmed for h in holders):  # a bare hello's seat is free again soon
+                    detail += f"; retry in {self._retry_s(holders, now):g} s"
                 self._reject(identity, RejectReason.FULL, detail)
                 return
             seat.token = secrets.token_bytes(wire.TOKEN_SIZE)
@@ -456,9 +471,29 @@ class Gateway:
                 return seat
         return None
 
+    def _evict_unconfirmed(self, holders: list[_Session], now: float) -> bool:
+        """Make a place: the oldest of `holders` that has sent nothing in the heartbeat period
+        since its hello is told goodbye (kicked) and its place freed (a player's seat and token
+        too); False if none."""
+        waiting = [s for s in holders if not s.confirmed and now - s.opened > self.config.heartbeat_s]
+        if not waiting:
+            return False
+        oldest = min(waiting, key=lambda s: s.opened)
+        self.counts["evicted.unconfirmed"] += 1
+        self._goodbye(oldest, GoodbyeReason.KICKED)
+        self._end(oldest, keep_seat=False)
+        return True
+
+    def _retry_s(self, holders: list[_Session], now: float) -> float:
+        """When a place may be free again: the oldest unconfirmed holder's eviction, else the timeout."""
+        waiting = [s.opened for s in holders if not s.confirmed]
+        if not waiting:
+            return self.config.timeout_s
+        return round(max(0.1, min(waiting) + self.config.heartbeat_s - now), 1)
+
     def _open(self, identity: bytes, role: Role, slot: Slot, name: str, now: float, seq: int) -> _Session:
         session = _Session(identity, role, slot, name, last_seen=now, next_beat=now + self.config.heartbeat_s,
-                           seq_in=seq)
+                           seq_in=seq, opened=now)
         self.sessions[identity] = session
         return session
 
@@ -525,8 +560,13 @@ class Gateway:
             return
         self._next_sweep = now + self.config.heartbeat_s / SWEEPS_PER_HEARTBEAT
         self._expire_tokens(now)
+        confirm_s = CONFIRM_HEARTBEATS * self.config.heartbeat_s
         for session in list(self.sessions.values()):
-            if now - session.last_seen > self.config.timeout_s:
+            if not session.confirmed and now - session.opened > confirm_s:
+                self.counts["timeouts.unconfirmed"] += 1  # a bare hello holds no place for long
+                self._goodbye(session, GoodbyeReason.TIMEOUT)
+                self._end(session, keep_seat=False)
+            elif now - session.last_seen > self.config.timeout_s:
                 self.counts["timeouts"] += 1
                 self._goodbye(session, GoodbyeReason.TIMEOUT)
                 self._end(session, keep_seat=True)
