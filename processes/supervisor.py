@@ -47,6 +47,12 @@ class WorkerFailed(RuntimeError):
     with the last traceback of one that raised."""
 
 
+class WorkerRefused(WorkerFailed, ValueError):
+    """A worker refused the run's input while starting (a bot whose setup() raised, a bot file
+    that does not load): the message is the reason in one line, as the in-process run says it,
+    without the worker's traceback; the run never started."""
+
+
 @dataclass
 class ProcessRunResult:
     """What a multi-process run produced."""
@@ -189,6 +195,8 @@ class Supervisor:
                 if kind == "ready":
                     worker.ready = payload if isinstance(payload, dict) else {}
                     return
+                if kind == "error" and payload.get("refused"):
+                    raise WorkerRefused(payload["message"])
                 if kind == "error":
                     raise WorkerFailed(f"{worker.kind} worker failed while starting:\n{payload['traceback']}")
             elif worker.process.sentinel in ready:

@@ -86,6 +86,16 @@ class NotABot:
     pass
 
 
+class SetupFails(Bot):
+    """Raises in setup(): the match never starts."""
+
+    def setup(self, end, scene):
+        raise RuntimeError("no table today")
+
+    def act(self, obs):
+        return force((0.0, 0.0, 0.0))
+
+
 class Spy(Bot):
     """Keeps a copy of what it was shown."""
 

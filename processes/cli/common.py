@@ -26,7 +26,8 @@ def add_bot_options(parser: argparse.ArgumentParser) -> None:
     """--on-bot-error and --bot-budget-ms: what a match does about a bot's failed decision."""
     parser.add_argument("--on-bot-error", choices=["point", "stop"], default="point",
                         help="a bot's decision that raises, returns a malformed, non-finite or oversized action or "
-                             "overruns its budget: the point goes to the other player, or the match stops")
+                             "overruns its budget: the point goes to the other player, or the match stops "
+                             "(pingpong match then exits with status 1)")
     parser.add_argument("--bot-budget-ms", type=float, default=BOT_BUDGET_MS,
                         help="CPU milliseconds a bot's decision may take (a bot's own budget_s wins)")
 

@@ -69,7 +69,8 @@ def _print_summary(summary: dict) -> None:
     factor = summary["realtime_factor"]
     print(f"simulated {summary['sim_seconds']:.1f} s in {summary['wall_seconds']:.2f} s wall"
           f" ({factor:.1f}x realtime)" if factor else "")
-    for error in summary.get("bot_errors") or []:
+    # each fault once: the one that stopped the match is said by "match stopped"
+    for error in (summary.get("bot_errors") or [])[:-1 if summary.get("stopped") else None]:
         print(f"bot error: {error['bot']} (player {error['player'].upper()}) at tick {error['tick']}: "
               f"{error['fault']}: {error['detail']}")
     if summary.get("stopped"):
@@ -142,7 +143,7 @@ def match_command(args: argparse.Namespace) -> int:
         _print_summary(summary)
         if args.replay:
             print(f"replay written to {args.replay}")
-    return 0
+    return 1 if summary.get("stopped") else 0  # --on-bot-error stop: a match a bot's fault ended
 
 
 def _best_of(header: dict) -> int:

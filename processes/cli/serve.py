@@ -31,7 +31,7 @@ def serve_command(args: argparse.Namespace) -> int:
     from processes.cli.common import bot_budget_s, with_players
     from processes.network.client.client import load_curve_key
     from processes.network.server.config import GatewayConfig
-    from processes.supervisor import Supervisor, WorkerFailed
+    from processes.supervisor import Supervisor, WorkerFailed, WorkerRefused
 
     try:
         for end, player in (("a", args.a), ("b", args.b)):
@@ -78,6 +78,8 @@ def serve_command(args: argparse.Namespace) -> int:
                 name = "SIGINT" if isinstance(stop, KeyboardInterrupt) else "SIGTERM"
                 _interrupted(args, stats_path, name)
                 return 130 if name == "SIGINT" else 143
+            except WorkerRefused:
+                raise  # the run's input refused before it started: one line, status 2, below
             except WorkerFailed as exc:
                 first = str(exc).splitlines()[0]
                 if args.json:

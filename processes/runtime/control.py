@@ -188,7 +188,9 @@ def worker_main(target, conn, layout: dict, status_index: int, scene, options) -
     except BaseException as exc:  # noqa: BLE001 - everything goes back to the supervisor
         control.set_state(WorkerState.FAILED)
         try:
-            control.send("error", {"type": type(exc).__name__, "message": str(exc), "traceback": traceback.format_exc()})
+            # a ValueError is the run's input refused (a bot's setup, a scene): the user reads its message
+            control.send("error", {"type": type(exc).__name__, "message": str(exc), "traceback": traceback.format_exc(),
+                                   "refused": isinstance(exc, ValueError)})
         except (OSError, BrokenPipeError):
             pass
     finally:

@@ -48,12 +48,14 @@ class Answerer:
     """The AI side of a turn: the AIs' decision from one state, as an ANSWER_DTYPE record.
 
     Args:
-        ais: engine.players.Players. n_bats: the scene's bats. names: each bat's player, for
-            the faults this process reports on its stderr.
+        ais: engine.players.Players. n_bats: the scene's bats. say_faults: write each fault
+            on stderr as it happens (a served match, whose operator sees no summary of them);
+            else the physics records it and the match's summary says it, once.
     """
 
-    def __init__(self, ais, n_bats: int):
+    def __init__(self, ais, n_bats: int, say_faults: bool = False):
         self.ais = ais
+        self.say_faults = say_faults
         self.snap = np.zeros(1, physics_snapshot_dtype(n_bats))
         self.ball_flat = self.snap["ball"].view("<f8")  # views into the snapshot copy: nothing else is copied
         self.bats = self.snap["bats"][0]
@@ -75,8 +77,9 @@ class Answerer:
         for player, fault, detail in faults:
             record["fault"][0][player] = FAULT_CODES[fault]
             record["fault_text"][0][player] = detail.encode("utf-8", "replace")[:FAULT_TEXT_BYTES]
-            print(f"pingpong ai worker: bot {self.ais[player].name} (player {'AB'[player]}) at tick {tick}: "
-                  f"{fault}: {detail}", file=sys.stderr, flush=True)
+            if self.say_faults:
+                print(f"pingpong ai worker: bot {self.ais[player].name} (player {'AB'[player]}) at tick {tick}: "
+                      f"{fault}: {detail}", file=sys.stderr, flush=True)
             self.faults += 1
         self.ctl[:] = self.ais.ctl
         record["turn"], record["tick"] = turn, tick
@@ -167,7 +170,7 @@ def ai_worker(control: Control, arena: Arena, scene, options: RunOptions) -> Non
     answers = arena["ai_answers"].array
     views = arena["ai_views"].array
     size = len(views)
-    answerer = Answerer(ais, len(scene.bats))
+    answerer = Answerer(ais, len(scene.bats), say_faults=options.gateway is not None)
     keeper = StateKeeper(arena, ais, answerer)
     crash_at = options.crash_at_tick
     ais.warm_up()

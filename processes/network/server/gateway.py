@@ -82,15 +82,12 @@ from processes.network.server.feed import NetFeed, feed_socket
 from processes.network.server.guard import FRAME_OVERHEAD_BYTES, ConnectionGuard
 from processes.network.server.pacing import SnapshotPacer
 from processes.network.server.seats import SeatStore
+from processes.network.server.sessions import CONFIRM_HEARTBEATS, Session, oldest_silent, retry_s
 from processes.network.wire import (MAX_BAD, MAX_FRAME_BYTES, NO_TOKEN, GoodbyeReason, InputMode, Kind, RejectReason,
                                     Role, Slot)
 
 MAX_STRANGERS_TOLD = 4096  # connections without a session told goodbye, remembered so each is told once
 MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messages
-# A session that sends nothing after its hello for this many heartbeat periods is told goodbye
-# (timeout) and holds no place. A live client answers its welcome at once (docs/protocol.md), so one
-# still silent a heartbeat period after its hello gives its place to a new hello that finds them full.
-CONFIRM_HEARTBEATS = 3
 SWEEPS_PER_HEARTBEAT = 10  # passes over every session (timeouts, heartbeats) per heartbeat period
 STATS_EVERY_S = 1.0  # the worker writes its counters to GatewayConfig.stats_path this often
 STOP_DRAIN_S = 0.2  # s after its goodbyes a stopping gateway still answers (a hello: reject shutting_down)
@@ -101,23 +98,6 @@ _HEARTBEAT_PREFIX = wire.MAGIC + struct.pack("<HBB", wire.PROTOCOL_VERSION, Kind
 _HEARTBEAT_SIZE = wire.SIZES[Kind.HEARTBEAT]
 _HELLO_PREFIX = wire.MAGIC + struct.pack("<HB", wire.PROTOCOL_VERSION, Kind.HELLO)
 _SEQ_TICK = struct.Struct("<Qq")
-
-
-@dataclass
-class _Session:
-    identity: bytes
-    role: Role
-    slot: Slot
-    name: str
-    last_seen: float
-    next_beat: float
-    seq_out: int = 0
-    seq_in: int = 0  # highest seq received
-    input_seq: int = 0  # seq of the last input accepted
-    bad: int = 0
-    snapshots_dropped: int = 0
-    confirmed: bool = False  # it sent a valid message after its hello: a live peer, not a bare hello
-    opened: float = 0.0
 
 
 @dataclass
@@ -157,7 +137,7 @@ class Gateway:
         self.clock = clock
         self.seats = {slot: _Seat(slot, slot in set(remote_slots)) for slot in (Slot.A, Slot.B)}
         self.seat_store = seat_store
-        self.sessions: dict[bytes, _Session] = {}
+        self.sessions: dict[bytes, Session] = {}
         self.counts: Counter[str] = Counter()
         self.drops = wire.DropCounter()
         self.tick = 0
@@ -262,7 +242,7 @@ class Gateway:
         os.replace(tmp, path)
 
     # --- sending -------------------------------------------------------------------------------
-    def _send(self, session: _Session, data: bytes, what: str) -> bool:
+    def _send(self, session: Session, data: bytes, what: str) -> bool:
         """One message to one peer, never blocking: a full pipe drops it (counted)."""
         session.seq_out += 1
         buf = bytearray(data)
@@ -295,7 +275,7 @@ class Gateway:
             data = wire.encode(Kind.REJECT, tick=self.tick, reason=reason, detail="")
         self._reply(identity, data)
 
-    def _welcome(self, session: _Session, token: bytes) -> None:
+    def _welcome(self, session: Session, token: bytes) -> None:
         config = self.config
         heartbeat_ms = max(1, int(config.heartbeat_s * 1000))
         self._send(session, wire.encode(
@@ -306,7 +286,7 @@ class Gateway:
         for data in self.net.latest if self.net is not None else ():  # on the session: the feed may not be up yet
             self._send(session, data, "nets")
 
-    def _goodbye(self, session: _Session, reason: GoodbyeReason) -> None:
+    def _goodbye(self, session: Session, reason: GoodbyeReason) -> None:
         self._send(session, wire.encode(Kind.GOODBYE, tick=self.tick, reason=reason), "goodbyes")
 
     # --- receiving -----------------------------------------------------------------------------
@@ -398,7 +378,7 @@ class Gateway:
         self.counts["goodbyes_to_strangers"] += 1
         self._reply(identity, wire.encode(Kind.GOODBYE, tick=self.tick, reason=GoodbyeReason.UNKNOWN_SESSION))
 
-    def _bad(self, session: _Session | None) -> None:
+    def _bad(self, session: Session | None) -> None:
         if session is None:
             return
         session.bad += 1
@@ -416,7 +396,7 @@ class Gateway:
             spectators = [s for s in self.sessions.values() if s.role == Role.SPECTATOR]
             if len(spectators) >= self.config.max_spectators and not self._evict_unconfirmed(spectators, now):
                 self._reject(identity, RejectReason.FULL, f"{len(spectators)} spectators already watch; "
-                             f"retry in {self._retry_s(spectators, now):g} s")
+                             f"retry in {retry_s(spectators, now, self.config.heartbeat_s, self.config.timeout_s):g} s")
                 return
             session = self._open(identity, Role.SPECTATOR, Slot.NONE, name, now, message.seq)
             self.counts["spectators_joined"] += 1
@@ -444,7 +424,7 @@ class Gateway:
                 detail = (f"seat {wanted.name} is played by the AI" if wanted != Slot.NONE and not self.seats[wanted].remote
                           else f"remote seats {'/'.join(remote) or 'none'} are taken")
                 if any(not h.confirmed for h in holders):  # a bare hello's seat is free again soon
-                    detail += f"; retry in {self._retry_s(holders, now):g} s"
+                    detail += f"; retry in {retry_s(holders, now, self.config.heartbeat_s, self.config.timeout_s):g} s"
                 self._reject(identity, RejectReason.FULL, detail)
                 return
             seat.token = secrets.token_bytes(wire.TOKEN_SIZE)
@@ -471,33 +451,25 @@ class Gateway:
                 return seat
         return None
 
-    def _evict_unconfirmed(self, holders: list[_Session], now: float) -> bool:
+    def _evict_unconfirmed(self, holders: list[Session], now: float) -> bool:
         """Make a place: the oldest of `holders` that has sent nothing in the heartbeat period
         since its hello is told goodbye (kicked) and its place freed (a player's seat and token
         too); False if none."""
-        waiting = [s for s in holders if not s.confirmed and now - s.opened > self.config.heartbeat_s]
-        if not waiting:
+        oldest = oldest_silent(holders, now, self.config.heartbeat_s)
+        if oldest is None:
             return False
-        oldest = min(waiting, key=lambda s: s.opened)
         self.counts["evicted.unconfirmed"] += 1
         self._goodbye(oldest, GoodbyeReason.KICKED)
         self._end(oldest, keep_seat=False)
         return True
 
-    def _retry_s(self, holders: list[_Session], now: float) -> float:
-        """When a place may be free again: the oldest unconfirmed holder's eviction, else the timeout."""
-        waiting = [s.opened for s in holders if not s.confirmed]
-        if not waiting:
-            return self.config.timeout_s
-        return round(max(0.1, min(waiting) + self.config.heartbeat_s - now), 1)
-
-    def _open(self, identity: bytes, role: Role, slot: Slot, name: str, now: float, seq: int) -> _Session:
-        session = _Session(identity, role, slot, name, last_seen=now, next_beat=now + self.config.heartbeat_s,
+    def _open(self, identity: bytes, role: Role, slot: Slot, name: str, now: float, seq: int) -> Session:
+        session = Session(identity, role, slot, name, last_seen=now, next_beat=now + self.config.heartbeat_s,
                            seq_in=seq, opened=now)
         self.sessions[identity] = session
         return session
 
-    def _end(self, session: _Session, keep_seat: bool) -> None:
+    def _end(self, session: Session, keep_seat: bool) -> None:
         """Close a session; a player's seat waits for its token (keep_seat) or is free at once."""
         self.sessions.pop(session.identity, None)
         if session.role != Role.PLAYER:
@@ -512,7 +484,7 @@ class Gateway:
             seat.token, seat.name, seat.grace_until = NO_TOKEN, "", 0.0
         self._save_seats()
 
-    def _input(self, session: _Session, message: wire.Message) -> None:
+    def _input(self, session: Session, message: wire.Message) -> None:
         if session.role != Role.PLAYER:
             self.counts["refused.spectator_input"] += 1
             self._bad(session)

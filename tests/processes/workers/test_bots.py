@@ -3,11 +3,14 @@ bot that fails (also one that never returns) costs the point, never the worker o
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from engine.dtypes import physics_snapshot_dtype
 from engine.match import Match, control_period, decision_delay, match_scene
 from engine.scene import load_scene
-from processes.supervisor import Supervisor, first_difference
+from processes.supervisor import Supervisor, WorkerRefused, first_difference
+from tests.helpers.commands import pingpong
+from tests.waits import DEADLINE_S
 from tests import bots
 
 BASE = load_scene("match_rigid")
@@ -74,3 +77,25 @@ def test_a_bot_stops_a_match_in_processes_when_told_to(no_leftovers):
     every = control_period(scene)
     assert result.ticks == (bots.FAIL_AT - 1) * every + decision_delay(scene)  # when the failed decision took effect
     assert result.workers["physics"]["stopped"].startswith(f"bot {bots.spec('NotANumber')} (player A) at tick")
+
+
+def test_a_bot_whose_setup_raises_is_refused_in_one_line_as_in_process(no_leftovers):
+    scene = match_scene(BASE, bots.spec("SetupFails"), "pro", best_of=1)
+    with pytest.raises(ValueError) as in_process:
+        Match(scene, seed=1)
+    with pytest.raises(WorkerRefused) as in_workers:
+        Supervisor(scene, TICKS, "lockstep", seed=1).run()
+    assert str(in_workers.value) == str(in_process.value)  # the same words, no worker traceback
+    assert "setup() raised RuntimeError: no table today" in str(in_workers.value)
+
+
+@pytest.mark.parametrize("in_process", [False, True])
+def test_a_match_a_bot_stopped_exits_non_zero_and_says_the_fault_once(in_process):
+    args = ["match", "--scene", "match_rigid", "--a", bots.spec("Raises"), "--b", "pro", "--ticks", str(TICKS),
+            "--on-bot-error", "stop", "--bot-budget-ms", "1000"] + (["--in-process"] if in_process else [])
+    run = pingpong(*args)
+    out, err = run.communicate(timeout=DEADLINE_S)
+    assert run.returncode == 1, err  # the match did not end: a script must see that
+    said = out + err
+    assert said.count("no idea what to do") == 1, said
+    assert "match stopped: bot" in out

@@ -5,7 +5,7 @@ place of the oldest such session silent for a heartbeat period; a full server sa
 A Gateway in this process (the rig fixture) with a clock the test sets. A "bare hello" is a
 client that sends its hello and never answers the welcome (Client.join answers it at once).
 """
-from processes.network.server.gateway import CONFIRM_HEARTBEATS
+from processes.network.server.sessions import CONFIRM_HEARTBEATS
 from processes.network.wire import GoodbyeReason, Kind, RejectReason, Slot
 
 
