@@ -51,7 +51,8 @@ def serve_command(args: argparse.Namespace) -> int:
         with tempfile.TemporaryDirectory(prefix="pingpong-serve-") as tmp:
             stats_path = os.path.join(tmp, "gateway.json")  # the counters of a gateway stopped by Ctrl-C
             config = GatewayConfig(bind=args.bind, snapshot_hz=args.snapshot_hz, timeout_s=args.timeout,
-                                   grace_s=args.grace, stats_path=stats_path, **curve)
+                                   grace_s=args.grace, stats_path=stats_path, coalesce_inputs=args.coalesce_inputs,
+                                   **curve)
             fault = _fault(args)
             supervisor = Supervisor(scene, ticks, "realtime", seed=args.seed, gateway=config,
                                     players_timeout=args.wait, restart_budget=args.restart_budget,
@@ -251,6 +252,9 @@ def add_commands(sub) -> None:
     serve.add_argument("--snapshot-hz", type=int, default=100, help="snapshots per second to every client")
     serve.add_argument("--timeout", type=float, default=5.0, help="s, a silent client is dropped after this")
     serve.add_argument("--grace", type=float, default=30.0, help="s, a dropped player's seat waits for its token")
+    serve.add_argument("--coalesce-inputs", action="store_true",
+                       help="of a player's inputs that arrive together, decode and apply only the newest (a flooding "
+                            "player then cannot slow the feed; the replaced ones are not validated)")
     serve.add_argument("--wait", type=float, default=PLAYERS_TIMEOUT_S, help="s, wait this long for every remote player before the first serve, then start anyway "
                             "(and play on when a seat empties)")
     serve.add_argument("--crash-gateway-at-tick", type=int, default=None, help=argparse.SUPPRESS)

@@ -14,7 +14,9 @@ def test_a_player_moves_only_its_own_bat_and_the_refusals_are_counted(rig):
     r.join(a)
     r.join(b)
     a.send_input([1.0, 2.0, 3.0, 0.1, 0.2, 0.3], tick=7)
+    r.settle(lambda: r.gateway.counts["inputs_accepted"] == 1)
     a.send_input([5.0, 0, 0, 0, 0, 0], tick=8, slot=Slot.B)  # the other player's bat
+    r.settle(lambda: r.gateway.counts["refused.other_bat"] == 1)
     a.send_input([6.0, 0, 0, 0, 0, 0], tick=9)
     watcher = r.client(role="spectator")
     r.join(watcher)
@@ -24,6 +26,21 @@ def test_a_player_moves_only_its_own_bat_and_the_refusals_are_counted(rig):
     assert [(bat, tick) for bat, _, tick, _ in r.posted] == [(0, 7), (0, 9)]  # bat 0 = A; nothing for B
     np.testing.assert_array_equal(r.posted[0][3], [1.0, 2.0, 3.0, 0.1, 0.2, 0.3])
     assert r.posted[1][1] > r.posted[0][1]  # the input's seq rides along, for the snapshot's echo
+
+
+def test_a_flood_of_inputs_posts_only_the_newest_of_those_that_arrived_together(rig):
+    r = rig(remote=(Slot.A,), coalesce_inputs=True)
+    a = r.client()
+    r.join(a)
+    sent = 300
+    for i in range(1, sent + 1):
+        a.send_input([float(i), 0, 0, 0, 0, 0], tick=i)
+    counts = r.gateway.counts
+    r.settle(lambda: counts["inputs_accepted"] + counts["inputs_coalesced"] == sent)  # each one posted or replaced
+    seqs = [seq for _, seq, _, _ in r.posted]
+    assert seqs == sorted(set(seqs))  # never an older input after a newer one
+    assert r.posted[-1][2] == sent and r.posted[-1][3][0] == float(sent)  # the newest one always acts
+    assert len(r.posted) == counts["inputs_accepted"] and counts["mailbox_full"] == 0
 
 
 def test_the_gateway_only_forwards_inputs_the_idle_arm_is_the_physics(rig):
