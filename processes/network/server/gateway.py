@@ -416,8 +416,9 @@ class Gateway:
         if message["role"] == Role.SPECTATOR:
             spectators = [s for s in self.sessions.values() if s.role == Role.SPECTATOR]
             if len(spectators) >= self.config.max_spectators and not self._evict_unconfirmed(spectators, now):
+                retry = retry_s(spectators, now, self.config.heartbeat_s) or self.config.timeout_s
                 self._reject(identity, RejectReason.FULL, f"{len(spectators)} spectators already watch; "
-                             f"retry in {retry_s(spectators, now, self.config.heartbeat_s, self.config.timeout_s):g} s")
+                             f"retry in {retry:g} s")
                 return
             session = self._open(identity, Role.SPECTATOR, Slot.NONE, name, now, message.seq)
             self.counts["spectators_joined"] += 1
@@ -444,8 +445,9 @@ class Gateway:
                 remote = [s.slot.name for s in self.seats.values() if s.remote]
                 detail = (f"seat {wanted.name} is played by the AI" if wanted != Slot.NONE and not self.seats[wanted].remote
                           else f"remote seats {'/'.join(remote) or 'none'} are taken")
-                if any(not h.confirmed for h in holders):  # a bare hello's seat is free again soon
-                    detail += f"; retry in {retry_s(holders, now, self.config.heartbeat_s, self.config.timeout_s):g} s"
+                retry = retry_s(holders, now, self.config.heartbeat_s)
+                if retry is not None:  # a bare hello's seat is free again soon
+                    detail += f"; retry in {retry:g} s"
                 self._reject(identity, RejectReason.FULL, detail)
                 return
             seat.token = secrets.token_bytes(wire.TOKEN_SIZE)

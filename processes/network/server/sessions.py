@@ -39,9 +39,10 @@ def oldest_silent(holders: list[Session], now: float, heartbeat_s: float) -> Ses
     return min(silent, key=lambda s: s.opened) if silent else None
 
 
-def retry_s(holders: list[Session], now: float, heartbeat_s: float, timeout_s: float) -> float:
-    """s until one of `holders`' places may be free: the oldest silent one's, else the timeout."""
+def retry_s(holders: list[Session], now: float, heartbeat_s: float) -> float | None:
+    """s until the place of the oldest of `holders` silent since its hello may be taken (at
+    least 0.1 s), None if every holder has answered its welcome."""
     waiting = [s.opened for s in holders if not s.confirmed]
     if not waiting:
-        return timeout_s
+        return None
     return round(max(0.1, min(waiting) + heartbeat_s - now), 1)
