@@ -1,6 +1,6 @@
 """`python -m processes` is `pingpong`."""
 import sys
 
-from processes.cli import main
+from processes import main
 
 sys.exit(main())

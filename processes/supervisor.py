@@ -8,7 +8,8 @@ be restarted RESTART_BUDGET times within RESTART_WINDOW_S; one more failure with
 ends the run with WorkerFailed, and a served match's clients are told goodbye server_error.
 
 Cleanup holds on every exit path: normal end, an exception, Ctrl-C (KeyboardInterrupt) or
-SIGTERM (turned into SystemExit), a worker's crash. Workers get a stop command, then a bounded
+SIGTERM (turned into SystemExit), a worker's crash, and any number of further signals during
+it (runtime.stops.StopSignals). Workers get a stop command, then a bounded
 join, then terminate, then kill; every segment of the run is unlinked. Should the supervisor
 itself be SIGKILLed, its workers notice their parent is gone within a heartbeat and exit, and
 the multiprocessing resource tracker unlinks the segments.
@@ -18,7 +19,6 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import multiprocessing.connection
-import signal
 import time
 from dataclasses import dataclass, field, replace
 
@@ -30,6 +30,7 @@ from engine.scene import Scene
 from processes.network.server.config import GatewayConfig
 from processes.runtime.control import READY_TIMEOUT_S, STARTUP_LIMIT_S, WorkerState, worker_main
 from processes.runtime.shm import Arena
+from processes.runtime.stops import StopSignals
 from processes.workers import (PLAYERS_TIMEOUT_S, RunLayout, RunOptions, build_layout, worker_modules, worker_target,
                                workers_for)
 from processes.workers.layout import EVENT_LOG_CAPACITY
@@ -282,12 +283,13 @@ class Supervisor:
     def run(self, progress=None, on_ready=None) -> ProcessRunResult:
         """Run to the end; `progress(snapshot_record)` is called about four times a second;
         `on_ready({kind: ready report})` once every worker is ready (the gateway's endpoint)."""
-        previous_term = signal.signal(signal.SIGTERM, _exit_on_sigterm)
+        stops = StopSignals().install()
         started = time.monotonic()
-        self.layout = build_layout(self.scene, self.kinds, self.ticks, self.trace, self.frame_every, self._ctx)
-        self.arena = self.layout.arena
         end = "shutdown"  # what the workers are told as they stop (the gateway's goodbye)
         try:
+            self.layout = build_layout(self.scene, self.kinds, self.ticks, self.trace, self.frame_every, self._ctx)
+            self.arena = self.layout.arena
+            stops.arm()  # a stop signal that came while the segments were being made raises here
             self._workers = [_Worker(kind, i) for i, kind in enumerate(self.kinds)]
             for worker in self._workers:
                 self._start(worker)
@@ -306,11 +308,13 @@ class Supervisor:
             end = "error"  # not Ctrl-C or SIGTERM: the run failed
             raise
         finally:
-            self.layout.stop_turns()  # an AI or net worker waiting for its turn exits at once
-            for worker in self._workers:
-                self._reap(worker, end)
-            self.layout.close()
-            signal.signal(signal.SIGTERM, previous_term)
+            stops.shield()  # more signals cannot cut the stop short
+            if self.layout is not None:
+                self.layout.stop_turns()  # an AI or net worker waiting for its turn exits at once
+                for worker in self._workers:
+                    self._reap(worker, end)
+                self.layout.close()
+            stops.restore()
 
     def raised(self) -> dict[str, int]:
         """Per worker kind, the exceptions its workers shipped back so far (each restarted it)."""
@@ -361,10 +365,6 @@ class Supervisor:
         return ProcessRunResult(scene=self.scene, mode=self.mode, ticks=ticks, wall_seconds=wall,
                                 startup_seconds=startup, final=final[0], events=events, events_total=total,
                                 workers=workers, trace=trace, points=points, frames=frames)
-
-
-def _exit_on_sigterm(signum, frame):
-    raise SystemExit(128 + signum)
 
 
 def first_difference(a: np.ndarray, b: np.ndarray) -> int | None:

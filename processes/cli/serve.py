@@ -71,11 +71,12 @@ def serve_command(args: argparse.Namespace) -> int:
                     bridges.append(_web_bridge(endpoint, args))
 
             # A shell starts a background job with SIGINT ignored: listen to it all the same
-            # (Supervisor.run turns SIGTERM into SystemExit(143)).
+            # (Supervisor.run turns SIGTERM into SystemExit(143), SIGINT into KeyboardInterrupt).
             signal.signal(signal.SIGINT, signal.default_int_handler)
             try:
                 result = supervisor.run(on_ready=ready)
             except (KeyboardInterrupt, SystemExit) as stop:
+                _ignore_stop_signals()  # stopping: a second Ctrl-C or kill must not lose the counters
                 name = "SIGINT" if isinstance(stop, KeyboardInterrupt) else "SIGTERM"
                 _interrupted(args, stats_path, name)
                 return 130 if name == "SIGINT" else 143
@@ -89,6 +90,7 @@ def serve_command(args: argparse.Namespace) -> int:
                       file=sys.stderr)
                 return 1
             finally:
+                _ignore_stop_signals()
                 for bridge in bridges:
                     _stop_process(bridge)
     except (SceneError, SimulationError, ValueError) as exc:
@@ -104,6 +106,15 @@ def serve_command(args: argparse.Namespace) -> int:
         print(f"{'winner: ' + winner.upper() if winner else 'no winner'}  games: {games}  ticks {summary['ticks']}")
         print("gateway: " + ", ".join(f"{k} {v}" for k, v in summary["gateway"].items()))
     return 0
+
+
+def _ignore_stop_signals() -> None:
+    """From the end of the run to the exit: what is left (the bridges' stop, the counters
+    printed) is bounded, and a signal would only cut it short."""
+    import signal
+
+    for signum in (signal.SIGTERM, signal.SIGINT):
+        signal.signal(signum, signal.SIG_IGN)
 
 
 def _fault(args: argparse.Namespace) -> dict:
@@ -252,9 +263,9 @@ def add_commands(sub) -> None:
     serve.add_argument("--snapshot-hz", type=int, default=100, help="snapshots per second to every client")
     serve.add_argument("--timeout", type=float, default=5.0, help="s, a silent client is dropped after this")
     serve.add_argument("--grace", type=float, default=30.0, help="s, a dropped player's seat waits for its token")
-    serve.add_argument("--coalesce-inputs", action="store_true",
-                       help="of a player's inputs that arrive together, decode and apply only the newest (a flooding "
-                            "player then cannot slow the feed; the replaced ones are not validated)")
+    serve.add_argument("--no-coalesce-inputs", dest="coalesce_inputs", action="store_false",
+                       help="decode and post every input of a player (default: of a player's inputs that arrive "
+                            "together only the newest, so a flooding player cannot slow the feed)")
     serve.add_argument("--wait", type=float, default=PLAYERS_TIMEOUT_S, help="s, wait this long for every remote player before the first serve, then start anyway "
                             "(and play on when a seat empties)")
     serve.add_argument("--crash-gateway-at-tick", type=int, default=None, help=argparse.SUPPRESS)

@@ -78,6 +78,47 @@ def test_serve_in_the_background_stops_cleanly_on_sigint_and_sigterm(served, zct
     assert not shm.leftover_segments(hello["run_id"])
 
 
+def test_signals_again_and_again_while_it_stops_lose_nothing(served, zctx):
+    # A second Ctrl-C or kill while the workers are being stopped used to cut the stop short:
+    # BufferError tracebacks, segments left for the resource tracker, the counters lost. Here
+    # SIGTERM and SIGINT come one after another until the server has exited.
+    server = pingpong("serve", "--players", "0", "--ticks", "600000", "--json")
+    served.append(server)
+    hello = json.loads(line(server, "the server's listening line"))
+    watcher = Client(hello["listening"], "spectator", "sp", zctx=zctx)
+    barrage = [signal.SIGTERM, signal.SIGINT]
+    sent = 0
+    try:
+        watcher.join(DEADLINE_S)
+        workers = descendants(server.pid)
+        goodbye, deadline = None, Deadline()
+        while goodbye is None and server.poll() is None and not deadline.expired():
+            os.kill(server.pid, barrage[sent % 2])
+            sent += 1
+            watcher.heartbeat_if_due()
+            message = watcher.recv(5)
+            if message is not None and message.kind == Kind.GOODBYE:
+                goodbye = message
+        while server.poll() is None and not deadline.expired():  # and on, until it is gone
+            os.kill(server.pid, barrage[sent % 2])
+            sent += 1
+            try:
+                server.wait(0.005)
+            except subprocess.TimeoutExpired:
+                pass
+    finally:
+        watcher.close()
+    code = server.wait(DEADLINE_S)
+    summary = json.loads(rest(server, "the server's summary").strip().splitlines()[-1])
+    errors = server.stderr.read()
+    assert sent >= 2 and goodbye is not None and goodbye["reason"] == GoodbyeReason.SHUTDOWN
+    assert (summary["signal"], code) in (("SIGTERM", 143), ("SIGINT", 130))  # the first one taken
+    assert summary["gateway"]["goodbyes_at_end"] == 1 and summary["gateway"]["end"] == "shutdown"
+    assert "Traceback" not in errors and "leaked" not in errors, errors
+    assert await_gone(workers) == []
+    assert not shm.leftover_segments(hello["run_id"])
+
+
 def test_a_killed_gateway_is_restarted_on_the_same_endpoint_and_the_token_reclaims_the_seat(served, zctx):
     server = pingpong("serve", "--players", "1", "--ticks", "6000", "--crash-gateway-at-tick", "500", "--json")
     served.append(server)
