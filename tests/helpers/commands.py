@@ -18,7 +18,7 @@ def ctrl_c_able(*args: str) -> list[str]:
     jobs that way, so under `nohup make test &` every child ignored Ctrl-C and the Ctrl-C tests
     failed); a test of what Ctrl-C does must not inherit that."""
     return [sys.executable, "-c", "import signal, sys; signal.signal(signal.SIGINT, signal.default_int_handler); "
-            "from processes.cli import main; sys.exit(main(sys.argv[1:]))", *args]
+            "from processes import main; sys.exit(main(sys.argv[1:]))", *args]
 
 
 def pingpong(*args) -> subprocess.Popen:

@@ -37,10 +37,12 @@ class GatewayConfig:
     unfinished multipart message) before the gateway cuts it (processes.network.server.guard);
     at least ROUTER_RCVHWM whole messages. max_connections: connections kept open at once, a
     later one is cut at once; 0: twice the places (max_spectators and the two seats) and
-    PENDING_CONNECTIONS more. coalesce_inputs: of one player's inputs received in one poll,
-    only the newest is decoded and posted (an input holds until the next, so the others could
-    not act); the rest are counted inputs_coalesced, unvalidated, so a malformed one among
-    them is not counted as malformed. Off: every input is decoded, validated and posted.
+    PENDING_CONNECTIONS more. coalesce_inputs: of one player's valid inputs received in one
+    poll only the newest is decoded and posted (the physics applies the newest input it drains
+    before a tick, and an input holds until the next, so the others could not act); the rest
+    are checked in one vectorised pass and counted inputs_coalesced; every other count
+    (malformed, refused, stale) is what it would be without. Off: every input is decoded and
+    posted, one by one (kept to measure against).
     """
 
     bind: str = "tcp://127.0.0.1:0"
@@ -60,7 +62,7 @@ class GatewayConfig:
     pause_for_players: bool = True
     max_held_bytes: int = 256 * 1024
     max_connections: int = 0
-    coalesce_inputs: bool = False
+    coalesce_inputs: bool = True
 
     def __post_init__(self):
         least = ROUTER_RCVHWM * MESSAGE_HELD_BYTES

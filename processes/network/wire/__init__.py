@@ -46,7 +46,7 @@ are only drawn, never predicted from (wire.Net says why 0.01 mm steps are harmle
 from processes.network.wire.checks import (QUAT_TOL, REASON_CODES, WIRE_ERRORS, BadEnum, BadFlags, BadMagic, BadText,
                                            BadVersion, NonFinite, OutOfRange, TooLong, TooShort, UnknownType,
                                            WireError)
-from processes.network.wire.codec import DropCounter, Message, decode, encode, snapshot_from_physics
+from processes.network.wire.codec import DropCounter, Message, decode, encode, own_force_inputs, snapshot_from_physics
 from processes.network.wire.knots import net_knots, net_messages, net_rest
 from processes.network.wire.messages import (DEFAULT_GRACE_S, DEFAULT_HEARTBEAT_S, DEFAULT_MAX_SPECTATORS,
                                              DEFAULT_SNAPSHOT_HZ, DEFAULT_SNDHWM, DEFAULT_TIMEOUT_S, DETAIL_SIZE,
@@ -70,5 +70,5 @@ __all__ = [
     "NET_MAX_OFFSET", "NET_MAX_SIDE", "NET_STEP_M", "NO_TOKEN", "Net", "NonFinite", "OutOfRange", "PROTOCOL_VERSION",
     "QUAT_TOL", "REASON_CODES", "Reject", "RejectReason", "Role", "SERVER_SILENCE_BEATS", "SIZES", "SPECS", "Slot",
     "Snapshot", "TOKEN_SIZE", "TooLong", "TooShort", "UnknownType", "WIRE_ERRORS", "Welcome", "WireError", "decode",
-    "encode", "net_knots", "net_messages", "net_rest", "snapshot_from_physics"
+    "encode", "net_knots", "net_messages", "net_rest", "own_force_inputs", "snapshot_from_physics"
 ]

@@ -4,8 +4,9 @@ A Gateway in this process (the rig fixture) on 127.0.0.1; every wait bounded by 
 """
 import numpy as np
 
+from processes.network import wire
 from processes.network.server.gateway import Gateway
-from processes.network.wire import Slot
+from processes.network.wire import MAX_BAD, InputMode, Kind, Slot
 
 
 def test_a_player_moves_only_its_own_bat_and_the_refusals_are_counted(rig):
@@ -29,7 +30,7 @@ def test_a_player_moves_only_its_own_bat_and_the_refusals_are_counted(rig):
 
 
 def test_a_flood_of_inputs_posts_only_the_newest_of_those_that_arrived_together(rig):
-    r = rig(remote=(Slot.A,), coalesce_inputs=True)
+    r = rig(remote=(Slot.A,))  # coalescing is the default
     a = r.client()
     r.join(a)
     sent = 300
@@ -41,6 +42,61 @@ def test_a_flood_of_inputs_posts_only_the_newest_of_those_that_arrived_together(
     assert seqs == sorted(set(seqs))  # never an older input after a newer one
     assert r.posted[-1][2] == sent and r.posted[-1][3][0] == float(sent)  # the newest one always acts
     assert len(r.posted) == counts["inputs_accepted"] and counts["mailbox_full"] == 0
+
+
+def _input(seq, force=1.0, slot=Slot.A, mode=InputMode.FORCE, target=(0.0, 0.0, 0.0)):
+    force_field = (force, 0.0, 0.0) if mode == InputMode.FORCE else (0.0, 0.0, 0.0)
+    quat = (0.0, 0.0, 0.0, 0.0) if mode == InputMode.FORCE else (1.0, 0.0, 0.0, 0.0)
+    return wire.encode(Kind.INPUT, seq=seq, tick=seq, slot=slot, mode=mode, force=force_field, torque=(0.0, 0.0, 0.0),
+                       target_pos=target, target_quat=quat)
+
+
+def _mixed_inputs(bad_runs):
+    """Valid inputs with, between runs of them, every kind of input the gateway drops or refuses."""
+    nan = bytearray(_input(0))
+    nan[26:34] = np.float64("nan").tobytes()
+    huge = bytearray(_input(0))
+    huge[26:34] = np.float64(501.0).tobytes()
+    bad = [bytes(nan), bytes(huge), _input(0, slot=Slot.B), _input(0, mode=InputMode.TARGET),
+           _input(0)[:-1]]
+    messages, seq = [], 0
+    for run in range(bad_runs):
+        for _ in range(3):
+            seq += 1
+            messages.append(_input(seq, force=float(seq)))
+        messages.append(_input(seq - 1))  # a stale one: replayed
+        messages.append(bad[run % len(bad)])
+    messages.append(_input(seq + 1, force=float(seq + 1)))
+    return messages
+
+
+def test_coalesced_inputs_are_counted_and_refused_exactly_as_one_by_one(rig):
+    # Every message arrives in one read (handle_inputs is what a poll calls with them): drops,
+    # refusals, stale replays and the kick come out as they do when each is handled alone, and
+    # of each run of valid inputs only the newest is posted, the inputs before a bad one first.
+    outcomes = []
+    for bad_runs in (12, MAX_BAD + 2):  # the second kicks the session part-way through
+        messages = _mixed_inputs(bad_runs)
+        for together in (False, True):
+            r = rig(remote=(Slot.A,))
+            r.join(r.client())
+            identity = next(iter(r.gateway.sessions))
+            if together:
+                r.gateway.handle_inputs([[identity, data] for data in messages])
+            else:
+                for data in messages:
+                    r.gateway.handle([identity, data])
+            counts = dict(r.gateway.counts)
+            posted = [seq for _, seq, _, _ in r.posted]
+            outcomes.append((counts.pop("inputs_accepted", 0) + counts.pop("inputs_coalesced", 0), counts,
+                             dict(r.gateway.drops.by_reason), posted))
+            r.close()
+    for alone, together in (outcomes[0:2], outcomes[2:4]):
+        assert together[:3] == alone[:3]  # accepted (posted or replaced), every other count, every drop reason
+        assert set(together[3]) <= set(alone[3]) and together[3] == sorted(together[3])
+    assert outcomes[0][3][-1] == outcomes[1][3][-1]  # the newest acts
+    assert outcomes[2][1]["kicked"] == outcomes[3][1]["kicked"] == 1
+    assert len(outcomes[1][3]) == 12 + 1  # one per run of valid inputs (12 runs and the last one)
 
 
 def test_the_gateway_only_forwards_inputs_the_idle_arm_is_the_physics(rig):

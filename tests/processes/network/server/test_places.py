@@ -72,3 +72,19 @@ def test_a_session_that_answered_its_welcome_is_never_timed_out_early(rig):
     for _ in range(20):
         r.step()
     assert len(r.gateway.sessions) == 1 and r.gateway.counts["timeouts.unconfirmed"] == 0
+
+
+def test_hellos_sent_again_in_a_session_keep_no_place(rig):
+    # A hoarder that says hello again on its session every half heartbeat instead of answering:
+    # each one is refused (hello_in_session) and is no sign of life, so it is timed out as a
+    # session that never answered its welcome.
+    r = rig(heartbeat_s=1.0, timeout_s=5.0)
+    hoarder = _bare_hello(r, role="spectator", name="h")
+    for _ in range(2 * CONFIRM_HEARTBEATS + 1):
+        r.clock.now += 0.5
+        hoarder.hello()
+        r.step()
+    goodbye = r.until(hoarder, lambda m: m.kind == Kind.GOODBYE)
+    assert goodbye["reason"] == GoodbyeReason.TIMEOUT
+    assert r.gateway.counts["timeouts.unconfirmed"] == 1
+    assert r.gateway.counts["dropped.hello_in_session"] >= 1

@@ -332,6 +332,61 @@ def test_printable_names_round_trip(name):
     assert decode(encode(Kind.HELLO, **{**hello, "name": name}))["name"] == name
 
 
+def _own_force_input(data: bytes, slot: Slot) -> bool:
+    try:
+        message = decode(data)
+    except WireError:
+        return False
+    return message.kind == Kind.INPUT and message["slot"] == slot and message["mode"] == InputMode.FORCE
+
+
+@st.composite
+def _mutated_input(draw):
+    fields = {"slot": draw(st.sampled_from([Slot.A, Slot.B])), "mode": InputMode.FORCE,
+              "force": [draw(_force) for _ in range(3)],
+              "torque": [draw(_torque) for _ in range(3)],
+              "target_pos": (0, 0, 0), "target_quat": (0, 0, 0, 0)}
+    data = bytearray(encode(Kind.INPUT, seq=draw(st.integers(0, 2**64 - 1)), tick=draw(st.integers(0, 2**62)),
+                            **fields))
+    for _ in range(draw(st.integers(0, 3))):
+        if len(data) < wire.SIZES[Kind.INPUT]:  # cut short: decode refuses it whatever follows
+            break
+        what = draw(st.sampled_from(["set", "flip", "float", "limit", "cut"]))
+        if what == "set":
+            data[draw(st.integers(0, len(data) - 1))] = draw(st.integers(0, 255))
+        elif what == "flip":
+            data[draw(st.integers(0, len(data) - 1))] ^= 1 << draw(st.integers(0, 7))
+        elif what == "float":  # NaN, inf, huge, tiny, anywhere in the body
+            at = draw(st.integers(24, len(data) - 8))
+            data[at:at + 8] = np.float64(draw(st.floats(allow_nan=True, allow_infinity=True))).tobytes()
+        elif what == "limit":  # a force or torque component on its limit, give or take an ulp
+            at = draw(st.sampled_from([26, 34, 42, 50, 58, 66]))
+            limit = wire.MAX_FORCE_N if at < 50 else wire.MAX_TORQUE_NM
+            value = np.nextafter(limit, draw(st.sampled_from([0.0, np.inf]))) if draw(st.booleans()) else limit
+            data[at:at + 8] = np.float64(value * draw(st.sampled_from([1, -1]))).tobytes()
+        else:
+            del data[draw(st.integers(0, len(data) - 1)):]
+    return bytes(data)
+
+
+@settings(deadline=None, max_examples=300, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(_mutated_input(), min_size=1, max_size=12), st.sampled_from([Slot.A, Slot.B]))
+def test_the_batch_input_check_passes_only_what_decode_accepts_as_the_bats_force_input(batch, slot):
+    # the gateway's coalescing relies on it: a message it passes is counted as a replaced input,
+    # never decoded, so it must never pass what decode refuses
+    passed = wire.own_force_inputs(batch, slot)
+    accepted = [_own_force_input(data, slot) for data in batch]
+    assert all(a for p, a in zip(passed, accepted) if p)
+    # and it passes every ordinary valid input (only a norm within 1e-9 of its limit is left to decode)
+    assert all(p for p, a, data in zip(passed, accepted, batch) if a and not _near_a_limit(data))
+
+
+def _near_a_limit(data: bytes) -> bool:
+    message = decode(data)
+    return (abs(np.linalg.norm(message["force"]) - wire.MAX_FORCE_N) < 1e-6
+            or abs(np.linalg.norm(message["torque"]) - wire.MAX_TORQUE_NM) < 1e-6)
+
+
 # --- helpers for the gateway -------------------------------------------------------------------------------
 def test_drop_counter_counts_by_reason():
     drops = DropCounter()
