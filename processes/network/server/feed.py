@@ -1,8 +1,9 @@
 """The gateway's feed: its PUB socket, and which states of a cloth net go out on it (NetFeed).
 
 What every spectator gets goes out once on the feed (processes.network.server.gateway explains why);
-since protocol 3 that includes a cloth net's knots (wire.Net), at most NET_HZ times a second
-while the net moves, once when it falls asleep, and its latest state on each new session.
+since protocol 3 that includes a cloth net's knots (wire.Net), after a snapshot at most NET_HZ
+times a second of match time while the net moves, once when it falls asleep, and its latest
+state on each new session.
 """
 from __future__ import annotations
 
@@ -51,9 +52,16 @@ def feed_socket(zctx, config, endpoint: str, own_io_thread: bool, max_frame_byte
 class NetFeed:
     """Which states of the scene's cloth net become net messages, and when.
 
+    Net messages follow the snapshots, on the match clock: after a snapshot goes out, the net's
+    state at that snapshot's tick is due if 1/min(NET_HZ, snapshot_hz) s of match time (a grid of
+    ticks) have passed since the last one was due. So they never come more often than snapshots,
+    also when the match runs slower than realtime, and a newcomer's latest net state has the
+    tick of the newest snapshot while the net moves (a net paced by the wall clock outnumbered
+    the snapshots of a slowed match, and lagged them).
+
     Args:
         grid: (cols, rows, width m, height m) of the cloth net (scene.cloth).
-        snapshot_hz: the gateway's snapshot rate: net messages never come more often.
+        snapshot_hz: the gateway's snapshot rate. dt: s, the tick.
 
     Attributes:
         latest: the messages of the state sent last, for each new session after its welcome.
@@ -61,27 +69,36 @@ class NetFeed:
             net_unencodable (a grid the wire cannot carry: no net message at all, viewers draw a panel).
     """
 
-    def __init__(self, grid: tuple[int, int, float, float], snapshot_hz: int):
+    def __init__(self, grid: tuple[int, int, float, float], snapshot_hz: int, dt: float):
         self.grid: tuple | None = grid
-        self.every_s = 1.0 / min(NET_HZ, snapshot_hz)
-        self.next_at = 0.0
+        self.every_ticks = max(1, round(1.0 / min(NET_HZ, snapshot_hz) / dt))
+        self.next_tick = 0  # the next state due is that of the first snapshot from this tick on
+        self.wanted: int | None = None  # the tick of a snapshot sent whose net state is due
         self.tick: int | None = None  # the tick of the state sent last
         self.asleep = False  # the state sent last was asleep: the net is frozen, nothing more to send
         self.latest: list[bytes] = []
         self.counts: Counter[str] = Counter()
 
-    def due(self, now: float) -> bool:
-        """Is a net message due at `now` (s)? A caller reads the net's state only then."""
-        return self.grid is not None and now >= self.next_at
+    def snapshot_sent(self, tick: int) -> None:
+        """A snapshot of `tick` went out: the net's state at that tick becomes due if its time has
+        come (on the grid of every_ticks; from `tick` on after a clock that jumped back or ahead)."""
+        went_back = tick < self.next_tick - self.every_ticks  # before the last one due: a restarted physics
+        if self.grid is None or (tick < self.next_tick and not went_back):
+            return
+        on_grid = not went_back and tick < self.next_tick + self.every_ticks
+        self.next_tick = (self.next_tick if on_grid else tick) + self.every_ticks
+        self.wanted = tick
 
-    def update(self, tick: int, asleep: bool, knot_pos, now: float) -> list[bytes]:
+    def due(self) -> bool:
+        """Is the net's state due (a caller reads it only then)?"""
+        return self.wanted is not None
+
+    def update(self, tick: int, asleep: bool, knot_pos) -> list[bytes]:
         """The messages to send of the net's state at `tick` (knot_pos (cols * rows, 3) m): those
         of a new state while the net is awake, or of the first state asleep; [] otherwise."""
+        self.wanted = None
         if self.grid is None or tick == self.tick or (asleep and self.asleep):
             return []
-        # on a fixed grid while on time; late by a period or more (a net that slept): from now on
-        late = now - self.next_at >= self.every_s
-        self.next_at = (now if late else self.next_at) + self.every_s
         cols, rows, width, height = self.grid
         try:
             messages, clamped = wire.net_messages(knot_pos, cols=cols, rows=rows, width=width, height=height,

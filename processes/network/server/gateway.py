@@ -149,7 +149,7 @@ class Gateway:
         self._games_seen = (0, 0)
         self._match_sent = False
         self._strangers_told: set[bytes] = set()
-        self.net = NetFeed(net_grid, config.snapshot_hz) if net_grid is not None else None
+        self.net = NetFeed(net_grid, config.snapshot_hz, dt) if net_grid is not None else None
         # one snapshot per 1/snapshot_hz of match time (and at most snapshot_hz a wall second)
         self.pacer = SnapshotPacer(config.snapshot_hz, dt)
         self.lock = threading.Lock()  # with start_heartbeats: held around every other call
@@ -618,11 +618,12 @@ class Gateway:
             self._sweeper = None
 
     def net_due(self) -> bool:
-        return self.net is not None and self.net.due(self.clock())
+        """Is the cloth net's state at the newest snapshot's tick due (NetFeed)?"""
+        return self.net is not None and self.net.due()
 
     def service_net(self, tick: int, asleep: bool, knot_pos) -> None:
         """The cloth net's state at `tick` to every client, if NetFeed takes it."""
-        for data in self.net.update(tick, asleep, knot_pos, self.clock()):
+        for data in self.net.update(tick, asleep, knot_pos):
             self._broadcast(data, "nets")
 
     def _heartbeat(self, ack: int) -> bytes:
@@ -642,6 +643,8 @@ class Gateway:
             self.counts[f"snapshots_unencodable.{err.reason}"] += 1
             return
         self._broadcast(data, "snapshots")
+        if self.net is not None:
+            self.net.snapshot_sent(int(record["world"]["tick"]))
 
     def _broadcast(self, data: bytes, what: str) -> None:
         """To every session, or with a feed: once on the feed (spectators) and to each player."""

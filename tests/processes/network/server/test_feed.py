@@ -12,6 +12,8 @@ import time
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from engine.scene import load_scene
 from net_kernel import NetSim, build_topology
@@ -80,27 +82,69 @@ def test_a_spectator_gets_the_net_workers_knots_while_the_net_is_awake_and_once_
 
 
 def test_the_gateway_sends_a_moving_net_at_its_rate_a_sleeping_one_once_and_the_latest_to_a_newcomer(rig):
-    """In-process: a Gateway with a 4 x 2 net (one message a state) and 100 Hz snapshots, so a
-    net message at most every 1 / 60 s; the knots of the first state come to a spectator who
-    joins after it, on its session, right after its welcome."""
+    """In-process: a Gateway with a 4 x 2 net (one message a state), 100 Hz snapshots and 1 ms
+    ticks: a net state is due after a snapshot, on a grid of 17 ticks (1 / 60 s of match time),
+    whatever the wall clock does; the knots of the last state come to a spectator who joins
+    after it, on its session, right after its welcome."""
     rig = rig(snapshot_hz=100)
     gateway = rig.gateway
-    gateway.net = NetFeed((4, 2, 1.0, 0.2), gateway.config.snapshot_hz)
+    gateway.net = NetFeed((4, 2, 1.0, 0.2), gateway.config.snapshot_hz, 0.001)
     knots = wire.net_rest(4, 2, 1.0, 0.2)
     knots[5, 0] = 0.01
+    assert not gateway.net_due()  # nothing before a snapshot
+    snapshot_ticks = []
+
+    def snapshot(tick):
+        rig.record["world"]["tick"] = tick
+        gateway.broadcast_snapshot(rig.record)
+        snapshot_ticks.append(tick)
+
+    snapshot(10)
     assert gateway.net_due()
     gateway.service_net(10, False, knots)
-    assert gateway.counts["nets_published"] == 1 and not gateway.net_due()  # the next one in 1 / 60 s
-    gateway.service_net(10, False, knots)  # the same state again: nothing
-    rig.clock.now += 1.0 / 60.0
-    gateway.service_net(20, True, knots)  # it fell asleep: once
-    rig.clock.now += 1.0 / 60.0
-    gateway.service_net(30, True, knots)  # asleep still: nothing more
-    assert gateway.counts["nets_published"] == 2
+    assert gateway.counts["nets_published"] == 1 and not gateway.net_due()
+    snapshot(16)  # the grid of 17 ticks: the next one is due from tick 17
+    assert not gateway.net_due()
+    rig.clock.now += 10.0  # the wall clock says nothing: a slow match's net waits for its ticks
+    snapshot(16)  # a paused match: its standing tick again
+    assert not gateway.net_due()
+    snapshot(27)
+    assert gateway.net_due()
+    gateway.service_net(27, True, knots)  # it fell asleep: once
+    snapshot(34)
+    gateway.service_net(34, True, knots)  # asleep still: nothing more
+    assert gateway.counts["nets_published"] == 2 <= len(snapshot_ticks)
     spectator = rig.client("spectator")
     rig.join(spectator)
     message = rig.until(spectator, lambda m: m.kind == Kind.NET)
-    assert message.tick == 20 and message["asleep"] == 1
+    assert message.tick == 27 and message["asleep"] == 1
     got = np.zeros_like(knots)
     wire.net_knots(message, got)
     np.testing.assert_allclose(got, knots, rtol=0, atol=wire.NET_STEP_M / 2 + 1e-12)  # rounding to a step
+
+
+@settings(deadline=None, max_examples=300)
+@given(st.lists(st.integers(0, 40), min_size=1, max_size=200), st.sampled_from([1, 4, 17]))
+def test_net_states_are_due_at_most_once_a_snapshot_and_once_a_period_of_ticks(steps, every):
+    # ticks as snapshots bring them: forward by 0..40 ticks (0: a standing clock), and once in
+    # a while back to 0 (a restarted physics starts again from its last snapshot, earlier)
+    feed = NetFeed((4, 2, 1.0, 0.2), 60, 1.0 / 60 / every)
+    assert feed.every_ticks == every
+    tick, due = 0, []
+    for i, step in enumerate(steps):
+        tick = 0 if step == 40 else tick + step
+        feed.snapshot_sent(tick)
+        if feed.due():
+            due.append(tick)
+            feed.update(tick, False, wire.net_rest(4, 2, 1.0, 0.2))
+    assert len(due) <= len(steps)  # never more than the snapshots
+    runs, run = [], []  # the due ticks between two times the clock went back
+    for tick in due:
+        if run and tick <= run[-1]:
+            assert tick < run[-1] - every or tick == 0  # a state again only after the clock went back
+            runs.append(run)
+            run = []
+        run.append(tick)
+    runs.append(run)
+    for run in runs:  # on a grid of `every` ticks: one per cell the run's span touches, at most
+        assert len(run) <= (run[-1] - run[0]) // every + 2

@@ -119,7 +119,7 @@ def test_the_live_page_draws_a_cloth_nets_knots_in_place_of_the_panel(bridged, b
     the page through the bridge, which draws the mesh from them, every knot of it."""
     rig, bridge, url = bridged
     cols, rows, width, height = 85, 8, 1.83, 0.1525
-    rig.gateway.net = NetFeed((cols, rows, width, height), rig.gateway.config.snapshot_hz)  # as a cloth run's
+    rig.gateway.net = NetFeed((cols, rows, width, height), rig.gateway.config.snapshot_hz, rig.gateway.dt)
     rest = wire.net_rest(cols, rows, width, height)
     stop = threading.Event()
 
