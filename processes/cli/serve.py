@@ -31,6 +31,7 @@ def serve_command(args: argparse.Namespace) -> int:
     from processes.cli.common import bot_budget_s, with_players
     from processes.network.client.client import load_curve_key
     from processes.network.server.config import GatewayConfig
+    from processes.runtime.stops import ignore_stop_signals
     from processes.supervisor import Supervisor, WorkerFailed, WorkerRefused
 
     try:
@@ -76,7 +77,7 @@ def serve_command(args: argparse.Namespace) -> int:
             try:
                 result = supervisor.run(on_ready=ready)
             except (KeyboardInterrupt, SystemExit) as stop:
-                _ignore_stop_signals()  # stopping: a second Ctrl-C or kill must not lose the counters
+                ignore_stop_signals()  # stopping: a second Ctrl-C or kill must not lose the counters
                 name = "SIGINT" if isinstance(stop, KeyboardInterrupt) else "SIGTERM"
                 _interrupted(args, stats_path, name)
                 return 130 if name == "SIGINT" else 143
@@ -90,7 +91,7 @@ def serve_command(args: argparse.Namespace) -> int:
                       file=sys.stderr)
                 return 1
             finally:
-                _ignore_stop_signals()
+                ignore_stop_signals()
                 for bridge in bridges:
                     _stop_process(bridge)
     except (SceneError, SimulationError, ValueError) as exc:
@@ -106,15 +107,6 @@ def serve_command(args: argparse.Namespace) -> int:
         print(f"{'winner: ' + winner.upper() if winner else 'no winner'}  games: {games}  ticks {summary['ticks']}")
         print("gateway: " + ", ".join(f"{k} {v}" for k, v in summary["gateway"].items()))
     return 0
-
-
-def _ignore_stop_signals() -> None:
-    """From the end of the run to the exit: what is left (the bridges' stop, the counters
-    printed) is bounded, and a signal would only cut it short."""
-    import signal
-
-    for signum in (signal.SIGTERM, signal.SIGINT):
-        signal.signal(signum, signal.SIG_IGN)
 
 
 def _fault(args: argparse.Namespace) -> dict:

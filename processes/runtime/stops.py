@@ -65,6 +65,13 @@ class StopSignals:
             self.ignored += 1
 
 
+def ignore_stop_signals() -> None:
+    """Ignore SIGTERM and SIGINT from now on: for a process whose run has ended and whose exit is
+    bounded (its last counters printed), which a later signal would only cut short."""
+    for signum in STOP_SIGNALS:
+        signal.signal(signum, signal.SIG_IGN)
+
+
 def _raise_for(signum: int) -> None:
     if signum == signal.SIGINT:
         raise KeyboardInterrupt

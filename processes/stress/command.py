@@ -5,7 +5,7 @@ import argparse
 import json
 import sys
 
-SCENARIOS = ("load", "churn", "cable", "kill", "malformed", "web", "busy")
+SCENARIOS = ("load", "churn", "cable", "kill", "malformed", "web", "busy", "abuse")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -29,6 +29,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--churn-seconds", type=float, default=600.0, help="churn: give up after this long")
     parser.add_argument("--malformed", type=int, default=100_000, help="malformed: bad messages sent")
     parser.add_argument("--malformed-rate", type=int, default=10_000, help="malformed: messages per second at most")
+    parser.add_argument("--abuse-seconds", type=float, default=5.0,
+                        help="abuse: seconds of each attack, and of the quiet windows before and after them")
+    parser.add_argument("--abuse-spectators", type=int, default=8, help="abuse: honest spectators watching")
     parser.add_argument("--kill", type=int, default=2, help="kill: client processes SIGKILLed (then gateway, physics)")
     parser.add_argument("--kill-spectators", type=int, default=100, help="kill: spectator places, all full at shutdown")
     parser.add_argument("--plots", metavar="DIR", default=None,
@@ -73,7 +76,10 @@ def stress_command(args: argparse.Namespace) -> int:
             print(f"pingpong stress: --{flag.replace('_', '-')} must be 0 or more, got {getattr(args, flag)}",
                   file=sys.stderr)
             return 2
-    for flag in ("spectators", "busy_spectators", "churn", "malformed", "kill", "hz"):
+    if not args.abuse_seconds > 0:
+        print(f"pingpong stress: --abuse-seconds must be > 0, got {args.abuse_seconds}", file=sys.stderr)
+        return 2
+    for flag in ("spectators", "busy_spectators", "churn", "malformed", "kill", "hz", "abuse_spectators"):
         if getattr(args, flag) < 1:
             print(f"pingpong stress: --{flag.replace('_', '-')} must be at least 1, got {getattr(args, flag)}",
                   file=sys.stderr)

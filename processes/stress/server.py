@@ -208,6 +208,7 @@ def main(argv: list[str]) -> int:
 
     from engine.scene import load_scene, with_remote_players
     from processes.network.server.config import GatewayConfig
+    from processes.runtime.stops import ignore_stop_signals
     from processes.supervisor import Supervisor
 
     # The rigid-net match by default: the stress tool loads the gateway, and a cloth net's worker
@@ -247,6 +248,7 @@ def main(argv: list[str]) -> int:
                    "workers": {k: {n: v for n, v in w.items() if n != "gateway"} for k, w in workers.items()}}
     except (SystemExit, KeyboardInterrupt):
         end = "stopped"
+    ignore_stop_signals()  # the end line below is what the harness waits for: more signals cannot cut it
     if not gateway and spec.get("gateway_stats"):
         # stopped: the supervisor never reads a stopped worker's last report, so the counters come
         # from the file the gateway writes at its end (and every second before it)

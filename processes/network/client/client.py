@@ -24,6 +24,7 @@ from processes.network import wire
 from processes.network.wire import NO_TOKEN, GoodbyeReason, InputMode, Kind, Role, Slot
 
 JOIN_TIMEOUT_S = 10.0
+HELLO_AGAIN_S = 1.0  # s without an answer after which join says hello again
 
 
 def load_curve_key(path: str, secret: bool) -> tuple[bytes, bytes | None]:
@@ -192,13 +193,22 @@ class Client:
         return [sock for sock in (self.sock, self.feed) if sock in ready]
 
     def join(self, timeout_s: float = JOIN_TIMEOUT_S) -> wire.Message:
-        """Say hello and wait (bounded) for the welcome; raises Rejected or TimeoutError."""
+        """Say hello and wait (bounded) for the welcome; raises Rejected or TimeoutError.
+
+        Unanswered for HELLO_AGAIN_S, it says hello again: a server at its connection limit may
+        cut a connection before it read the hello on it, and libzmq's reconnection does not
+        resend what the kernel had taken (a hello that did arrive makes the second one a
+        hello within a session, which the server refuses and counts, nothing more)."""
         self.hello()
         deadline = time.monotonic() + timeout_s
+        again = time.monotonic() + HELLO_AGAIN_S
         while time.monotonic() < deadline:
             message = self.recv(int(1000 * min(0.2, max(deadline - time.monotonic(), 0.0))) + 1)
             if message is not None and self.accept(message):
                 return message
+            if time.monotonic() >= again:
+                again += HELLO_AGAIN_S
+                self.hello()
         raise TimeoutError(f"no welcome from {self.address} within {timeout_s} s")
 
     def recv(self, timeout_ms: int) -> wire.Message | None:

@@ -4,6 +4,16 @@ What every spectator gets goes out once on the feed (processes.network.server.ga
 since protocol 3 that includes a cloth net's knots (wire.Net), after a snapshot at most NET_HZ
 times a second of match time while the net moves, once when it falls asleep, and its latest
 state on each new session.
+
+The slow-subscriber policy: the PUB queues at most SNDHWM messages per subscriber (plus what
+the kernel's socket buffers hold); beyond that libzmq drops that subscriber's newest messages
+and nobody else's. The gateway cannot see those drops; the subscriber can: the feed numbers its
+messages (header seq, one stream for all subscribers), so a gap is a message lost at the mark.
+A spectator's session (heartbeats both ways, timeout, goodbye) is what says it is alive: a
+spectator that vanishes is timed out there and counted, whatever its feed connection does. The
+feed serves whoever connects to its port, as the session port welcomes any spectator
+(max_spectators bounds sessions, not feed readers; with CURVE the feed is encrypted and the
+server authenticated like the sessions, clients are not).
 """
 from __future__ import annotations
 

@@ -23,21 +23,13 @@ theirs on the session (two sends, and a player's snapshots are counted per sessi
 - input: decoded and validated, accepted only for the sender's own bat (another bat's input,
   a spectator's input, target mode and stale sequence numbers are refused and counted; all but
   stale ones count towards MAX_BAD: target mode is reserved since protocol 3), then posted to
-  the locked remote-input mailbox that the physics worker drains each tick.
+  the locked remote-input mailbox that the physics worker drains each tick; of a player's
+  inputs that arrived together, only the newest valid one (handle_inputs).
 - snapshots at `snapshot_hz` from the physics snapshot block, plus point/game/match events
-  from the point log, and a cloth net's knots (network.feed.NetFeed). Sends never block:
-  ROUTER_MANDATORY with NOBLOCK raises when a peer's
-  pipe is at its high-water mark (SNDHWM), and that peer's snapshot is dropped and counted,
-  so a slow peer stalls nobody.
-- the feed's slow-subscriber policy: the PUB queues at most SNDHWM messages per subscriber
-  (plus what the kernel's socket buffers hold); beyond that libzmq drops that subscriber's
-  newest messages and nobody else's. The gateway cannot see those drops; the subscriber can:
-  the feed numbers its messages (header seq, one stream for all subscribers), so a gap is a
-  message lost at the mark. A spectator's session (heartbeats both ways, timeout, goodbye) is
-  what says it is alive: a spectator that vanishes is timed out there and counted, whatever
-  its feed connection does. The feed serves whoever connects to its port, as the session
-  port welcomes any spectator (max_spectators bounds sessions, not feed readers; with CURVE
-  the feed is encrypted and the server authenticated like the sessions, clients are not).
+  from the point log (server.events.MatchEvents), and a cloth net's knots (server.feed.NetFeed).
+  Sends never block: ROUTER_MANDATORY with NOBLOCK raises when a peer's pipe is at its
+  high-water mark (SNDHWM), and that peer's snapshot is dropped and counted, so a slow peer
+  stalls nobody; the feed's own slow-subscriber policy is server.feed's.
 - goodbye to every session on shutdown (shutdown), when the run failed (server_error) or at the
   end of the match (match_over); a
   peer without a session that sends anything but a hello (a session of the gateway this one
@@ -71,23 +63,27 @@ import struct
 import threading
 import time
 from collections import Counter
-from dataclasses import dataclass
 
 import numpy as np
 import zmq
 
 from processes.network import wire
 from processes.network.server.config import ROUTER_RCVHWM, GatewayConfig
+from processes.network.server.events import MatchEvents
 from processes.network.server.feed import NetFeed, feed_socket
 from processes.network.server.guard import FRAME_OVERHEAD_BYTES, ConnectionGuard
 from processes.network.server.pacing import SnapshotPacer
-from processes.network.server.seats import SeatStore
+from processes.network.server.seats import Seat, SeatStore, restore_seats
 from processes.network.server.sessions import CONFIRM_HEARTBEATS, Session, oldest_silent, retry_s
 from processes.network.wire import (MAX_BAD, MAX_FRAME_BYTES, NO_TOKEN, GoodbyeReason, InputMode, Kind, RejectReason,
                                     Role, Slot)
 
 MAX_STRANGERS_TOLD = 4096  # connections without a session told goodbye, remembered so each is told once
 MAX_MESSAGES_PER_POLL = 512  # one poll handles at most this many incoming messages
+# ... and for at most this long: the caller's loop publishes the snapshots between two polls, so
+# a flood of messages that cost a decode and an answer each (500 hellos to a full server) delays
+# the feed by this much, not by the whole flood's handling.
+POLL_BUDGET_S = 0.002
 SWEEPS_PER_HEARTBEAT = 10  # passes over every session (timeouts, heartbeats) per heartbeat period
 STATS_EVERY_S = 1.0  # the worker writes its counters to GatewayConfig.stats_path this often
 STOP_DRAIN_S = 0.2  # s after its goodbyes a stopping gateway still answers (a hello: reject shutting_down)
@@ -100,16 +96,6 @@ _HELLO_PREFIX = wire.MAGIC + struct.pack("<HB", wire.PROTOCOL_VERSION, Kind.HELL
 _SEQ_TICK = struct.Struct("<Qq")
 _INPUT_PREFIX = wire.MAGIC + struct.pack("<HB", wire.PROTOCOL_VERSION, Kind.INPUT)
 _INPUT_SIZE = wire.SIZES[Kind.INPUT]
-
-
-@dataclass
-class _Seat:
-    slot: Slot
-    remote: bool  # False: the AI plays this bat, no client may take it
-    token: bytes = NO_TOKEN
-    identity: bytes | None = None
-    name: str = ""
-    grace_until: float = 0.0  # while empty: only `token` may take it until then
 
 
 class Gateway:
@@ -137,7 +123,7 @@ class Gateway:
         self.dt = dt
         self.post_input = post_input
         self.clock = clock
-        self.seats = {slot: _Seat(slot, slot in set(remote_slots)) for slot in (Slot.A, Slot.B)}
+        self.seats = {slot: Seat(slot, slot in set(remote_slots)) for slot in (Slot.A, Slot.B)}
         self.seat_store = seat_store
         self.sessions: dict[bytes, Session] = {}
         self.counts: Counter[str] = Counter()
@@ -145,9 +131,7 @@ class Gateway:
         self.tick = 0
         self.shutting_down = False
         self._next_sweep = 0.0
-        self._points_seen: int | None = None
-        self._games_seen = (0, 0)
-        self._match_sent = False
+        self.events = MatchEvents()
         self._strangers_told: set[bytes] = set()
         self.net = NetFeed(net_grid, config.snapshot_hz, dt) if net_grid is not None else None
         # one snapshot per 1/snapshot_hz of match time (and at most snapshot_hz a wall second)
@@ -171,7 +155,8 @@ class Gateway:
             self.router.curve_secretkey = config.curve_secret_key
             if config.curve_public_key:
                 self.router.curve_publickey = config.curve_public_key
-        self.guard = ConnectionGuard(self.router, config.max_held_bytes, config.connections_limit)  # before bind
+        self.guard = ConnectionGuard(self.router, config.max_held_bytes, config.connections_limit,  # before bind
+                                     newcomer_grace_s=CONFIRM_HEARTBEATS * config.heartbeat_s)
         self.router.bind(_any_port(config.bind))
         self.endpoint = self.router.getsockopt_string(zmq.LAST_ENDPOINT)
         self.guard.start()
@@ -191,21 +176,10 @@ class Gateway:
 
     # --- state ---------------------------------------------------------------------------------
     def _restore_seats(self, table) -> None:
-        """Seats from a predecessor's table: tokens kept; a seat whose connection was open then
-        waits grace_s from now for its token (that connection is gone with the old socket)."""
-        if table is None:
-            return
-        now = self.clock()
-        for row in table:
-            seat = self.seats.get(Slot(int(row["slot"]))) if int(row["slot"]) in (1, 2) else None
-            token = row["token"].tobytes()
-            if seat is None or not seat.remote or token == NO_TOKEN:
-                continue
-            seat.token = token
-            seat.name = row["name"].tobytes().rstrip(b"\0").decode("utf-8", errors="replace")
-            seat.grace_until = now + self.config.grace_s if row["taken"] else float(row["grace_until"])
-            self.counts["seats_restored"] += 1
-        self._save_seats()
+        """Seats from a predecessor's table (seats.restore_seats)."""
+        if table is not None:
+            self.counts["seats_restored"] += restore_seats(self.seats, table, self.clock(), self.config.grace_s)
+            self._save_seats()
 
     def _save_seats(self) -> None:
         if self.seat_store is not None:
@@ -220,13 +194,14 @@ class Gateway:
         """Counters: sessions, inputs, refusals, drops by reason, snapshots sent and dropped."""
         net_counts = self.net.counts if self.net is not None else {}
         feed_counts = self.feed_guard.counts if self.feed_guard is not None else {}
-        out = dict(sorted({**self.counts, **net_counts, **self.guard.counts, **feed_counts}.items()))
+        out = dict(sorted({**self.counts, **self.events.counts, **net_counts, **self.guard.counts, **feed_counts}.items()))
         for reason, n in self.drops.by_reason.items():
             out[f"dropped.{reason}"] = out.get(f"dropped.{reason}", 0) + n
         out["dropped_total"] = sum(v for k, v in out.items() if k.startswith("dropped."))
         out["disconnected_total"] = sum(v for k, v in out.items() if "disconnected." in k)
         out["sessions"] = len(self.sessions)
         out["connections"] = self.guard.connections
+        out["connections_unconfirmed"] = self.guard.connections_unconfirmed
         out["spectators"] = sum(1 for s in self.sessions.values() if s.role == Role.SPECTATOR)
         out["feed_port"] = self.feed_port
         return out
@@ -293,13 +268,15 @@ class Gateway:
 
     # --- receiving -----------------------------------------------------------------------------
     def poll(self, timeout_ms: int) -> int:
-        """Wait at most timeout_ms for messages, then handle those waiting (bounded); returns
-        how many were handled."""
+        """Wait at most timeout_ms for messages, then handle those waiting, MAX_MESSAGES_PER_POLL
+        and POLL_BUDGET_S s of handling at most (the rest wait for the next poll); returns how
+        many were handled."""
         if not self.router.poll(timeout_ms, zmq.POLLIN):
             return 0
         handled = 0
         pending: dict[bytes, list] = {}  # identity -> its inputs (frames) received in this poll, in order
-        while handled < MAX_MESSAGES_PER_POLL:
+        budget_end = time.perf_counter() + POLL_BUDGET_S
+        while handled < MAX_MESSAGES_PER_POLL and (handled % 8 or not handled or time.perf_counter() < budget_end):
             try:
                 parts = self.router.recv_multipart(flags=zmq.NOBLOCK, copy=False)
             except zmq.Again:
@@ -307,8 +284,12 @@ class Gateway:
             handled += 1
             frames = [part.bytes for part in parts]
             # what this connection's libzmq pipe no longer holds (the guard bounds the rest)
-            self.guard.took(parts[-1].get(zmq.SRCFD), sum(map(len, frames[1:])) + FRAME_OVERHEAD_BYTES * len(frames))
+            fd = parts[-1].get(zmq.SRCFD)
+            self.guard.took(fd, sum(map(len, frames[1:])) + FRAME_OVERHEAD_BYTES * len(frames))
             identity = frames[0]
+            session = self.sessions.get(identity)
+            if session is not None and session.confirmed:
+                self.guard.valued(fd, time.monotonic())  # the guard's clock: a connection worth keeping
             if (self.config.coalesce_inputs and len(frames) == 2 and len(frames[1]) == _INPUT_SIZE
                     and frames[1].startswith(_INPUT_PREFIX)):
                 pending.setdefault(identity, []).append(frames)
@@ -493,7 +474,7 @@ class Gateway:
             self.counts["tokens_expired"] += len(expired)
             self._save_seats()
 
-    def _free_seat(self, wanted: Slot, now: float) -> _Seat | None:
+    def _free_seat(self, wanted: Slot, now: float) -> Seat | None:
         candidates = [self.seats[wanted]] if wanted != Slot.NONE else list(self.seats.values())
         for seat in candidates:
             if seat.remote and seat.identity is None and now >= seat.grace_until:
@@ -569,7 +550,8 @@ class Gateway:
             return
         self.tick = int(record["world"]["tick"])
         if points is not None:
-            self._events(record, points)
+            for data in self.events.new(record, points, self.tick):
+                self._broadcast(data, "events")
         if self.pacer.due(now, self.tick, float(record["world"]["time"])):
             self.broadcast_snapshot(record, input_seq)
 
@@ -658,33 +640,6 @@ class Gateway:
         for session in list(self.sessions.values()):
             if feed is None or session.role == Role.PLAYER:
                 self._send(session, data, what)
-
-    def _events(self, record, points) -> None:
-        rally = record["rally"]
-        total = int(rally["points_total"])
-        if self._points_seen is None:
-            self._points_seen = total  # a gateway (re)started mid-match announces only new points
-            self._games_seen = tuple(int(g) for g in rally["games_won"])
-        games = tuple(int(g) for g in rally["games_won"])
-        # point i of the log decided rally i + 1, the number its snapshots carried (wire.Snapshot)
-        for i in range(self._points_seen, min(total, len(points))):
-            self._event(wire.EventKind.POINT, points[i], games, i + 1)
-        if total > self._points_seen and games != self._games_seen and total <= len(points):
-            self._event(wire.EventKind.GAME, points[total - 1], games, total)
-        self._points_seen, self._games_seen = total, games
-        if int(rally["winner"]) >= 0 and not self._match_sent and total >= 1 and total <= len(points):
-            self._match_sent = True
-            self._event(wire.EventKind.MATCH, points[total - 1], games, total)
-
-    def _event(self, kind, row, games, rally: int) -> None:
-        try:
-            data = wire.encode(Kind.EVENT, tick=self.tick, event=kind, winner=int(row["winner"]),
-                               reason=int(row["reason"]), game=int(row["game"]), score=row["score_after"],
-                               games_won=games, shots=int(row["shots"]), rally=rally)
-        except wire.WireError:
-            self.counts["events_unencodable"] += 1
-            return
-        self._broadcast(data, "events")
 
     def shutdown(self, reason: GoodbyeReason = GoodbyeReason.SHUTDOWN) -> int:
         """Goodbye to every session; returns how many were told."""

@@ -127,15 +127,26 @@ class ConnectionGuard:
 
     The gateway calls took(fd, nbytes) for every message it receives (from its own thread),
     start() once bound and close() before closing the ROUTER. counts: connections cut, by
-    reason (disconnected.held_bytes, disconnected.too_many_connections), and memory trims.
+    reason (disconnected.held_bytes, disconnected.too_many_connections,
+    disconnected.unconfirmed_for_newcomer), and memory trims.
+
+    newcomer_grace_s: at the connection limit, a newcomer takes the place of the connection
+    that has carried no message of a confirmed session (valued()) for longest, if that is more
+    than this long, and is cut itself only when there is none: a peer's connections that never
+    answer a welcome (a hoarder's, reconnecting as fast as it is cut) cannot keep honest
+    newcomers out. Every newcomer gets this grace to confirm. None: the newcomer is cut (the
+    feed, whose subscribers send nothing to value them by).
     """
 
-    def __init__(self, router, held_limit: int, max_connections: int, prefix: str = ""):
+    def __init__(self, router, held_limit: int, max_connections: int, prefix: str = "",
+                 newcomer_grace_s: float | None = None):
         self.held_limit = held_limit
         self.prefix = prefix
         self.max_connections = max_connections
+        self.newcomer_grace_s = newcomer_grace_s
         self.counts: Counter[str] = Counter()
         self.delivered: dict[int, int] = {}  # fd -> bytes taken from it, framing included (the gateway's thread)
+        self._valued: dict[int, float] = {}  # fd -> when it last carried a confirmed session's message (or was accepted)
         self._router = router
         self._monitor = router.get_monitor_socket(zmq.EVENT_ACCEPTED | zmq.EVENT_DISCONNECTED)
         self._open: dict[int, tuple[float, int]] = {}  # fd -> (accepted at, delivered[fd] then)
@@ -147,6 +158,10 @@ class ConnectionGuard:
     def took(self, fd: int, nbytes: int) -> None:
         """The gateway took a message of nbytes (all its frames, framing allowance included) from fd."""
         self.delivered[fd] = self.delivered.get(fd, 0) + nbytes
+
+    def valued(self, fd: int, now: float) -> None:
+        """fd carried a message of a session that answered its welcome (the gateway's thread)."""
+        self._valued[fd] = now
 
     def start(self) -> None:
         self._thread = threading.Thread(target=self._run, name="gateway-guard", daemon=True)
@@ -168,6 +183,14 @@ class ConnectionGuard:
     def connections(self) -> int:
         return len(self._open)
 
+    @property
+    def connections_unconfirmed(self) -> int:
+        """Open connections a newcomer at the limit would take the place of (none without a grace)."""
+        if self.newcomer_grace_s is None:
+            return 0
+        since = time.monotonic() - self.newcomer_grace_s
+        return sum(self._valued.get(fd, at) < since for fd, (at, _) in list(self._open.items()))
+
     def _run(self) -> None:
         scanned_rss = resident_bytes()
         next_scan = time.monotonic() + SCAN_EVERY_S
@@ -187,17 +210,43 @@ class ConnectionGuard:
 
     def _events(self, now: float) -> None:
         """The monitor's accepts and disconnects since the last look."""
+        stale: list[tuple[float, int]] | None = None  # made once a look, when the first newcomer needs it
         while self._monitor.poll(0):
             event = parse_monitor_message(self._monitor.recv_multipart())
             fd = int(event["value"])
-            if event["event"] == zmq.EVENT_ACCEPTED:
-                self._open[fd] = (now, self.delivered.get(fd, 0))
-                if len(self._open) > self.max_connections and cut(fd):
-                    self._open.pop(fd)
-                    self.counts[f"{self.prefix}disconnected.too_many_connections"] += 1
-            else:
+            if event["event"] != zmq.EVENT_ACCEPTED:
                 self._open.pop(fd, None)
+                self._valued.pop(fd, None)
                 self._closed_since_trim = True
+                continue
+            self._open[fd] = (now, self.delivered.get(fd, 0))
+            self._valued[fd] = now  # a newcomer's grace to say hello and answer its welcome
+            if len(self._open) <= self.max_connections:
+                continue
+            if self.newcomer_grace_s is not None and stale is None:
+                stale = self._stale(now)
+            victim = self._victim(stale, now) if stale else None
+            if victim is not None and cut(victim):
+                self._open.pop(victim)
+                self.counts[f"{self.prefix}disconnected.unconfirmed_for_newcomer"] += 1
+            elif cut(fd):
+                self._open.pop(fd)
+                self.counts[f"{self.prefix}disconnected.too_many_connections"] += 1
+
+    def _stale(self, now: float) -> list[tuple[float, int]]:
+        """The open connections that carried no confirmed session's message within the grace,
+        the longest silent last (popped first)."""
+        since = now - self.newcomer_grace_s
+        return sorted(((self._valued.get(fd, at), fd) for fd, (at, _) in self._open.items()
+                       if self._valued.get(fd, at) < since), reverse=True)
+
+    def _victim(self, stale: list[tuple[float, int]], now: float) -> int | None:
+        since = now - self.newcomer_grace_s
+        while stale:
+            _, fd = stale.pop()
+            if fd in self._open and self._valued.get(fd, 0.0) < since:  # still open, still silent
+                return fd
+        return None
 
     def scan(self, now: float) -> int:
         """Cut every connection that makes libzmq hold more than held_limit; returns how many."""

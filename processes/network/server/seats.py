@@ -6,10 +6,43 @@ it, so a player's rejoin token still reclaims its seat.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+
+from processes.network.wire import NO_TOKEN, Slot
 
 SEAT_DTYPE = np.dtype([("slot", "u1"), ("taken", "u1"), ("token", "u1", (16,)), ("name", "u1", (32,)),
                        ("grace_until", "<f8")])  # taken: a connection held it; grace_until: time.monotonic s
+
+
+@dataclass
+class Seat:
+    """One seat of a served match, as the gateway keeps it."""
+
+    slot: Slot
+    remote: bool  # False: the AI plays this bat, no client may take it
+    token: bytes = NO_TOKEN
+    identity: bytes | None = None
+    name: str = ""
+    grace_until: float = 0.0  # while empty: only `token` may take it until then
+
+
+def restore_seats(seats: dict, table, now: float, grace_s: float) -> int:
+    """Seats (Slot -> Seat) from a predecessor's table: tokens and names kept; a seat whose
+    connection was open then waits grace_s from `now` for its token (that connection is gone
+    with the old socket). Returns how many seats were restored."""
+    restored = 0
+    for row in table:
+        seat = seats.get(Slot(int(row["slot"]))) if int(row["slot"]) in (1, 2) else None
+        token = row["token"].tobytes()
+        if seat is None or not seat.remote or token == NO_TOKEN:
+            continue
+        seat.token = token
+        seat.name = row["name"].tobytes().rstrip(b"\0").decode("utf-8", errors="replace")
+        seat.grace_until = now + grace_s if row["taken"] else float(row["grace_until"])
+        restored += 1
+    return restored
 
 
 class SeatStore:

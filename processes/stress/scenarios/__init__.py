@@ -11,10 +11,11 @@ import tempfile
 from processes.stress.harness import Run, StressError
 from processes.stress.probes import loadavg
 from processes.stress.result import base
-from processes.stress.scenarios import busy, cable, churn, kill, load, malformed, web
+from processes.stress.scenarios import abuse, busy, cable, churn, kill, load, malformed, web
 
 RUNNERS = {"load": load.scenario, "churn": churn.scenario, "cable": cable.scenario, "kill": kill.scenario,
-           "malformed": malformed.scenario, "web": web.scenario, "busy": busy.scenario}
+           "malformed": malformed.scenario, "web": web.scenario, "busy": busy.scenario,
+           "abuse": abuse.scenario}
 
 __all__ = ["RUNNERS", "run_scenario"]
 

@@ -4,7 +4,7 @@ Run as `python -m processes.stress.swarm SPEC_JSON` (launch() starts it); prints
 stdout: {"event": "ready", ...} once its clients are in, {"event": "progress", ...} now and then,
 and a final {"event": "report", ...}. Tasks (SPEC "task"): watch (spectators and players take
 every message, swarm.spec.WatchSpec), churn (join and leave in a loop), malformed (bad messages of
-every class).
+every class), abuse (one hostile peer's attack, swarm.abuse).
 """
 from __future__ import annotations
 

@@ -6,6 +6,7 @@ import os
 import sys
 
 from processes.stress.swarm import emit
+from processes.stress.swarm.abuse import abuse
 from processes.stress.swarm.churn import churn
 from processes.stress.swarm.malformed import malformed
 from processes.stress.swarm.spec import WatchSpec
@@ -16,7 +17,7 @@ def _watch(spec: dict) -> dict:
     return watch(WatchSpec.from_json(spec))
 
 
-TASKS = {"watch": _watch, "churn": churn, "malformed": malformed}
+TASKS = {"watch": _watch, "churn": churn, "malformed": malformed, "abuse": abuse}
 
 
 def main(argv: list[str]) -> int:

@@ -18,7 +18,8 @@ from tests.waits import DEADLINE_S
 
 def _args(**overrides) -> argparse.Namespace:
     settings = dict(spectators=50, players=2, hz=120, duration=2.0, churn=200, churn_places=16, churn_seconds=60.0,
-                    malformed=5000, malformed_rate=5000, kill=1, kill_spectators=20, seed=0, browsers=10)
+                    malformed=5000, malformed_rate=5000, kill=1, kill_spectators=20, seed=0, browsers=10,
+                    abuse_seconds=2.0, abuse_spectators=4)
     settings.update(overrides)
     return argparse.Namespace(**settings)
 
@@ -112,6 +113,25 @@ def stress_classes():
     from processes.stress.swarm.malformed import CLASSES
 
     return CLASSES
+
+
+def test_abuse_hostile_peers_are_bounded_cut_and_counted_and_the_stop_stays_clean():
+    result = stress.run_scenario("abuse", _args())
+    # every invariant but the honest spectators' rates, which other work on the machine breaks too
+    # (the scenario reports them, and `pingpong stress` exits 1 on them)
+    assert [p for p in result["problems"] if p not in result["rate_problems"]] == [], "\n".join(result["problems"])
+    assert result["crashes"] == 0 and result["leaked_shm"] == 0 and result["leaked_fds"] == 0
+    c = result["counts"]
+    attacks = c["attacks"]
+    assert attacks["flood"]["sent"] > 0 and c["counters"]["inputs_coalesced"] > 0
+    assert attacks["multipart"]["cut"] == attacks["multipart"]["peers"] == 4
+    assert c["counters"]["disconnected.held_bytes"] >= 4
+    assert attacks["oversized"]["announced_cut"] == attacks["oversized"]["announced_1gib"] > 0
+    assert attacks["oversized"]["big_frame_cut"] == attacks["oversized"]["big_frames"] > 0
+    assert attacks["hellos"]["sockets"] == 500 and attacks["hellos"]["probe"]["answer"] == "welcome"
+    assert c["honest_rejected"] == {} and c["honest_goodbyes"] == {"shutdown": 4}
+    assert c["signals_sent"] >= 2 and result["gateway"]["end"] == "shutdown"
+    assert c["gateway_rss_growth_max_mb"]["multipart"] <= 64 and c["gateway_rss_after_mb"] <= 16
 
 
 def test_web_every_browser_of_one_bridge_gets_the_snapshots():

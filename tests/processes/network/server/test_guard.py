@@ -57,3 +57,30 @@ def test_connections_beyond_the_limit_are_cut_at_once(rig):
 def test_a_held_limit_below_the_queued_messages_is_refused_with_the_least_it_takes():
     with pytest.raises(ValueError, match=rf"max_held_bytes: 1000 .*ROUTER_RCVHWM = {ROUTER_RCVHWM}"):
         GatewayConfig(max_held_bytes=1000)
+
+
+def test_at_the_limit_a_newcomer_takes_the_place_of_a_connection_that_never_confirmed(rig):
+    # Two raw connections that never say hello hold both places; once they are past their grace
+    # (3 heartbeats of 0.1 s) an honest spectator's connection takes the place of one of them.
+    r = rig(max_connections=2, heartbeat_s=0.1)
+    hoarders = [RawPeer("127.0.0.1", _port(r.gateway.endpoint)) for _ in range(2)]
+    r.settle(lambda: r.gateway.stats()["connections_unconfirmed"] == 2)
+    honest = r.client(role="spectator", name="honest")
+    assert r.join(honest).kind == Kind.WELCOME
+    r.settle(lambda: r.gateway.stats().get("disconnected.unconfirmed_for_newcomer", 0) == 1)
+    assert r.gateway.stats()["connections"] == 2
+    # Newcomers again, while the honest session heartbeats: the other hoarder's connection goes,
+    # then the newcomers themselves (in their grace, nothing older to take), never the honest one.
+    late = [RawPeer("127.0.0.1", _port(r.gateway.endpoint)) for _ in range(3)]
+
+    def settled():
+        honest.heartbeat_if_due()
+        stats = r.gateway.stats()
+        return stats.get("disconnected.unconfirmed_for_newcomer", 0) + stats.get("disconnected.too_many_connections", 0) == 4
+
+    r.settle(settled)
+    assert r.gateway.stats()["disconnected.unconfirmed_for_newcomer"] == 2
+    assert r.gateway.stats()["sessions"] == 1  # the honest session kept its connection
+    assert all(peer.closed_by_server(DEADLINE_S) for peer in hoarders)
+    for peer in hoarders + late:
+        peer.close()

@@ -116,3 +116,22 @@ def test_the_gateway_only_forwards_inputs_the_idle_arm_is_the_physics(rig):
     r.settle(lambda: r.gateway.seats[Slot.A].identity is None)
     r.step(serve=True)
     assert len(r.posted) == 1 and r.posted[0][3][0] == 30.0
+
+
+def test_a_poll_stops_at_its_time_budget_and_the_rest_waits_for_the_next(rig, monkeypatch):
+    # POLL_BUDGET_S bounds how long one poll handles messages (the snapshots go out between two
+    # polls); the budget is looked at every 8 messages, so with none left a poll handles 8.
+    from processes.network.server import gateway as gateway_module
+
+    r = rig(remote=(Slot.A,))
+    a = r.client()
+    r.join(a)
+    monkeypatch.setattr(gateway_module, "POLL_BUDGET_S", 0.0)
+    beats = r.gateway.counts["heartbeats_received"]
+    for _ in range(40):
+        a.send(Kind.HEARTBEAT, ack=0)
+    per_poll = []
+    while r.gateway.counts["heartbeats_received"] < beats + 40 and len(per_poll) < 10_000:
+        per_poll.append(r.gateway.poll(100))
+    assert r.gateway.counts["heartbeats_received"] == beats + 40, (per_poll[:20], len(per_poll), dict(r.gateway.counts))
+    assert max(per_poll) <= 8  # never more: 40 messages took 5 polls or more
