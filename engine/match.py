@@ -101,9 +101,10 @@ def decision_delay(scene: Scene) -> int:
 
 
 def make_ais(scene: Scene, model, seed: int, eager: bool = True, budget_s: float | None = DEFAULT_BUDGET_S,
-             interrupt: bool = False) -> Players:
+             interrupt: bool | None = None) -> Players:
     """The player of every bat that has one (an AI profile or a bot), seeded from the match seed
-    and its player (engine.players.make_players).
+    and its player (engine.players.make_players). interrupt: stop a bot's hung decision with
+    SIGALRM; None: wherever this is a process's main thread.
 
     eager=False: each AI profile thinks a stroke out only in the steps its think_step is given
     (and what is left when it is due), as the AI worker does between its turns; the same strokes.

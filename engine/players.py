@@ -31,7 +31,9 @@ from engine.rules import Phase, next_striker
 
 DEFAULT_BUDGET_S = 0.02  # CPU seconds a bot's decision may take, unless the bot or the match says otherwise
 # A decision still running after HANG_FACTOR budgets of wall time (at least HANG_MIN_S) is
-# interrupted where the seats may use SIGALRM (the AI worker): a bot that waits forever.
+# interrupted (SIGALRM) wherever the match runs in a process's main thread: the AI worker, an
+# in-process match, a tournament's or a sweep's task on the pool or Ray, an environment. So a
+# bot that waits forever faults the same way, with the same match, whatever runs it.
 HANG_FACTOR = 10.0
 HANG_MIN_S = 0.2
 _OBS_FLOATS_AT = OBSERVATION_DTYPE.fields["time"][1]  # time, ball (9), own (13), other (13): 36 float64 words
@@ -45,6 +47,44 @@ class _Overrun(BaseException):
 
 def _alarm(signum, frame):
     raise _Overrun()
+
+
+class HangAlarm:
+    """SIGALRM after `seconds` of wall time raises _Overrun in the code it guards (None: no
+    alarm). The handler and the real-time timer are the process's: whatever held them before
+    (a lock's wait, a test runner's timeout) gets them back afterwards, its timer less the time
+    spent here, so the guard can run anywhere in a main thread."""
+
+    def __init__(self, seconds: float | None):
+        self.seconds = seconds
+        self._handler = None
+        self._timer = (0.0, 0.0)
+        self._started = 0.0
+
+    def __enter__(self) -> HangAlarm:
+        if self.seconds is not None:
+            self._handler = signal.signal(signal.SIGALRM, _alarm)
+            self._started = time.monotonic()
+            self._timer = signal.setitimer(signal.ITIMER_REAL, self.seconds)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.seconds is None:
+            return
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
+        signal.signal(signal.SIGALRM, self._handler)
+        delay, interval = self._timer
+        if delay > 0.0:  # the outer timer, less the time spent here (due already: at once)
+            signal.setitimer(signal.ITIMER_REAL, max(delay - (time.monotonic() - self._started), 1e-6), interval)
+
+
+def can_interrupt() -> bool:
+    """Whether this thread may set signal handlers (only the main thread of a process may)."""
+    try:
+        signal.signal(signal.SIGALRM, signal.getsignal(signal.SIGALRM))
+    except ValueError:
+        return False
+    return True
 
 
 def _floats(record: np.ndarray, start: int, count: int) -> np.ndarray:
@@ -67,8 +107,8 @@ class Seat:
         bot: the engine.bot.Bot (set up here). name: for messages. player: its bat (0 or 1).
         scene: the match scene. mass: kg, inertia: kg m^2, of its bat. ctl: its (CTL_SIZE,) row
             of Players.ctl. budget_s: CPU s per decision (the bot's own budget_s wins).
-        interrupt: stop a hung decision with SIGALRM (only where this is the main thread of a
-            process that uses no other alarm: the AI worker).
+        interrupt: stop a hung decision with SIGALRM (HangAlarm); False where signals cannot
+            be used (a thread other than the main one).
     """
 
     def __init__(self, bot: Bot, name: str, player: int, scene, mass: float, inertia: float, ctl: np.ndarray,
@@ -147,13 +187,8 @@ class Seat:
         fault = detail = None
         started = time.thread_time()
         try:
-            if self.interrupt:
-                signal.setitimer(signal.ITIMER_REAL, self.hang_s)
-            try:
+            with HangAlarm(self.hang_s if self.interrupt else None):
                 action = self.bot.act(self.view)
-            finally:
-                if self.interrupt:
-                    signal.setitimer(signal.ITIMER_REAL, 0.0)
         except _Overrun:
             fault, detail = "overran", f"act() had not returned after {self.hang_s:g} s: interrupted"
         except Exception as exc:  # noqa: BLE001 - whatever a bot raises is its fault, reported, never fatal
@@ -291,7 +326,7 @@ class Players(dict):
 
 
 def make_players(scene, model, seed: int, control_every: int, delay: int, eager: bool = True,
-                 budget_s: float | None = DEFAULT_BUDGET_S, interrupt: bool = False) -> Players:
+                 budget_s: float | None = DEFAULT_BUDGET_S, interrupt: bool | None = None) -> Players:
     """The seat of every bat the scene gives a player (bat.skill: an AI profile or a bot spec).
 
     An AI profile's BatAI is seeded from the match seed and its player (seed * 1000 + player), a
@@ -301,8 +336,8 @@ def make_players(scene, model, seed: int, control_every: int, delay: int, eager:
     """
     chosen = [(i, bat.skill) for i, bat in enumerate(scene.bats) if bat.skill is not None]
     ctl = np.zeros((len(chosen), CTL_SIZE))
-    if interrupt:
-        signal.signal(signal.SIGALRM, _alarm)
+    if interrupt is None:
+        interrupt = can_interrupt()
     seats = {}
     for k, (player, spec) in enumerate(chosen):
         if is_bot_spec(spec):

@@ -1,4 +1,6 @@
 """The bot API: what a bot sees, what it may answer, and what a match does when it fails."""
+import signal
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -78,6 +80,28 @@ def test_a_failing_bot_gives_the_point_away_and_the_match_goes_on(name, fault):
     assert result.ticks == 6000 or match.referee.match_over  # it played on
     assert str(BotError(first["bot"], 0, first["tick"], fault, first["detail"])).startswith(
         f"bot {bots.spec(name)} (player A) at tick {first['tick']}: {fault}")
+
+
+def test_a_decision_that_never_returns_is_interrupted_and_the_outer_alarm_kept():
+    # The wall-clock guard runs in any main thread: the hung decisions are faults, the match plays
+    # on, and a timer set outside the match (a test runner's own) still fires, later.
+    fired = []
+    previous = signal.signal(signal.SIGALRM, lambda signum, frame: fired.append(signum))
+    signal.setitimer(signal.ITIMER_REAL, 600.0)
+    try:
+        match = _match(bots.spec("Hangs"))
+        match.play(max_ticks=3000)
+        outer_left, _ = signal.setitimer(signal.ITIMER_REAL, 0.001)
+        deadline = time.monotonic() + 60.0
+        while not fired and time.monotonic() < deadline:
+            time.sleep(0.01)  # interrupted by the outer alarm, whose handler runs
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
+        signal.signal(signal.SIGALRM, previous)
+    first = match.bot_errors[0]
+    assert first["fault"] == "overran" and "interrupted" in first["detail"]
+    assert match.referee.winner == 1  # B won the game on A's faults
+    assert 0.0 < outer_left < 600.0 and fired == [signal.SIGALRM]
 
 
 def test_a_failing_bot_stops_the_match_when_told_to():

@@ -60,8 +60,12 @@ def test_a_raising_bot_in_the_worker_is_recorded_as_in_process(no_leftovers):
 
 
 def test_a_bot_that_never_returns_is_interrupted_and_the_match_goes_on(no_leftovers):
+    # interrupted the same way in process (the wall-clock guard is the engine's): the same match
     scene = match_scene(BASE, bots.spec("Hangs"), "pro", best_of=1)
-    result = Supervisor(scene, 3000, "lockstep", seed=1, bot_budget_s=BUDGET_S).run()
+    result = Supervisor(scene, 3000, "lockstep", seed=1, bot_budget_s=BUDGET_S, trace=True).run()
+    match, trace = _reference(scene, 1, 3000)
+    _same_run(result, trace)
+    assert result.workers["physics"]["bot_errors"] == match.bot_errors
     errors = result.workers["physics"]["bot_errors"]
     every = control_period(scene)
     assert errors[0]["fault"] == "overran" and errors[0]["tick"] == (bots.FAIL_AT - 1) * every
