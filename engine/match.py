@@ -438,7 +438,13 @@ def match_hash(scene: Scene, max_ticks: int) -> str:
 def match_record(scene: Scene, seed: int, skill_a: str, skill_b: str, best_of: int | None = None,
                  max_ticks: int | None = None, on_bot_error: str = "point",
                  budget_s: float | None = DEFAULT_BUDGET_S) -> dict:
-    """Play one match in this process and describe it in a small JSON-able record.
+    """Play one match in this process and describe it in a small JSON-able record
+    (MatchRecorder.record)."""
+    return MatchRecorder(scene, seed, skill_a, skill_b, best_of, max_ticks, on_bot_error, budget_s).play()
+
+
+class MatchRecorder:
+    """One match played in this process, and its record.
 
     The record: a, b (the skills at ends A and B), seed, scene (its name), scene_hash
     (match_hash), best_of, winner ("a", "b", or None when max_ticks came first), games (finished games'
@@ -446,49 +452,68 @@ def match_record(scene: Scene, seed: int, skill_a: str, skill_b: str, best_of: i
     lost), mean_rally_shots, ticks, sim_seconds, wall_seconds (the play, not the kernels' load),
     record_hash: sha256 over the match's contact events, point log and final state, so two runs
     of a match compare by one string; bot_errors (Match.bot_errors without their details,
-    which may hold times) and stopped (whether a bot's fault stopped the match). skill_a and
-    skill_b are AI profiles or bot specs (engine.bot.load_bot).
+    which may hold times) and stopped (whether a bot's fault stopped the match); with
+    `abandoned`, why the match was given up where it stood (a bot that could not be
+    interrupted). skill_a and skill_b are AI profiles or bot specs (engine.bot.load_bot).
     """
-    played = match_scene(scene, skill_a, skill_b, best_of)
-    limit = played.ticks if max_ticks is None else max_ticks
-    match = Match(played, seed=seed, on_bot_error=on_bot_error, budget_s=budget_s)
-    events: list = []
-    point_ticks: list[int] = []
 
-    def on_point(m, point) -> None:  # every point decided in the call: a bot's fault may add one before
-        point_ticks.extend([int(m.state.world[0]["tick"])] * (len(m.referee.points) - len(point_ticks)))
+    def __init__(self, scene: Scene, seed: int, skill_a: str, skill_b: str, best_of: int | None = None,
+                 max_ticks: int | None = None, on_bot_error: str = "point",
+                 budget_s: float | None = DEFAULT_BUDGET_S):
+        self.played = match_scene(scene, skill_a, skill_b, best_of)
+        self.limit = self.played.ticks if max_ticks is None else max_ticks
+        self.skills, self.seed = (skill_a, skill_b), seed
+        self.match = Match(self.played, seed=seed, on_bot_error=on_bot_error, budget_s=budget_s)
+        self.events: list = []
+        self.point_ticks: list[int] = []
+        self.started = time.perf_counter()
 
-    result = match.play(max_ticks=limit, events_out=events, on_point=on_point)
-    points = match.referee.points
-    final = np.zeros(1, physics_snapshot_dtype(len(played.bats)))
-    match.save(final)
-    digest = hashlib.sha256()
-    digest.update(np.array(events, CONTACT_DTYPE).tobytes())
-    digest.update(b"".join(point_row(p, tick).tobytes() for p, tick in zip(points, point_ticks)))
-    digest.update(final.tobytes())
-    reasons: dict[str, dict[str, int]] = {"a": {}, "b": {}}
-    decided = [p for p in points if p.winner >= 0]
-    for p in decided:
-        lost = reasons["ba"[p.winner]]
-        lost[p.reason.value] = lost.get(p.reason.value, 0) + 1
-    referee = match.referee
-    return {
-        "a": skill_a,
-        "b": skill_b,
-        "seed": seed,
-        "scene": played.name,
-        "scene_hash": match_hash(played, limit),
-        "best_of": played.match.best_of,
-        "winner": None if referee.winner is None else "ab"[referee.winner],
-        "games": [list(g) for g in referee.games],
-        "points": [sum(1 for p in decided if p.winner == k) for k in (0, 1)],
-        "lets": len(points) - len(decided),
-        "reasons": reasons,
-        "mean_rally_shots": float(np.mean([p.shots for p in decided])) if decided else 0.0,
-        "ticks": result.ticks,
-        "sim_seconds": result.sim_seconds,
-        "wall_seconds": result.wall_seconds,
-        "record_hash": digest.hexdigest(),
-        "bot_errors": [{k: v for k, v in error.items() if k != "detail"} for error in match.bot_errors],
-        "stopped": match.stopped is not None,
-    }
+    def play(self) -> dict:
+        """Play the match to its end or its tick bound; its record."""
+        def on_point(m, point) -> None:  # every point decided in the call: a bot's fault may add one before
+            self.point_ticks.extend([int(m.state.world[0]["tick"])] * (len(m.referee.points) - len(self.point_ticks)))
+
+        self.started = time.perf_counter()
+        result = self.match.play(max_ticks=self.limit, events_out=self.events, on_point=on_point)
+        return self.record(result.wall_seconds)
+
+    def record(self, wall_seconds: float | None = None, abandoned: str | None = None) -> dict:
+        """The record of the match as it stands (abandoned: why it was given up there)."""
+        match, played = self.match, self.played
+        points = match.referee.points
+        final = np.zeros(1, physics_snapshot_dtype(len(played.bats)))
+        match.save(final)
+        ticks = int(final[0]["world"]["tick"])
+        digest = hashlib.sha256()
+        digest.update(np.array(self.events, CONTACT_DTYPE).tobytes())
+        digest.update(b"".join(point_row(p, tick).tobytes() for p, tick in zip(points, self.point_ticks)))
+        digest.update(final.tobytes())
+        reasons: dict[str, dict[str, int]] = {"a": {}, "b": {}}
+        decided = [p for p in points if p.winner >= 0]
+        for p in decided:
+            lost = reasons["ba"[p.winner]]
+            lost[p.reason.value] = lost.get(p.reason.value, 0) + 1
+        referee = match.referee
+        record = {
+            "a": self.skills[0],
+            "b": self.skills[1],
+            "seed": self.seed,
+            "scene": played.name,
+            "scene_hash": match_hash(played, self.limit),
+            "best_of": played.match.best_of,
+            "winner": None if referee.winner is None or abandoned else "ab"[referee.winner],
+            "games": [list(g) for g in referee.games],
+            "points": [sum(1 for p in decided if p.winner == k) for k in (0, 1)],
+            "lets": len(points) - len(decided),
+            "reasons": reasons,
+            "mean_rally_shots": float(np.mean([p.shots for p in decided])) if decided else 0.0,
+            "ticks": ticks,
+            "sim_seconds": ticks * played.dt,
+            "wall_seconds": time.perf_counter() - self.started if wall_seconds is None else wall_seconds,
+            "record_hash": digest.hexdigest(),
+            "bot_errors": [{k: v for k, v in error.items() if k != "detail"} for error in match.bot_errors],
+            "stopped": match.stopped is not None or abandoned is not None,
+        }
+        if abandoned is not None:
+            record["abandoned"] = abandoned
+        return record

@@ -78,6 +78,20 @@ class HangAlarm:
             signal.setitimer(signal.ITIMER_REAL, max(delay - (time.monotonic() - self._started), 1e-6), interval)
 
 
+_DECIDING: list = [None]  # the decision in progress in this process: (seat, time.monotonic() at its start)
+
+
+def decision_in_progress() -> tuple[str, int, float, float | None] | None:
+    """The bot decision this process is in, if any: (bot name, player, seconds in act(), the
+    seconds after which HangAlarm interrupts it or None). For a watchdog on another thread: a
+    decision far past its interrupt is blocked where no signal reaches it (in C)."""
+    current = _DECIDING[0]
+    if current is None:
+        return None
+    seat, started = current
+    return seat.name, seat.player, time.monotonic() - started, seat.hang_s
+
+
 def can_interrupt() -> bool:
     """Whether this thread may set signal handlers (only the main thread of a process may)."""
     try:
@@ -187,6 +201,7 @@ class Seat:
         fault = detail = None
         started = time.thread_time()
         try:
+            _DECIDING[0] = (self, time.monotonic())
             with HangAlarm(self.hang_s if self.interrupt else None):
                 action = self.bot.act(self.view)
         except _Overrun:
@@ -194,6 +209,8 @@ class Seat:
         except Exception as exc:  # noqa: BLE001 - whatever a bot raises is its fault, reported, never fatal
             where = traceback.extract_tb(exc.__traceback__)[-1]
             fault, detail = "raised", f"{type(exc).__name__}: {exc} ({where.filename}:{where.lineno})"
+        finally:
+            _DECIDING[0] = None
         used = time.thread_time() - started
         self.act_seconds += used
         if fault is None and self.budget_s is not None and used > self.budget_s:

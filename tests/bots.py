@@ -1,5 +1,6 @@
 """Bots that misbehave on purpose, for the tests of the bot API (each fails from its FAIL_AT-th decision)."""
 import math
+import signal
 import time
 from pathlib import Path
 
@@ -65,6 +66,14 @@ class Hangs(_Failing):
     def fail(self, obs):
         while True:
             pass
+
+
+class BlocksSignals(_Failing):
+    """Blocks SIGALRM, then sleeps: no interrupt reaches it (as a bot stuck in C code would be)."""
+
+    def fail(self, obs):
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGALRM})
+        time.sleep(3600.0)
 
 
 class Writes(Bot):

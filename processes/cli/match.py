@@ -107,7 +107,11 @@ def match_command(args: argparse.Namespace) -> int:
                     frames.append(record[0].copy())
 
             # A per-tick callback makes play() advance one tick a call, not in chunks: only for frames.
-            result = match.play(max_ticks=ticks, on_tick=keep if frame_every else None, events_out=events)
+            # A bot no interrupt reaches ends the command with one line (status 3), not a hang.
+            from processes.runtime.watchdog import DecisionWatchdog
+
+            with DecisionWatchdog(lambda reason: print(f"pingpong: {reason}", file=sys.stderr, flush=True)):
+                result = match.play(max_ticks=ticks, on_tick=keep if frame_every else None, events_out=events)
             summary = result.summary()
             summary.update(mode="in-process", processes=False)
             points = np.array([point_row(p, 0) for p in match.referee.points]) if match.referee.points else None

@@ -31,6 +31,7 @@ SKILL_NAMES = ("pro", "club", "novice")
 MAX_RETRIES = 3  # Ray re-runs a task whose worker died this many times (Ray's task retries)
 WAIT_S = 1.0  # each wait for finished tasks is bounded: the progress bar and Ctrl-C stay live
 MATCHES_FILE = "matches.jsonl"
+ABANDONED_DIR = "abandoned"  # the records of matches given up, for the task's retry (play)
 
 
 @dataclass(frozen=True)
@@ -86,26 +87,54 @@ def pairs_of(skills: list[str]) -> list[tuple[str, str]]:
     return [(a, b) for a in skills for b in skills if a != b]
 
 
-def play(task: MatchTask, crash_marker: str | None = None) -> dict:
+def play(task: MatchTask, crash_marker: str | None = None, abandon_dir: str | None = None) -> dict:
     """Play one task's match (in a pool process or a Ray worker) and return its record.
 
     crash_marker: fault injection for the tests: if that file does not exist yet, create it and
     SIGKILL this process, so the first attempt of the task dies as a crashed worker would.
+    abandon_dir: where a match given up is recorded (a bot blocked where no interrupt reaches
+    it: runtime.watchdog.DecisionWatchdog ends this process): abandoned_path(abandon_dir, task)
+    holds its record, as it stood, with the bot named; a task run again finds it there (Ray
+    re-runs the task of a worker that ended) and returns it instead of playing the match again.
     """
     from engine.bot import register_sources
-    from engine.match import match_record
+    from engine.match import MatchRecorder
     from engine.players import DEFAULT_BUDGET_S
+    from processes.runtime.watchdog import DecisionWatchdog
 
     if crash_marker is not None and not os.path.exists(crash_marker):
         Path(crash_marker).touch()
         os.kill(os.getpid(), signal.SIGKILL)
+    given_up = abandoned_path(abandon_dir, task) if abandon_dir is not None else None
+    if given_up is not None and given_up.exists():
+        return json.loads(given_up.read_text())
     register_sources(task.bots)
     budget = DEFAULT_BUDGET_S if task.bot_budget_s is None else task.bot_budget_s
-    record = match_record(task.scene, task.seed, task.a, task.b, task.best_of, task.max_ticks, task.on_bot_error,
-                          budget)
+    recorder = MatchRecorder(task.scene, task.seed, task.a, task.b, task.best_of, task.max_ticks, task.on_bot_error,
+                             budget)
+
+    def abandon(reason: str) -> None:
+        print(f"pingpong: {reason}", file=sys.stderr, flush=True)
+        if given_up is not None:
+            record = {**recorder.record(abandoned=reason), **({"cell": task.cell} if task.cell else {})}
+            given_up.parent.mkdir(parents=True, exist_ok=True)
+            partial = given_up.with_suffix(f".{os.getpid()}.tmp")
+            partial.write_text(json.dumps(record))
+            os.replace(partial, given_up)
+
+    with DecisionWatchdog(abandon):
+        record = recorder.play()
     if task.cell:
         record["cell"] = task.cell
     return record
+
+
+def abandoned_path(abandon_dir: str, task: MatchTask) -> Path:
+    """The file a given-up match's record is written to (play)."""
+    import hashlib
+
+    name = hashlib.sha256(json.dumps(list(task.key)).encode()).hexdigest()[:20]
+    return Path(abandon_dir) / f"{name}.json"
 
 
 class MatchLog:
@@ -145,28 +174,48 @@ def _ignore_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def _local_results(tasks: list[MatchTask], workers: int, crash_marker: str | None):
-    """Finished records, in the order they finish, from a local forkserver process pool."""
+def _local_results(tasks: list[MatchTask], workers: int, crash_marker: str | None, abandon_dir: str | None):
+    """Finished records, in the order they finish, from a local forkserver process pool.
+
+    A pool process that ends breaks the pool for every task in it: if a match was given up there
+    (its record in abandon_dir: play), that record is the match's, and the other unfinished
+    tasks go to a new pool; otherwise (a crash) the BrokenProcessPool ends the run."""
     import multiprocessing
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
 
     # forkserver, as the supervisor: numba's threads make fork() after a kernel has run unsafe.
     ctx = multiprocessing.get_context("forkserver")
     ctx.set_forkserver_preload(["engine.match"])
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_ignore_sigint)
-    pending = {pool.submit(play, task, crash_marker) for task in tasks}
-    finished = False
-    try:
-        while pending:
-            done, pending = wait(pending, timeout=WAIT_S, return_when=FIRST_COMPLETED)
-            for future in done:
-                yield future.result()
-        finished = True
-    finally:
-        pool.shutdown(wait=finished, cancel_futures=True)
-        if not finished:  # Ctrl-C or an error: end the running matches too (Python 3.14: terminate_workers)
-            for process in list((getattr(pool, "_processes", None) or {}).values()):
-                process.terminate()
+    todo = list(tasks)
+    while todo:
+        pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_ignore_sigint)
+        futures = {pool.submit(play, task, crash_marker, abandon_dir): task for task in todo}
+        pending, broken, finished = set(futures), None, False
+        try:
+            while pending and broken is None:
+                done, pending = wait(pending, timeout=WAIT_S, return_when=FIRST_COMPLETED)
+                for future in done:
+                    try:
+                        record = future.result()
+                    except BrokenProcessPool as exc:
+                        broken = exc
+                        continue
+                    todo.remove(futures[future])
+                    yield record
+            finished = broken is None
+        finally:
+            pool.shutdown(wait=finished, cancel_futures=True)
+            if not finished:  # Ctrl-C, an error or a broken pool: end the running matches too
+                for process in list((getattr(pool, "_processes", None) or {}).values()):
+                    process.terminate()
+        if broken is not None:
+            given_up = [task for task in todo if abandon_dir and abandoned_path(abandon_dir, task).exists()]
+            if not given_up:
+                raise broken
+            for task in given_up:
+                todo.remove(task)
+                yield json.loads(abandoned_path(abandon_dir, task).read_text())
 
 
 def ray_address(cluster: str) -> str | None:
@@ -189,7 +238,8 @@ def runtime_env() -> dict:
                          "*.jsonl", "*.png", "*.gif", "*.npz"]}
 
 
-def _ray_results(tasks: list[MatchTask], cluster: str, workers: int, crash_marker: str | None):
+def _ray_results(tasks: list[MatchTask], cluster: str, workers: int, crash_marker: str | None,
+                 abandon_dir: str | None):
     """Finished records, in the order they finish, from Ray tasks (retried if their worker dies)."""
     import ray  # the optional extra pingpong[ray]
 
@@ -200,7 +250,7 @@ def _ray_results(tasks: list[MatchTask], cluster: str, workers: int, crash_marke
         else:
             ray.init(address=address, runtime_env=runtime_env(), log_to_driver=False)
     remote_play = ray.remote(num_cpus=1, max_retries=MAX_RETRIES)(play)
-    pending = [remote_play.remote(task, crash_marker) for task in tasks]
+    pending = [remote_play.remote(task, crash_marker, abandon_dir) for task in tasks]
     finished = False
     try:
         while pending:
@@ -217,11 +267,13 @@ def _ray_results(tasks: list[MatchTask], cluster: str, workers: int, crash_marke
                 ray.cancel(ref, force=True)
 
 
-def results(tasks: list[MatchTask], cluster: str, workers: int, crash_marker: str | None = None):
-    """Finished records of `tasks`, in the order they finish, on the local pool or on Ray."""
+def results(tasks: list[MatchTask], cluster: str, workers: int, crash_marker: str | None = None,
+            abandon_dir: str | None = None):
+    """Finished records of `tasks`, in the order they finish, on the local pool or on Ray;
+    abandon_dir: where a match given up is recorded (play)."""
     if cluster == "local":
-        return _local_results(tasks, workers, crash_marker)
-    return _ray_results(tasks, cluster, workers, crash_marker)
+        return _local_results(tasks, workers, crash_marker, abandon_dir)
+    return _ray_results(tasks, cluster, workers, crash_marker, abandon_dir)
 
 
 @dataclass
@@ -267,7 +319,7 @@ def run_tasks(tasks: list[MatchTask], out: Path, cluster: str, workers: int, sho
         with progress:
             bar = progress.add_task("matches", total=len(tasks), completed=skipped, pace="")
             if todo:
-                with closing(results(todo, cluster, workers, crash_marker)) as finished:
+                with closing(results(todo, cluster, workers, crash_marker, str(out / ABANDONED_DIR))) as finished:
                     for record in finished:
                         log.append(record)
                         played += 1

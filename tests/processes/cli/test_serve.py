@@ -70,7 +70,7 @@ def test_two_bot_players_and_a_spectator_play_a_served_match(served):
     for bot in reports[:2]:  # the physics applied this bot's inputs: the snapshots echo their seq
         assert bot["inputs_sent"] > 0 and bot["input_seq"]["ab".index(bot["slot"])] > 0
         prediction = bot["prediction"]  # each bot predicted and scored its prediction on the snapshots
-        assert prediction["scored"] > 0 and prediction["ball"]["n"] == prediction["bat"]["n"] == prediction["scored"]
+        assert prediction["scored"] > 0 and prediction["ball"]["n"] == prediction["bat"]["n"] == prediction["scored"], bot
         assert prediction["ball"]["max_mm"] >= prediction["ball"]["p99_mm"] >= prediction["ball"]["p50_mm"] >= 0.0
     assert reports[2]["interpolation"]["samples"] > 0  # the spectator's view was interpolated
     gateway = summary["gateway"]

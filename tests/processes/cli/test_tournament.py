@@ -186,3 +186,23 @@ def test_elo_of_two_profiles_is_their_odds_on_the_elo_scale():
     gap = ratings["pro"]["elo"] - ratings["club"]["elo"]
     assert gap == pytest.approx(400 * math.log10(3.5 / 1.5), abs=1e-6)
     assert ratings["pro"]["low"] <= ratings["pro"]["elo"] <= ratings["pro"]["high"]
+
+
+@pytest.mark.parametrize("cluster", ["local", "ray"])
+def test_a_bot_no_interrupt_reaches_is_abandoned_and_the_tournament_finishes(tmp_path, tasks, cluster, request):
+    # The bot blocks SIGALRM and sleeps: the wall-clock guard cannot stop it, its pool process is
+    # ended by the watchdog with the match recorded as it stood (stopped, the bot named), and the
+    # other matches (one was running beside it in the broken pool) are played all the same.
+    from tests import bots
+
+    if cluster == "ray":
+        request.getfixturevalue("local_ray")
+    blocking = plan(load_scene("match_rigid"), [(bots.spec("BlocksSignals"), "novice")], 1, best_of=1,
+                    max_ticks=TICKS)
+    report = run_tasks(blocking + tasks, tmp_path, cluster, 2, show_progress=False)
+    assert report.failure is None and report.played == len(tasks) + 1
+    records = {(r["a"], r["seed"]): r for r in _lines(tmp_path / MATCHES_FILE)}
+    given_up = records[(bots.spec("BlocksSignals"), 0)]
+    assert given_up["stopped"] and given_up["winner"] is None and given_up["ticks"] > 0
+    assert "bot BlocksSignals (bots.py) (player A) has not returned from act()" in given_up["abandoned"]
+    assert sum("abandoned" in r for r in records.values()) == 1

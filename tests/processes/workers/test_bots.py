@@ -103,3 +103,12 @@ def test_a_match_a_bot_stopped_exits_non_zero_and_says_the_fault_once(in_process
     said = out + err
     assert said.count("no idea what to do") == 1, said
     assert "match stopped: bot" in out
+
+
+def test_a_bot_no_interrupt_reaches_ends_an_in_process_match_with_one_line():
+    run = pingpong("match", "--scene", "match_rigid", "--a", bots.spec("BlocksSignals"), "--b", "pro", "--ticks",
+                   str(TICKS), "--in-process")
+    out, err = run.communicate(timeout=DEADLINE_S)
+    assert run.returncode == 3, err  # runtime.watchdog.ABANDONED_EXIT
+    assert err.count("pingpong: bot BlocksSignals (bots.py) (player A) has not returned from act()") == 1, err
+    assert "Traceback" not in err
