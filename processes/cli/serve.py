@@ -53,6 +53,8 @@ def serve_command(args: argparse.Namespace) -> int:
             stats_path = os.path.join(tmp, "gateway.json")  # the counters of a gateway stopped by Ctrl-C
             config = GatewayConfig(bind=args.bind, snapshot_hz=args.snapshot_hz, timeout_s=args.timeout,
                                    grace_s=args.grace, stats_path=stats_path, coalesce_inputs=args.coalesce_inputs,
+                                   max_sessions_per_address=args.max_sessions_per_address,
+                                   hellos_per_s_per_address=args.hellos_per_s_per_address,
                                    **curve)
             fault = _fault(args)
             supervisor = Supervisor(scene, ticks, "realtime", seed=args.seed, gateway=config,
@@ -255,6 +257,10 @@ def add_commands(sub) -> None:
     serve.add_argument("--snapshot-hz", type=int, default=100, help="snapshots per second to every client")
     serve.add_argument("--timeout", type=float, default=5.0, help="s, a silent client is dropped after this")
     serve.add_argument("--grace", type=float, default=30.0, help="s, a dropped player's seat waits for its token")
+    serve.add_argument("--max-sessions-per-address", type=int, default=0, metavar="N",
+                       help="sessions one IP address may hold at once (0: no limit; clients behind one NAT share one)")
+    serve.add_argument("--hellos-per-s-per-address", type=float, default=0.0, metavar="R",
+                       help="hellos a second one IP address may send (0: no limit)")
     serve.add_argument("--no-coalesce-inputs", dest="coalesce_inputs", action="store_false",
                        help="decode and post every input of a player (default: of a player's inputs that arrive "
                             "together only the newest, so a flooding player cannot slow the feed)")

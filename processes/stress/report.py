@@ -73,6 +73,23 @@ def latency_values(clock: dict | None, dt: float, records: list[str]) -> np.ndar
     return np.concatenate(values) if values else np.zeros(0)
 
 
+def gateway_latency(clock: dict | None, send_log: np.ndarray | None) -> dict:
+    """The gateway's own part of a spectator's latency, in ms: from the time the physics' tick came
+    out (the tick clock's first sight of it, or of the first later tick it saw) to the gateway's
+    send of that tick's snapshot (its send log), for every snapshot of a new tick (a standing
+    clock's tick sent again is not a new one)."""
+    if clock is None or send_log is None or not len(send_log) or not len(clock["ticks"]):
+        return percentiles_ms(np.zeros(0))
+    seen_ticks, first = np.unique(clock["ticks"], return_index=True)
+    seen_at = clock["times"][first]
+    ticks, sent = send_log[:, 0].astype(np.int64), send_log[:, 1]
+    new = np.concatenate(([True], ticks[1:] != ticks[:-1])) & (ticks > 0)
+    ticks, sent = ticks[new], sent[new]
+    which = np.searchsorted(seen_ticks, ticks)
+    inside = which < len(seen_ticks)
+    return percentiles_ms(sent[inside] - seen_at[which[inside]])
+
+
 def latency(values_s: np.ndarray) -> dict:
     """Percentiles of latency_values, in ms."""
     return percentiles_ms(values_s)
@@ -171,7 +188,8 @@ def print_table(results: list[dict]) -> None:
     console.print(table)
     for r in results:
         jit = r.get("tick_jitter_ms") or {}
-        timing = (f"; latency ms p50/p99/max {_fmt(r['latency_ms'])}, tick jitter ms p99/max "
+        timing = (f"; latency ms p50/p99/max {_fmt(r['latency_ms'])}, the gateway's own "
+                  f"{_fmt(r.get('gateway_latency_ms'))}, tick jitter ms p99/max "
                   f"{_fmt(jit.get('p99'))}/{_fmt(jit.get('max'))}" if r.get("latency_ms") else "")
         console.print(f"[bold]{r['scenario']}[/]: {_summary(r)}{timing}; load average before/after "
                       f"{r.get('loadavg_before_after')}")

@@ -144,6 +144,7 @@ class Server(Child):
                      "timeout_s": timeout_s, "grace_s": grace_s, "max_spectators": max_spectators,
                      "ticks": int(seconds * 1000), "best_of": best_of, "tick_log": self.tick_log, "feed": feed,
                      "gateway_stats": os.path.join(tmp, f"gateway-{stamp}.json"), "bind": bind,
+                     "send_log": os.path.join(tmp, f"sends-{stamp}.npy"),
                      "players_timeout": players_timeout, "scene": scene}
         super().__init__(["-m", "processes.stress.server", json.dumps(self.spec)], "server")
         hello = self.expect(lambda o: "listening" in o, 120, "listening line")
@@ -189,6 +190,11 @@ class Server(Child):
         with np.load(self.tick_log) as data:
             return {k: data[k] for k in data.files}
 
+    def send_log(self) -> np.ndarray | None:
+        """The gateway's (tick, sent at) rows of the snapshots it published (written as it ended)."""
+        path = self.spec["send_log"]
+        return np.load(path) if os.path.exists(path) else None
+
     def gateway_stats(self) -> dict:
         """The gateway's counters as it last wrote them (every second), {} before the first."""
         try:
@@ -219,7 +225,7 @@ def main(argv: list[str]) -> int:
     config = GatewayConfig(bind=spec.get("bind", "tcp://127.0.0.1:0"), snapshot_hz=spec["snapshot_hz"], heartbeat_s=spec["heartbeat_s"],
                            timeout_s=spec["timeout_s"], grace_s=spec["grace_s"], max_spectators=spec["max_spectators"],
                            sndhwm=spec.get("sndhwm", GatewayConfig.sndhwm), feed=spec.get("feed", True),
-                           stats_path=spec.get("gateway_stats", ""),
+                           stats_path=spec.get("gateway_stats", ""), send_log_path=spec.get("send_log", ""),
                            pause_for_players=False)  # players are killed on purpose: the match goes on
     supervisor = Supervisor(scene, spec["ticks"], "realtime", seed=spec.get("seed", 0), gateway=config,
                             players_timeout=spec.get("players_timeout", 300.0))

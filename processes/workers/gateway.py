@@ -182,6 +182,8 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
         stats["goodbyes_at_end"] = told
         gateway.write_stats({"goodbyes_at_end": told, "end": "restart" if reason is None else reason.name.lower(),
                              "tick": gateway.tick})
+        if gateway.send_log is not None:
+            gateway.send_log.save()
         gateway.close()
         zctx.term()
         del record, acks, points, snapshots, box, seat_store, blocks

@@ -42,7 +42,13 @@ class GatewayConfig:
     before a tick, and an input holds until the next, so the others could not act); the rest
     are checked in one vectorised pass and counted inputs_coalesced; every other count
     (malformed, refused, stale) is what it would be without. Off: every input is decoded and
-    posted, one by one (kept to measure against).
+    posted, one by one (kept to measure against). send_log_path: a .npy file the gateway writes
+    as it ends: (tick, CLOCK_MONOTONIC s when it was sent) of the last pacing.SEND_LOG_SIZE snapshots
+    it published, so a measurement on the same machine can tell the gateway's part of a
+    spectator's latency (`pingpong stress --scenario load`); "": none.
+    max_sessions_per_address, hellos_per_s_per_address: what one peer IP address may take
+    (sessions.AddressLimits; a refused hello is told full, with why); 0: no limit, the default
+    (clients behind one NAT share an address).
     """
 
     bind: str = "tcp://127.0.0.1:0"
@@ -63,12 +69,18 @@ class GatewayConfig:
     max_held_bytes: int = 256 * 1024
     max_connections: int = 0
     coalesce_inputs: bool = True
+    send_log_path: str = ""
+    max_sessions_per_address: int = 0
+    hellos_per_s_per_address: float = 0.0
 
     def __post_init__(self):
         least = ROUTER_RCVHWM * MESSAGE_HELD_BYTES
         if self.max_held_bytes < least:
             raise ValueError(f"GatewayConfig.max_held_bytes: {self.max_held_bytes} is below what ROUTER_RCVHWM = "
                              f"{ROUTER_RCVHWM} queued messages of a peer take ({least} bytes); give at least that")
+        if self.max_sessions_per_address < 0 or self.hellos_per_s_per_address < 0:
+            raise ValueError(f"GatewayConfig.max_sessions_per_address ({self.max_sessions_per_address}) and "
+                             f"hellos_per_s_per_address ({self.hellos_per_s_per_address}) must be >= 0 (0: no limit)")
         if self.max_connections < 0:
             raise ValueError(f"GatewayConfig.max_connections: {self.max_connections} must be >= 0 (0: derived)")
 

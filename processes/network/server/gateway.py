@@ -72,9 +72,10 @@ from processes.network.server.config import ROUTER_RCVHWM, GatewayConfig
 from processes.network.server.events import MatchEvents
 from processes.network.server.feed import NetFeed, feed_socket
 from processes.network.server.guard import FRAME_OVERHEAD_BYTES, ConnectionGuard
-from processes.network.server.pacing import SnapshotPacer
+from processes.network.server.pacing import SendLog, SnapshotPacer
 from processes.network.server.seats import Seat, SeatStore, restore_seats
-from processes.network.server.sessions import CONFIRM_HEARTBEATS, Session, oldest_silent, retry_s
+from processes.network.server.sessions import (CONFIRM_HEARTBEATS, AddressLimits, Session, oldest_silent,
+                                               retry_s)
 from processes.network.wire import (MAX_BAD, MAX_FRAME_BYTES, NO_TOKEN, GoodbyeReason, InputMode, Kind, RejectReason,
                                     Role, Slot)
 
@@ -136,6 +137,9 @@ class Gateway:
         self.net = NetFeed(net_grid, config.snapshot_hz, dt) if net_grid is not None else None
         # one snapshot per 1/snapshot_hz of match time (and at most snapshot_hz a wall second)
         self.pacer = SnapshotPacer(config.snapshot_hz, dt)
+        self.send_log = SendLog(config.send_log_path) if config.send_log_path else None
+        self.address_limits = AddressLimits(config.max_sessions_per_address, config.hellos_per_s_per_address)
+        self._hello_address = ""  # the Peer-Address of the hello being handled
         self.lock = threading.Lock()  # with start_heartbeats: held around every other call
         self._sweeper: threading.Thread | None = None
         self._stop_sweeps = threading.Event()
@@ -296,6 +300,8 @@ class Gateway:
                 continue
             if identity in pending:  # this peer's inputs first: a goodbye after them ends the session after them
                 self.handle_inputs(pending.pop(identity))
+            if len(frames) == 2 and frames[1].startswith(_HELLO_PREFIX):
+                self._hello_address = parts[-1].get("Peer-Address") or ""
             self.handle(frames)
         for inputs in pending.values():
             self.handle_inputs(inputs)
@@ -420,6 +426,11 @@ class Gateway:
             self._reject(identity, RejectReason.SHUTTING_DOWN, "the server is shutting down")
             return
         name = message["name"]
+        refusal = self.address_limits.refusal(self._hello_address, self.sessions.values(), now)
+        if refusal is not None:
+            self.counts["rejected.address"] += 1
+            self._reject(identity, RejectReason.FULL, refusal)
+            return
         if message["role"] == Role.SPECTATOR:
             spectators = [s for s in self.sessions.values() if s.role == Role.SPECTATOR]
             if len(spectators) >= self.config.max_spectators and not self._evict_unconfirmed(spectators, now):
@@ -495,7 +506,7 @@ class Gateway:
 
     def _open(self, identity: bytes, role: Role, slot: Slot, name: str, now: float, seq: int) -> Session:
         session = Session(identity, role, slot, name, last_seen=now, next_beat=now + self.config.heartbeat_s,
-                           seq_in=seq, opened=now)
+                           seq_in=seq, opened=now, address=self._hello_address)
         self.sessions[identity] = session
         return session
 
@@ -625,6 +636,8 @@ class Gateway:
             self.counts[f"snapshots_unencodable.{err.reason}"] += 1
             return
         self._broadcast(data, "snapshots")
+        if self.send_log is not None:
+            self.send_log.sent(int(record["world"]["tick"]))
         if self.net is not None:
             self.net.snapshot_sent(int(record["world"]["tick"]))
 

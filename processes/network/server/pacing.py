@@ -1,10 +1,14 @@
 """SnapshotPacer: when the gateway's next snapshot is due, on the match clock, and how fast that
-clock runs against the wall clock (snapshot.realtime_factor)."""
+clock runs against the wall clock (snapshot.realtime_factor); SendLog: when each one went out."""
 from __future__ import annotations
 
+import time
 from collections import deque
 
+import numpy as np
+
 RATE_WINDOW_S = 1.0  # snapshot.realtime_factor: the match time run over this much wall time
+SEND_LOG_SIZE = 1 << 17  # snapshots a SendLog keeps (18 min at 120 Hz): 2 MB
 
 
 class SnapshotPacer:
@@ -63,3 +67,22 @@ class SnapshotPacer:
         wall = now - samples[0][0]
         if wall >= RATE_WINDOW_S / 4:
             self.realtime_factor = (match_s - samples[0][1]) / wall
+
+
+class SendLog:
+    """(tick, CLOCK_MONOTONIC s) of the last SEND_LOG_SIZE snapshots the gateway published, saved
+    to `path` (.npy, oldest first) when it ends (GatewayConfig.send_log_path)."""
+
+    def __init__(self, path: str):
+        self.path = path
+        self.rows = np.zeros((SEND_LOG_SIZE, 2))
+        self.count = 0
+
+    def sent(self, tick: int) -> None:
+        self.rows[self.count % SEND_LOG_SIZE] = tick, time.monotonic()
+        self.count += 1
+
+    def save(self) -> None:
+        rows = np.roll(self.rows, -(self.count % SEND_LOG_SIZE), axis=0) if self.count > SEND_LOG_SIZE \
+            else self.rows[:self.count]
+        np.save(self.path, rows)

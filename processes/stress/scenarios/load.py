@@ -20,7 +20,7 @@ import numpy as np
 
 from processes.stress.harness import Child, Run, StressError, bot, until
 from processes.stress.probes import CpuMeter, cpu_seconds, rss_kb, shm_names
-from processes.stress.report import jitter, latency, latency_values, plot_load
+from processes.stress.report import gateway_latency, jitter, latency, latency_values, plot_load
 from processes.stress.result import base, check, finish
 from processes.stress.server import Server
 from processes.stress.swarm import launch, split, watch_spec
@@ -28,13 +28,43 @@ from processes.stress.swarm import launch, split, watch_spec
 JOIN_WAIT_S = 300.0  # --server-only: how long the server waits for its spectators before the match
 
 
-def _swarms(args, run: Run, endpoint: str, seconds: float) -> tuple[list[Child], list[str], list[dict]]:
+def split_cores(cores: list[int]) -> tuple[list[int], list[int]] | None:
+    """The server's cores and the load generator's, apart, when there are 4 or more (the first
+    half for the server: its physics, net, AI and gateway workers); None with fewer."""
+    if len(cores) < 4:
+        return None
+    half = len(cores) // 2
+    return cores[:half], cores[half:]
+
+
+def _pin_server(server: Server) -> dict | None:
+    """Keep the server and the load generator on cores of their own where the machine has enough
+    (split_cores): the server's processes are pinned here, the generator's at their start."""
+    apart = split_cores(sorted(os.sched_getaffinity(0)))
+    if apart is None:
+        return None
+    for pid in server.all_pids().values():
+        try:
+            os.sched_setaffinity(pid, apart[0])
+        except ProcessLookupError:
+            pass
+    return {"server": apart[0], "generator": apart[1]}
+
+
+def _swarms(args, run: Run, endpoint: str, seconds: float,
+            cores: dict | None = None) -> tuple[list[Child], list[str], list[dict]]:
     """The spectators' swarm processes, their latency records, and their ready lines."""
     n = args.spectators
     schedule = getattr(args, "swarm_schedule", None) or {}  # pin_cpu, nice: see swarm.watch
     records = [os.path.join(run.tmp, f"load-{i}.npz") for i in range(len(split(n)))]
+
+    def pinned(i: int) -> dict:
+        if cores is None or "pin_cpu" in schedule:
+            return schedule
+        return {**schedule, "pin_cpu": cores["generator"][i % len(cores["generator"])]}
+
     swarms = [run.add(launch(watch_spec(endpoint, k, 0, f"s{i}_", records[i], duration=seconds + 120,
-                                        until_goodbye=True, join_timeout=60 + n / 20, **schedule), f"swarm{i}"))
+                                        until_goodbye=True, join_timeout=60 + n / 20, **pinned(i)), f"swarm{i}"))
               for i, k in enumerate(split(n)) if k]
     readies = [s.expect(lambda o: o.get("event") == "ready", 90 + n / 20, "ready") for s in swarms]
     return swarms, records, readies
@@ -149,8 +179,13 @@ def scenario(args, run: Run) -> dict:
     fanout = getattr(args, "fanout", "pub")  # pub: the feed; router: one send per session (protocol 1's way)
     server = run.add(Server(run.tmp, players=2, snapshot_hz=args.hz, max_spectators=max(n, 1), seconds=seconds,
                             feed=fanout == "pub"))
-    swarms, records, readies = _swarms(args, run, server.endpoint, seconds)
+    cores = _pin_server(server)
+    swarms, records, readies = _swarms(args, run, server.endpoint, seconds, cores)
     bots = _players(args, run, server.endpoint, seconds)
+    if cores is not None:
+        for player in bots:
+            os.sched_setaffinity(player.pid, cores["generator"])
+    result["cores"] = cores or f"shared: {os.cpu_count()} cores are too few to keep the load generator apart"
     until(lambda: (server.tick() or 0) > 0, 120, 0.2)
     gateway = server.pids["gateway"]
     meter = CpuMeter(threads=("gateway",))
@@ -177,6 +212,7 @@ def scenario(args, run: Run) -> dict:
     clock = server.tick_clock()
     values = latency_values(clock, server.dt, records)
     result["latency_ms"] = latency(values)
+    result["gateway_latency_ms"] = gateway_latency(clock, server.send_log())  # the server's own part of it
     result["tick_jitter_ms"] = jitter(clock, server.dt, t0, t1)
     result["rss_growth_pct"] = round(100.0 * (rss1 - rss0) / rss0, 2) if rss0 and rss1 else None
     stats = end.get("gateway", {})
@@ -258,6 +294,7 @@ def _swarm_only(args, run: Run) -> dict:
                  "samples": len(ticks)}
         values = latency_values(clock, dt, records)
     result["latency_ms"] = latency(values)
+    result["gateway_latency_ms"] = gateway_latency(clock, server.send_log())  # the server's own part of it
     result["latency_reference"] = "fastest snapshot"
     result["counts"] = {**_spectators(args, reports, readies), "target": args.target}
     result["lost_points"] = result["counts"]["score_regressions"] + result["counts"]["tick_regressions"]

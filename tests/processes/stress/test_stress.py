@@ -45,6 +45,7 @@ def test_load_every_spectator_watches_the_whole_match_and_is_told_it_ended():
     assert all(bot["inputs_sent"] > 0 and bot["goodbye"] in ("match_over", "server_lost") for bot in c["bots"])
     assert sum(bot["goodbye"] == "server_lost" for bot in c["bots"]) == c["bots_without_goodbye"]
     assert 0 < result["latency_ms"]["n"] <= c["snapshots_received"]  # those sent once the match had started
+    assert 0 < result["gateway_latency_ms"]["n"] <= c["gateway_snapshots_published"]  # the server's own part
     assert result["tick_jitter_ms"]["n"] > 0 and "gateway" in result["cpu_pct"]
     # Whether one swarm process kept up with 50 spectators is the machine's business (other jobs on
     # its cores starve it); that the result says which it was is the product's.
@@ -52,6 +53,27 @@ def test_load_every_spectator_watches_the_whole_match_and_is_told_it_ended():
     assert result["limited_by_load_generator"] == bool(swarm["saturated"])
     assert any("limited by the load generator" in f for f in result["findings"]) == bool(swarm["saturated"])
     assert swarm["received"] >= c["snapshots_received"] // 2 and swarm["cpu_us_per_message"] > 0
+
+
+def test_the_server_and_the_load_generator_get_cores_apart_only_where_there_are_enough():
+    from processes.stress.scenarios.load import split_cores
+
+    assert split_cores([0, 1]) is None and split_cores([0, 1, 2]) is None
+    assert split_cores([0, 1, 2, 3]) == ([0, 1], [2, 3]) and split_cores([4, 5, 6, 7, 8]) == ([4, 5], [6, 7, 8])
+
+
+def test_the_gateways_own_latency_is_from_the_tick_coming_out_to_its_send():
+    import numpy as np
+
+    from processes.stress.report import gateway_latency
+
+    clock = {"ticks": np.array([0, 1, 2, 4]), "times": np.array([0.0, 1.0, 2.0, 4.0])}  # tick 3 not seen
+    sends = np.array([(0, 0.5),  # tick 0: the match had not started
+                      (1, 1.003), (2, 2.001),
+                      (2, 2.5),  # a standing clock's tick again: not a new snapshot
+                      (3, 4.002)])  # tick 3 was out by the time tick 4 was seen
+    assert gateway_latency(clock, sends) == {"p50": 2.0, "p99": 2.98, "max": 3.0, "n": 3}
+    assert gateway_latency(clock, None)["n"] == 0
 
 
 def test_churn_leaves_every_seat_and_spectator_place_free():

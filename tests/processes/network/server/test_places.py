@@ -88,3 +88,23 @@ def test_hellos_sent_again_in_a_session_keep_no_place(rig):
     assert goodbye["reason"] == GoodbyeReason.TIMEOUT
     assert r.gateway.counts["timeouts.unconfirmed"] == 1
     assert r.gateway.counts["dropped.hello_in_session"] >= 1
+
+
+def test_one_address_may_take_only_so_many_sessions_and_hellos_when_the_server_says_so(rig):
+    r = rig(max_sessions_per_address=2, heartbeat_s=1.0, timeout_s=5.0)
+    assert [r.join(r.client(role="spectator", name=f"s{i}")).kind for i in range(2)] == [Kind.WELCOME] * 2
+    third = _answer(r, r.client(role="spectator", name="s2"))
+    assert third.kind == Kind.REJECT and third["reason"] == RejectReason.FULL
+    assert third["detail"] == "2 sessions from 127.0.0.1 already"
+    assert r.gateway.counts["rejected.address"] == 1
+    fast = rig(hellos_per_s_per_address=2.0, heartbeat_s=1.0, timeout_s=5.0)
+    answers = [_answer(fast, fast.client(role="spectator", name=f"h{i}")) for i in range(3)]  # the clock stands
+    assert [a.kind for a in answers] == [Kind.WELCOME, Kind.WELCOME, Kind.REJECT]
+    assert answers[2]["detail"] == "more than 2 hellos a second from 127.0.0.1; retry in 1 s"
+    fast.clock.now += 0.5  # a second's worth refills in a second: one more hello now
+    assert _answer(fast, fast.client(role="spectator", name="later")).kind == Kind.WELCOME
+
+
+def test_no_address_limit_by_default(rig):
+    r = rig(max_spectators=8)
+    assert all(r.join(r.client(role="spectator", name=f"s{i}")).kind == Kind.WELCOME for i in range(8))
