@@ -10,7 +10,7 @@ ends the run with WorkerFailed, and a served match's clients are told goodbye se
 Cleanup holds on every exit path: normal end, an exception, Ctrl-C (KeyboardInterrupt) or
 SIGTERM (turned into SystemExit), a worker's crash, and any number of further signals during
 it (runtime.stops.StopSignals). Workers get a stop command, then a bounded
-join, then terminate, then kill; every segment of the run is unlinked. Should the supervisor
+join, then kill; every segment of the run is unlinked. Should the supervisor
 itself be SIGKILLed, its workers notice their parent is gone within a heartbeat and exit, and
 the multiprocessing resource tracker unlinks the segments.
 """
@@ -151,7 +151,8 @@ class Supervisor:
         self.layout: RunLayout | None = None
         # forkserver: workers fork from a clean server that never ran threads or kernels.
         self._ctx = multiprocessing.get_context("forkserver")
-        self._ctx.set_forkserver_preload(["engine.world", "engine.match", *worker_modules(self.kinds)])
+        self._ctx.set_forkserver_preload(["processes.runtime.forkserver", "engine.world", "engine.match",
+                                          *worker_modules(self.kinds)])
         self.arena: Arena | None = None
         self._workers: list[_Worker] = []
 
@@ -220,8 +221,7 @@ class Supervisor:
         worker.conn.send(("go", start_wall))
 
     def _reap(self, worker: _Worker, why: str = "shutdown") -> None:
-        """Stop one worker: ask (saying why: runtime.control.StopRequested), wait (bounded),
-        terminate, kill."""
+        """Stop one worker: ask (saying why: runtime.control.StopRequested), wait (bounded), kill."""
         process = worker.process
         if process is None:
             return
@@ -235,10 +235,7 @@ class Supervisor:
             except (OSError, BrokenPipeError):
                 pass
             process.join(STOP_TIMEOUT_S)
-        if process.is_alive():
-            process.terminate()
-            process.join(STOP_TIMEOUT_S)
-        if process.is_alive():
+        if process.is_alive():  # a worker ignores SIGTERM (runtime.control.worker_main): kill it
             process.kill()
             process.join(STOP_TIMEOUT_S)
         worker.conn.close()

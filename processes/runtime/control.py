@@ -171,7 +171,11 @@ def _beat_while_starting(row, started: threading.Event) -> None:
 def worker_main(target, conn, layout: dict, status_index: int, scene, options) -> None:
     """Process entry point: attach the run's memory, run `target(control, arena, scene, options)`
     (a worker function of the processes.workers registry), ship any error back with its traceback."""
+    # Ctrl-C (the terminal's process group) and a SIGTERM to the whole group (systemd, `kill --
+    # -PGID`) are the supervisor's to act on: it stops its workers in order (the gateway's goodbyes
+    # and last counters first), and kills one that does not stop.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     arena = Arena.attach(layout)
     status = arena["status"].array
     row = status[status_index]

@@ -119,6 +119,29 @@ def test_signals_again_and_again_while_it_stops_lose_nothing(served, zctx):
     assert not shm.leftover_segments(hello["run_id"])
 
 
+def test_a_sigterm_to_the_whole_process_group_stops_it_as_one_to_the_server(served, zctx):
+    # systemd's stop and `kill -- -PGID` reach every worker and the forkserver too: they leave the
+    # stop to the supervisor, which stops them in order (the gateway's goodbye and counters).
+    server = pingpong("serve", "--players", "0", "--ticks", "600000", "--json")
+    served.append(server)
+    hello = json.loads(line(server, "the server's listening line"))
+    watcher = Client(hello["listening"], "spectator", "sp", zctx=zctx)
+    try:
+        watcher.join(DEADLINE_S)
+        workers = descendants(server.pid)
+        os.killpg(server.pid, signal.SIGTERM)  # the served fixture starts it in a session (a group) of its own
+        goodbye, _ = until_goodbye(watcher)
+        assert goodbye is not None and goodbye["reason"] == GoodbyeReason.SHUTDOWN
+    finally:
+        watcher.close()
+    assert server.wait(DEADLINE_S) == 143
+    summary = json.loads(rest(server, "the server's summary").strip().splitlines()[-1])
+    assert summary["gateway"]["goodbyes_at_end"] == 1 and summary["gateway"]["end"] == "shutdown"
+    assert "Traceback" not in server.stderr.read()
+    assert await_gone(workers) == []
+    assert not shm.leftover_segments(hello["run_id"])
+
+
 def test_a_killed_gateway_is_restarted_on_the_same_endpoint_and_the_token_reclaims_the_seat(served, zctx):
     server = pingpong("serve", "--players", "1", "--ticks", "6000", "--crash-gateway-at-tick", "500", "--json")
     served.append(server)
