@@ -86,11 +86,24 @@ def _percentile(hist: np.ndarray, q: float) -> int:
     return int(np.searchsorted(np.cumsum(hist), q / 100.0 * total))
 
 
-def _pin(spec: WatchSpec) -> None:
+def _pin(spec: WatchSpec) -> set[int]:
     """Pin this process to the CPU the spec names (every thread started after this inherits it):
-    a swarm kept off the server's cores, or starved on purpose."""
+    a swarm kept off the server's cores, or starved on purpose. The CPUs it had before."""
+    allowed = os.sched_getaffinity(0)
     if spec.pin_cpu is not None:
         os.sched_setaffinity(0, {spec.pin_cpu})
+    return allowed
+
+
+def _unpin(allowed: set[int]) -> None:
+    """Give every thread of this process (libzmq's too) the CPUs it had before _pin: leaving,
+    closing and the report are not measured, and a swarm starved on purpose on its pinned CPU
+    would take minutes over them."""
+    for tid in os.listdir("/proc/self/task"):
+        try:
+            os.sched_setaffinity(int(tid), allowed)
+        except ProcessLookupError:  # a thread that ended since the listing
+            pass
 
 
 def _lower_priority(spec: WatchSpec) -> None:
@@ -121,7 +134,7 @@ class Watch:
     """
 
     def __init__(self, spec: WatchSpec):
-        _pin(spec)
+        self.allowed_cpus = _pin(spec)
         self.spec = spec
         self.fds_before = fd_count()
         # a spectator has two sockets: its session and its feed
@@ -416,6 +429,8 @@ class Watch:
         if not self.ready_at:
             self.ready_at = stopped
             self._emit_ready(stopped)
+        if self.spec.pin_cpu is not None:
+            _unpin(self.allowed_cpus)
         if self.spec.leave_at_end:
             for w in self.watchers:
                 if w.goodbye is None and w.welcomed:

@@ -238,3 +238,5 @@ def test_swarm_only_watches_a_server_started_apart():
     assert result["latency_reference"] == "fastest snapshot" and result["latency_ms"]["n"] > 0
     assert served["ok"], served["problems"]
     assert served["counts"]["spectators_joined"] >= 20 and served["counts"]["gateway_snapshots_published"] > 0
+    assert served["gateway_latency_ms"]["n"] > 0  # the server side times its own part; the swarm side cannot
+    assert "gateway_latency_ms" not in result
