@@ -15,6 +15,7 @@ CURVE keys (`pingpong keys DIR`) make the session encrypted and the server authe
 """
 from __future__ import annotations
 
+import re
 import time
 
 import numpy as np
@@ -25,6 +26,7 @@ from processes.network.wire import NO_TOKEN, GoodbyeReason, InputMode, Kind, Rol
 
 JOIN_TIMEOUT_S = 10.0
 HELLO_AGAIN_S = 1.0  # s without an answer after which join says hello again
+RETRY_IN = re.compile(r"retry in ([0-9.]+) s")  # a `full` reject's hint (docs/protocol.md)
 
 
 def load_curve_key(path: str, secret: bool) -> tuple[bytes, bytes | None]:
@@ -70,6 +72,13 @@ class Rejected(RuntimeError):
         super().__init__(f"rejected: {reason.name.lower()}: {detail}")
         self.reason = reason
         self.detail = detail
+
+    @property
+    def retry_s(self) -> float | None:
+        """When the server says a place may be free (a `full` reject's detail ends `retry in N s`,
+        docs/protocol.md), in s; None if it does not say."""
+        found = RETRY_IN.search(self.detail)
+        return float(found.group(1)) if found else None
 
 
 class Client:

@@ -13,7 +13,9 @@ Invariants (problems when broken):
 - the honest spectators' snapshot rate during each attack at least HONEST_SHARE of their rate in
   the baseline window (the same run, the same spectators);
 - no honest spectator refused; the probe (an honest spectator asking for a place while the
-  hoarder's sockets hold every free one, a heartbeat period after their hellos) welcomed;
+  hoarder's sockets hold every free one, a heartbeat period after their hellos) welcomed, at
+  once or after the `retry in` a `full` reject names (hellos the hoarder said again within the
+  last heartbeat period still hold their places);
 - every multipart and oversized peer cut, each cut counted by reason in the gateway's counters;
 - after the signals: the server's end line with the gateway's counters ("end" shutdown, every
   session told), every honest spectator told goodbye shutdown, no traceback, no segment left.

@@ -5,6 +5,7 @@ place of the oldest such session silent for a heartbeat period; a full server sa
 A Gateway in this process (the rig fixture) with a clock the test sets. A "bare hello" is a
 client that sends its hello and never answers the welcome (Client.join answers it at once).
 """
+from processes.network.client.client import Rejected
 from processes.network.server.sessions import CONFIRM_HEARTBEATS
 from processes.network.wire import GoodbyeReason, Kind, RejectReason, Slot
 
@@ -26,6 +27,7 @@ def test_a_hello_that_finds_the_places_full_takes_a_bare_hellos_place(rig):
     early = r.client(role="spectator", name="early")  # a bare hello's answer may still be on its way
     reject = _answer(r, early)
     assert reject.kind == Kind.REJECT and "retry in 1 s" in reject["detail"]
+    assert Rejected(reject["reason"], reject["detail"]).retry_s == 1.0  # what a client reads of it
     r.clock.now += 1.5  # a heartbeat period and more: a live peer would have answered its welcome
     honest = r.client(role="spectator", name="honest")
     assert r.join(honest).kind == Kind.WELCOME
@@ -38,6 +40,8 @@ def test_a_hello_that_finds_the_places_full_takes_a_bare_hellos_place(rig):
     reject = _answer(r, third)  # now every place is held by a session that answered its welcome
     assert reject.kind == Kind.REJECT and reject["reason"] == RejectReason.FULL
     assert "2 spectators already watch; retry in 5 s" in reject["detail"]
+    assert Rejected(reject["reason"], reject["detail"]).retry_s == 5.0
+    assert Rejected(RejectReason.BAD_TOKEN, "unknown or expired rejoin token").retry_s is None
 
 
 def test_a_bare_hello_is_timed_out_after_a_few_heartbeats_and_frees_its_seat(rig):
