@@ -51,10 +51,13 @@ def test_ctrl_c_on_the_server_says_goodbye_and_leaves_nothing_behind(served, zct
     assert not shm.leftover_segments(hello["run_id"])
 
 
-@pytest.mark.parametrize("signum, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
-def test_serve_in_the_background_stops_cleanly_on_sigint_and_sigterm(served, zctx, signum, code):
+@pytest.mark.parametrize("signum, code, group", [(signal.SIGINT, 130, False), (signal.SIGTERM, 143, False),
+                                                 (signal.SIGTERM, 143, True)])
+def test_serve_in_the_background_stops_cleanly_on_sigint_and_sigterm(served, zctx, signum, code, group):
     # Started as a shell starts a background job (SIGINT ignored): either signal stops it, every
-    # client is told goodbye shutdown, the summary is printed, nothing is left behind.
+    # client is told goodbye shutdown, the summary is printed, nothing is left behind. A SIGTERM
+    # to the whole process group (systemd's stop, `kill -- -PGID`) reaches every worker and the
+    # forkserver too: they leave the stop to the supervisor, which stops them in order.
     server = subprocess.Popen([sys.executable, "-m", "processes.cli", "serve", "--players", "0", "--ticks", "600000",
                                "--json"], cwd=ROOT, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                               stderr=subprocess.PIPE, text=True, start_new_session=True,
@@ -65,7 +68,10 @@ def test_serve_in_the_background_stops_cleanly_on_sigint_and_sigterm(served, zct
     try:
         watcher.join(DEADLINE_S)
         workers = descendants(server.pid)
-        os.kill(server.pid, signum)
+        if group:
+            os.killpg(server.pid, signum)  # started in a session (a group) of its own
+        else:
+            os.kill(server.pid, signum)
         goodbye, _ = until_goodbye(watcher)
         assert goodbye is not None and goodbye["reason"] == GoodbyeReason.SHUTDOWN
     finally:
@@ -74,6 +80,7 @@ def test_serve_in_the_background_stops_cleanly_on_sigint_and_sigterm(served, zct
     summary = json.loads(rest(server, "the server's summary").strip().splitlines()[-1])
     assert summary["interrupted"] and summary["signal"] == signal.Signals(signum).name
     assert summary["gateway"]["goodbyes_at_end"] == 1 and summary["gateway"]["end"] == "shutdown"
+    assert "Traceback" not in server.stderr.read()
     assert await_gone(workers) == []
     assert not shm.leftover_segments(hello["run_id"])
 
@@ -115,29 +122,6 @@ def test_signals_again_and_again_while_it_stops_lose_nothing(served, zctx):
     assert (summary["signal"], code) in (("SIGTERM", 143), ("SIGINT", 130))  # the first one taken
     assert summary["gateway"]["goodbyes_at_end"] == 1 and summary["gateway"]["end"] == "shutdown"
     assert "Traceback" not in errors and "leaked" not in errors, errors
-    assert await_gone(workers) == []
-    assert not shm.leftover_segments(hello["run_id"])
-
-
-def test_a_sigterm_to_the_whole_process_group_stops_it_as_one_to_the_server(served, zctx):
-    # systemd's stop and `kill -- -PGID` reach every worker and the forkserver too: they leave the
-    # stop to the supervisor, which stops them in order (the gateway's goodbye and counters).
-    server = pingpong("serve", "--players", "0", "--ticks", "600000", "--json")
-    served.append(server)
-    hello = json.loads(line(server, "the server's listening line"))
-    watcher = Client(hello["listening"], "spectator", "sp", zctx=zctx)
-    try:
-        watcher.join(DEADLINE_S)
-        workers = descendants(server.pid)
-        os.killpg(server.pid, signal.SIGTERM)  # the served fixture starts it in a session (a group) of its own
-        goodbye, _ = until_goodbye(watcher)
-        assert goodbye is not None and goodbye["reason"] == GoodbyeReason.SHUTDOWN
-    finally:
-        watcher.close()
-    assert server.wait(DEADLINE_S) == 143
-    summary = json.loads(rest(server, "the server's summary").strip().splitlines()[-1])
-    assert summary["gateway"]["goodbyes_at_end"] == 1 and summary["gateway"]["end"] == "shutdown"
-    assert "Traceback" not in server.stderr.read()
     assert await_gone(workers) == []
     assert not shm.leftover_segments(hello["run_id"])
 
