@@ -193,19 +193,19 @@ def _probe(address: str, zctx) -> dict:
     may take it), as a client should (docs/protocol.md), within JOIN_S in all."""
     asked = time.monotonic()
     deadline = asked + JOIN_S
-    rejects = []
+    rejects = 0
     while True:
         client = Client(address, "spectator", "probe", zctx=zctx)
         try:
             client.join(max(0.1, deadline - time.monotonic()))
-            return {"answer": "welcome", "join_s": round(time.monotonic() - asked, 3), "rejects": len(rejects)}
+            return {"answer": "welcome", "join_s": round(time.monotonic() - asked, 3), "rejects": rejects}
         except Rejected as rejected:
-            rejects.append(str(rejected))
+            rejects += 1
             retry = rejected.retry_s
             if retry is None or time.monotonic() + retry >= deadline:
-                return {"answer": "reject", "detail": str(rejected), "rejects": len(rejects)}
+                return {"answer": "reject", "detail": str(rejected), "rejects": rejects}
         except TimeoutError:
-            return {"answer": "none", "rejects": len(rejects)}
+            return {"answer": "none", "rejects": rejects}
         finally:
             client.leave()
             client.close()
