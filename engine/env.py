@@ -48,7 +48,7 @@ from engine.dtypes import CONTACT_DTYPE, OBSERVATION_DTYPE, POINT_DTYPE, physics
 from engine.match import Match, control_period, match_scene, point_row
 from engine.players import decision_key
 from engine.rules import Phase
-from engine.scene import load_scene
+from engine.scene import load_scene, scene_toml
 
 RETURN_STRIKE = 0.2  # reward for striking the ball
 RETURN_LANDED = 1.0  # reward for a return that bounces on the opponent's court
@@ -326,7 +326,7 @@ class PingPongEnv(gymnasium.Env):
         """The episode so far as a replay file (`pingpong replay FILE --html PAGE` plays it in a browser)."""
         match = self.match
         points = match.referee.points
-        replay_file.write(path, scene_name=match.scene.name, scene_text="", seed=self.seed_of_match,
+        replay_file.write(path, scene_name=match.scene.name, scene_text=scene_toml(match.scene), seed=self.seed_of_match,
                           dt=match.scene.dt, frame_every=FRAME_EVERY, frames=np.array(self.frames),
                           events=np.array(self.events, CONTACT_DTYPE) if self.events else np.zeros(0, CONTACT_DTYPE),
                           points=np.array([point_row(p, 0) for p in points]) if points else

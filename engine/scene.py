@@ -5,9 +5,11 @@ import hashlib
 import json
 import math
 import tomllib
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 from typing import Any
+
+import tomli_w
 
 from engine import equipment
 from engine.bot import is_bot_spec
@@ -296,9 +298,19 @@ def _read_bat(r: _Reader, name: str, data: Any) -> BatSpec:
         radius=r.number(data, "radius", f"{path}.radius", equipment.BAT_RADIUS, low=0.03, high=0.15),
         half_thickness=r.number(data, "half_thickness", f"{path}.half_thickness",
                                 equipment.BAT_HALF_THICKNESS, low=0.001, high=0.02),
-        skill=r.string(data, "skill", f"{path}.skill", None, SKILL_NAMES) if "skill" in data else None,
+        skill=_read_skill(r, data, path) if "skill" in data else None,
         remote=_flag(r, data, "remote", f"{path}.remote"),
     )
+
+
+def _read_skill(r: _Reader, data: dict, path: str) -> str:
+    """bats.X.skill: an AI profile (SKILL_NAMES) or a bot ("FILE.py:Class", "module:Class"; loaded
+    when the match starts, engine.bot.load_bot)."""
+    skill = r.string(data, "skill", f"{path}.skill", "")
+    if skill not in SKILL_NAMES and not is_bot_spec(skill):
+        raise r.fail(f"{path}.skill", f"must be one of {', '.join(SKILL_NAMES)} or a bot (FILE.py:Class or "
+                                      f"module:Class); got {skill!r}")
+    return skill
 
 
 def _flag(r: _Reader, data: dict, key: str, path: str) -> bool:
@@ -485,13 +497,18 @@ def load_scene(name_or_path: str | Path, overrides: dict[str, Any] | None = None
     if not path.exists():
         names = ", ".join(sorted(p.stem for p in SCENES_DIR.glob("*.toml")))
         raise SceneError(f"{name_or_path}: no such scene file; bundled scenes: {names}")
+    return scene_from_toml(path.read_text(), str(path), overrides)
+
+
+def scene_from_toml(text: str, source: str, overrides: dict[str, Any] | None = None) -> Scene:
+    """The Scene of a TOML document `text` (load_scene's, and scene_toml's inverse); errors name `source`."""
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{path}: not valid TOML: {exc}") from exc
+        raise SceneError(f"{source}: not valid TOML: {exc}") from exc
     for key, value in (overrides or {}).items():
-        _set_key(data, key, value, str(path))
-    return parse_scene(data, str(path))
+        _set_key(data, key, value, source)
+    return parse_scene(data, source)
 
 
 def _set_key(data: dict, key: str, value: Any, source: str) -> None:
@@ -512,6 +529,50 @@ def scene_digest(scene: Scene) -> str:
     fields = asdict(replace(scene, source=""))
     text = json.dumps(fields, sort_keys=True, default=sorted)  # default: the effects' frozenset, sorted
     return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def scene_toml(scene: Scene) -> str:
+    """The scene as a TOML document that scene_from_toml reads back into an equal Scene (every
+    field but `source`; the same scene_digest): what a served match sends its clients and a
+    replay keeps, whatever file, --set or --a/--b the scene was made from. Every value is
+    written out, defaults too, so the document means the same to a later version with other
+    defaults. Raises SceneError for a scene that no TOML document describes (a cloth net whose
+    width, height, posts or gravity differ from NetSpec's: a scene file cannot set them)."""
+    data: dict[str, Any] = {
+        "name": scene.name, "description": scene.description, "effects": sorted(scene.effects), "dt": scene.dt,
+        "duration": scene.duration, "integrator": scene.integrator, "rtol": scene.rtol, "atol": scene.atol,
+        "ball": {"pos": list(scene.ball.pos), "vel": list(scene.ball.vel), "spin": list(scene.ball.spin)},
+        "air": {"gravity": scene.gravity, "density": scene.air_density, "drag_coefficient": scene.drag_coefficient,
+                "magnus_coefficient": scene.magnus_coefficient},
+        "materials": {body: {"restitution": m.restitution, "friction": m.friction} for body, m in scene.materials},
+    }
+    if scene.bats:
+        data["bats"] = {bat.name: _bat_data(bat) for bat in scene.bats}
+    if "net" in scene.effects:
+        data["net"] = {"kind": scene.net_kind} if scene.cloth is None else _cloth_data(scene)
+    if scene.match is not None:
+        data["match"] = asdict(scene.match)
+    return tomli_w.dumps(data)
+
+
+def _bat_data(bat: BatSpec) -> dict[str, Any]:
+    out: dict[str, Any] = {key: list(getattr(bat, key)) for key in ("pos", "quat", "vel", "ang_vel", "force", "torque")}
+    out.update(mass=bat.mass, radius=bat.radius, half_thickness=bat.half_thickness, remote=bat.remote)
+    if bat.skill is not None:
+        out["skill"] = bat.skill
+    return out
+
+
+def _cloth_data(scene: Scene) -> dict[str, Any]:
+    spec = scene.cloth
+    written = set(CLOTH_FLOATS + CLOTH_INTS) | {"solver", "kernel_precision", "kernel_fma"}
+    default = NetSpec()
+    fixed = [f.name for f in fields(NetSpec) if f.name not in written
+             and getattr(spec, f.name) != getattr(default, f.name)]
+    if fixed:
+        raise SceneError(f"{scene.source}: net.{fixed[0]}: {getattr(spec, fixed[0])!r} is not NetSpec's "
+                         f"{getattr(default, fixed[0])!r}, and a scene file cannot set it")
+    return {"kind": "cloth", **{key: getattr(spec, key) for key in sorted(written)}}
 
 
 def with_skills(scene: Scene, skill_a: str, skill_b: str) -> Scene:

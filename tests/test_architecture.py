@@ -14,8 +14,9 @@ ALLOWED = {
     "net_kernel": {"numpy", "numba", "net_kernel", "threadpoolctl"},
     # engine: no sockets, processes or zmq; net_kernel below it is fine; matplotlib draws the
     # replay's picture (engine/render.py), which the Gymnasium environment (engine/env.py) renders;
-    # pettingzoo is the two-bat environment's API (engine/parallel_env.py).
-    "engine": {"numpy", "numba", "engine", "net_kernel", "matplotlib", "gymnasium", "pettingzoo"},
+    # pettingzoo is the two-bat environment's API (engine/parallel_env.py); tomli_w writes a scene
+    # out as TOML (engine/scene.py scene_toml).
+    "engine": {"numpy", "numba", "engine", "net_kernel", "matplotlib", "gymnasium", "pettingzoo", "tomli_w"},
 }
 
 

@@ -3,7 +3,18 @@ from __future__ import annotations
 
 import argparse
 
-FORMATTER = argparse.ArgumentDefaultsHelpFormatter
+
+class Formatter(argparse.ArgumentDefaultsHelpFormatter):
+    """argparse's help with each option's default appended, except where the default is None (the
+    help says what stands in for it: "the scene's") or the help gives it already."""
+
+    def _get_help_string(self, action):
+        if action.default is None or "(default:" in (action.help or ""):
+            return action.help
+        return super()._get_help_string(action)
+
+
+FORMATTER = Formatter
 # engine.players.DEFAULT_BUDGET_S in ms, spelled out: the parser imports no engine (tests/processes/cli/test_cli.py
 # checks the two agree).
 BOT_BUDGET_MS = 20.0

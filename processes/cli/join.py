@@ -50,12 +50,16 @@ def join_command(args: argparse.Namespace) -> int:
         except TimeoutError as err:
             print(f"pingpong join: {err}", file=sys.stderr)
             return 4
-        summary.update(slot=client.slot.name.lower(), scene=welcome["scene"], token=client.token.hex(),
-                       snapshot_hz=welcome["snapshot_hz"])
+        summary.update(slot=client.slot.name.lower(), scene=welcome["scene"], scene_digest=welcome["scene_digest"].hex(),
+                       token=client.token.hex(), snapshot_hz=welcome["snapshot_hz"])
         if not args.json and not keyboard:
             print(f"joined {welcome['scene']} as {'player ' + client.slot.name if client.slot else 'spectator'}"
                   f" (best of {welcome['best_of']}, {welcome['snapshot_hz']} snapshots/s)", flush=True)
         summary.update(_play(client, welcome, args, keyboard))
+    except (TimeoutError, ValueError) as err:  # the served scene did not come, or is not one (SceneError)
+        client.leave()
+        print(f"pingpong join: {err}", file=sys.stderr)
+        return 4 if isinstance(err, TimeoutError) else 1
     except KeyboardInterrupt:
         client.leave()
         summary["goodbye"] = "interrupted"
@@ -83,17 +87,18 @@ def _warm_up(skill: str) -> None:
     from processes.network.client.prediction import Predictor
     from processes.network.wire import Slot
 
-    Predictor(load_scene("match"), Slot.A).advance_to(0)
-    BotBrain("match", Slot.A, skill)
+    scene = load_scene("match")
+    Predictor(scene, Slot.A).advance_to(0)
+    BotBrain(scene, Slot.A, skill)
 
 
 def _play(client: Client, welcome: wire.Message, args: argparse.Namespace, keyboard: bool) -> dict:
     """The session of `pingpong join` once welcomed: bot, keyboard or spectator."""
-    from engine.scene import load_scene
     from processes.network.client.bot import BotBrain
     from processes.network.client.interpolation import Interpolator
     from processes.network.client.keyboard import KeyboardPilot, TerminalKeys
     from processes.network.client.prediction import Predictor
+    from processes.network.client.scenes import served_scene
     from processes.network.client.session import SessionOptions, run_session
     from processes.network.wire import Slot
 
@@ -105,10 +110,10 @@ def _play(client: Client, welcome: wire.Message, args: argparse.Namespace, keybo
 
         return run_session(client, welcome, SessionOptions(view=view, seconds=args.seconds,
                                                             show=None if args.json else show))
-    scene = load_scene(welcome["scene"])
+    scene = served_scene(client, args.join_timeout)
     predictor = Predictor(scene, client.slot)
     if not keyboard:
-        brain = BotBrain(welcome["scene"], client.slot, args.skill, args.seed)
+        brain = BotBrain(scene, client.slot, args.skill, args.seed)
         return run_session(client, welcome, SessionOptions(brain=brain, predictor=predictor, seconds=args.seconds))
     from rich.console import Console
     from rich.live import Live

@@ -59,8 +59,8 @@ class _Scoreboard:
 def _print_summary(summary: dict) -> None:
     winner = summary["winner"]
     games = ", ".join(f"{a}-{b}" for a, b in summary["games"])
-    print(f"{'winner: ' + winner.upper() if winner else 'no winner yet'}   games: {games or '-'}"
-          f"   current game: {summary['score_in_game'][0]}-{summary['score_in_game'][1]}")
+    unfinished = "" if winner else f"   current game: {summary['score_in_game'][0]}-{summary['score_in_game'][1]}"
+    print(f"{'winner: ' + winner.upper() if winner else 'no winner yet'}   games: {games or '-'}{unfinished}")
     print(f"points {summary['points']} (lets {summary['lets']}), won A {summary['points_won'][0]} / "
           f"B {summary['points_won'][1]}; rally shots mean {summary['mean_rally_shots']:.1f}, "
           f"max {summary['max_rally_shots']}; serves returned {summary['serves_returned']:.0%}")
@@ -135,8 +135,9 @@ def match_command(args: argparse.Namespace) -> int:
         return 2
     if args.replay:
         from engine.dtypes import CONTACT_DTYPE, POINT_DTYPE
+        from engine.scene import scene_toml
 
-        replay_file.write(args.replay, scene_name=scene.name, scene_text=_scene_text(scene), seed=args.seed,
+        replay_file.write(args.replay, scene_name=scene.name, scene_text=scene_toml(scene), seed=args.seed,
                           dt=scene.dt, frame_every=frame_every, frames=frame_array,
                           events=event_array if event_array is not None else np.zeros(0, CONTACT_DTYPE),
                           points=points if points is not None else np.zeros(0, POINT_DTYPE), summary=summary)
@@ -151,21 +152,15 @@ def match_command(args: argparse.Namespace) -> int:
 
 
 def _best_of(header: dict) -> int:
-    """The recorded match's best_of, from the scene text the replay carries."""
-    import tomllib
-
-    from engine.scene import SceneError, parse_scene
+    """The recorded match's best_of, from the scene text the replay carries (engine.scene.scene_toml:
+    the scene as played, --a/--b and --set included)."""
+    from engine.scene import SceneError, scene_from_toml
 
     try:
-        scene = parse_scene(tomllib.loads(header.get("scene_toml", "")), header["scene"])
-    except (SceneError, tomllib.TOMLDecodeError, KeyError):
+        scene = scene_from_toml(header.get("scene_toml", ""), header["scene"])
+    except (SceneError, KeyError):
         return 5
     return scene.match.best_of if scene.match is not None else 5
-
-
-def _scene_text(scene) -> str:
-    path = Path(scene.source)
-    return path.read_text() if path.exists() else ""
 
 
 def replay_command(args: argparse.Namespace) -> int:

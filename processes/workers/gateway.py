@@ -113,8 +113,7 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
         blocks = net_blocks(arena)
         knots = np.zeros(1, net_snapshot_dtype(spec.cols * spec.rows))
         view = NetView(scene)
-    gateway = Gateway(zctx, config, scene_name=scene.name, best_of=scene.match.best_of, dt=scene.dt,
-                      remote_slots=remote, post_input=post_input, seat_store=seat_store,
+    gateway = Gateway(zctx, config, scene=scene, remote_slots=remote, post_input=post_input, seat_store=seat_store,
                       net_grid=net_grid)
     start_event = options.start_event
     n_ticks = options.ticks

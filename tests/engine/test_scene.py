@@ -4,7 +4,8 @@ from dataclasses import replace
 import pytest
 
 from engine.match import decision_delay
-from engine.scene import SCENES_DIR, SceneError, load_scene, with_overrides
+from engine.scene import (SCENES_DIR, SceneError, load_scene, scene_digest, scene_from_toml, scene_toml,
+                          with_overrides, with_remote_players, with_skills)
 from net_kernel.topology import AIR_DAMPING_PHYSICAL
 
 
@@ -90,3 +91,33 @@ def test_the_decision_latency_is_checked_and_counts_in_whole_control_periods():
     assert decision_delay(load_scene("match_rigid")) == 50  # 0.05 s at dt 1 ms: five control periods of 10 ticks
     assert decision_delay(load_scene("match_rigid", {"match.decision_latency": 0.0})) == 10  # at least one period
     assert decision_delay(load_scene("match_rigid", {"match.decision_latency": 0.1, "match.ai_hz": 50})) == 100
+
+
+SERVED_AND_PLAYED = [  # scenes as a run makes them from files: served to remote players, played by bots
+    lambda: with_remote_players(load_scene("match"), 1),
+    lambda: with_skills(load_scene("match_rigid"), "examples/attack.py:Attack", "novice"),
+    lambda: with_overrides(load_scene("rally"), dt=0.0005, integrator="rk4"),
+]
+
+
+@pytest.mark.parametrize("make", [*(lambda p=p: load_scene(p) for p in sorted(SCENES_DIR.glob("*.toml"))),
+                                  *SERVED_AND_PLAYED])
+def test_scene_toml_reads_back_as_the_same_scene(make):
+    scene = make()
+    back = scene_from_toml(scene_toml(scene), "sent")
+    assert back.source == "sent" and replace(back, source=scene.source) == scene  # every field, to the bit
+    assert scene_digest(back) == scene_digest(scene)
+
+
+def test_a_scene_no_file_describes_is_refused_by_scene_toml():
+    scene = load_scene("match")
+    wide = replace(scene, cloth=replace(scene.cloth, width=2.0))
+    with pytest.raises(SceneError, match="net.width: 2.0 is not NetSpec's 1.83"):
+        scene_toml(wide)
+
+
+def test_a_bat_may_be_played_by_a_bot_named_in_the_file(tmp_path):
+    text = (SCENES_DIR / "match_rigid.toml").read_text().replace('skill = "pro"', 'skill = "bots.py:Mine"', 1)
+    assert load_scene(write(tmp_path, text)).bats[0].skill == "bots.py:Mine"
+    with pytest.raises(SceneError, match=r"bats.a.skill: must be one of pro, club, novice or a bot"):
+        load_scene(write(tmp_path, text.replace("bots.py:Mine", "grandmaster")))

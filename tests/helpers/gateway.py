@@ -1,14 +1,19 @@
 """A Gateway in the test's own process on 127.0.0.1, its clients, a clock the test sets (Rig), and
 the waits on a client's messages that several rooms' tests share."""
+from dataclasses import replace
+
 import numpy as np
 
 from engine.dtypes import physics_snapshot_dtype
+from engine.scene import load_scene
 from processes.network.client.client import Client
 from processes.network.server.config import GatewayConfig
 from processes.network.server.gateway import Gateway
 from processes.network.wire import Kind, Slot
 from tests.waits import DEADLINE_S, Deadline
 
+# The served scene: the rigid match, best of 1 (the gateway reads only its name, best_of, dt and text).
+SCENE = replace(load_scene("match_rigid"), match=replace(load_scene("match_rigid").match, best_of=1))
 ROUNDS = 400  # pump rounds of a bounded exchange (each polls for at most 10 ms)
 
 
@@ -29,8 +34,7 @@ class Rig:
         self.posted = []
         settings = dict(bind="tcp://127.0.0.1:0", snapshot_hz=1000, heartbeat_s=1.0, timeout_s=5.0, grace_s=30.0)
         settings.update(config)
-        self.gateway = Gateway(zctx, GatewayConfig(**settings), scene_name="match_rigid", best_of=1, dt=0.001,
-                               remote_slots=remote, post_input=self._post, clock=self.clock, seat_store=seat_store)
+        self.gateway = Gateway(zctx, GatewayConfig(**settings), scene=SCENE, remote_slots=remote, post_input=self._post, clock=self.clock, seat_store=seat_store)
         self.record = np.zeros(1, physics_snapshot_dtype(2))[0]
         self.record["bats"]["quat"] = (1.0, 0.0, 0.0, 0.0)
         self.record["rally"]["winner"] = -1

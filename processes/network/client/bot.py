@@ -6,7 +6,7 @@ import numpy as np
 from engine.ai import SKILLS, BatAI
 from engine.dtypes import BAT_DTYPE
 from engine.rules import Phase, next_striker
-from engine.scene import load_scene
+from engine.scene import Scene
 from engine.world import build_model
 from processes.network import wire
 from processes.network.wire import Slot
@@ -20,8 +20,8 @@ class BotBrain:
     striker changes, or the phase leaves waiting-for-serve), which changes at the same moments.
     """
 
-    def __init__(self, scene_name: str, slot: Slot, skill: str = "pro", seed: int = 0):
-        self.scene = load_scene(scene_name)
+    def __init__(self, scene: Scene, slot: Slot, skill: str = "pro", seed: int = 0):
+        self.scene = scene
         self.model = build_model(self.scene)
         self.player = slot.bat
         self.ai = BatAI(self.model, self.player, SKILLS[skill], seed=seed * 1000 + self.player)

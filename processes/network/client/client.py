@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import re
 import time
+from collections import deque
 
 import numpy as np
 import zmq
@@ -133,6 +134,7 @@ class Client:
         self.heartbeat_s = 0.5
         self.timeout_s = 5.0
         self.max_seq_in = 0
+        self._held: deque[wire.Message] = deque()  # messages that came while request_scene waited
 
     def send(self, kind, header_tick: int | None = None, **fields) -> None:
         """One message, header tick our estimate of the server's (or header_tick)."""
@@ -220,9 +222,40 @@ class Client:
                 self.hello()
         raise TimeoutError(f"no welcome from {self.address} within {timeout_s} s")
 
+    def request_scene(self, timeout_s: float = JOIN_TIMEOUT_S) -> str:
+        """The served scene's TOML text, asked for with scene_request (the welcome's digest) and
+        joined from the scene_part answers; what else arrives meanwhile is kept for recv. Asks
+        once more halfway through timeout_s (a part may have been dropped at the server's
+        high-water mark). Raises TimeoutError, or wire.OutOfRange for parts that do not fit
+        together."""
+        digest = self.welcome["scene_digest"]
+        assembly = wire.SceneAssembly(digest)
+        self.send(Kind.SCENE_REQUEST, digest=digest)
+        start = time.monotonic()
+        deadline, again = start + timeout_s, start + timeout_s / 2
+        while (now := time.monotonic()) < deadline:
+            if again is not None and now >= again:
+                again = None
+                self.send(Kind.SCENE_REQUEST, digest=digest)
+            self.heartbeat_if_due()
+            message = self._receive(int(1000 * min(0.1, deadline - now)) + 1)
+            if message is None:
+                continue
+            if message.kind != Kind.SCENE_PART:
+                self._held.append(message)
+            elif (text := assembly.add(message)) is not None:
+                return text
+        raise TimeoutError(f"no scene from {self.address} within {timeout_s} s (parts {sorted(assembly.parts)} of "
+                           f"{assembly.count or '?'} came)")
+
     def recv(self, timeout_ms: int) -> wire.Message | None:
         """The next valid message within timeout_ms, session or feed, or None (bad ones are
         counted and dropped)."""
+        if self._held:
+            return self._held.popleft()
+        return self._receive(timeout_ms)
+
+    def _receive(self, timeout_ms: int) -> wire.Message | None:
         waiting = self._waiting(timeout_ms)
         if not waiting:
             return None
@@ -263,13 +296,13 @@ class Client:
         """Every valid message waiting (at most `limit`), waiting at most timeout_ms for the
         first: a loop that handles them all at once never falls behind the server."""
         messages = []
-        if not self._waiting(timeout_ms):
+        if not self._held and not self._waiting(timeout_ms):
             return messages
         for _ in range(limit):
             message = self.recv(0)
             if message is not None:
                 messages.append(message)
-            elif not self._waiting(0):
+            elif not self._held and not self._waiting(0):
                 break
         return messages
 

@@ -30,6 +30,9 @@ theirs on the session (two sends, and a player's snapshots are counted per sessi
   Sends never block: ROUTER_MANDATORY with NOBLOCK raises when a peer's pipe is at its
   high-water mark (SNDHWM), and that peer's snapshot is dropped and counted, so a slow peer
   stalls nobody; the feed's own slow-subscriber policy is server.feed's.
+- scene_request -> the served scene's TOML text in scene_part messages on the session (at
+  most MAX_SCENE_REQUESTS a session; a request of another digest is a bad message): a client
+  plays the server's scene, whatever its own disk holds.
 - goodbye to every session on shutdown (shutdown), when the run failed (server_error) or at the
   end of the match (match_over); a
   peer without a session that sends anything but a hello (a session of the gateway this one
@@ -67,13 +70,15 @@ from collections import Counter
 import numpy as np
 import zmq
 
+from engine.scene import Scene
 from processes.network import wire
 from processes.network.server.config import ROUTER_RCVHWM, GatewayConfig
 from processes.network.server.events import MatchEvents
 from processes.network.server.feed import NetFeed, feed_socket
 from processes.network.server.guard import FRAME_OVERHEAD_BYTES, ConnectionGuard
 from processes.network.server.pacing import SendLog, SnapshotPacer
-from processes.network.server.seats import Seat, SeatStore, restore_seats
+from processes.network.server.served_scene import ServedScene
+from processes.network.server.seats import Seat, SeatStore, expire_tokens, free_seat, restore_seats
 from processes.network.server.sessions import (CONFIRM_HEARTBEATS, AddressLimits, Session, oldest_silent,
                                                retry_s)
 from processes.network.wire import (MAX_BAD, MAX_FRAME_BYTES, NO_TOKEN, GoodbyeReason, InputMode, Kind, RejectReason,
@@ -104,7 +109,8 @@ class Gateway:
 
     Args:
         zctx: a zmq.Context. config: GatewayConfig.
-        scene_name, best_of, dt: what a welcome tells the client.
+        scene: the served engine.scene.Scene: its name, best_of, dt and digest go in every
+            welcome, its TOML text (engine.scene.scene_toml) to a session that asks for it.
         remote_slots: the seats remote players may take (Slot.A and/or Slot.B).
         post_input(bat, seq, tick, inputs6) -> bool: hand an accepted input to the physics
             (False: it could not be queued; counted).
@@ -115,13 +121,11 @@ class Gateway:
         net_grid: (cols, rows, width m, height m) of a cloth net (service_net); None: no net messages.
     """
 
-    def __init__(self, zctx, config: GatewayConfig, *, scene_name: str, best_of: int, dt: float,
-                 remote_slots, post_input, clock=time.monotonic, seat_store: SeatStore | None = None,
-                 net_grid=None):
+    def __init__(self, zctx, config: GatewayConfig, *, scene: Scene, remote_slots, post_input,
+                 clock=time.monotonic, seat_store: SeatStore | None = None, net_grid=None):
         self.config = config
-        self.scene_name = scene_name
-        self.best_of = best_of
-        self.dt = dt
+        self.served = ServedScene(scene)
+        self.dt = scene.dt
         self.post_input = post_input
         self.clock = clock
         self.seats = {slot: Seat(slot, slot in set(remote_slots)) for slot in (Slot.A, Slot.B)}
@@ -134,9 +138,9 @@ class Gateway:
         self._next_sweep = 0.0
         self.events = MatchEvents()
         self._strangers_told: set[bytes] = set()
-        self.net = NetFeed(net_grid, config.snapshot_hz, dt) if net_grid is not None else None
+        self.net = NetFeed(net_grid, config.snapshot_hz, self.dt) if net_grid is not None else None
         # one snapshot per 1/snapshot_hz of match time (and at most snapshot_hz a wall second)
-        self.pacer = SnapshotPacer(config.snapshot_hz, dt)
+        self.pacer = SnapshotPacer(config.snapshot_hz, self.dt)
         self.send_log = SendLog(config.send_log_path) if config.send_log_path else None
         self.address_limits = AddressLimits(config.max_sessions_per_address, config.hellos_per_s_per_address)
         self._hello_address = ""  # the Peer-Address of the hello being handled
@@ -260,10 +264,11 @@ class Gateway:
         config = self.config
         heartbeat_ms = max(1, int(config.heartbeat_s * 1000))
         self._send(session, wire.encode(
-            Kind.WELCOME, tick=self.tick, slot=session.slot, best_of=self.best_of, snapshot_hz=config.snapshot_hz,
+            Kind.WELCOME, tick=self.tick, slot=session.slot, best_of=self.served.best_of, snapshot_hz=config.snapshot_hz,
             heartbeat_ms=heartbeat_ms, timeout_ms=max(heartbeat_ms, int(config.timeout_s * 1000)), dt=self.dt,
-            token=token, scene=self.scene_name[:32], name_a=self.seats[Slot.A].name, name_b=self.seats[Slot.B].name,
-            feed_port=self.feed_port if session.role == Role.SPECTATOR else 0), "welcomes")
+            token=token, scene=self.served.name[:32], name_a=self.seats[Slot.A].name, name_b=self.seats[Slot.B].name,
+            feed_port=self.feed_port if session.role == Role.SPECTATOR else 0, scene_digest=self.served.digest),
+            "welcomes")
         for data in self.net.latest if self.net is not None else ():  # on the session: the feed may not be up yet
             self._send(session, data, "nets")
 
@@ -383,7 +388,7 @@ class Gateway:
                 self.counts["dropped.no_session"] += 1
                 self._goodbye_stranger(identity)
             return
-        if message.kind not in (Kind.INPUT, Kind.HEARTBEAT, Kind.GOODBYE):
+        if message.kind not in (Kind.INPUT, Kind.HEARTBEAT, Kind.GOODBYE, Kind.SCENE_REQUEST):
             # a hello in a session or a server's message: bad, and no sign of life (hellos sent
             # again and again must not keep a place the session never confirmed)
             self.counts["dropped.hello_in_session" if message.kind == Kind.HELLO else "dropped.server_message"] += 1
@@ -396,6 +401,13 @@ class Gateway:
             self._input(session, message)
         elif message.kind == Kind.HEARTBEAT:
             self.counts["heartbeats_received"] += 1
+        elif message.kind == Kind.SCENE_REQUEST:
+            refused = self.served.refusal(session, message["digest"])
+            if refused:
+                self.counts[f"dropped.{refused}"] += 1
+                self._bad(session)
+            for data in () if refused else self.served.parts:
+                self._send(session, data, "scene_parts")
         else:
             self.counts["quits"] += 1
             self._end(session, keep_seat=False)
@@ -454,11 +466,11 @@ class Gateway:
                 self._goodbye(old, GoodbyeReason.KICKED)
             self.counts["rejoined"] += 1
         else:
-            seat = self._free_seat(wanted, now)
+            seat = free_seat(self.seats, wanted, now)
             holders = [self.sessions[s.identity] for s in self.seats.values()
                        if s.remote and s.identity in self.sessions and (wanted == Slot.NONE or s.slot == wanted)]
             if seat is None and self._evict_unconfirmed(holders, now):
-                seat = self._free_seat(wanted, now)
+                seat = free_seat(self.seats, wanted, now)
             if seat is None:
                 remote = [s.slot.name for s in self.seats.values() if s.remote]
                 detail = (f"seat {wanted.name} is played by the AI" if wanted != Slot.NONE and not self.seats[wanted].remote
@@ -476,21 +488,10 @@ class Gateway:
         self._welcome(session, seat.token)
 
     def _expire_tokens(self, now: float) -> None:
-        """A seat left empty past its grace loses its token (and name): it is free for anyone."""
-        expired = [seat for seat in self.seats.values()
-                   if seat.identity is None and seat.token != NO_TOKEN and now >= seat.grace_until]
-        for seat in expired:
-            seat.token, seat.name, seat.grace_until = NO_TOKEN, "", 0.0
+        expired = expire_tokens(self.seats, now)
         if expired:
-            self.counts["tokens_expired"] += len(expired)
+            self.counts["tokens_expired"] += expired
             self._save_seats()
-
-    def _free_seat(self, wanted: Slot, now: float) -> Seat | None:
-        candidates = [self.seats[wanted]] if wanted != Slot.NONE else list(self.seats.values())
-        for seat in candidates:
-            if seat.remote and seat.identity is None and now >= seat.grace_until:
-                return seat
-        return None
 
     def _evict_unconfirmed(self, holders: list[Session], now: float) -> bool:
         """Make a place: the oldest of `holders` that has sent nothing in the heartbeat period

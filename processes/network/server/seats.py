@@ -45,6 +45,23 @@ def restore_seats(seats: dict, table, now: float, grace_s: float) -> int:
     return restored
 
 
+def free_seat(seats: dict, wanted: Slot, now: float) -> Seat | None:
+    """The seat a new player may take: `wanted` (Slot.NONE: either) if remote, empty and past its
+    grace; None if there is none."""
+    candidates = [seats[wanted]] if wanted != Slot.NONE else list(seats.values())
+    return next((seat for seat in candidates if seat.remote and seat.identity is None and now >= seat.grace_until),
+                None)
+
+
+def expire_tokens(seats: dict, now: float) -> int:
+    """A seat left empty past its grace loses its token (and name): it is free for anyone. How many did."""
+    expired = [seat for seat in seats.values()
+               if seat.identity is None and seat.token != NO_TOKEN and now >= seat.grace_until]
+    for seat in expired:
+        seat.token, seat.name, seat.grace_until = NO_TOKEN, "", 0.0
+    return len(expired)
+
+
 class SeatStore:
     """The seat table in a processes.runtime.shm.SnapshotBlock of SEAT_DTYPE records (one per seat): a
     restarted gateway finds its seats' tokens there, so a rejoin token outlives the gateway.

@@ -32,6 +32,7 @@ class Session:
     confirmed: bool = False  # it sent a valid message after its hello: a live peer, not a bare hello
     opened: float = 0.0  # the gateway's clock at its hello
     address: str = ""  # the peer's IP address (libzmq's Peer-Address of its hello)
+    scene_requests: int = 0  # scene_requests answered (at most wire.MAX_SCENE_REQUESTS)
 
 
 def oldest_silent(holders: list[Session], now: float, heartbeat_s: float) -> Session | None:

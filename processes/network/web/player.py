@@ -55,10 +55,10 @@ class BrowserPlayer:
                 keys.append(request["key"])
 
     def _run(self) -> None:
-        from engine.scene import load_scene
         from processes.network.client.client import Rejected
         from processes.network.client.keyboard import KeyboardPilot
         from processes.network.client.prediction import Predictor
+        from processes.network.client.scenes import served_scene
         from processes.network.client.session import SessionOptions, run_session
 
         bridge = self.bridge
@@ -70,8 +70,14 @@ class BrowserPlayer:
                 reason = err.reason.name.lower() if isinstance(err, Rejected) else "timeout"
                 bridge.send_text(self.websocket, {"rejected": reason, "detail": str(err)})
                 return
+            try:
+                scene = served_scene(client, bridge.join_timeout_s)
+            except (TimeoutError, ValueError) as err:  # no scene came, or not the welcome's (SceneError)
+                client.leave()
+                bridge.send_text(self.websocket, {"rejected": "scene", "detail": str(err)})
+                return
             bridge.counts["players"] = bridge.counts.get("players", 0) + 1
-            predictor = Predictor(load_scene(welcome["scene"]), client.slot)
+            predictor = Predictor(scene, client.slot)
             self.pilot = KeyboardPilot(predictor.model, client.slot)
             bridge.send_text(self.websocket, {"seat": client.slot.name.lower(), "token": client.token.hex()})
 

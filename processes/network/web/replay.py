@@ -7,9 +7,19 @@ import json
 
 import numpy as np
 
+from engine.scene import SceneError, scene_digest, scene_from_toml
 from processes.network import wire
 from processes.network.web import STATIC
 from processes.network.wire import Kind, protocol
+
+
+def _digest(text: str, name: str) -> bytes:
+    """The recorded scene's digest (its TOML text, engine.scene.scene_toml), zeros if the replay
+    carries none that reads as a scene (an older file)."""
+    try:
+        return bytes.fromhex(scene_digest(scene_from_toml(text, name)))
+    except SceneError:
+        return bytes(wire.DIGEST_SIZE)
 
 
 def replay_messages(replay, best_of: int) -> list[bytes]:
@@ -19,7 +29,8 @@ def replay_messages(replay, best_of: int) -> list[bytes]:
     header, frames = replay.header, replay.frames
     out = [wire.encode(Kind.WELCOME, tick=0, slot=wire.Slot.NONE, best_of=best_of, snapshot_hz=max(1, min(1000, round(
         1.0 / (header["dt"] * max(1, header["frame_every"]))))), heartbeat_ms=500, timeout_ms=5000, dt=header["dt"],
-        token=bytes(wire.TOKEN_SIZE), scene=header["scene"][:32], name_a="A", name_b="B", feed_port=0)]
+        token=bytes(wire.TOKEN_SIZE), scene=header["scene"][:32], name_a="A", name_b="B", feed_port=0,
+        scene_digest=_digest(header.get("scene_toml", ""), header["scene"]))]
     timed = []
     for frame in frames:
         try:

@@ -9,8 +9,9 @@ from engine.rules import REASONS, Phase, Reason
 from processes.network.wire.checks import BadEnum, OutOfRange, _box, _norm_at_most, _unit, _within, _zero
 
 MAGIC = b"PPNG"
-PROTOCOL_VERSION = 4  # 2: welcome.feed_port (the spectator feed); 3: net (the cloth net's knots);
-# 4: snapshot.realtime_factor (how fast the server's match clock runs)
+PROTOCOL_VERSION = 5  # 2: welcome.feed_port (the spectator feed); 3: net (the cloth net's knots);
+# 4: snapshot.realtime_factor (how fast the server's match clock runs); 5: welcome.scene_digest,
+# scene_request and scene (the served scene travels with the match)
 
 # Ranges: generous for real play, tight enough that a corrupted or hostile value is refused.
 MAX_FORCE_N = 500.0  # |force| of an input; the AI arm's own limit is 50..120 N (engine/ai/skill.py SKILLS)
@@ -31,6 +32,10 @@ NET_STEP_M = 1e-5  # one unit of a net message's knot offset: 0.01 mm
 NET_MAX_OFFSET = 32767  # |offset| in steps: 0.32767 m from the rest grid, twice the net's height
 NET_CHUNK_KNOTS = 640  # knots per net message: 3891 bytes, within MAX_FRAME_BYTES like every message
 NET_MAX_SIDE = 4000  # knots along a side of the net at most (net_kernel.topology's own bound)
+DIGEST_SIZE = 8  # bytes of a scene's digest: engine.scene.scene_digest's 16 hex digits
+SCENE_CHUNK = 4000  # bytes of scene text a scene_part carries: 4036 bytes, within MAX_FRAME_BYTES
+MAX_SCENE_PARTS = 16  # scene_parts of one scene at most: 64000 bytes of TOML
+MAX_SCENE_REQUESTS = 4  # scene requests one session may make; more count as bad messages
 NO_TOKEN = bytes(TOKEN_SIZE)  # the token of no seat: a spectator's, or a player's first hello
 
 # What the gateway promises every session, published with the limits above (docs/protocol.md).
@@ -63,6 +68,8 @@ class Kind(enum.IntEnum):
     HEARTBEAT = 7  # alive, and the highest seq received
     GOODBYE = 8  # the session ends
     NET = 9  # the cloth net's knots, for display (protocol 3)
+    SCENE_REQUEST = 10  # a client asks for the served scene's text (protocol 5)
+    SCENE_PART = 11  # one part of the served scene's TOML text (protocol 5)
 
 
 class Role(enum.IntEnum):
@@ -94,7 +101,7 @@ class Slot(enum.IntEnum):
 
 class InputMode(enum.IntEnum):
     FORCE = 1  # force and torque held over the ticks until the next input
-    TARGET = 2  # reserved: a pose for a server-side arm controller; protocol 3 and 4 gateways refuse it
+    TARGET = 2  # reserved: a pose for a server-side arm controller; protocol 3 to 5 gateways refuse it
 
 
 class RejectReason(enum.IntEnum):
@@ -188,7 +195,7 @@ class Welcome(_Spec):
 
     Header tick: the server's current tick.
 
-    Layout, 158 bytes:
+    Layout, 166 bytes:
         off  size  field         type    unit / meaning
           0    24  header                HEADER_DTYPE
          24     1  slot          u1      Slot given: 0 spectator, 1 A, 2 B
@@ -208,14 +215,18 @@ class Welcome(_Spec):
                                          none come on the session but the net's state right after
                                          the welcome; 0: none, they come on the session (always
                                          for a player)
+        158     8  scene_digest  u1[8]   the served scene's digest (engine.scene.scene_digest: sha256
+                                         over what it simulates, its first 8 bytes); a client
+                                         without that scene asks for it (scene_request)
     """
 
     kind = Kind.WELCOME
     body = [("slot", "u1"), ("best_of", "u1"), ("snapshot_hz", "<u2"), ("heartbeat_ms", "<u4"),
             ("timeout_ms", "<u4"), ("dt", "<f8"), ("token", "u1", (TOKEN_SIZE,)), ("scene", "u1", (NAME_SIZE,)),
-            ("name_a", "u1", (NAME_SIZE,)), ("name_b", "u1", (NAME_SIZE,)), ("feed_port", "<u2")]
+            ("name_a", "u1", (NAME_SIZE,)), ("name_b", "u1", (NAME_SIZE,)), ("feed_port", "<u2"),
+            ("scene_digest", "u1", (DIGEST_SIZE,))]
     text = {"scene": False, "name_a": True, "name_b": True}
-    tokens = ("token",)
+    tokens = ("token", "scene_digest")
     enums = {"slot": Slot}
 
     @staticmethod
@@ -489,6 +500,56 @@ class Net(_Spec):
             raise OutOfRange(f"net.offset: the rows from count ({count}) on must be zero")
 
 
+class SceneRequest(_Spec):
+    """scene_request, client -> server: send me the served scene (scene_part messages answer on
+    the session). A client asks when it has no scene of the welcome's scene_digest (it keeps the
+    scenes it was sent by digest); a request whose digest is not the served scene's, or beyond
+    MAX_SCENE_REQUESTS in one session, counts as a bad message. Header tick: any.
+
+    Layout, 32 bytes:
+        off  size  field   type   unit / meaning
+          0    24  header         HEADER_DTYPE
+         24     8  digest  u1[8]  the welcome's scene_digest
+    """
+
+    kind = Kind.SCENE_REQUEST
+    body = [("digest", "u1", (DIGEST_SIZE,))]
+    tokens = ("digest",)
+
+
+class ScenePart(_Spec):
+    """scene_part, server -> client: one part of the served scene as a TOML document (UTF-8), the
+    answer to a scene_request: parts 0 .. parts - 1 in order on the session, each carrying
+    `size` bytes of the text. Join them, read the text as a scene file (every value written
+    out, defaults too) and check that its digest is the welcome's. Header tick: the server's
+    current tick.
+
+    Layout, 4036 bytes:
+        off  size  field   type      unit / meaning
+          0    24  header            HEADER_DTYPE
+         24     8  digest  u1[8]     the scene's digest, as in the welcome
+         32     1  part    u1        this part's index, 0..parts - 1
+         33     1  parts   u1        parts of the whole text, 1..16
+         34     2  size    <u2       bytes of text in this part, 1..4000
+         36  4000  text    u1[4000]  the part's bytes of the UTF-8 text (a character may be split
+                                     between two parts); bytes from size on are zero
+    """
+
+    kind = Kind.SCENE_PART
+    body = [("digest", "u1", (DIGEST_SIZE,)), ("part", "u1"), ("parts", "u1"), ("size", "<u2"),
+            ("text", "u1", (SCENE_CHUNK,))]
+    tokens = ("digest", "text")
+
+    @staticmethod
+    def check(rec):
+        parts, size = int(rec["parts"]), int(rec["size"])
+        _within("scene_part.parts", parts, 1, MAX_SCENE_PARTS)
+        _within("scene_part.part", int(rec["part"]), 0, parts - 1)
+        _within("scene_part.size", size, 1, SCENE_CHUNK)
+        if rec["text"][size:].any():
+            raise OutOfRange(f"scene_part.text: the bytes from size ({size}) on must be zero")
+
+
 SPECS: dict[Kind, type[_Spec]] = {spec.kind: spec for spec in (Hello, Welcome, Reject, Input, Snapshot, Event,
-                                                                 Heartbeat, Goodbye, Net)}
+                                                                 Heartbeat, Goodbye, Net, SceneRequest, ScenePart)}
 SIZES = {kind: spec.dtype.itemsize for kind, spec in SPECS.items()}

@@ -33,7 +33,8 @@ _MEMBER = re.compile(r"^\s+([A-Z_]+)\s*=\s*[^#]+?(?:#\s*(.*))?$")
 _DIRECTIONS = {wire.Kind.HELLO: "client → server", wire.Kind.WELCOME: "server → client",
                wire.Kind.REJECT: "server → client", wire.Kind.INPUT: "player → server",
                wire.Kind.SNAPSHOT: "server → client", wire.Kind.EVENT: "server → client",
-               wire.Kind.HEARTBEAT: "both ways", wire.Kind.GOODBYE: "both ways", wire.Kind.NET: "server → client"}
+               wire.Kind.HEARTBEAT: "both ways", wire.Kind.GOODBYE: "both ways", wire.Kind.NET: "server → client",
+               wire.Kind.SCENE_REQUEST: "client → server", wire.Kind.SCENE_PART: "server → client"}
 
 
 def type_name(dtype: np.dtype) -> str:
@@ -149,7 +150,8 @@ LIMITS = [(messages, "MAX_FORCE_N", "N"), (messages, "MAX_TORQUE_NM", "N m"), (m
           (messages, "NET_MAX_SIDE", "knots"),
           (wire.checks, "QUAT_TOL", ""), (messages, "MAX_BAD", "messages"),
           (messages, "MAX_FRAME_BYTES", "bytes"), (messages, "INPUT_HOLD_S", "s"),
-          (messages, "NET_HZ", "Hz")]
+          (messages, "NET_HZ", "Hz"), (messages, "DIGEST_SIZE", "bytes"), (messages, "SCENE_CHUNK", "bytes"),
+          (messages, "MAX_SCENE_PARTS", "messages"), (messages, "MAX_SCENE_REQUESTS", "requests")]
 
 
 def limits_block() -> str:

@@ -11,7 +11,7 @@ import time
 from processes.runtime import shm
 from processes.network.client.client import Client
 from processes.network.wire import Kind
-from tests.helpers.commands import pingpong
+from tests.helpers.commands import ROOT, pingpong
 from tests.waits import DEADLINE_S, Deadline, line, rest
 
 
@@ -47,9 +47,12 @@ def test_relay_smoke_runs(served):
     assert relay.wait(DEADLINE_S) == 0
 
 
-def test_two_bot_players_and_a_spectator_play_a_served_match(served):
-    server = pingpong("serve", "--players", "2", "--best-of", "1", "--ticks", "2500", "--snapshot-hz", "100",
-                       "--json")
+def test_two_bot_players_and_a_spectator_play_a_served_match(served, tmp_path, scene_cache):
+    # A scene of the server's own, unknown to the clients by name: they play it from its text.
+    mine = tmp_path / "mine.toml"
+    mine.write_text((ROOT / "scenes" / "match.toml").read_text().replace('name = "match"', 'name = "mine"'))
+    server = pingpong("serve", "--scene", str(mine), "--players", "2", "--best-of", "1", "--ticks", "2500",
+                      "--snapshot-hz", "100", "--json")
     served.append(server)
     hello = json.loads(line(server, "the server's listening line"))
     endpoint = hello["listening"]
@@ -64,6 +67,9 @@ def test_two_bot_players_and_a_spectator_play_a_served_match(served):
     assert server.wait(DEADLINE_S) == 0
     reports = [json.loads(line(p, "a client's report")) for p in (*bots, spectator)]
     assert sorted(r["slot"] for r in reports) == ["a", "b", "none"]
+    assert {r["scene"] for r in reports} == {"mine"}
+    digest = reports[0]["scene_digest"]
+    assert (scene_cache / f"{digest}.toml").exists()  # the bots were sent the scene and kept it
     for report in reports:
         assert report["goodbye"] == "match_over", report
         assert report["snapshots"] > 0 and report["dropped"] == {}

@@ -91,8 +91,8 @@ class GatewayThread:
     def __init__(self, zctx, scene):
         self.posted = []
         self.gateway = Gateway(zctx, GatewayConfig(bind="tcp://127.0.0.1:0", snapshot_hz=100, heartbeat_s=0.2,
-                                                   timeout_s=5.0), scene_name="match_rigid", best_of=1, dt=scene.dt,
-                               remote_slots=(Slot.A,), post_input=self._post)
+                                                   timeout_s=5.0), scene=scene, remote_slots=(Slot.A,),
+                               post_input=self._post)
         self.record = initial_state(scene).record[0].copy()
         self.record["rally"]["winner"] = -1
         self.dt = scene.dt

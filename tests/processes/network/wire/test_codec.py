@@ -34,7 +34,7 @@ def test_golden_message_round_trip(name):
         else:
             assert message[field] == value, field
     assert _reencode(message) == GOLDEN[name]
-    assert json.loads(json.dumps(message.to_dict(), ensure_ascii=False))["kind"] == name.split("_")[0]
+    assert json.loads(json.dumps(message.to_dict(), ensure_ascii=False))["kind"] == kind.name.lower()
 
 
 def test_an_events_reason_and_a_snapshots_phase_are_named_in_its_dict():
@@ -98,9 +98,10 @@ BAD = {
     "version_1": (_with_header("heartbeat", version=1), BadVersion),  # the first layout, before the feed
     "version_2": (_with_header("heartbeat", version=2), BadVersion),  # before the net message
     "version_3": (_with_header("heartbeat", version=3), BadVersion),  # before snapshot.realtime_factor
-    "version_5": (_with_header("heartbeat", version=5), BadVersion),
+    "version_4": (_with_header("heartbeat", version=4), BadVersion),  # before the served scene
+    "version_6": (_with_header("heartbeat", version=6), BadVersion),
     "type_0": (_with_header("heartbeat", kind=0), UnknownType),
-    "type_10": (_with_header("heartbeat", kind=10), UnknownType),
+    "type_12": (_with_header("heartbeat", kind=12), UnknownType),
     "type_255": (_with_header("heartbeat", kind=255), UnknownType),
     "flags": (_with_header("heartbeat", flags=0x80), BadFlags),
     "negative_tick": (_with_header("heartbeat", tick=-1), OutOfRange),
@@ -125,6 +126,11 @@ BAD = {
     "server_2": (patched("snapshot", server=2), OutOfRange),
     "winner_minus_2": (patched("snapshot", winner=-2), OutOfRange),
     "best_of_even": (patched("welcome_a", best_of=4), OutOfRange),
+    "scene_parts_0": (patched("scene_part", parts=0, part=0), OutOfRange),
+    "scene_parts_17": (patched("scene_part", parts=17), OutOfRange),
+    "scene_part_past_parts": (patched("scene_part", part=2), OutOfRange),
+    "scene_size_0": (patched("scene_part", size=0), OutOfRange),
+    "scene_text_past_size": (patched("scene_part", size=24), OutOfRange),
     "dt_zero": (patched("welcome_a", dt=0.0), OutOfRange),
     "timeout_below_heartbeat": (patched("welcome_a", timeout_ms=100), OutOfRange),
     "player_without_token": (patched("welcome_a", token=np.zeros(16, np.uint8)), OutOfRange),
@@ -391,7 +397,7 @@ def _near_a_limit(data: bytes) -> bool:
 def test_drop_counter_counts_by_reason():
     drops = DropCounter()
     assert drops.decode(GOLDEN["heartbeat"]).kind is Kind.HEARTBEAT
-    for case in ("empty", "body_cut_by_one", "one_byte_extra", "version_1", "type_10", "nan_force", "force_501_N",
+    for case in ("empty", "body_cut_by_one", "one_byte_extra", "version_1", "type_12", "nan_force", "force_501_N",
                  "torque_51_N_m"):
         assert drops.decode(BAD[case][0]) is None
     assert drops.by_reason == {"too_short": 2, "too_long": 1, "bad_version": 1, "unknown_type": 1,

@@ -8,13 +8,14 @@ from processes.network import wire
 from processes.network.wire import Kind, Slot, encode
 from tests.helpers.golden import GOLDEN, GOLDEN_FIELDS
 
-EXPECTED_SIZES = {Kind.HELLO: 74, Kind.WELCOME: 158, Kind.REJECT: 89, Kind.INPUT: 130, Kind.SNAPSHOT: 338,
-                  Kind.EVENT: 40, Kind.HEARTBEAT: 32, Kind.GOODBYE: 25, Kind.NET: 3891}
+EXPECTED_SIZES = {Kind.HELLO: 74, Kind.WELCOME: 166, Kind.REJECT: 89, Kind.INPUT: 130, Kind.SNAPSHOT: 338,
+                  Kind.EVENT: 40, Kind.HEARTBEAT: 32, Kind.GOODBYE: 25, Kind.NET: 3891, Kind.SCENE_REQUEST: 32,
+                  Kind.SCENE_PART: 4036}
 
 
 # --- layouts -----------------------------------------------------------------------------------------------
-def test_twelve_golden_messages_cover_every_type():
-    assert len(GOLDEN) == 12
+def test_fourteen_golden_messages_cover_every_type():
+    assert len(GOLDEN) == 14
     assert {kind for kind, _ in GOLDEN_FIELDS.values()} == set(Kind)
 
 
