@@ -224,7 +224,8 @@ def register_sources(sources: dict[str, str]) -> None:
 
 def load_bot(spec: str) -> type[Bot]:
     """The Bot subclass a spec names: "path/to/file.py:ClassName" (the file is run as a module of
-    its own) or "package.module:ClassName" (imported).
+    its own, its folder put on sys.path first, as Python does for a script: it may import the
+    modules beside it) or "package.module:ClassName" (imported).
 
     Raises:
         ValueError: naming what is wrong with the spec and how to write one.
@@ -244,6 +245,9 @@ def load_bot(spec: str) -> type[Bot]:
         module = types.ModuleType(module_name)
         module.__file__ = str(path)
         sys.modules[module_name] = module  # dataclasses and pickling look their module up here
+        folder = str(path.resolve().parent)
+        if folder not in sys.path:
+            sys.path.insert(0, folder)  # its own modules, imported now or when it plays
         try:
             exec(compile(source, str(path), "exec"), module.__dict__)  # noqa: S102 - running the bot is the point
         except Exception as exc:

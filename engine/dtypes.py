@@ -157,6 +157,13 @@ def net_snapshot_dtype(n_knots: int) -> np.dtype:
                      ("pos", "<f8", (n_knots, 3)), ("vel", "<f8", (n_knots, 3))])
 
 
+def net_show_dtype(n_knots: int) -> np.dtype:
+    """The cloth net as clients are shown it, at one tick (the net worker publishes it for a
+    gateway): tick, asleep (1: it stays in this shape until it wakes), pos m per knot. In the
+    net's linear tail, the tail's knots at that tick."""
+    return np.dtype([("tick", "<i8"), ("asleep", "<i8"), ("pos", "<f8", (n_knots, 3))])
+
+
 def ai_answer_dtype(max_bats: int, ctl_size: int) -> np.dtype:
     """The AIs' answer to one turn, a control tick's state (the AI worker writes it, the physics
     reads it).

@@ -7,7 +7,8 @@ import json
 import sys
 from typing import TYPE_CHECKING
 
-from processes.cli.common import FORMATTER, add_common, add_session_options
+from processes.cli.common import (BOT_BUDGET_MS, FORMATTER, add_common, add_session_options, bot_budget_s,
+                                  check_players)
 
 if TYPE_CHECKING:
     from processes.network import wire
@@ -17,12 +18,16 @@ if TYPE_CHECKING:
 
 
 def join_command(args: argparse.Namespace) -> int:
-    """`pingpong join ADDRESS --as player|spectator [--bot]`."""
+    """`pingpong join ADDRESS --as player|spectator [--bot [PLAYER]]`."""
+    from engine.bot import is_bot_spec
+    from engine.scene import SceneError
     from processes.network.client.client import Client, Rejected, curve_client_options
     from processes.network.wire import NO_TOKEN
     from processes.network.wire import Slot
 
-    keyboard = args.role == "player" and not args.bot
+    keyboard = args.role == "player" and args.bot is None
+    if args.bot == "":  # --bot without a player: the --skill profile
+        args.bot = args.skill
     if keyboard and not sys.stdin.isatty():
         print("pingpong join: keyboard play needs a terminal (stdin is not a TTY); join a player with --bot, "
               "or --as spectator", file=sys.stderr)
@@ -31,13 +36,17 @@ def join_command(args: argparse.Namespace) -> int:
     try:
         token = bytes.fromhex(args.token) if args.token else NO_TOKEN
         socket_options = curve_client_options(getattr(args, "curve_server_key", None))
+        if args.bot is not None:
+            bot_budget_s(args)
+            check_players([args.bot])  # a bad spec or file is told before the hello
     except (ValueError, OSError) as err:
         print(f"pingpong join: {err}", file=sys.stderr)
         return 2
     if args.role == "player":
         if not args.json:
             print("loading the engine's kernels (compiled on a first run) ...", file=sys.stderr, flush=True)
-        _warm_up(args.skill)  # before the hello: a cold numba cache compiles for minutes, no heartbeats meanwhile
+        # before the hello: a cold numba cache compiles for minutes, no heartbeats meanwhile
+        _warm_up(args.skill if args.bot is None or is_bot_spec(args.bot) else args.bot)
     client = Client(args.address, args.role, args.name, slot, token, socket_options=socket_options)
     summary = {"address": args.address, "role": args.role, "snapshots": 0, "events": [], "inputs_sent": 0}
     try:
@@ -56,10 +65,10 @@ def join_command(args: argparse.Namespace) -> int:
             print(f"joined {welcome['scene']} as {'player ' + client.slot.name if client.slot else 'spectator'}"
                   f" (best of {welcome['best_of']}, {welcome['snapshot_hz']} snapshots/s)", flush=True)
         summary.update(_play(client, welcome, args, keyboard))
-    except (TimeoutError, ValueError) as err:  # the served scene did not come, or is not one (SceneError)
+    except (TimeoutError, ValueError) as err:  # no scene came, or not the welcome's (SceneError); a bot refused
         client.leave()
         print(f"pingpong join: {err}", file=sys.stderr)
-        return 4 if isinstance(err, TimeoutError) else 1
+        return 4 if isinstance(err, TimeoutError) else 1 if isinstance(err, SceneError) else 2
     except KeyboardInterrupt:
         client.leave()
         summary["goodbye"] = "interrupted"
@@ -70,6 +79,9 @@ def join_command(args: argparse.Namespace) -> int:
     else:
         print(f"session ended: {summary['goodbye']}; {summary['snapshots']} snapshots, "
               f"{len(summary['events'])} events")
+        for error in summary.get("bot_errors", []):  # as a match names them
+            print(f"bot error: {error['bot']} (player {error['player'].upper()}) at tick {error['tick']}: "
+                  f"{error['fault']}: {error['detail']}")
         if "prediction" in summary:
             prediction, stale = summary["prediction"], summary["prediction"]["without_prediction"]
             print(_error_line("prediction error at the snapshots' ticks, ball", prediction["ball"]))
@@ -80,8 +92,9 @@ def join_command(args: argparse.Namespace) -> int:
 
 
 def _warm_up(skill: str) -> None:
-    """Load (or compile) every kernel a player's client runs, with the bundled match scene: the
-    kernels depend on types, not on the scene, so the served scene's objects build at once later."""
+    """Load (or compile) every kernel a player's client runs, with the bundled match scene and the
+    AI profile `skill`: the kernels depend on types, not on the scene or the player, so the
+    served scene's objects and a bot build at once later."""
     from engine.scene import load_scene
     from processes.network.client.bot import BotBrain
     from processes.network.client.prediction import Predictor
@@ -113,8 +126,11 @@ def _play(client: Client, welcome: wire.Message, args: argparse.Namespace, keybo
     scene = served_scene(client, args.join_timeout)
     predictor = Predictor(scene, client.slot)
     if not keyboard:
-        brain = BotBrain(scene, client.slot, args.skill, args.seed)
-        return run_session(client, welcome, SessionOptions(brain=brain, predictor=predictor, seconds=args.seconds))
+        brain = BotBrain(scene, client.slot, args.bot, args.seed, bot_budget_s(args))
+        summary = run_session(client, welcome, SessionOptions(brain=brain, predictor=predictor, seconds=args.seconds))
+        errors = [{"player": "ab"[e.player], "bot": e.bot, "tick": e.tick, "fault": e.fault, "detail": e.detail}
+                  for e in brain.errors]
+        return {**summary, "bot": brain.stats, "bot_errors": errors}
     from rich.console import Console
     from rich.live import Live
     from rich.text import Text
@@ -211,8 +227,14 @@ def add_commands(sub) -> None:
     join = sub.add_parser("join", help="join a served match as a player or a spectator", formatter_class=FORMATTER)
     join.add_argument("address", help="the server's endpoint, e.g. tcp://127.0.0.1:5555")
     join.add_argument("--as", dest="role", choices=["player", "spectator"], default="spectator")
-    join.add_argument("--bot", action="store_true", help="a player played by engine.ai through the network")
-    join.add_argument("--skill", choices=["pro", "club", "novice"], default="pro", help="the bot's skill")
+    join.add_argument("--bot", nargs="?", const="", default=None, metavar="PLAYER",
+                      help="a player played by a program: an AI profile (pro, club, novice) or a bot of the bot "
+                           "API, FILE.py:Class or module:Class, as `pingpong match --a` takes (without PLAYER: "
+                           "the --skill profile); without --bot a player plays on the keyboard")
+    join.add_argument("--skill", choices=["pro", "club", "novice"], default="pro",
+                      help="the profile of --bot without PLAYER, and the keyboard player's arm")
+    join.add_argument("--bot-budget-ms", type=float, default=BOT_BUDGET_MS,
+                      help="CPU milliseconds a bot's decision may take (a bot's own budget_s wins)")
     join.add_argument("--slot", choices=["any", "a", "b"], default="any", help="the seat wanted")
     join.add_argument("--name", default="client", help="shown to the other clients")
     join.add_argument("--token", default=None, help="rejoin token (hex) from an earlier session")

@@ -3,12 +3,11 @@
 It reads the physics snapshots and the point log, pairs each snapshot with the remote inputs it
 acknowledges (remote_acks), and posts the remote players' inputs to the locked remote-input
 mailbox that the physics drains before each tick. In a run with a net worker (a scene with a
-cloth net: processes.workers.workers_for; build_layout then makes the net_a/net_b blocks)
-it also reads the net's newest published state, never torn (SnapshotBlock.snapshot) and only
-when a net message is due, for the clients' view of the net (network.server.feed.NetFeed). A net in
-its linear tail publishes where the tail started and how long it has run (net_snapshot_dtype):
-NetView rebuilds the knots at the tick of the newest physics snapshot, which the net worker
-itself has no reason to step to while the ball is away.
+cloth net: processes.workers.workers_for; build_layout then makes the net_show block) it also
+reads the net as the net worker shows it (processes.workers.net.NetShow: the knots at a tick,
+also in the net's linear tail), never torn (SnapshotBlock.snapshot) and only when a net message
+is due, for the clients' view of the net (network.server.feed.NetFeed). It only reads: the
+net's physics runs in the net worker alone.
 """
 from __future__ import annotations
 
@@ -17,8 +16,7 @@ import time
 import numpy as np
 import zmq
 
-from engine.dtypes import net_snapshot_dtype, physics_snapshot_dtype
-from net_kernel import NetSim, build_topology
+from engine.dtypes import physics_snapshot_dtype
 from processes.network.server.config import GatewayConfig
 from processes.network.server.gateway import STATS_EVERY_S, Gateway
 from processes.network.server.seats import SeatStore
@@ -27,8 +25,7 @@ from processes.runtime.control import Control, StopRequested, crash
 from processes.runtime.locks import LockTable
 from processes.runtime.mailbox import Mailbox
 from processes.runtime.shm import Arena
-from processes.workers.layout import NET_BLOCKS, REMOTE_INPUT_DTYPE, RUN_LOCK_NAMES, read_ack
-from processes.workers.net import net_blocks, newest_state
+from processes.workers.layout import NET_SHOW, REMOTE_INPUT_DTYPE, RUN_LOCK_NAMES, read_ack
 from processes.workers.options import RunOptions
 
 
@@ -44,34 +41,13 @@ def _consistent_snapshot(snapshots, acks: np.ndarray, record: np.ndarray, tries:
     return record[0], None
 
 
-class NetView:
-    """The net as clients see it: the published state, or a linear tail's rebuilt at a later tick.
-
-    Args:
-        scene: the run's scene (its cloth net and tick).
-    """
-
-    def __init__(self, scene):
-        self.sim = NetSim(build_topology(scene.cloth), scene.dt)
-        if self.sim.tail_refusal is None:
-            self.sim.modes()  # computed or loaded now, not when the first tail is shown
-        self.start = None  # the tick at which the tail shown started
-        self.at = 0  # the tick self.sim holds
-
-    def show(self, state, tick: int) -> tuple[int, bool, np.ndarray]:
-        """(tick, asleep, knot_pos (n_knots, 3) m) to show of the published net `state` (a
-        net_snapshot_dtype record) with the physics at `tick`."""
-        tail = int(state["tail"])
-        if tail < 0:
-            return int(state["tick"]), bool(state["sleeping"]), state["pos"]
-        start = int(state["tick"]) - tail
-        if start != self.start or self.at > max(tick, int(state["tick"])):
-            self.sim.load_state(state["pos"], state["vel"], False, int(state["quiet_ticks"]), tail)
-            self.start, self.at = start, int(state["tick"])
-        target = max(tick, self.at)
-        self.sim.step_free(target - self.at)
-        self.at = target
-        return target, self.sim.sleeping, self.sim.knot_pos
+def _read_net(block, out: np.ndarray) -> tuple[int, bool, np.ndarray] | None:
+    """(tick, asleep, knot_pos) of the net as the net worker shows it (net_show), None before it did."""
+    if block.version < 2:
+        return None
+    block.snapshot(out)
+    row = out[0]
+    return int(row["tick"]), bool(row["asleep"]), row["pos"]
 
 
 def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
@@ -106,13 +82,12 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
     remote = [Slot.of_bat(i) for i, bat in enumerate(scene.bats) if bat.remote]
     zctx = zmq.Context(io_threads=2)  # sessions and the feed's fan-out each on their own (Gateway)
     seat_store = SeatStore(arena["seats"]) if "seats" in arena.blocks else None
-    knots = blocks = net_grid = None
-    if NET_BLOCKS[0] in arena.blocks:  # the run has a net worker
+    shown = shown_net = net_grid = None
+    if NET_SHOW in arena.blocks:  # the run has a net worker
         spec = scene.cloth
         net_grid = (spec.cols, spec.rows, spec.width, spec.height)
-        blocks = net_blocks(arena)
-        knots = np.zeros(1, net_snapshot_dtype(spec.cols * spec.rows))
-        view = NetView(scene)
+        shown = arena[NET_SHOW]
+        shown_net = np.zeros(1, shown.dtype)
     gateway = Gateway(zctx, config, scene=scene, remote_slots=remote, post_input=post_input, seat_store=seat_store,
                       net_grid=net_grid)
     start_event = options.start_event
@@ -121,12 +96,12 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
     reason = GoodbyeReason.SHUTDOWN
     try:
         control.start({"endpoint": gateway.endpoint, "feed": gateway.feed_endpoint})
-        if blocks is not None and newest_state(blocks, knots):
-            # The net's state as the net worker started (published before it said it was ready,
-            # so before the run started), before any session is served: every session, also one
-            # welcomed before the loop's first look at the net, gets it after its welcome
+        if shown is not None and (net := _read_net(shown, shown_net)) is not None:
+            # The net as the net worker started (shown before it said it was ready, so before the
+            # run started), before any session is served: every session, also one welcomed
+            # before the loop's first look at the net, gets it after its welcome
             # (NetFeed.latest), where a feed message it subscribed too late for would be lost.
-            gateway.service_net(*view.show(knots[0], 0))
+            gateway.service_net(*net)
         # Heartbeats and timeouts also from a thread of their own: the copies of the physics' and
         # the net's states below wait, outside the gateway's lock, for writers a busy machine may
         # deschedule mid-write.
@@ -148,10 +123,9 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
                 continue
             with lock:
                 gateway.service(rec, ack, points)
-            if blocks is not None and gateway.net_due() and newest_state(blocks, knots):
-                shown = view.show(knots[0], gateway.tick)
+            if shown is not None and gateway.net_due() and (net := _read_net(shown, shown_net)) is not None:
                 with lock:
-                    gateway.service_net(*shown)
+                    gateway.service_net(*net)
             if start_event is not None and gateway.seats_filled != start_event.is_set():
                 if gateway.seats_filled:
                     start_event.set()  # the physics plays
@@ -185,7 +159,7 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
             gateway.send_log.save()
         gateway.close()
         zctx.term()
-        del record, acks, points, snapshots, box, seat_store, blocks
+        del record, acks, points, snapshots, box, seat_store, shown
         locks.close()
         if reason == GoodbyeReason.MATCH_OVER:
             control.send("done", {"tick": gateway.tick, "gateway": stats})

@@ -11,7 +11,8 @@ and removes them at the end. The blocks of a run, by name:
 | trace | physics snapshot per tick (with trace) | physics | supervisor |
 | points | POINT_DTYPE log (a match) | physics | supervisor, gateway |
 | frames | physics snapshot every frame_every ticks (replays) | physics | supervisor |
-| net_a, net_b | net snapshot (SnapshotBlock), published into each in turn | net | physics, a restarted net, gateway |
+| net_a, net_b | net snapshot (SnapshotBlock), published into each in turn | net | physics, a restarted net |
+| net_show | net show record (SnapshotBlock, a run with a net and a gateway): the knots as clients see them | net | gateway |
 | net_io | NET_IO_DTYPE | physics and net, ordered by net_baton | both |
 | ai_queue | TurnQueue's words: turns posted, turns answered, command | physics the first, ai the second | both |
 | ai_views | physics snapshot ring of ai_ring_size: turn k's state in slot k % size, before its post | physics | ai, a restarted physics |
@@ -34,7 +35,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from engine.arm import CTL_SIZE
-from engine.dtypes import CONTACT_DTYPE, POINT_DTYPE, ai_answer_dtype, net_snapshot_dtype, physics_snapshot_dtype
+from engine.dtypes import (CONTACT_DTYPE, POINT_DTYPE, ai_answer_dtype, net_show_dtype, net_snapshot_dtype,
+                           physics_snapshot_dtype)
 from engine.match import control_period, decision_delay
 from engine.scene import Scene
 from engine.world import NET_RUN_TICKS
@@ -84,6 +86,7 @@ NET_IO_DTYPE = np.dtype([
     ("served", "<i8"),  # the worker: the last turn it answered
 ])
 NET_BLOCKS = ("net_a", "net_b")
+NET_SHOW = "net_show"
 
 def _net_word(name: str) -> int:
     return NET_IO_DTYPE.fields[name][1] // 8  # every field of NET_IO_DTYPE is made of 8-byte words
@@ -236,9 +239,11 @@ def build_layout(scene: Scene, kinds: list[str], ticks: int, trace: bool, frame_
             if frame_every:
                 arena.shared_array("frames", snapshot, ticks // frame_every + 1)
         if "net" in kinds:
-            knots = net_snapshot_dtype(build_topology(scene.cloth).n_knots)
+            n_knots = build_topology(scene.cloth).n_knots
             for name in NET_BLOCKS:
-                arena.snapshot_block(name, knots, 1)
+                arena.snapshot_block(name, net_snapshot_dtype(n_knots), 1)
+            if "gateway" in kinds:
+                arena.snapshot_block(NET_SHOW, net_show_dtype(n_knots), 1)
             arena.shared_array("net_io", NET_IO_DTYPE, 1)
             layout.net_baton = Baton("net", ctx, arena.shared_array("net_baton", TICK_SLOT_DTYPE, 1).array)
         if "ai" in kinds:

@@ -31,18 +31,45 @@ import time
 
 import numpy as np
 
-from engine.dtypes import net_snapshot_dtype
+from engine.dtypes import net_show_dtype, net_snapshot_dtype
 from engine.world import build_model
 from net_kernel import NetSim, build_topology
 from net_kernel.sim import compile_kernels
+from processes.network.wire import NET_HZ
 from processes.runtime.handoff import HandoffTimeout
 from processes.runtime.shm import Arena
 from processes.runtime.control import Control, crash
 from processes.runtime.timeline import IDLE, WORK, Timeline
-from processes.workers.layout import NET_BLOCKS, NetIO
+from processes.workers.layout import NET_BLOCKS, NET_SHOW, NetIO
 from processes.workers.options import RunOptions
 
 FREE_BEAT_TICKS = 256  # free ticks between two heartbeats: well inside the supervisor's stall timeout
+
+
+class NetShow:
+    """The net as a gateway's clients see it, published into the net_show block (a run with a
+    gateway): after the ticks stepped, at most once every 1/NET_HZ s of match time, and whenever
+    the net falls asleep or wakes. In the net's linear tail that is the tail's knots at the tick
+    (NetSim.knot_pos rebuilds them from its modes); the physics nudges the worker every
+    remote_net.TAIL_NUDGE_TICKS then, so the picture stays that close behind. The gateway only
+    reads it: the net's physics runs in this process alone."""
+
+    def __init__(self, block, n_knots: int, dt: float):
+        self.block = block
+        self.record = np.zeros(1, net_show_dtype(n_knots))
+        self.every = max(1, int(1.0 / (NET_HZ * dt)))  # at least as often as a gateway sends (network.server.feed)
+        self.tick: int | None = None  # the tick shown last
+        self.asleep = False
+
+    def publish(self, sim: NetSim, tick: int) -> None:
+        """Show the net at `tick` if it is due (or went back: a restart); nothing while it sleeps on."""
+        if self.tick is not None and sim.sleeping == self.asleep and (
+                self.asleep or 0 <= tick - self.tick < self.every):
+            return
+        row = self.record[0]
+        row["tick"], row["asleep"], row["pos"] = tick, sim.sleeping, sim.knot_pos
+        self.block.publish(self.record, tick)
+        self.tick, self.asleep = tick, sim.sleeping
 
 
 def net_blocks(arena: Arena) -> list:
@@ -75,11 +102,22 @@ def _load(sim: NetSim, state) -> None:
     sim.load_state(state["pos"], state["vel"], bool(state["sleeping"]), int(state["quiet_ticks"]), int(state["tail"]))
 
 
-def _publish(sim: NetSim, tick: int, state: np.ndarray, blocks, held: int) -> int:
+def _step_granted(sim: NetSim, row: NetIO, control: Control, net_tick: int) -> int:
+    """Step the free ticks granted (NetSim.step_free), a heartbeat every FREE_BEAT_TICKS; the tick reached."""
+    while net_tick < row.granted:
+        run = min(row.granted - net_tick, FREE_BEAT_TICKS)
+        sim.step_free(run)
+        net_tick += run
+        control.beat(net_tick)
+    return net_tick
+
+
+def _publish(sim: NetSim, tick: int, state: np.ndarray, blocks, held: int, show: NetShow | None = None) -> int:
     """Publish the net's state at `tick` into the block other than `held`, the one holding the
     state it was stepped from (a run's state before and after it then sit in different blocks,
     and answering the same run again, which goes back to the state before it, overwrites only
-    the state after it); returns the block it published into."""
+    the state after it), and show it (NetShow, a run with a gateway); returns the block it
+    published into."""
     row = state[0]
     row["tick"] = tick
     row["sleeping"] = sim.sleeping
@@ -95,6 +133,8 @@ def _publish(sim: NetSim, tick: int, state: np.ndarray, blocks, held: int) -> in
         row["vel"] = tail.start_vel
     into = 1 - held
     blocks[into].publish(state, tick)
+    if show is not None:
+        show.publish(sim, tick)
     return into
 
 
@@ -151,6 +191,9 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
         net_tick = 0
         held = _publish(sim, net_tick, state, blocks, 1)
     published = net_tick  # the tick of the newest published state
+    show = NetShow(arena[NET_SHOW], topo.n_knots, scene.dt) if NET_SHOW in arena.blocks else None
+    if show is not None:
+        show.publish(sim, net_tick)  # before "ready": a gateway shows the net from its first session on
     served = row.served
     answered = None  # the first tick of the run answered in net_io, once this incarnation has written one
     answered_end = None  # the tick after that run's last stepped tick
@@ -176,14 +219,10 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
                 timeline.mark(WORK)
             # First the free ticks granted so far (a nudge, or the ones before a ball tick).
             free_from = net_tick
-            while net_tick < row.granted:
-                run = min(row.granted - net_tick, FREE_BEAT_TICKS)
-                sim.step_free(run)
-                net_tick += run
-                steps += run
-                control.beat(net_tick)
+            net_tick = _step_granted(sim, row, control, net_tick)
+            steps += net_tick - free_from
             if published != net_tick:
-                held = _publish(sim, net_tick, state, blocks, held)
+                held = _publish(sim, net_tick, state, blocks, held, show)
                 published = net_tick
             if options.crash_at_tick is not None and free_from <= options.crash_at_tick < net_tick:
                 crash(options.crash_kind, options.crash_at_tick)  # a free tick's turn: after publishing it
@@ -234,7 +273,7 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
             net_tick = tick + taken
             answered, answered_end = tick, net_tick
             row.tail_until = tail_until(sim, net_tick)
-            held = _publish(sim, net_tick, state, blocks, held)
+            held = _publish(sim, net_tick, state, blocks, held, show)
             published = net_tick
             row.served = served
             steps += taken
@@ -248,4 +287,4 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
         _finish(control, sim, net_tick, busy, steps, timeline)
     finally:
         row.close()
-        del blocks
+        del blocks, show

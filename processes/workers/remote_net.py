@@ -87,8 +87,11 @@ class RemoteNet:
             self.free_ticks += ticks
             # A sleeping net has nothing to step: the net worker takes the grant at its next turn. A
             # tail's ticks only count: the worker is woken TAIL_NUDGE_TICKS apart, so what it
-            # publishes (a gateway's net messages read it) stays that close behind.
-            if self.sleeping or (self.in_tail and tick - self._nudged < TAIL_NUDGE_TICKS):
+            # publishes (a gateway's net messages read it) stays that close behind, and once more
+            # after the tail fell asleep, so that it shows the net asleep.
+            if self._sleeping or (self.in_tail and tick - self._nudged < TAIL_NUDGE_TICKS):
+                return
+            if self.sleeping and self._nudged >= self._tail_until:
                 return
             self._nudged = tick
             self.baton.nudge()

@@ -155,6 +155,22 @@ def test_a_bad_bot_spec_says_what_is_wrong(tmp_path):
         match_scene(BASE, "grandmaster", "pro")
 
 
+def test_a_file_bot_imports_the_modules_beside_it(tmp_path):
+    (tmp_path / "pp_helper_beside.py").write_text("X = 1.6\n")
+    (tmp_path / "pp_helper_later.py").write_text("Z = 0.2\n")
+    (tmp_path / "hbot.py").write_text(
+        "from engine.bot import Bot, hold\n"
+        "from pp_helper_beside import X\n"
+        "class HBot(Bot):\n"
+        "    def act(self, obs):\n"
+        "        from pp_helper_later import Z  # imported when it plays, not when it loads\n"
+        "        return hold((self.end_sign * X, 0.0, Z), self.normal)\n")
+    cls = load_bot(f"{tmp_path / 'hbot.py'}:HBot")
+    bot = cls()
+    bot.end_sign, bot.normal = 1, np.array([-1.0, 0.0, 0.0])
+    assert tuple(bot.act(None)["hold"]) == (1.6, 0.0, 0.2)
+
+
 @pytest.mark.parametrize("latency, delay", [(0.0, 10), (0.02, 20), (0.05, 50), (0.054, 50)])
 def test_an_action_is_played_from_the_control_tick_a_decision_latency_later(latency, delay):
     # Steady decides a raw force from tick 0 on; before its first decision takes effect the idle

@@ -58,8 +58,9 @@ def test_two_bot_players_and_a_spectator_play_a_served_match(served, tmp_path, s
     endpoint = hello["listening"]
     assert endpoint.startswith("tcp://127.0.0.1:")
     # the clients leave at the match's end; --seconds is only their own safety net
-    bots = [pingpong("join", endpoint, "--as", "player", "--bot", "--json", "--seconds", f"{DEADLINE_S:.0f}")
-            for _ in range(2)]
+    # one player of the bot API from its file, one AI profile: the same door (engine.players' seat)
+    bots = [pingpong("join", endpoint, "--as", "player", "--bot", *player, "--json", "--seconds", f"{DEADLINE_S:.0f}")
+            for player in (["examples/attack.py:Attack"], [])]
     served.extend(bots)
     spectator = pingpong("join", endpoint, "--as", "spectator", "--json", "--seconds", f"{DEADLINE_S:.0f}")
     served.append(spectator)
@@ -73,6 +74,8 @@ def test_two_bot_players_and_a_spectator_play_a_served_match(served, tmp_path, s
     for report in reports:
         assert report["goodbye"] == "match_over", report
         assert report["snapshots"] > 0 and report["dropped"] == {}
+    assert [r["bot"]["player"] for r in reports[:2]] == ["examples/attack.py:Attack", "pro"]
+    assert reports[0]["bot"]["decisions"] > 0 and reports[0]["bot_errors"] == []
     for bot in reports[:2]:  # the physics applied this bot's inputs: the snapshots echo their seq
         assert bot["inputs_sent"] > 0 and bot["input_seq"]["ab".index(bot["slot"])] > 0
         prediction = bot["prediction"]  # each bot predicted and scored its prediction on the snapshots

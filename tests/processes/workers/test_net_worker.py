@@ -116,3 +116,43 @@ def test_lockstep_with_a_float32_net_equals_the_in_process_engine(crash_at, no_l
     assert result.workers["net"]["restarts"] == (0 if crash_at is None else 1)
     assert first_difference(result.trace, reference.trace) is None
     assert result.events.tobytes() == reference.events.tobytes()
+
+
+def test_the_net_is_shown_as_the_net_worker_steps_it_also_in_its_tail(no_leftovers):
+    """NetShow (what a gateway reads in place of stepping a net of its own): the knots at the tick,
+    the tail's rebuilt ones in the linear tail, once every 1/NET_HZ s at most, once asleep."""
+    import numpy as np
+
+    from net_kernel import NetSim, build_topology
+    from processes.runtime import shm
+    from processes.workers.net import NetShow
+    from engine.dtypes import net_show_dtype
+
+    scene = load_scene("match")
+    topo = build_topology(scene.cloth)
+    sim, reference = NetSim(topo, scene.dt), NetSim(topo, scene.dt)
+    for net in (sim, reference):  # struck: every free knot moving at 0.3 m/s across the net
+        net.wake()
+        net.knot_vel[:, 0] = 0.3 * (topo.knot_inv_mass > 0)
+    arena = shm.Arena()
+    try:
+        block = arena.snapshot_block("net_show", net_show_dtype(topo.n_knots), 1)
+        show, out = NetShow(block, topo.n_knots, scene.dt), np.zeros(1, net_show_dtype(topo.n_knots))
+        shown, tick, tails = [], 0, 0
+        while not sim.sleeping and tick < 20_000:
+            sim.step_free(4)  # the worker's runs of free ticks, as the physics grants them
+            reference.step_free(4)
+            tick += 4
+            tails += sim.in_tail
+            show.publish(sim, tick)
+            if block.tick != (shown[-1][0] if shown else None):
+                block.snapshot(out)
+                shown.append((int(out[0]["tick"]), bool(out[0]["asleep"])))
+                np.testing.assert_array_equal(out[0]["pos"], reference.knot_pos)  # the net's own bits
+        show.publish(sim, tick + 100)  # asleep: nothing new to show
+        assert tails > 0 and sim.sleeping and shown[-1] == (tick, True) and block.tick == tick
+        gaps = np.diff([t for t, _ in shown])
+        assert gaps[:-1].min() >= show.every and show.every == 16  # 60 Hz at 1 kHz
+        del block
+    finally:
+        arena.close()

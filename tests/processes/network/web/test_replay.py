@@ -13,7 +13,7 @@ def test_the_replay_page_plays_offline_from_one_file(browser, tmp_path):
 
     welcome = wire.encode(Kind.WELCOME, tick=0, slot=wire.Slot.NONE, best_of=1, snapshot_hz=100, heartbeat_ms=500,
                           timeout_ms=5000, dt=0.001, token=bytes(16), scene="match", name_a="Ada", name_b="Bo",
-                          feed_port=0)
+                          feed_port=0, scene_digest=bytes(wire.DIGEST_SIZE))
     record = np.zeros(1, physics_snapshot_dtype(2))[0]
     record["bats"]["quat"] = (1.0, 0.0, 0.0, 0.0)
     record["rally"]["winner"] = -1
