@@ -1,9 +1,9 @@
 """The Gymnasium environments: one bat of an in-process match as the agent, through the bot API.
 
     import gymnasium
-    import engine.env  # registers pingpong/Return-v0 and pingpong/Rally-v0
+    import engine.env  # registers pingpong/Return-v1 and pingpong/Rally-v1 (and the v0 ids)
 
-    env = gymnasium.make("pingpong/Return-v0")            # or Rally-v0, opponent="novice"
+    env = gymnasium.make("pingpong/Return-v1")            # or Rally-v1, opponent="novice", reward="dense"
     obs, info = env.reset(seed=0)
 
 "engine.env:pingpong/Return-v0" imports the module itself (what a vector environment's worker
@@ -26,6 +26,22 @@ referee: the agent's strikes, its returns bouncing on the opponent's court, the 
 - Rally-v0: a rally against the opponent from its service: RETURN_LANDED for each return that
   bounces on its court, then +1 for the point won, -1 for the point lost.
 
+Version 1 (Return-v1, Rally-v1) is made for learners (engine.agent_frame): the observation in
+the agent's own frame (A and B see the same game), every entry scaled into [-1, 1], no tick or
+clock, the phase and who strikes next as one-hots; actions in [-1, 1] mapped onto the agent's
+half of the playing space and the arm's limits; a time limit the registry knows
+(max_episode_steps: 3 s of play for Return, 20 s for Rally); reward="dense" adds shaping terms
+to the sparse ones (REWARD_TERMS). Version 0 keeps the world-frame record and the raw action
+vectors of before. In both a wrong action shape is a ValueError that names the expected one,
+and a step after the episode ended (terminated or truncated) a RuntimeError.
+
+Dense reward (reward="dense"), per end, on top of the task's own rewards: APPROACH times the
+fall of the distance between the agent's bat centre and the ball over the step while the agent
+is to strike next (potential-based shaping, Ng, Harada and Russell 1999, "Policy invariance
+under reward transformations": it leaves the best policy as it is); NET_CLEAR when the agent's
+shot crosses the net's plane towards the opponent; +1 for a point won and -1 for a point lost
+(Rally's own, now also Return's).
+
 The rigid net by default; net="cloth" plays the cloth net in this process (the default match's
 85 x 8 knots). render_mode "rgb_array" draws the episode as the replay's picture
 (engine.render.rgb); write_replay(path) writes it as a replay file for `pingpong replay FILE
@@ -39,7 +55,7 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
-from engine import render
+from engine import agent_frame, render
 from engine import replay as replay_file
 from engine.ai import SKILLS
 from engine.ai.bot import ProfileBot
@@ -52,6 +68,10 @@ from engine.scene import load_scene, scene_toml
 
 RETURN_STRIKE = 0.2  # reward for striking the ball
 RETURN_LANDED = 1.0  # reward for a return that bounces on the opponent's court
+APPROACH = 0.5  # dense reward per metre the bat closes on the ball while the agent is to strike
+NET_CLEAR = 0.3  # dense reward for the agent's shot crossing the net's plane towards the opponent
+REWARD_TERMS = ("sparse", "dense")
+MAX_EPISODE_STEPS = {"return": 300, "rally": 2000}  # version 1's time limits: 3 s and 20 s at 100 Hz
 FRAME_EVERY = 10  # ticks between the episode's kept frames (render, write_replay)
 SCENES = {"rigid": "match_rigid", "cloth": "match"}
 ACTIONS = ("hold", "target", "force")
@@ -140,13 +160,15 @@ class PingPongEnv(gymnasium.Env):
         max_seconds: simulated seconds before an episode is truncated.
         render_mode: None or "rgb_array". record: keep the episode's frames and contacts for
             write_replay (always with rgb_array).
+        version: 0 (world-frame record, raw action vectors) or 1 (engine.agent_frame).
+        reward: "sparse" (the task's) or "dense" (with the shaping terms of the module's docstring).
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 100 // FRAME_EVERY}
 
     def __init__(self, task: str = "return", opponent: str = "pro", player: int = 1, net: str = "rigid",
                  action_type: str = "hold", max_seconds: float | None = None,
-                 render_mode: str | None = None, record: bool = False):
+                 render_mode: str | None = None, record: bool = False, version: int = 0, reward: str = "sparse"):
         if task not in ("return", "rally"):
             raise ValueError(f"task: must be return or rally, got {task!r}")
         if opponent not in SKILLS and not (opponent is None and task == "rally"):
@@ -156,15 +178,23 @@ class PingPongEnv(gymnasium.Env):
                              f"{net!r}, {action_type!r}")
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"render_mode: None or rgb_array, got {render_mode!r}")
+        if version not in (0, 1) or reward not in REWARD_TERMS:
+            raise ValueError(f"version 0 or 1, reward sparse or dense; got {version!r}, {reward!r}")
+        self.version, self.reward = version, reward
         self.task, self.opponent, self.player, self.net = task, opponent, player, net
         self.action_type, self.render_mode = action_type, render_mode
         self.record = record or render_mode == "rgb_array"
         self.max_seconds = (3.0 if task == "return" else 20.0) if max_seconds is None else max_seconds
         self.base = load_scene(SCENES[net])
-        self.observation_space = observation_space()
-        self.action_space = action_space(action_type, Agent.arm)
+        if version == 1:
+            self.observation_space = agent_frame.observation_space()
+            self.action_space = agent_frame.action_space(action_type)
+        else:
+            self.observation_space = observation_space()
+            self.action_space = action_space(action_type, Agent.arm)
         self.ends = (player,) if opponent is not None else (0, 1)  # the agents' ends
-        self._obs = np.zeros(len(OBSERVATION_NAMES))
+        self._obs = np.zeros(self.observation_space.shape)
+        self._ended = False
         self.match: Match | None = None
         self.seed_of_match = 0
         self._warm = False
@@ -179,6 +209,7 @@ class PingPongEnv(gymnasium.Env):
             if not drive or self._lead_in():
                 break
         self._steps = 0
+        self._ended = False
         return self._observe(), {"drive": drive, "match_seed": self.seed_of_match,
                                  "server": self.match.scene.match.first_server}
 
@@ -229,20 +260,33 @@ class PingPongEnv(gymnasium.Env):
     def step(self, action):
         if self.match is None:
             raise RuntimeError("PingPongEnv.step: call reset() first")
-        if self.match.over:
-            raise RuntimeError("PingPongEnv.step: the match is over; call reset()")
+        if self._ended or self.match.over:
+            raise RuntimeError("PingPongEnv.step: the episode has ended (terminated or truncated); call reset()")
         self._act(self.player, action)
         rewards, decided, landed = self._period()
         terminated = decided or (self.task == "return" and landed[self.player])
         self._steps += 1
         truncated = not terminated and self._steps * self.every * self.match.scene.dt >= self.max_seconds
+        self._ended = terminated or truncated
         info = {"points": len(self.match.referee.points), "bot_errors": list(self.match.bot_errors)}
         return self._observe(), rewards[self.player], terminated, truncated, info
 
     def _act(self, end: int, action) -> None:
         """The action vector into the action record of the agent at `end`."""
-        seat, a = self.seats[end], np.asarray(action, dtype=np.float64)
+        seat = self.seats[end]
         agent = seat.bot
+        if self.version == 1:
+            a = agent_frame.checked_action(action, self.action_type)
+            last = self._last_actions.get(end)
+            arm = SKILLS[agent.arm]
+            agent_frame.action_record(a, self.action_type, end, arm.max_force_n, arm.max_torque_nm, seat.view,
+                                      agent.action, new_path=last is None or not np.array_equal(a, last))
+            self._last_actions[end] = a.copy()
+            return
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != self.action_space.shape:
+            raise ValueError(f"action: expected shape {self.action_space.shape} (a {self.action_type} action), "
+                             f"got shape {a.shape}")
         if self.action_type == "force":
             force(a[0:3], a[3:6], agent.action)
             return
@@ -262,17 +306,25 @@ class PingPongEnv(gymnasium.Env):
         whether each end's return landed."""
         match, ref = self.match, self.match.referee
         rewards, landed, decided = [0.0, 0.0], [False, False], False
+        dense = self.reward == "dense"
         points_before = len(ref.points)
         shots, phase, striker = ref.shots, ref.phase, ref.striker
+        potential = self._potentials() if dense else None
+        ball_x = float(match.state.ball[0]["pos"][0])
         stop_at = int(match.state.world[0]["tick"]) + self.every
         while int(match.state.world[0]["tick"]) < stop_at and not decided:
             self._advance(stop_at)
             if ref.shots > shots:
                 rewards[ref.striker] += RETURN_STRIKE
+            if dense:
+                x = float(match.state.ball[0]["pos"][0])
+                if ref.shots > 0 and (x > 0.0 >= ball_x if ref.striker == 0 else x < 0.0 <= ball_x):
+                    rewards[ref.striker] += NET_CLEAR  # the striker's shot crossed into the other half
+                ball_x = x
             if len(ref.points) > points_before:  # the rally was decided (the next one is tossed already)
                 decided = True
                 winner = ref.points[-1].winner
-                if self.task == "rally" and winner >= 0:
+                if (self.task == "rally" or dense) and winner >= 0:
                     rewards[winner] += 1.0
                     rewards[1 - winner] -= 1.0
             elif ref.phase == Phase.BOUNCED and not (phase == Phase.BOUNCED and striker == ref.striker):
@@ -281,7 +333,20 @@ class PingPongEnv(gymnasium.Env):
                 if self.task == "return" and ref.striker == self.player:
                     break
             shots, phase, striker = ref.shots, ref.phase, ref.striker
+        if dense and not decided:
+            after = self._potentials()
+            for end in (0, 1):
+                rewards[end] += after[end] - potential[end]
         return rewards, decided, landed
+
+    def _potentials(self) -> list[float]:
+        """Each end's shaping potential: -APPROACH times its bat's distance to the ball while it is
+        to strike next, else 0."""
+        match = self.match
+        key = decision_key(match.rally_record)
+        ball = match.state.ball[0]["pos"]
+        return [-APPROACH * float(np.linalg.norm(match.state.bats[end]["pos"] - ball)) if key[2] == end else 0.0
+                for end in (0, 1)]
 
     def _advance(self, target: int | None = None) -> None:
         """Match.tick to the next control tick (or `target`), keeping the episode's frames and events."""
@@ -311,6 +376,8 @@ class PingPongEnv(gymnasium.Env):
         seat = self.seats[self.player if end is None else end]
         view = seat.observe(int(world["tick"]), float(world["time"]), state.ball_flat, floats,
                             match.rally_record, decision_key(match.rally_record))
+        if self.version == 1:
+            return agent_frame.observe(view, seat.player, self._obs).copy()
         return flatten(view, self._obs).copy()
 
     # --- pictures and replays -----------------------------------------------------------------
@@ -334,6 +401,9 @@ class PingPongEnv(gymnasium.Env):
                           summary={"task": self.task, "opponent": self.opponent, "agent": "ab"[self.player]})
 
 
-for _task, _id in (("return", "pingpong/Return-v0"), ("rally", "pingpong/Rally-v0")):
-    gymnasium.register(_id, entry_point=f"{__name__}:PingPongEnv", kwargs={"task": _task}, max_episode_steps=None,
+for _task, _name in (("return", "pingpong/Return"), ("rally", "pingpong/Rally")):
+    gymnasium.register(f"{_name}-v0", entry_point=f"{__name__}:PingPongEnv", kwargs={"task": _task},
+                       max_episode_steps=None, vector_entry_point="engine.vector_env:PingPongVectorEnv")
+    gymnasium.register(f"{_name}-v1", entry_point=f"{__name__}:PingPongEnv", kwargs={"task": _task, "version": 1},
+                       max_episode_steps=MAX_EPISODE_STEPS[_task],
                        vector_entry_point="engine.vector_env:PingPongVectorEnv")

@@ -3,7 +3,7 @@
     import gymnasium
     import engine.env  # registers the ids and their vector entry point
 
-    vector = gymnasium.make_vec("pingpong/Return-v0", num_envs=8, vectorization_mode="vector_entry_point",
+    vector = gymnasium.make_vec("pingpong/Return-v1", num_envs=8, vectorization_mode="vector_entry_point",
                                 opponent="novice")
     obs, infos = vector.reset(seed=0)      # table k seeded 0 + k, as Gymnasium's own vector envs do
 

@@ -14,11 +14,15 @@ from engine.env import OBSERVATION_NAMES, RETURN_LANDED, RETURN_STRIKE, PingPong
 from engine.replay import read
 
 
-@pytest.mark.parametrize("env_id", ["pingpong/Return-v0", "pingpong/Rally-v0"])
+@pytest.mark.parametrize("env_id", ["pingpong/Return-v0", "pingpong/Rally-v0", "pingpong/Return-v1",
+                                    "pingpong/Rally-v1"])
 def test_the_environments_pass_gymnasiums_checker(env_id):
+    from engine import agent_frame
+
     env = gymnasium.make(env_id, render_mode="rgb_array")
     check_env(env.unwrapped, skip_render_check=False)
-    assert env.observation_space.shape == (len(OBSERVATION_NAMES),)
+    names = agent_frame.OBSERVATION_NAMES if env_id.endswith("v1") else OBSERVATION_NAMES
+    assert env.observation_space.shape == (len(names),)
 
 
 def _episode(env, seed: int, steps: int = 400):
