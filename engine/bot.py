@@ -224,8 +224,8 @@ def register_sources(sources: dict[str, str]) -> None:
 
 def load_bot(spec: str) -> type[Bot]:
     """The Bot subclass a spec names: "path/to/file.py:ClassName" (the file is run as a module of
-    its own, its folder put on sys.path first, as Python does for a script: it may import the
-    modules beside it) or "package.module:ClassName" (imported).
+    its own, its folder added to sys.path, so that it may import the modules beside it, unless
+    their names are taken already) or "package.module:ClassName" (imported).
 
     Raises:
         ValueError: naming what is wrong with the spec and how to write one.
@@ -247,7 +247,9 @@ def load_bot(spec: str) -> type[Bot]:
         sys.modules[module_name] = module  # dataclasses and pickling look their module up here
         folder = str(path.resolve().parent)
         if folder not in sys.path:
-            sys.path.insert(0, folder)  # its own modules, imported now or when it plays
+            # Last, not first as for a script: a folder holding a package of the engine's name
+            # (tests/ holds processes/) must not shadow the engine in this process or its children.
+            sys.path.append(folder)  # its own modules, imported now or when it plays
         try:
             exec(compile(source, str(path), "exec"), module.__dict__)  # noqa: S102 - running the bot is the point
         except Exception as exc:

@@ -10,10 +10,17 @@ deciding how:
     speed through the ball towards the net and upwards (m/s), the face normal's z over its x.
 
 `python examples/cem.py` trains on pingpong/Return-v0 against novice (seeded: the same curve on
-every run of the same code), writes the learning curve (cem_curve.png), the parameters learned
-(cem_params.json, what the bot below plays) and prints the trained bot's match against novice:
+every run of the same code), then judges what it learned on episodes it never trained on: the
+best candidate of the training episodes and the final mean, each on VALIDATION_EPISODES new
+seeds, the better one kept; that one and the untrained START_MEAN on TEST_EPISODES more (the
+score a reader may quote: the training score overstates, having been chosen on those very
+episodes). It writes the learning curve (cem_curve.png) and the parameters kept
+(cem_params.json, with the held-out scores) into --out, and plays them against novice:
 
     pingpong match --scene match_rigid --a examples/cem.py:Learned --b novice --best-of 1
+
+Learned plays the cem_params.json beside this file, or the one the CEM_PARAMS environment
+variable names (main() sets it to its --out's).
 
 The cross-entropy method (Rubinstein 1999; Szita and Lorincz 2006 for control): sample a
 population of parameters from a normal distribution, play each on the same seeded episodes, refit
@@ -23,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 from pathlib import Path
 
@@ -33,6 +41,9 @@ from engine.rules import Phase
 
 GRAVITY = 9.81  # m/s^2
 PARAMS_FILE = Path(__file__).with_name("cem_params.json")
+PARAMS_ENV = "CEM_PARAMS"  # the parameters file Learned plays, if set
+VALIDATION_EPISODES = 16  # new seeds that choose between the best candidate and the final mean
+TEST_EPISODES = 32  # more new seeds that score the choice and the untrained start
 START_MEAN = np.array([1.5, 2.0, 1.0, 0.2])  # line m, pace m/s, lift m/s, tilt
 START_STD = np.array([0.2, 1.0, 0.6, 0.3])
 OPPONENT = "novice"
@@ -74,10 +85,11 @@ class Policy:
 
 
 class Learned(Bot):
-    """The policy with the parameters cem.py learned (cem_params.json beside this file)."""
+    """The policy with the parameters cem.py learned (cem_params.json beside this file, or $CEM_PARAMS)."""
 
     def setup(self, end, scene):
-        self.policy = Policy(json.loads(PARAMS_FILE.read_text())["params"], self.end_sign)
+        path = Path(os.environ.get(PARAMS_ENV) or PARAMS_FILE)
+        self.policy = Policy(json.loads(path.read_text())["params"], self.end_sign)
         self.shown = None
         self.action = None
 
@@ -102,9 +114,12 @@ def episode_return(env, params, seed: int) -> float:
     return total
 
 
-def train(iterations: int = 10, population: int = 16, elite: int = 4, episodes: int = 8, seed: int = 0) -> dict:
+def train(iterations: int = 10, population: int = 16, elite: int = 4, episodes: int = 8, seed: int = 0,
+          validation: int = VALIDATION_EPISODES, test: int = TEST_EPISODES) -> dict:
     """The cross-entropy method on Return-v0 against OPPONENT: per iteration the mean return of the
-    population and of its elite, and the best parameters found (by their mean over the episodes)."""
+    population and of its elite; the parameters kept (the best candidate or the final mean,
+    whichever scores more on `validation` new episodes) and, on `test` more, their mean return
+    and the untrained START_MEAN's."""
     import gymnasium
 
     import engine.env  # noqa: F401 - registers the environments (pyflakes: used by gymnasium.make)
@@ -125,10 +140,18 @@ def train(iterations: int = 10, population: int = 16, elite: int = 4, episodes: 
             best, best_score = candidates[order[0]].copy(), float(scores[order[0]])
         curve.append({"iteration": it, "population_mean": float(scores.mean()),
                       "elite_mean": float(scores[order[:elite]].mean()), "best": float(scores[order[0]])})
+    # Held out: seeds no candidate trained on, drawn after the training seeds from the same stream.
+    held_out = rng.integers(0, 2**31 - 1, validation + test)
+    check, score = [int(s) for s in held_out[:validation]], [int(s) for s in held_out[validation:]]
+    kept = max((best, mean), key=lambda p: np.mean([episode_return(env, p, s) for s in check]))
+    trained = float(np.mean([episode_return(env, kept, s) for s in score]))
+    untrained = float(np.mean([episode_return(env, START_MEAN, s) for s in score]))
     env.close()
-    return {"curve": curve, "params": best.tolist(), "best_score": best_score, "seed": seed,
+    return {"curve": curve, "params": kept.tolist(), "training_score": best_score, "seed": seed,
+            "held_out": {"episodes": test, "trained": trained, "untrained": untrained},
             "wall_seconds": time.perf_counter() - started,
-            "settings": {"iterations": iterations, "population": population, "elite": elite, "episodes": episodes}}
+            "settings": {"iterations": iterations, "population": population, "elite": elite, "episodes": episodes,
+                         "validation": validation}}
 
 
 def curve_png(result: dict, path: Path) -> None:
@@ -162,12 +185,15 @@ def main() -> None:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     curve_png(result, out / "cem_curve.png")
-    (out / "cem_params.json").write_text(json.dumps(result, indent=1))
+    params_file = out / "cem_params.json"
+    params_file.write_text(json.dumps(result, indent=1))
     from engine.match import match_record
     from engine.scene import load_scene
 
+    os.environ[PARAMS_ENV] = str(params_file.resolve())  # Learned plays what was just learned
     record = match_record(load_scene("match_rigid"), 0, f"{Path(__file__).resolve()}:Learned", "novice", best_of=1)
-    print(json.dumps({"curve": result["curve"], "params": result["params"], "wall_seconds": result["wall_seconds"],
+    print(json.dumps({"curve": result["curve"], "params": result["params"], "held_out": result["held_out"],
+                      "wall_seconds": result["wall_seconds"],
                       "match_against_novice": {k: record[k] for k in ("winner", "points", "reasons")}}, indent=1))
 
 

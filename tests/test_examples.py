@@ -13,9 +13,23 @@ def _cem():
 
 
 def test_the_cross_entropy_method_raises_the_return_over_a_short_seeded_run():
-    result = _cem().train(iterations=4, population=12, elite=3, episodes=6, seed=1)
+    result = _cem().train(iterations=4, population=12, elite=3, episodes=6, seed=1, validation=4, test=6)
     first, last = result["curve"][0], result["curve"][-1]
     # seed 1 (the same on every run of this code): the population's mean return 0.067 -> 0.244
     assert last["population_mean"] > 2.0 * first["population_mean"] > 0.0
     assert last["elite_mean"] > first["elite_mean"]
-    assert result["best_score"] >= last["elite_mean"]
+    assert result["training_score"] >= last["elite_mean"]
+    held_out = result["held_out"]  # scored on seeds no candidate trained or was chosen on
+    assert held_out["episodes"] == 6 and set(held_out) == {"episodes", "trained", "untrained"}
+
+
+def test_the_learned_bot_plays_the_parameters_it_is_pointed_at(tmp_path, monkeypatch):
+    from engine.bot import load_bot
+
+    params = tmp_path / "cem_params.json"
+    params.write_text('{"params": [1.2, 3.0, 0.5, 0.1]}')
+    monkeypatch.setenv("CEM_PARAMS", str(params))
+    bot = load_bot(f"{EXAMPLES / 'cem.py'}:Learned")()
+    bot.end_sign = 1
+    bot.setup(1, None)
+    assert (bot.policy.line, bot.policy.pace, bot.policy.lift, bot.policy.tilt) == (1.2, 3.0, 0.5, 0.1)
