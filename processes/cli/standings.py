@@ -148,6 +148,17 @@ def standings(records: list[dict], profiles: list[str]) -> dict:
             "realtime_factor": sim / wall if wall > 0 else None}
 
 
+def labels(profiles: list[str]) -> dict[str, str]:
+    """{profile: how tables and plots name it}: an AI profile by its name, a bot by its class and
+    file ("Attack (attack.py)", engine.bot.bot_name), or by its whole spec where two bots would
+    read the same."""
+    from engine.bot import bot_name, is_bot_spec
+
+    short = {p: bot_name(p) if is_bot_spec(p) else p for p in profiles}
+    seen = [short[p] for p in profiles]
+    return {p: short[p] if seen.count(short[p]) == 1 else p for p in profiles}
+
+
 def print_standings(table: dict) -> None:
     from rich.console import Console
     from rich.table import Table
@@ -155,25 +166,26 @@ def print_standings(table: dict) -> None:
     console = Console()
     matrix = table["matrix"]
     profiles = matrix["profiles"]
+    name = labels(profiles)
     grid = Table(title="win rate of the row against the column (95 % Wilson interval)")
-    grid.add_column("")
+    grid.add_column("", overflow="fold")
     for p in profiles:
-        grid.add_column(p)
+        grid.add_column(name[p], overflow="fold")  # a narrow terminal wraps a name, never cuts it
     for i, p in enumerate(profiles):
         cells = []
         for j in range(len(profiles)):
             rate = matrix["rate"][i][j]
             cells.append("-" if rate is None else f"{rate:.2f} [{matrix['low'][i][j]:.2f}, {matrix['high'][i][j]:.2f}]")
-        grid.add_row(p, *cells)
+        grid.add_row(name[p], *cells)
     console.print(grid)
     rows = Table(title="profiles")
     for column in ("profile", "Elo [95 %]", "matches", "won", "mean rally shots", "points lost by"):
-        rows.add_column(column)
+        rows.add_column(column, overflow="fold")
     for p in profiles:
         rating, row = table["ratings"][p], table["profiles"][p]
         reasons = ", ".join(f"{k} {v}" for k, v in list(row["lost_by"].items())[:4])
         rally = row["mean_rally_shots"]
-        rows.add_row(p, "-" if rating is None else f"{rating['elo']:.0f} [{rating['low']:.0f}, {rating['high']:.0f}]",
+        rows.add_row(name[p], "-" if rating is None else f"{rating['elo']:.0f} [{rating['low']:.0f}, {rating['high']:.0f}]",
                      str(row["matches"]), str(row["won"]), "-" if rally is None else f"{rally:.2f}", reasons or "-")
     console.print(rows)
 
@@ -185,17 +197,19 @@ def heatmap_png(matrix: dict, path, title: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    profiles = matrix["profiles"]
+    name = labels(matrix["profiles"])
+    profiles = [name[p] for p in matrix["profiles"]]
     n = len(profiles)
     rate = np.array([[np.nan if v is None else v for v in row] for row in matrix["rate"]])
-    fig, ax = plt.subplots(figsize=(1.8 * n + 2, 1.5 * n + 1.5))
+    room = 0.09 * max(len(p) for p in profiles)  # inches the longest name takes at the ticks' size
+    fig, ax = plt.subplots(figsize=(1.8 * n + 2 + room, 1.5 * n + 1.5 + room / 2))
     image = ax.imshow(rate, vmin=0.0, vmax=1.0, cmap="RdBu")
     for i in range(n):
         for j in range(n):
             if not np.isnan(rate[i, j]):
                 ax.text(j, i, f"{rate[i, j]:.2f}\n[{matrix['low'][i][j]:.2f}, {matrix['high'][i][j]:.2f}]",
                         ha="center", va="center", fontsize=9, color="white" if abs(rate[i, j] - 0.5) > 0.3 else "black")
-    ax.set_xticks(range(n), profiles)
+    ax.set_xticks(range(n), profiles, rotation=30, ha="right", rotation_mode="anchor")  # long names side by side
     ax.set_yticks(range(n), profiles)
     ax.set_xlabel("opponent")
     ax.set_ylabel("profile")

@@ -206,3 +206,19 @@ def test_a_bot_no_interrupt_reaches_is_abandoned_and_the_tournament_finishes(tmp
     assert given_up["stopped"] and given_up["winner"] is None and given_up["ticks"] > 0
     assert "bot BlocksSignals (bots.py) (player A) has not returned from act()" in given_up["abandoned"]
     assert sum("abandoned" in r for r in records.values()) == 1
+
+
+def test_tables_and_the_plot_name_a_bot_by_its_class_and_file_whole(tmp_path, capsys):
+    from processes.cli import standings
+
+    a, b = "/some/where/examples/attack.py:Attack", "/else/where/attack.py:Attack"
+    assert standings.labels(["pro", "/x/block.py:Block"]) == {"pro": "pro", "/x/block.py:Block": "Block (block.py)"}
+    assert standings.labels([a, b]) == {a: a, b: b}  # the same short name twice: the whole specs
+    profiles = ["pro", "/x/block.py:Block"]
+    records = [{"a": "pro", "b": profiles[1], "winner": "a", "points": [11, 3], "mean_rally_shots": 3.0,
+                "reasons": {"a": {"net": 3}, "b": {"out_long": 11}}, "sim_seconds": 60.0, "wall_seconds": 1.0}] * 3
+    table = standings.standings(records, profiles)
+    standings.print_standings(table)
+    assert "Block (block.py)" in capsys.readouterr().out
+    standings.heatmap_png(table["matrix"], tmp_path / "winrate.png", "t")
+    assert (tmp_path / "winrate.png").stat().st_size > 0
