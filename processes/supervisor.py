@@ -29,10 +29,11 @@ from engine.players import DEFAULT_BUDGET_S
 from engine.scene import Scene
 from processes.network.server.config import GatewayConfig
 from processes.runtime.control import READY_TIMEOUT_S, STARTUP_LIMIT_S, WorkerState, worker_main
+from processes.runtime.faults import FaultPlan
 from processes.runtime.shm import Arena
 from processes.runtime.stops import StopSignals
-from processes.workers import (PLAYERS_TIMEOUT_S, RunLayout, RunOptions, build_layout, worker_modules, worker_target,
-                               workers_for)
+from processes.workers import (PLAYERS_TIMEOUT_S, RunHandles, RunLayout, RunOptions, build_layout, worker_modules,
+                               worker_target, workers_for)
 from processes.workers.layout import EVENT_LOG_CAPACITY
 
 STOP_TIMEOUT_S = 5.0
@@ -141,8 +142,9 @@ class Supervisor:
             gateway = GatewayConfig()
         self.options = RunOptions(ticks=ticks, mode=mode, trace=trace, seed=seed, frame_every=frame_every,
                                   players_timeout=players_timeout, gateway=gateway, handoff_s=handoff_s,
-                                  crash_kind=crash_kind, on_bot_error=on_bot_error,
-                                  bot_budget_s=bot_budget_s, timeline_dir=timeline_dir)
+                                  on_bot_error=on_bot_error, bot_budget_s=bot_budget_s, timeline_dir=timeline_dir)
+        FaultPlan(kind=crash_kind)  # a bad kind is refused here, before anything starts
+        self.crash_kind = crash_kind
         if restart_budget < 0:
             raise ValueError(f"restart_budget must be >= 0 (restarts within {RESTART_WINDOW_S:.0f} s), "
                              f"got {restart_budget}")
@@ -159,11 +161,12 @@ class Supervisor:
     def _start(self, worker: _Worker) -> None:
         parent, child = self._ctx.Pipe()
         layout = self.layout
-        options = replace(self.options, ai_queue=layout.ai_queue, net_baton=layout.net_baton,
-                          lock_path=layout.lock_path, start_event=layout.start_event,
-                          crash_at_tick=self.crash_at_tick if worker.restarts == 0 and worker.kind == self.crash_worker
-                          else None,
-                          slow_turn_s=self.slow_turn_s if worker.kind == self.crash_worker else 0.0)
+        handles = RunHandles(ai_queue=layout.ai_queue, net_baton=layout.net_baton, lock_path=layout.lock_path,
+                             start_event=layout.start_event)
+        faults = None  # the worker's, only where a test or `pingpong stress` asked for one
+        if worker.kind == self.crash_worker and (self.crash_at_tick is not None or self.slow_turn_s):
+            faults = FaultPlan(self.crash_at_tick if worker.restarts == 0 else None, self.crash_kind, self.slow_turn_s)
+        options = replace(self.options, handles=handles, faults=faults)
         if worker.kind == "gateway" and worker.ready.get("endpoint"):
             # a restarted gateway listens where its clients already are, its feed included
             options = replace(options, gateway=replace(options.gateway, bind=worker.ready["endpoint"],

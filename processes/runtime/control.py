@@ -66,22 +66,6 @@ class StopRequested(Exception):
         self.reason = reason
 
 
-class InjectedFault(RuntimeError):
-    """What a worker raises when fault injection asks it to (crash_kind "raise")."""
-
-
-CRASH_KINDS = ("kill", "raise")
-
-
-def crash(kind: str, tick: int) -> None:
-    """Fault injection for tests and `pingpong stress`: end this worker at `tick` as `kind`
-    says: "kill" SIGKILLs it (a worker that dies), "raise" raises InjectedFault (a worker's
-    exception, shipped to the supervisor with its traceback like any other)."""
-    if kind == "raise":
-        raise InjectedFault(f"fault injection: raised at tick {tick}")
-    os.kill(os.getpid(), signal.SIGKILL)
-
-
 class Control:
     """The worker's side of its control pipe and status row."""
 

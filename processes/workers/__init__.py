@@ -2,7 +2,7 @@
 from importlib import import_module
 
 from processes.workers.layout import RunLayout, build_layout
-from processes.workers.options import PLAYERS_TIMEOUT_S, RunOptions
+from processes.workers.options import PLAYERS_TIMEOUT_S, RunHandles, RunOptions
 
 # Each worker is a function (control, arena, scene, options) that processes.runtime.control.worker_main
 # runs, named "module:function" and imported only when a run starts it (as Gymnasium's registry
@@ -41,5 +41,5 @@ def workers_for(scene) -> list[str]:
     return kinds
 
 
-__all__ = ["PLAYERS_TIMEOUT_S", "WORKERS", "RunLayout", "RunOptions", "build_layout", "worker_modules",
+__all__ = ["PLAYERS_TIMEOUT_S", "WORKERS", "RunHandles", "RunLayout", "RunOptions", "build_layout", "worker_modules",
            "worker_target", "workers_for"]

@@ -37,7 +37,7 @@ from engine.dtypes import physics_snapshot_dtype
 from engine.match import ai_decide, make_ais
 from engine.world import build_model, copy_record
 from processes.runtime.shm import Arena
-from processes.runtime.control import Control, crash
+from processes.runtime.control import Control
 from processes.runtime.timeline import IDLE, THINK, WORK, Timeline
 from processes.workers.layout import AI_KEEP_EVERY, AI_STATE_BYTES, AI_STATE_DTYPE, ANSWER_DTYPE, FAULT_TEXT_BYTES
 from processes.workers.options import RunOptions
@@ -160,19 +160,19 @@ class StateKeeper:
 
 
 def ai_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
-    """options: seed, ai_queue, bot_budget_s; crash_at_tick, crash_kind (tests: end this process
-    after its first turn at or after that tick); slow_turn_s (tests: answer each turn that much later).
-    A bot's hung decision is interrupted (SIGALRM)."""
+    """options: seed, handles.ai_queue, bot_budget_s; faults (tests: end this process after its
+    first turn at or after the crash tick; answer each turn slow_turn_s later). A bot's hung
+    decision is interrupted (SIGALRM)."""
     model = build_model(scene)
     ais = make_ais(scene, model, options.seed, eager=False, budget_s=options.bot_budget_s, interrupt=True)
     thinkers = ais.thinkers
-    queue = options.ai_queue.attach(arena["ai_queue"].array)
+    queue = options.handles.ai_queue.attach(arena["ai_queue"].array)
     answers = arena["ai_answers"].array
     views = arena["ai_views"].array
     size = len(views)
     answerer = Answerer(ais, len(scene.bats), say_faults=options.gateway is not None)
     keeper = StateKeeper(arena, ais, answerer)
-    crash_at = options.crash_at_tick
+    faults = options.faults
     ais.warm_up()
 
     def publish(turn: int, record: np.ndarray) -> None:
@@ -200,8 +200,8 @@ def ai_worker(control: Control, arena: Arena, scene, options: RunOptions) -> Non
                 decided = ais.decided
                 if decided:
                     keeper.write(view, turn, tick)
-                if options.slow_turn_s:
-                    time.sleep(options.slow_turn_s)  # fault injection: a descheduled worker, not synchronisation
+                if faults is not None:
+                    faults.delay()
                 publish(turn, record)
                 done = turn
                 turns += 1
@@ -210,8 +210,8 @@ def ai_worker(control: Control, arena: Arena, scene, options: RunOptions) -> Non
                 took = time.perf_counter() - t0
                 busy += took
                 longest = max(longest, took)
-                if crash_at is not None and tick >= crash_at:
-                    crash(options.crash_kind, tick)
+                if faults is not None and faults.crashes_in(-1, tick + 1):  # the first turn at or after it
+                    faults.crash(tick)
                 control.beat(tick)
                 continue
             if queue.stopped:

@@ -40,7 +40,7 @@ class AIDriver:
 
     def __init__(self, control: Control, arena: Arena, options: RunOptions, scene):
         self.control = control
-        self.queue = options.ai_queue.attach(arena["ai_queue"].array)
+        self.queue = options.handles.ai_queue.attach(arena["ai_queue"].array)
         self.handoff_s = options.handoff_s
         self.views = arena["ai_views"].array
         self.answers = arena["ai_answers"].array

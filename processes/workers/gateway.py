@@ -21,7 +21,7 @@ from processes.network.server.config import GatewayConfig
 from processes.network.server.gateway import STATS_EVERY_S, Gateway
 from processes.network.server.seats import SeatStore
 from processes.network.wire import GoodbyeReason, Slot
-from processes.runtime.control import Control, StopRequested, crash
+from processes.runtime.control import Control, StopRequested
 from processes.runtime.locks import LockTable
 from processes.runtime.mailbox import Mailbox
 from processes.runtime.shm import Arena
@@ -53,10 +53,10 @@ def _read_net(block, out: np.ndarray) -> tuple[int, bool, np.ndarray] | None:
 def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
     """Serve the run's match to network clients until the match ends or the supervisor stops it.
 
-    options: gateway (GatewayConfig), lock_path, ticks (the run's tick limit), start_event (set
-    while every remote seat is held, clear while one is empty: the physics worker waits for it
-    before the first serve and pauses while it is clear), crash_at_tick, crash_kind (fault
-    injection: end this process once the physics reached that tick).
+    options: gateway (GatewayConfig), handles.lock_path, ticks (the run's tick limit),
+    handles.start_event (set while every remote seat is held, clear while one is empty: the
+    physics worker waits for it before the first serve and pauses while it is clear), faults
+    (tests: end this process once the physics reached the crash tick).
 
     A restarted gateway binds the same endpoint and has lost its sessions, not its seats: the
     seat table lives in the supervisor's "seats" block (SeatStore), so clients that hear nothing
@@ -67,7 +67,7 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
     only: a stopped worker's last message is never read).
     """
     config: GatewayConfig = options.gateway
-    locks = LockTable(options.lock_path, RUN_LOCK_NAMES, arena["lock_holders"])
+    locks = LockTable(options.handles.lock_path, RUN_LOCK_NAMES, arena["lock_holders"])
     box = Mailbox("remote_inputs", arena["remote_header"], arena["remote_inputs"], locks)
     acks = arena["remote_acks"].array
     points = arena["points"].array
@@ -90,9 +90,9 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
         shown_net = np.zeros(1, shown.dtype)
     gateway = Gateway(zctx, config, scene=scene, remote_slots=remote, post_input=post_input, seat_store=seat_store,
                       net_grid=net_grid)
-    start_event = options.start_event
+    start_event = options.handles.start_event
     n_ticks = options.ticks
-    crash_at_tick = options.crash_at_tick
+    faults = options.faults
     reason = GoodbyeReason.SHUTDOWN
     try:
         control.start({"endpoint": gateway.endpoint, "feed": gateway.feed_endpoint})
@@ -132,8 +132,8 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
                 elif config.pause_for_players:
                     start_event.clear()  # the physics pauses (and a restarted one waits)
             control.beat(gateway.tick)
-            if crash_at_tick is not None and gateway.tick >= crash_at_tick:
-                crash(options.crash_kind, gateway.tick)  # fault injection (tests)
+            if faults is not None and faults.crashes_in(-1, gateway.tick + 1):  # the physics reached it
+                faults.crash(gateway.tick)
             if int(rec["rally"]["winner"]) >= 0 or gateway.tick >= n_ticks:
                 with lock:
                     gateway.broadcast_snapshot(rec, ack)  # the final state

@@ -38,7 +38,7 @@ from net_kernel.sim import compile_kernels
 from processes.network.wire import NET_HZ
 from processes.runtime.handoff import HandoffTimeout
 from processes.runtime.shm import Arena
-from processes.runtime.control import Control, crash
+from processes.runtime.control import Control
 from processes.runtime.timeline import IDLE, WORK, Timeline
 from processes.workers.layout import NET_BLOCKS, NET_SHOW, NetIO
 from processes.workers.options import RunOptions
@@ -170,15 +170,16 @@ def _finish(control: Control, sim: NetSim, net_tick: int, busy: float, steps: in
 
 
 def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
-    """options: net_baton (processes.runtime.handoff.Baton); crash_at_tick, crash_kind (tests: end this process
-    after publishing the state after the run that holds that tick and before saying it is done, the
-    hardest moment, or after publishing a run of free ticks that holds it: a net in its linear
-    tail, say); slow_turn_s (tests: answer each run that much later)."""
+    """options: handles.net_baton (processes.runtime.handoff.Baton); faults (tests: end this process
+    after publishing the state after the run that holds the crash tick and before saying it is
+    done, the hardest moment, or after publishing a run of free ticks that holds it: a net in its
+    linear tail, say; answer each run slow_turn_s later)."""
     topo = build_topology(scene.cloth)
     sim = NetSim(topo, scene.dt)
     compile_kernels(topo, scene.dt)  # before "ready": nothing compiles mid-run
     watch = build_model(scene).cloth_watch  # the box engine.world steps the ball tick by tick in
-    baton = options.net_baton.attach(arena["net_baton"].array)
+    baton = options.handles.net_baton.attach(arena["net_baton"].array)
+    faults = options.faults
     row = NetIO(arena["net_io"].array)
     blocks = net_blocks(arena)
     state = np.zeros(1, net_snapshot_dtype(topo.n_knots))
@@ -224,8 +225,8 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
             if published != net_tick:
                 held = _publish(sim, net_tick, state, blocks, held, show)
                 published = net_tick
-            if options.crash_at_tick is not None and free_from <= options.crash_at_tick < net_tick:
-                crash(options.crash_kind, options.crash_at_tick)  # a free tick's turn: after publishing it
+            if faults is not None and faults.crashes_in(free_from, net_tick):
+                faults.crash(faults.crash_at_tick)  # a free tick's turn: after publishing it
             if stop:
                 busy += time.perf_counter() - t0
                 break
@@ -278,10 +279,10 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
             row.served = served
             steps += taken
             busy += time.perf_counter() - t0
-            if options.slow_turn_s:
-                time.sleep(options.slow_turn_s)  # fault injection: a descheduled worker, not synchronisation
-            if options.crash_at_tick is not None and tick <= options.crash_at_tick < net_tick:
-                crash(options.crash_kind, options.crash_at_tick)
+            if faults is not None:
+                faults.delay()
+                if faults.crashes_in(tick, net_tick):
+                    faults.crash(faults.crash_at_tick)
             baton.done(tick)
             control.beat(tick)
         _finish(control, sim, net_tick, busy, steps, timeline)

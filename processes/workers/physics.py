@@ -11,7 +11,7 @@ import numpy as np
 from engine.dtypes import physics_snapshot_dtype
 from engine.match import Match, point_from_row, point_row
 from engine.world import State, build_model, copy_record, initial_state, new_events, step
-from processes.runtime.control import Control, crash
+from processes.runtime.control import Control
 from processes.runtime.shm import Arena
 from processes.runtime.timeline import WORK, Timeline
 from processes.workers.ai_driver import AIDriver
@@ -51,8 +51,7 @@ class _Publisher:
         self.trace = arena["trace"].array if options.trace else None
         self.record = record
         self.total_events = total_events
-        self.crash_at_tick = options.crash_at_tick
-        self.crash_kind = options.crash_kind
+        self.faults = options.faults
 
     def start(self, resumed: bool) -> None:
         """A fresh run publishes tick 0 (a restarted one resumed from the published snapshot)."""
@@ -69,17 +68,17 @@ class _Publisher:
         if self.trace is not None:
             copy_record(self.record, self.trace, tick)
         self.snapshots.publish(self.record, tick)
-        if tick == self.crash_at_tick:
-            crash(self.crash_kind, tick)
+        if self.faults is not None and self.faults.crashes_in(tick, tick + 1):
+            self.faults.crash(tick)
 
 
 def physics_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
     """Run the physics ticks: lockstep (as fast as possible) or realtime (paced by the wall clock).
 
-    options: ticks (total to reach), mode ("lockstep" | "realtime"), trace (bool),
-        crash_at_tick, crash_kind (int or None: end this process right after publishing that tick, by
-        SIGKILL or an exception), slow_turn_s (tests: a match's every tick takes that much longer),
-        and for a match: seed, ai_queue (when the scene has AI bats), lock_path (when it has remote players).
+    options: ticks (total to reach), mode ("lockstep" | "realtime"), trace (bool), faults (tests:
+        end this process right after publishing the crash tick, by SIGKILL or an exception; a
+        match's every tick slow_turn_s longer), and for a match: seed, handles.ai_queue (when the
+        scene has AI bats), handles.lock_path (when it has remote players).
     """
     if scene.match is not None:
         return _match_worker(control, arena, scene, options)
@@ -115,7 +114,7 @@ def physics_worker(control: Control, arena: Arena, scene, options: RunOptions) -
 
 def _remote_net(control: Control, arena: Arena, options: RunOptions, state: State) -> RemoteNet | None:
     """With a net worker: the state's cloth net becomes its stand-in (after any resume)."""
-    if options.net_baton is None:
+    if options.handles.net_baton is None:
         return None
     state.net_sim = RemoteNet(control, arena, options, state.world[0], state.net_sim)
     return state.net_sim
@@ -138,7 +137,7 @@ def _stop_net(net, options: RunOptions) -> float:
     """Tell the net worker the run is over; the wall time spent waiting for it."""
     if net is None:
         return 0.0
-    options.net_baton.stop()
+    options.handles.net_baton.stop()
     return net.waits
 
 
@@ -161,7 +160,7 @@ def _finish(control: Control, tick: int, busy: float, net, options: RunOptions, 
                       net_turns_again=net.turns_again, handoff_net_s=net_waits)
     if driver is not None:
         handoff += driver.waits
-        options.ai_queue.stop()
+        options.handles.ai_queue.stop()
         report.update(ai_turns=driver.turns, ai_decisions=driver.decided, ai_waited_turns=driver.waited,
                       handoff_ai_s=driver.waits)
         driver.close()
@@ -179,9 +178,9 @@ def _finish(control: Control, tick: int, busy: float, net, options: RunOptions, 
 
 
 def _await_players(control: Control, options: RunOptions, tick: int, timeout_s: float | None) -> float:
-    """Wait while the gateway says a remote seat is empty (options.start_event clear): at most
+    """Wait while the gateway says a remote seat is empty (options.handles.start_event clear): at most
     timeout_s (None: until the seats are held or a stop command comes); the wall time waited."""
-    event = options.start_event
+    event = options.handles.start_event
     start = time.monotonic()
     deadline = start + (float("inf") if timeout_s is None else timeout_s)
     while not event.wait(0.2) and time.monotonic() < deadline:
@@ -219,18 +218,20 @@ def _match_worker(control: Control, arena: Arena, scene, options: RunOptions) ->
     # seat is empty (a dropped player's grace), unless the first wait ran out (then it plays on)
     # or the gateway's config says not to (GatewayConfig.pause_for_players).
     pause_when_empty = False
-    if remote is not None and options.start_event is not None:
+    start_event = options.handles.start_event
+    if remote is not None and start_event is not None:
         _await_players(control, options, tick, options.players_timeout)
-        pause_when_empty = options.start_event.is_set() and options.gateway.pause_for_players
+        pause_when_empty = start_event.is_set() and options.gateway.pause_for_players
         start_wall = time.monotonic() - tick * match.model.dt  # pace from when play starts
     pacer = _Pacer(start_wall, match.model.dt, control.row) if options.mode == "realtime" else None
     n_ticks = options.ticks
-    crash_at_tick = options.crash_at_tick
+    faults = options.faults
+    crash_at_tick = None if faults is None else faults.crash_at_tick
     busy = 0.0
     # pacing, traces and remote inputs (drained before every tick) want every tick
     per_tick = pacer is not None or options.trace or remote is not None
     while tick < n_ticks and not match.over:
-        if pause_when_empty and not options.start_event.is_set():
+        if pause_when_empty and not start_event.is_set():
             paused = _await_players(control, options, tick, None)
             if pacer is not None:
                 pacer.start += paused  # the clock resumes where it stopped: no rush to catch up
@@ -255,7 +256,7 @@ def _match_worker(control: Control, arena: Arena, scene, options: RunOptions) ->
             remote.publish_ack(tick)
         out.publish(tick, match.events, match.n_events)
         busy += time.perf_counter() - t0
-        if options.slow_turn_s:
-            time.sleep(options.slow_turn_s)  # fault injection: a physics on a busy machine, not synchronisation
+        if faults is not None:
+            faults.delay()  # a physics on a busy machine
         control.beat(tick)
     _finish(control, tick, busy, net, options, match, driver, remote, timeline)

@@ -62,7 +62,7 @@ class RemoteInputs:
     """
 
     def __init__(self, arena: Arena, options: RunOptions, match: Match):
-        self.locks = LockTable(options.lock_path, RUN_LOCK_NAMES, arena["lock_holders"])
+        self.locks = LockTable(options.handles.lock_path, RUN_LOCK_NAMES, arena["lock_holders"])
         self.box = Mailbox("remote_inputs", arena["remote_header"], arena["remote_inputs"], self.locks)
         self.inbox = np.zeros(self.box.capacity, REMOTE_INPUT_DTYPE)
         self.applied = arena["remote_applied"].array

@@ -51,7 +51,7 @@ class RemoteNet:
         self.timeline: Timeline | None = None  # the physics' (its waits for the net are marked), or None
         self.local = local
         self.world = world
-        self.baton = options.net_baton.attach(arena["net_baton"].array)
+        self.baton = options.handles.net_baton.attach(arena["net_baton"].array)
         self.handoff_s = options.handoff_s
         self.io = NetIO(arena["net_io"].array)
         self._none = np.zeros(3)

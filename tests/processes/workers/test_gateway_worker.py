@@ -37,7 +37,7 @@ def test_a_snapshot_acknowledges_the_inputs_applied_before_its_tick_not_the_next
     from processes.runtime.locks import HOLDER_DTYPE, LockTable
     from processes.runtime.mailbox import MAILBOX_HEADER, Mailbox
     from processes.workers.remote_inputs import RemoteInputs
-    from processes.workers.options import RunOptions
+    from processes.workers.options import RunHandles, RunOptions
 
     scene = with_remote_players(load_scene("match_rigid"), 2)
     arena = shm.Arena()
@@ -51,7 +51,7 @@ def test_a_snapshot_acknowledges_the_inputs_applied_before_its_tick_not_the_next
         applied = arena.shared_array("remote_applied", np.dtype("<u8"), 2).array
         acks = arena.shared_array("remote_acks", REMOTE_ACK_DTYPE, REMOTE_ACK_RING).array
         match = Match(scene, 0)
-        physics = RemoteInputs(arena, RunOptions(ticks=0, lock_path=lock_path, gateway=GatewayConfig()), match)
+        physics = RemoteInputs(arena, RunOptions(ticks=0, gateway=GatewayConfig(), handles=RunHandles(lock_path=lock_path)), match)
         gateway_locks = LockTable(lock_path, RUN_LOCK_NAMES, arena["lock_holders"])
         box = Mailbox("remote_inputs", arena["remote_header"], arena["remote_inputs"], gateway_locks)
         post = np.zeros((), REMOTE_INPUT_DTYPE)

@@ -56,7 +56,7 @@ def served(tmp_path, no_leftovers):
     from processes.runtime.locks import HOLDER_DTYPE, LockTable
     from processes.runtime.mailbox import MAILBOX_HEADER, Mailbox
     from processes.workers.remote_inputs import RemoteInputs
-    from processes.workers.options import RunOptions
+    from processes.workers.options import RunHandles, RunOptions
     from processes.network.server.config import GatewayConfig
 
     scene = with_remote_players(load_scene("match_rigid"), 2)
@@ -71,7 +71,7 @@ def served(tmp_path, no_leftovers):
         arena.shared_array("remote_applied", np.dtype("<u8"), 2)
         arena.shared_array("remote_acks", REMOTE_ACK_DTYPE, REMOTE_ACK_RING)
         match = Match(scene, 0)
-        physics = RemoteInputs(arena, RunOptions(ticks=0, lock_path=lock_path, gateway=GatewayConfig()), match)
+        physics = RemoteInputs(arena, RunOptions(ticks=0, gateway=GatewayConfig(), handles=RunHandles(lock_path=lock_path)), match)
         gateway_locks = LockTable(lock_path, RUN_LOCK_NAMES, arena["lock_holders"])
         box = Mailbox("remote_inputs", arena["remote_header"], arena["remote_inputs"], gateway_locks)
         entry = np.zeros((), REMOTE_INPUT_DTYPE)
