@@ -208,9 +208,9 @@ class PingPongEnv(gymnasium.Env):
             self._new_match(int(self.np_random.integers(0, 2**31 - 1)), drive, server)
             if not drive or self._lead_in():
                 break
-        self._steps = 0
+        self.steps = 0
         self._ended = False
-        return self._observe(), {"drive": drive, "match_seed": self.seed_of_match,
+        return self.observation(), {"drive": drive, "match_seed": self.seed_of_match,
                                  "server": self.match.scene.match.first_server}
 
     def _new_match(self, seed: int, drive: bool, server: int | None = None) -> None:
@@ -262,16 +262,16 @@ class PingPongEnv(gymnasium.Env):
             raise RuntimeError("PingPongEnv.step: call reset() first")
         if self._ended or self.match.over:
             raise RuntimeError("PingPongEnv.step: the episode has ended (terminated or truncated); call reset()")
-        self._act(self.player, action)
-        rewards, decided, landed = self._period()
+        self.act(self.player, action)
+        rewards, decided, landed = self.play_period()
         terminated = decided or (self.task == "return" and landed[self.player])
-        self._steps += 1
-        truncated = not terminated and self._steps * self.every * self.match.scene.dt >= self.max_seconds
+        self.steps += 1
+        truncated = not terminated and self.steps * self.every * self.match.scene.dt >= self.max_seconds
         self._ended = terminated or truncated
         info = {"points": len(self.match.referee.points), "bot_errors": list(self.match.bot_errors)}
-        return self._observe(), rewards[self.player], terminated, truncated, info
+        return self.observation(), rewards[self.player], terminated, truncated, info
 
-    def _act(self, end: int, action) -> None:
+    def act(self, end: int, action) -> None:
         """The action vector into the action record of the agent at `end`."""
         seat = self.seats[end]
         agent = seat.bot
@@ -299,7 +299,7 @@ class PingPongEnv(gymnasium.Env):
             target(view, a[0:3], normal, vel=a[6:9], at=float(view["time"]) + float(a[9]), out=agent.action)
         self._last_actions[end] = a.copy()
 
-    def _period(self) -> tuple[list[float], bool, list[bool]]:
+    def play_period(self) -> tuple[list[float], bool, list[bool]]:
         """One control period of the match, stopped early by a decided rally or (Return-v0) the
         agent's landed return: each end's reward (RETURN_STRIKE a strike, RETURN_LANDED a return
         bouncing on the other court, Rally-v0: +1 or -1 the point), whether the rally was decided,
@@ -366,7 +366,7 @@ class PingPongEnv(gymnasium.Env):
         self.match.save(record)
         self.frames.append(record[0])
 
-    def _observe(self, end: int | None = None) -> np.ndarray:
+    def observation(self, end: int | None = None) -> np.ndarray:
         """The observation vector of the agent at `end` (None: the agent's) of the state now (the
         one its next decision is shown)."""
         match = self.match
@@ -387,7 +387,7 @@ class PingPongEnv(gymnasium.Env):
         frames = np.array(self.frames)
         events = np.array(self.events, CONTACT_DTYPE) if self.events else np.zeros(0, CONTACT_DTYPE)
         return render.rgb(frames, events, f"pingpong/{self.task}: agent at {'AB'[self.player]} against "
-                                          f"{self.opponent}, step {self._steps}")
+                                          f"{self.opponent}, step {self.steps}")
 
     def write_replay(self, path) -> None:
         """The episode so far as a replay file (`pingpong replay FILE --html PAGE` plays it in a browser)."""

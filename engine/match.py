@@ -191,7 +191,7 @@ class LocalAI:
         """Nothing to take up: this driver lives as long as its match."""
 
     def request(self, match: Match, now: float) -> None:
-        tick = int(match._world_q[0])
+        tick = match.current_tick
         faults = ai_decide(self.ais, tick, now, match.state.ball_flat, match.state.bats, match.rally_record)
         if self.ais.decided:  # otherwise the plans stay as they are
             self.pending.append((tick + match.delay, self.ais.ctl.copy(),
@@ -351,6 +351,11 @@ class Match:
         elif n or point is not None:
             self._sync_rally()
         return point
+
+    @property
+    def current_tick(self) -> int:
+        """The tick the state is at (ticks done)."""
+        return int(self._world_q[0])
 
     @property
     def over(self) -> bool:

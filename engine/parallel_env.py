@@ -67,10 +67,10 @@ class PingPongParallelEnv(ParallelEnv):
             raise ValueError(f"actions: one for each of {self.agents}, got {sorted(actions)}")
         table = self.table
         for end, agent in enumerate(AGENTS):
-            table._act(end, actions[agent])
-        rewards, decided, _ = table._period()
-        table._steps += 1
-        truncated = not decided and table._steps * table.every * table.match.scene.dt >= table.max_seconds
+            table.act(end, actions[agent])
+        rewards, decided, _ = table.play_period()
+        table.steps += 1
+        truncated = not decided and table.steps * table.every * table.match.scene.dt >= table.max_seconds
         observations = self._observations()
         ref = table.match.referee
         info = {"points": len(ref.points), "bot_errors": list(table.match.bot_errors)}
@@ -82,7 +82,7 @@ class PingPongParallelEnv(ParallelEnv):
         return (observations, *out)
 
     def _observations(self) -> dict:
-        return {agent: self.table._observe(end) for end, agent in enumerate(AGENTS)}
+        return {agent: self.table.observation(end) for end, agent in enumerate(AGENTS)}
 
     def render(self):
         return self.table.render()
