@@ -5,7 +5,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: install match test test-busy warm-up test-long bench bench-accuracy protocol browser lint clean
+.PHONY: install train match test test-busy warm-up test-long bench bench-accuracy protocol browser lint clean
 
 install: $(STAMP)
 
@@ -20,6 +20,14 @@ $(STAMP): pyproject.toml
 match: install
 	$(BIN)/pingpong match
 
+# The learning example's extra (examples/train_ppo.py): stable-baselines3 and torch (pyproject.toml).
+TRAIN_STAMP := $(VENV)/.train-installed
+train: $(TRAIN_STAMP)
+
+$(TRAIN_STAMP): $(STAMP)
+	$(BIN)/python -m pip install --quiet -e '.[train]'
+	touch $(TRAIN_STAMP)
+
 lint: install
 	$(BIN)/lint-imports
 
@@ -27,7 +35,7 @@ lint: install
 # per effect combination. The warm-up first compiles what the tests' worker processes run, so no
 # test waits for a server that is still compiling; a test file stays on one worker (loadfile), so
 # its own specialisations compile once and the other worker finds them in numba's on-disk cache.
-test: lint browser warm-up
+test: lint browser train warm-up
 	$(BIN)/python -m pytest -q -n 2 --dist loadfile --durations=25
 
 warm-up: install

@@ -33,3 +33,17 @@ def test_the_learned_bot_plays_the_parameters_it_is_pointed_at(tmp_path, monkeyp
     bot.end_sign = 1
     bot.setup(1, None)
     assert (bot.policy.line, bot.policy.pace, bot.policy.lift, bot.policy.tilt) == (1.2, 3.0, 0.5, 0.1)
+
+
+def test_ppo_trains_saves_and_its_saved_bot_plays_a_match(tmp_path):
+    """The smoke run of examples/train_ppo.py (the `train` extra, `make train`): a few thousand
+    steps train, the policy and its curve are written, the bot that loads it plays a match."""
+    spec = importlib.util.spec_from_file_location("train_ppo_example", EXAMPLES / "train_ppo.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    summary = module.train(steps=2048, envs=1, out=tmp_path, seed=0, eval_episodes=2, best_of=1)
+    assert summary["steps"] >= 2048 and summary["held_out"]["episodes"] == 2
+    for name in ("ppo_policy.zip", "ppo_policy.json", "ppo_curve.png", "ppo_summary.json"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    match = summary["match_against_novice"]
+    assert match["winner"] in ("a", "b") and sum(match["points"]) >= 11  # a whole game was played

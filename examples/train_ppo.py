@@ -1,0 +1,148 @@
+"""Train a bot with PPO (stable-baselines3) on pingpong/Return-v1, then let it play novice.
+
+    make train                                   # the extra: stable-baselines3, torch's CPU build
+    python examples/train_ppo.py --steps 2000000 --envs 2 --out runs/ppo
+
+The environment is the one made for learners (engine/agent_frame.py: the agent's own frame,
+bounded observations, actions in [-1, 1]) with the dense reward (engine/env.py REWARD_TERMS),
+against `novice`, one environment per process (stable-baselines3's SubprocVecEnv, forkserver:
+numba's threads make fork() unsafe); rewards normalised by VecNormalize (observations are
+bounded already). PPO's defaults otherwise (Schulman et al. 2017; stable-baselines3's
+hyper-parameters). At the end it writes into --out:
+
+- ppo_policy.zip and ppo_policy.json (the policy, and the action type examples/ppo_bot.py plays);
+- ppo_curve.png, the mean return of the finished episodes along the steps;
+- ppo_summary.json: steps, wall time, steps per second, and on EVAL_EPISODES held-out seeds the
+  mean return and the share of episodes whose return landed, then a best-of-3 match of
+  examples/ppo_bot.py:PPOBot against novice.
+
+`--steps 4096 --envs 1` is the smoke run the tests make: it trains, saves, and the saved bot plays.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+ENV_ID = "pingpong/Return-v1"
+OPPONENT = "novice"
+EVAL_EPISODES = 100  # held-out seeds for the summary's return and landed share
+EVAL_SEED = 1_000_000  # held-out seeds start here: training draws its own from --seed
+
+
+def make_env(action_type: str, seed: int, envs: int):
+    import gymnasium
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+
+    kwargs = {"opponent": OPPONENT, "action_type": action_type, "reward": "dense"}
+    vec_cls, vec_kwargs = (SubprocVecEnv, {"start_method": "forkserver"}) if envs > 1 else (DummyVecEnv, None)
+    # "module:id" imports the registration in each worker process too
+    vec = make_vec_env(lambda: gymnasium.make(f"engine.env:{ENV_ID}", **kwargs), n_envs=envs, seed=seed,
+                       vec_env_cls=vec_cls, vec_env_kwargs=vec_kwargs)
+    return VecNormalize(vec, norm_obs=False, norm_reward=True)
+
+
+def evaluate(model, action_type: str, episodes: int) -> dict:
+    """The deterministic policy on `episodes` held-out seeds of the sparse task: mean return, and
+    the share of episodes whose return bounced on the opponent's court."""
+    import gymnasium
+
+    env = gymnasium.make(f"engine.env:{ENV_ID}", opponent=OPPONENT, action_type=action_type)
+    returns, landed = [], 0
+    for k in range(episodes):
+        obs, _ = env.reset(seed=EVAL_SEED + k)
+        total, done = 0.0, False
+        while not done:
+            action, _ = model.predict(obs, deterministic=True)
+            obs, reward, terminated, truncated, _ = env.step(action)
+            total += reward
+            done = terminated or truncated
+        returns.append(total)
+        landed += total >= 1.0  # RETURN_LANDED: the return bounced on the opponent's court
+    env.close()
+    return {"episodes": episodes, "mean_return": float(np.mean(returns)), "landed_share": landed / episodes}
+
+
+def curve_png(points: list[tuple[int, float]], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    if points:
+        steps, means = zip(*points)
+        ax.plot(steps, means, marker=".")
+    ax.set_xlabel("environment steps")
+    ax.set_ylabel(f"mean return of the last episodes (dense, {ENV_ID} against {OPPONENT})")
+    ax.set_title("PPO (stable-baselines3)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def train(steps: int, envs: int, out: Path, seed: int = 0, action_type: str = "hold",
+          eval_episodes: int = EVAL_EPISODES, best_of: int = 3) -> dict:
+    """Train, save, evaluate, play a match (see the module's docstring); the summary."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    out.mkdir(parents=True, exist_ok=True)
+    curve: list[tuple[int, float]] = []
+
+    class Curve(BaseCallback):
+        def _on_rollout_end(self) -> None:
+            finished = [info["r"] for info in self.model.ep_info_buffer]
+            if finished:
+                curve.append((self.num_timesteps, float(np.mean(finished))))
+
+        def _on_step(self) -> bool:
+            return True
+
+    import torch
+
+    torch.set_num_threads(1)  # a small MLP: torch's thread pool would only fight the environments for the cores
+    vec = make_env(action_type, seed, envs)
+    n_steps = max(64, min(2048, steps // envs))
+    model = PPO("MlpPolicy", vec, seed=seed, device="cpu", verbose=0, n_steps=n_steps,
+                batch_size=min(256, n_steps * envs))
+    started = time.perf_counter()
+    model.learn(total_timesteps=steps, callback=Curve())
+    wall = time.perf_counter() - started
+    vec.close()
+    policy = out / "ppo_policy.zip"
+    model.save(policy)
+    policy.with_suffix(".json").write_text(json.dumps({"action_type": action_type, "env": ENV_ID,
+                                                       "opponent": OPPONENT}))
+    curve_png(curve, out / "ppo_curve.png")
+    summary = {"steps": int(model.num_timesteps), "envs": envs, "wall_seconds": wall,
+               "steps_per_second": model.num_timesteps / wall, "held_out": evaluate(model, action_type, eval_episodes)}
+    from engine.match import match_record
+    from engine.scene import load_scene
+
+    os.environ["PPO_POLICY"] = str(policy.resolve())  # the bot plays what was just trained
+    bot = f"{Path(__file__).resolve().with_name('ppo_bot.py')}:PPOBot"
+    record = match_record(load_scene("match_rigid"), seed, bot, OPPONENT, best_of=best_of)
+    summary["match_against_novice"] = {k: record[k] for k in ("winner", "games", "points", "reasons")}
+    (out / "ppo_summary.json").write_text(json.dumps(summary, indent=1))
+    return summary
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=2_000_000, help="environment steps to train for")
+    parser.add_argument("--envs", type=int, default=2, help="environments, one process each")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--action-type", choices=["hold", "target", "force"], default="hold")
+    parser.add_argument("--out", default="runs/ppo", help="directory of the policy, the curve and the summary")
+    args = parser.parse_args()
+    print(json.dumps(train(args.steps, args.envs, Path(args.out), args.seed, args.action_type), indent=1))
+
+
+if __name__ == "__main__":
+    main()
