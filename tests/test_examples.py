@@ -47,3 +47,17 @@ def test_ppo_trains_saves_and_its_saved_bot_plays_a_match(tmp_path):
         assert (tmp_path / name).stat().st_size > 0, name
     match = summary["match_against_novice"]
     assert match["winner"] in ("a", "b") and sum(match["points"]) >= 11  # a whole game was played
+
+
+def test_the_drive_example_beats_novice_from_either_end():
+    """examples/drive.py, the hand-written bot the README offers as the one to read: a seeded
+    best-of-3 against novice from each end (the same matches on every run of this code)."""
+    from engine.match import match_record
+    from engine.scene import load_scene
+
+    drive = f"{EXAMPLES / 'drive.py'}:Drive"
+    scene = load_scene("match_rigid")
+    as_a = match_record(scene, 200, drive, "novice", best_of=3)
+    as_b = match_record(scene, 200, "novice", drive, best_of=3)
+    assert (as_a["winner"], as_b["winner"]) == ("a", "b"), (as_a["games"], as_b["games"])
+    assert as_a["bot_errors"] == as_b["bot_errors"] == []
