@@ -29,6 +29,7 @@ import math
 import numpy as np
 from gymnasium import spaces
 
+from engine.bat import face_normal, rotate
 from engine.bot import force, hold, target
 from engine.match import OUT_OF_PLAY_DISTANCE
 from engine.rules import Phase
@@ -46,6 +47,7 @@ TARGET_SPEED = 20.0  # m/s, the velocity entries' scale
 TARGET_MAX_S = 1.0  # s, the latest a target pose can be asked for
 
 _TURN = np.array([-1.0, -1.0, 1.0])  # half a turn about z, as a per-axis sign
+_X_AXIS = np.array([1.0, 0.0, 0.0])
 
 
 def _observation_names() -> tuple[str, ...]:
@@ -77,9 +79,9 @@ def action_space(action_type: str) -> spaces.Box:
 
 def _quat_axes(q) -> tuple[np.ndarray, np.ndarray]:
     """(local z = face normal, local x) of the unit quaternion (w, x, y, z) in world axes."""
-    w, x, y, z = (float(c) for c in q)
-    x_axis = np.array([1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)])
-    normal = np.array([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
+    normal, x_axis = np.empty(3), np.empty(3)
+    face_normal(q, normal)
+    rotate(q, _X_AXIS, x_axis)
     return normal, x_axis
 
 

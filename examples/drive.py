@@ -1,8 +1,8 @@
 """Drive: predict the ball with the table's own physics, then place a fast, safe drive deep.
 
 - Prediction: the flight is integrated with gravity, drag and Magnus lift, the bounce on the table
-  with restitution and friction (engine.equipment's constants, with their sources; the impact
-  model written out as engine/contact.py has it).
+  with restitution and friction (engine.equipment's constants, with their sources, and
+  engine.contact.impact, the engine's own impact model).
 - Return: struck at the top of its bounce on the own court, aimed `depth` inside the other end line
   at the fastest pace whose arc clears the net by `net_margin`; the launch is solved on the
   predicted flight, the bat face and velocity giving it on the rubber's impact model.
@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from engine import contact
 from engine import equipment as eq
 from engine.bot import Bot, hold, target
 from engine.rules import Phase
@@ -30,16 +31,11 @@ DT = 0.002  # s, the prediction's step
 
 
 def impact(v, w, n, body_v, e, mu):
-    """Velocity and spin after hitting a body moving at body_v, normal n (engine/contact.py's model)."""
-    rel = v - body_v
-    if rel @ n >= 0:
-        return v, w
-    jn = -(1 + e) * M * (rel @ n)
-    slip = rel - R * np.cross(w, n)
-    slip -= (slip @ n) * n
-    size = np.linalg.norm(slip)
-    jt = -min(mu * jn, size / (1 / M + R * R / I)) * slip / size if size > 0 else np.zeros(3)
-    return v + (jn * n + jt) / M, w - R * np.cross(n, jt) / I
+    """Velocity and spin after hitting a body moving at body_v, normal n (the engine's own model)."""
+    out_v, out_w = np.empty(3), np.empty(3)
+    contact.impact(np.asarray(v, float), np.asarray(w, float), np.asarray(n, float), np.asarray(body_v, float),
+                   R, M, I, e, mu, out_v, out_w)
+    return out_v, out_w
 
 
 def fly(p, v, w, t_max=1.5, bounce=True, dt=DT):
@@ -115,6 +111,8 @@ class Drive(Bot):
         # Beside the toss's line (10 cm behind the end line, y = 0: engine/match.py's toss).
         self.ready = np.array([self.end_sign * 1.75, 0.3, 0.2])
         self.plan, self.key, self.path = None, None, None
+        # The engine's impact kernel compiles (or loads) here, not in a timed decision.
+        impact(np.zeros(3), np.zeros(3), np.array([0.0, 0.0, 1.0]), np.zeros(3), TABLE_E, TABLE_MU)
 
     def act(self, obs):
         key = (int(obs["rally"]), int(obs["shots"]))
