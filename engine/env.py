@@ -35,6 +35,13 @@ to the sparse ones (REWARD_TERMS). Version 0 keeps the world-frame record and th
 vectors of before. In both a wrong action shape is a ValueError that names the expected one,
 and a step after the episode ended (terminated or truncated) a RuntimeError.
 
+A curriculum (Return only): ball_speed=(lo, hi) m/s and ball_spin=(lo, hi) rad/s replace the
+opponent's service by a ball machine's ball (engine.ball_machine): shot from behind the
+opponent's end line at the agent's court, at a horizontal speed and a topspin (+) or backspin
+(-) drawn from the ranges, as if the opponent had just returned it; only a ball whose first
+contact is the agent's court is played (drawn anew otherwise, MACHINE_TRIES times at most).
+Start slow and spinless; widen the ranges as the agent returns them.
+
 Dense reward (reward="dense"), per end, on top of the task's own rewards: APPROACH times the
 fall of the distance between the agent's bat centre and the ball over the step while the agent
 is to strike next (potential-based shaping, Ng, Harada and Russell 1999, "Policy invariance
@@ -55,7 +62,7 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
-from engine import agent_frame, render
+from engine import agent_frame, ball_machine, render
 from engine import replay as replay_file
 from engine.ai import SKILLS
 from engine.ai.bot import ProfileBot
@@ -65,12 +72,16 @@ from engine.match import Match, control_period, match_scene, point_row
 from engine.players import decision_key
 from engine.rules import Phase
 from engine.scene import load_scene, scene_toml
+from engine.world import build_model, initial_state, new_events
 
 RETURN_STRIKE = 0.2  # reward for striking the ball
 RETURN_LANDED = 1.0  # reward for a return that bounces on the opponent's court
 APPROACH = 0.5  # dense reward per metre the bat closes on the ball while the agent is to strike
 NET_CLEAR = 0.3  # dense reward for the agent's shot crossing the net's plane towards the opponent
 REWARD_TERMS = ("sparse", "dense")
+MACHINE_TRIES = 50  # balls the machine may draw for one episode before the ranges are called impossible
+MACHINE_SPEED = (1.0, 30.0)  # m/s: the horizontal speeds a machine's range may ask for
+MACHINE_SPIN = (-600.0, 600.0)  # rad/s: ~95 rev/s either way, as a strong loop or chop
 MAX_EPISODE_STEPS = {"return": 300, "rally": 2000}  # version 1's time limits: 3 s and 20 s at 100 Hz
 FRAME_EVERY = 10  # ticks between the episode's kept frames (render, write_replay)
 SCENES = {"rigid": "match_rigid", "cloth": "match"}
@@ -162,13 +173,16 @@ class PingPongEnv(gymnasium.Env):
             write_replay (always with rgb_array).
         version: 0 (world-frame record, raw action vectors) or 1 (engine.agent_frame).
         reward: "sparse" (the task's) or "dense" (with the shaping terms of the module's docstring).
+        ball_speed, ball_spin: the ball machine's ranges (the curriculum of the module's
+            docstring), m/s and rad/s; None, None: the opponent serves or drives.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 100 // FRAME_EVERY}
 
     def __init__(self, task: str = "return", opponent: str = "pro", player: int = 1, net: str = "rigid",
                  action_type: str = "hold", max_seconds: float | None = None,
-                 render_mode: str | None = None, record: bool = False, version: int = 0, reward: str = "sparse"):
+                 render_mode: str | None = None, record: bool = False, version: int = 0, reward: str = "sparse",
+                 ball_speed: tuple[float, float] | None = None, ball_spin: tuple[float, float] | None = None):
         if task not in ("return", "rally"):
             raise ValueError(f"task: must be return or rally, got {task!r}")
         if opponent not in SKILLS and not (opponent is None and task == "rally"):
@@ -181,6 +195,17 @@ class PingPongEnv(gymnasium.Env):
         if version not in (0, 1) or reward not in REWARD_TERMS:
             raise ValueError(f"version 0 or 1, reward sparse or dense; got {version!r}, {reward!r}")
         self.version, self.reward = version, reward
+        self.machine = None
+        if ball_speed is not None or ball_spin is not None:
+            if task != "return" or opponent is None:
+                raise ValueError("ball_speed and ball_spin (the ball machine) are a curriculum of the return task "
+                                 "against an opponent")
+            self.machine = (ball_machine.check_range("ball_speed", ball_speed or (8.0, 8.0), *MACHINE_SPEED),
+                            ball_machine.check_range("ball_spin", ball_spin or (0.0, 0.0), *MACHINE_SPIN))
+            flight = match_scene(load_scene(SCENES["rigid"]), "pro", "pro", best_of=1)
+            flight = replace(flight, effects=flight.effects - {"ai", "referee"}, match=None,
+                             bats=tuple(replace(bat, skill=None) for bat in flight.bats))
+            self._flight = (build_model(flight), initial_state(flight), new_events())
         self.task, self.opponent, self.player, self.net = task, opponent, player, net
         self.action_type, self.render_mode = action_type, render_mode
         self.record = record or render_mode == "rgb_array"
@@ -202,6 +227,13 @@ class PingPongEnv(gymnasium.Env):
     # --- episodes ---------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
+        if self.machine is not None:
+            self._new_match(int(self.np_random.integers(0, 2**31 - 1)), False, self.player)
+            shot = self._machine_ball()
+            self.steps = 0
+            self._ended = False
+            return self.observation(), {"drive": False, "machine": shot, "match_seed": self.seed_of_match,
+                                        "server": self.match.scene.match.first_server}
         drive = self.task == "return" and bool(self.np_random.integers(0, 2))
         server = int(self.np_random.integers(0, 2)) if self.opponent is None else None  # two agents: drawn
         while True:  # a drive's lead-in whose game ends before the opponent returned once is played anew
@@ -212,6 +244,28 @@ class PingPongEnv(gymnasium.Env):
         self._ended = False
         return self.observation(), {"drive": drive, "match_seed": self.seed_of_match,
                                  "server": self.match.scene.match.first_server}
+
+    def _machine_ball(self) -> dict:
+        """The ball machine's ball as the opponent's return in the air (the agent served): drawn
+        until one's first contact is the agent's court; what it was."""
+        speed, spin = self.machine
+        sign = -1 if self.player == 0 else 1
+        model, state, events = self._flight
+        for _ in range(MACHINE_TRIES):
+            pos, vel, spin_vec = ball_machine.launch(self.np_random, sign, speed, spin)
+            if ball_machine.lands_on(model, state, events, pos, vel, spin_vec, sign):
+                break
+        else:
+            raise RuntimeError(f"ball machine: none of {MACHINE_TRIES} balls of speed {speed} m/s and spin {spin} "
+                               "rad/s landed on the agent's court; narrow the ranges")
+        record = np.zeros(1, physics_snapshot_dtype(len(self.match.scene.bats)))
+        self.match.save(record)
+        row = record[0]
+        row["ball"]["pos"], row["ball"]["vel"], row["ball"]["spin"] = pos, vel, spin_vec
+        row["rally"]["phase"], row["rally"]["striker"], row["rally"]["shots"] = Phase.STRUCK, 1 - self.player, 2
+        self.match.restore(row, [])
+        return {"speed": float(np.hypot(*vel[:2])), "spin": float(spin_vec @ np.array([-vel[1], vel[0], 0.0]))
+                / float(np.hypot(*vel[:2]))}
 
     def _new_match(self, seed: int, drive: bool, server: int | None = None) -> None:
         """A best-of-1 match of the agent against the opponent, its first server the opponent (or,

@@ -141,3 +141,25 @@ def test_a_drive_episode_starts_with_the_engine_ais_return_coming_at_the_agent()
         else:  # the opponent's AI serves
             assert ref.shots == 0 and info["server"] == "ab"[opponent]
     assert kinds == {True, False}
+
+
+def test_the_ball_machine_feeds_the_agents_court_within_its_ranges():
+    """The curriculum: a machine's ball, drawn within the ranges, whose first bounce is on the
+    agent's court (the referee's phase goes from the opponent's shot in the air to bounced)."""
+    from engine.rules import Phase
+
+    env = gymnasium.make("pingpong/Return-v1", opponent="novice", player=0, ball_speed=(4.0, 7.0),
+                         ball_spin=(-60.0, 60.0))
+    for seed in range(3):
+        _, info = env.reset(seed=seed)
+        shot = info["machine"]
+        assert 4.0 <= shot["speed"] <= 7.0 and -60.0 <= shot["spin"] <= 60.0
+        ref = env.unwrapped.match.referee
+        assert (ref.phase, ref.striker) == (Phase.STRUCK, 1)  # the opponent's return, in the air
+        while ref.phase == Phase.STRUCK:
+            env.step(np.zeros(6))
+        assert ref.phase == Phase.BOUNCED and env.unwrapped.match.state.ball[0]["pos"][0] < 0  # on A's court
+    with pytest.raises(ValueError, match="ball_speed: must satisfy"):
+        gymnasium.make("pingpong/Return-v1", ball_speed=(9.0, 3.0))
+    with pytest.raises(ValueError, match="curriculum of the return task"):
+        gymnasium.make("pingpong/Rally-v1", ball_spin=(0.0, 10.0))
