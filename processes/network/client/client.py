@@ -243,6 +243,9 @@ class Client:
                 continue
             if message.kind != Kind.SCENE_PART:
                 self._held.append(message)
+                if self.goodbye is not None:  # the session ended meanwhile: no scene will come
+                    raise TimeoutError(f"{self.address} said goodbye ({self.goodbye.name.lower()}) before it "
+                                       "sent the scene")
             elif (text := assembly.add(message)) is not None:
                 return text
         raise TimeoutError(f"no scene from {self.address} within {timeout_s} s (parts {sorted(assembly.parts)} of "
