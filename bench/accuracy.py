@@ -1,17 +1,17 @@
 """`pingpong bench accuracy`: the ball integrators' work-precision study against a DOP853 reference.
 
 For four standard shots (a drop, a topspin loop, a backspin push, a 30 m/s smash), each through
-two bounces, every integrator of engine/integrators.py runs at tick sizes from 10 us to 10 ms
-(dopri5 at several tolerances) through the engine's own tick, engine.collision.ball_tick, with
+two bounces, every integrator of engine/physics/integrators.py runs at tick sizes from 10 us to 10 ms
+(dopri5 at several tolerances) through the engine's own tick, engine.physics.collision.ball_tick, with
 its in-tick impact location. Each run is compared with scipy's DOP853 at rtol = atol = 1e-12,
 with every impact located by event detection and resolved by the same contact model
-(engine.contact.impact), then restarted. Measured per integrator and tick:
+(engine.physics.contact.impact), then restarted. Measured per integrator and tick:
 
 - landing error, m: distance between the ball's centre at each impact and the reference's, worst impact;
 - apex error, m: height of each apex of the flight, worst apex;
 - energy drift: (E - E_ref) / E_ref(0) at the end of the shot, E = kinetic + rotational + potential;
 - wall time per simulated second: a numba loop calling ball_tick tick after tick, compiled
-  before timing, median of repeats; and apart, the per-tick cost through engine.world.step.
+  before timing, median of repeats; and apart, the per-tick cost through engine.physics.world.step.
 
 The study also measures orders of convergence on smooth flight (before the first impact) and
 across impacts, with the engine's in-tick location and, for contrast, with the textbook impact
@@ -47,10 +47,10 @@ from bench.trajectories import (
     step_cost,
     time_cases,
 )
-from engine.collision import CONTACT_TOL
-from engine.geometry import Body
-from engine.integrators import METHODS, ORDERS
-from engine.world import build_model
+from engine.physics.collision import CONTACT_TOL
+from engine.physics.geometry import Body
+from engine.physics.integrators import METHODS, ORDERS
+from engine.physics.world import build_model
 
 FIXED_METHODS = ("explicit_euler", "semi_implicit_euler", "verlet", "rk4")
 STEP_SIZES = (1e-5, 2e-5, 5e-5, 1e-4, 2e-4, 5e-4, 1e-3, 2e-3, 5e-3, 1e-2)
@@ -177,7 +177,7 @@ def study(quick: bool = False, repeats: int | None = None, progress=None) -> dic
     for row in rows:
         if "wall_s_per_sim_s" in row:
             row["cost_vs_verlet_1ms"] = row["wall_s_per_sim_s"] / baseline["wall_s_per_sim_s"]
-    say("per-tick cost through engine.world.step")
+    say("per-tick cost through engine.physics.world.step")
     through_step = step_cost(SHOTS[1], list(METHODS), 1e-3, repeats)
     result = {
         "shots": [{"name": s.name, "description": s.description, "pos": s.pos, "vel": s.vel, "spin": s.spin}
@@ -458,7 +458,7 @@ def readme_block(result: dict, png: str | None) -> str:
         "",
         markdown_table(result, compact=True),
         "",
-        f"Through `engine.world.step` (Python orchestration included) a 1 ms tick costs: {step_line}; the "
+        f"Through `engine.physics.world.step` (Python orchestration included) a 1 ms tick costs: {step_line}; the "
         "orchestration, not the integrator, dominates there.",
         "",
         "Measured orders of convergence (least-squares slope of log error against log tick, median over the shots, "
@@ -511,7 +511,7 @@ def _report(result: dict) -> None:
                   f"{result['timing_spread_median'] * 100:.0f} %, worst {result['timing_spread_max'] * 100:.0f} % "
                   "(2 shared cores: read the ratios, not the absolute times)")
     step = result["through_step_1ms"]
-    console.print("through engine.world.step, 1 ms tick: "
+    console.print("through engine.physics.world.step, 1 ms tick: "
                   + ", ".join(f"{name} {v['us_per_tick']:.1f} µs/tick" for name, v in step.items()))
     console.print(Markdown(orders_markdown(result)))
     for line in result["findings"]:

@@ -1,12 +1,12 @@
 """`pingpong bench effects`: what each effect costs per simulated second, by toggling it in a scene.
 
 Physics effects (gravity, drag, magnus, friction, table, floor, net, bats) are timed in a numba
-loop over the engine's own kernels (engine.bat.bat_step and engine.collision.ball_tick, as
-engine.world.step calls them) on the bundled `rally` scene, replayed from its start until the
-loop covers the simulated time asked for; the per-tick cost through engine.world.step is given
+loop over the engine's own kernels (engine.physics.bat.bat_step and engine.physics.collision.ball_tick, as
+engine.physics.world.step calls them) on the bundled `rally` scene, replayed from its start until the
+loop covers the simulated time asked for; the per-tick cost through engine.physics.world.step is given
 beside it. Each cost is the ratio of the scene with the effect to the same scene without it,
 measured in the same run, interleaved round by round. The AI and the referee live in Python
-(engine/match.py) and a match needs both, so they are timed inside the in-process match on the
+(engine/play/match.py) and a match needs both, so they are timed inside the in-process match on the
 bundled `match` scene (the AIs' own clock, the referee's calls wrapped) instead of toggled.
 
 An absent effect is a None argument: numba compiles a specialisation without its code. Two checks
@@ -24,11 +24,11 @@ from numba import njit
 
 from bench.study import Study, quick_only
 from bench.study import run as run_study
-from engine.bat import bat_step
-from engine.collision import EVENT_ROW, MAX_IMPACTS_PER_TICK, ball_tick
-from engine.match import Match
-from engine.scene import EFFECTS, NET_KINDS, PLANNED_EFFECTS, SCENES_DIR, Scene, parse_scene
-from engine.world import build_model, initial_state, new_events, step
+from engine.physics.bat import bat_step
+from engine.physics.collision import EVENT_ROW, MAX_IMPACTS_PER_TICK, ball_tick
+from engine.physics.scene import EFFECTS, NET_KINDS, PLANNED_EFFECTS, SCENES_DIR, Scene, parse_scene
+from engine.physics.world import build_model, initial_state, new_events, step
+from engine.play.match import Match
 
 PHYSICS_EFFECTS = ("gravity", "drag", "magnus", "friction", "table", "floor", "net", "bats")
 # --quick toggles fewer effects: each toggled scene is one more specialisation to compile (~15 s
@@ -212,12 +212,12 @@ def study(quick: bool = False, repeats: int | None = None, progress=None) -> dic
     best = {k: v[2] / sim_seconds for k, v in timed.items()}
     spread = statistics.median(v[1] for v in timed.values())
     step_ticks = 600 if quick else 2400
-    say("per-tick cost through engine.world.step")
+    say("per-tick cost through engine.physics.world.step")
     step_us = {"all": _step_us_per_tick(base, step_ticks)}
     rows = []
     for effect in effects:
         without = per_sim[f"-{effect}"]
-        # Through engine.world.step each toggled scene is one more specialisation of the tick
+        # Through engine.physics.world.step each toggled scene is one more specialisation of the tick
         # kernel to compile (~15-25 s cold): --quick, a smoke run, measures the kernel loop only.
         step_us[f"-{effect}"] = None if quick else _step_us_per_tick(runs[f"-{effect}"].scene, step_ticks)
         note = {
@@ -251,8 +251,8 @@ def study(quick: bool = False, repeats: int | None = None, progress=None) -> dic
             rows.append({"effect": "cloth net", "available": True, "skipped": True, "note": "not measured with --quick"})
         else:
             # The cloth net runs in Python around the net kernel (net_kernel.NetSim): timed through
-            # engine.world.step, against the same scene with the rigid net, one rally each.
-            say("the cloth net against the rigid net, through engine.world.step")
+            # engine.physics.world.step, against the same scene with the rigid net, one rally each.
+            say("the cloth net against the rigid net, through engine.physics.world.step")
             cloth = toggled({**data, "net": {"kind": "cloth"}})
             rigid_us = _step_us_per_tick(base, base.ticks)
             cloth_us = _step_us_per_tick(cloth, base.ticks)
@@ -260,7 +260,7 @@ def study(quick: bool = False, repeats: int | None = None, progress=None) -> dic
                          "with_s_per_sim_s": cloth_us * 1e-6 / base.dt, "ratio": cloth_us / rigid_us,
                          "compiled_out": None,
                          "note": "cloth (net_kernel.NetSim, default 184 x 16 knots) vs rigid net, through "
-                                 "engine.world.step over one rally"})
+                                 "engine.physics.world.step over one rally"})
     for effect in PHYSICS_EFFECTS:
         if effect not in effects:
             rows.append({"effect": effect, "available": True, "skipped": True, "note": "not toggled with --quick"})

@@ -2,17 +2,17 @@
 
 - steps: environment steps per second of Return-v0 against novice, `hold` actions at the ready
   pose (the agent never strikes, so each episode runs to the opponent's point or its truncation),
-  rigid net and cloth net: one PingPongEnv; the native vector env (engine.vector_env, N tables in
+  rigid net and cloth net: one PingPongEnv; the native vector env (engine.learning.vector_env, N tables in
   this process) at N = --tables; Gymnasium's AsyncVectorEnv of N (N processes, forkserver) at N =
   --async-tables. Every step of every table counts, autoresets included; the first steps (kernels
   loaded, in each process) are not timed. Each figure's ratio is to the one environment's of the
   same net.
 - physics share: the share of the one environment's step (the process's CPU time, every thread)
-  spent in the physics (engine.world.advance, timed around each call: the numba tick kernel and,
+  spent in the physics (engine.physics.world.advance, timed around each call: the numba tick kernel and,
   with the cloth net, the net's kernels): the most that stepping a batch of tables' physics in one
   numba call could take away; the rest is the referee's, the players' and the step's Python work.
 - players: the same in-process match (match_rigid, seed 0) with A played by `pro` and by
-  examples/block.py:Block, B by novice, each --ticks ticks: engine.match.Match.ai_seconds (all
+  examples/block.py:Block, B by novice, each --ticks ticks: engine.play.match.Match.ai_seconds (all
   the players' decisions and control laws) per control tick, and the bot's own act() (CPU) per
   decision.
 """
@@ -46,8 +46,8 @@ def _timed(step, n: int, seconds: float) -> float:
 
 def single_steps_per_second(seconds: float, net: str) -> dict:
     """One environment's steps per second, and the share of it in the physics."""
-    import engine.match
-    from engine.env import PingPongEnv
+    from engine.learning.env import PingPongEnv
+    import engine.play.match
 
     env = PingPongEnv(opponent="novice", net=net)
     env.reset(seed=0)
@@ -62,7 +62,7 @@ def single_steps_per_second(seconds: float, net: str) -> dict:
         if terminated or truncated:
             env.reset()
 
-    physics = engine.match.advance
+    physics = engine.play.match.advance
     inside = [0.0]
 
     def timed_physics(*args, **kwargs):
@@ -73,20 +73,20 @@ def single_steps_per_second(seconds: float, net: str) -> dict:
             inside[0] += time.process_time() - started
 
     rate = _timed(step, 1, seconds)
-    engine.match.advance = timed_physics
+    engine.play.match.advance = timed_physics
     try:
         started, cpu = time.perf_counter(), time.process_time()
         while time.perf_counter() - started < seconds / 2:
             step()
         share = inside[0] / (time.process_time() - cpu)
     finally:
-        engine.match.advance = physics
+        engine.play.match.advance = physics
     return {"steps_per_s": rate, "physics_share": share}
 
 
 def native_steps_per_second(n: int, seconds: float, net: str) -> float:
-    """engine.vector_env.PingPongVectorEnv of n tables: environment steps per second."""
-    from engine.vector_env import PingPongVectorEnv
+    """engine.learning.vector_env.PingPongVectorEnv of n tables: environment steps per second."""
+    from engine.learning.vector_env import PingPongVectorEnv
 
     vector = PingPongVectorEnv(n, opponent="novice", net=net)
     vector.reset(seed=0)
@@ -102,7 +102,7 @@ def async_steps_per_second(n: int, seconds: float, net: str) -> float:
     import gymnasium
 
     vector = gymnasium.vector.AsyncVectorEnv(
-        [lambda: gymnasium.make("engine.env:pingpong/Return-v0", opponent="novice", net=net)] * n,
+        [lambda: gymnasium.make("engine.learning.env:pingpong/Return-v0", opponent="novice", net=net)] * n,
         context="forkserver")
     try:
         vector.reset(seed=list(range(n)))
@@ -114,8 +114,8 @@ def async_steps_per_second(n: int, seconds: float, net: str) -> float:
 
 def players_per_control_tick(ticks: int) -> dict:
     """Match.ai_seconds per control tick with A played by pro and by the Block bot (B: novice)."""
-    from engine.match import Match, control_period, match_scene
-    from engine.scene import load_scene
+    from engine.physics.scene import load_scene
+    from engine.play.match import Match, control_period, match_scene
 
     base = load_scene("match_rigid")
     out = {}

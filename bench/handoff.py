@@ -22,8 +22,8 @@ import numpy as np
 
 from bench.study import Study
 from bench.study import run as run_study
-from engine.dtypes import physics_snapshot_dtype
-from engine.world import copy_record
+from engine.physics.dtypes import physics_snapshot_dtype
+from engine.physics.world import copy_record
 from processes.runtime.handoff import TICK_SLOT_DTYPE, Baton
 from processes.runtime.shm import Arena
 from processes.workers.layout import ANSWER_DTYPE

@@ -11,8 +11,8 @@ from dataclasses import replace
 
 from bench.study import Study
 from bench.study import run as run_study
-from engine.match import Match
-from engine.scene import SceneError, load_scene
+from engine.physics.scene import SceneError, load_scene
+from engine.play.match import Match
 from processes.runtime import timeline as timelines
 from processes.supervisor import Supervisor
 

@@ -4,7 +4,7 @@ Every net here is the same physical net (net_kernel.topology.resolution_spec: ar
 prestress, sheet stiffness, cord tension and stiffness, air damping kept) on a grid of cols x rows
 knots. A fixed, seeded set of match-like impacts (5-30 m/s; centre into the cord's top 2 cm, mid-net
 or low; up to 45 deg off the net's normal; anywhere across the table's width) is fired into each
-net, stepped as the engine couples ball and net (engine.world._advance_with_cloth,
+net, stepped as the engine couples ball and net (engine.physics.world._advance_with_cloth,
 processes.workers.net): per 1 ms tick the ball flies straight under gravity, NetSim.step sees it
 at the tick's start and the ball then takes the net's offset and impulse. No table, drag or spin:
 the same for every net, so the comparison sees only the net.
@@ -60,7 +60,7 @@ CONTACT_GAP = 2  # ticks: a pause this long or shorter within a contact does not
 FLOOR_SHIFT = 1e-3
 # Tunnelling stress: head-on shots at the middle of a cell at mid-height (m/s), and one at the fastest
 # STRESS_OBLIQUE_DEG off the normal.
-STRESS_SPEEDS = (20.0, 40.0, 60.0)  # 60: the fastest ball a scene allows (engine.world._cloth_watch)
+STRESS_SPEEDS = (20.0, 40.0, 60.0)  # 60: the fastest ball a scene allows (engine.physics.world._cloth_watch)
 STRESS_OBLIQUE_DEG = 30.0
 # Tolerances of the recommendation (see recommend()).
 TOL_OUTCOME_CHANGES = 0

@@ -41,7 +41,7 @@ import numpy as np
 
 from bench.study import Study
 from bench.study import run as run_study
-from engine.scene import load_scene
+from engine.physics.scene import load_scene
 from net_kernel import NetSim, NetSpec, build_topology
 from net_kernel.sim import BALL_MASS, BALL_RADIUS
 from net_kernel.topology import FLOAT32, FLOAT64

@@ -3,8 +3,8 @@ run of it with one integrator configuration, compared, and timed.
 
 For a shot (bench.accuracy.SHOTS) through two bounces, reference_shot integrates the ball's
 equations with scipy's DOP853, locating every impact by event detection and resolving it by the
-engine's own contact model (engine.contact.impact), then restarting; run_case runs the engine's
-tick (engine.collision.ball_tick, impacts located inside the tick, or for contrast at its end)
+engine's own contact model (engine.physics.contact.impact), then restarting; run_case runs the engine's
+tick (engine.physics.collision.ball_tick, impacts located inside the tick, or for contrast at its end)
 and samples it like the reference; compare measures landing, apex, smooth-flight and final
 errors and the energy drift. time_cases and step_cost time the configurations (compiled first).
 """
@@ -18,8 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from engine import reference as engine_reference
-from engine.collision import (
+from engine.physics import reference as engine_reference
+from engine.physics.collision import (
     E_BODY,
     E_POS,
     E_TIME,
@@ -33,11 +33,11 @@ from engine.collision import (
     SCRATCH_SHAPE,
     ball_tick,
 )
-from engine.contact import impact
-from engine.geometry import Body
-from engine.integrators import ADAPT_SIZE, METHODS, WORK_SHAPE, advance
-from engine.scene import Scene, parse_scene, with_overrides
-from engine.world import Model, build_model, initial_state, new_events, step
+from engine.physics.contact import impact
+from engine.physics.geometry import Body
+from engine.physics.integrators import ADAPT_SIZE, METHODS, WORK_SHAPE, advance
+from engine.physics.scene import Scene, parse_scene, with_overrides
+from engine.physics.world import Model, build_model, initial_state, new_events, step
 
 EFFECTS = ("gravity", "drag", "magnus", "friction", "table", "floor")
 DOPRI5_ATOL_PER_RTOL = 1e-3  # atol = 1e-3 rtol: 1 mm per unit of rtol on a metre-sized state
@@ -110,8 +110,8 @@ def reference_shot(shot: Shot, tol: float = REFERENCE_TOL, t_smooth: float | Non
                    t_end: float | None = None) -> Trajectory:
     """The shot by scipy's DOP853 at rtol = atol = tol, every impact located by event detection.
 
-    Flight uses the engine's forces (engine.reference.ball_accel, the numpy twin); impacts on the
-    table's top and the floor use engine.contact.impact with the scene's materials on the exact
+    Flight uses the engine's forces (engine.physics.reference.ball_accel, the numpy twin); impacts on the
+    table's top and the floor use engine.physics.contact.impact with the scene's materials on the exact
     state at contact (gap 0), then the integration restarts. A crossing of the table's plane
     outside its footprint is no impact (the ball falls past the table's end). Without t_end the
     shot runs until AFTER_LAST_BOUNCE after its second bounce, rounded up to GRID.
@@ -461,7 +461,7 @@ def compile_kernels() -> float:
 
 
 def step_cost(shot: Shot, methods, dt: float, repeats: int) -> dict:
-    """Per-tick cost through engine.world.step (Python orchestration included), µs per tick."""
+    """Per-tick cost through engine.physics.world.step (Python orchestration included), µs per tick."""
     out = {}
     events = new_events()
     for name in methods:

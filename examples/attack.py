@@ -2,12 +2,12 @@
 
 The flight is predicted as free fall (no drag, no spin): near enough a few tenths of a second
 ahead, which is all a drive needs once the ball has bounced on the bot's court. Each stroke is
-planned once (engine.bot.target) and returned until it is played, so the arm tracks one path.
+planned once (engine.physics.bot.target) and returned until it is played, so the arm tracks one path.
 """
 import numpy as np
 
-from engine.bot import Bot, hold, target
-from engine.rules import Phase
+from engine.physics.bot import Bot, hold, target
+from engine.play.rules import Phase
 
 GRAVITY = 9.81  # m/s^2
 HIT_X = 1.5  # m from the centre: where the bat meets the ball, behind the end line (1.37 m)

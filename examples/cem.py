@@ -3,7 +3,7 @@
 The policy plans one stroke for each ball that has bounced on its court (and serves as
 examples/attack.py does, which Return-v0 never asks of it): it predicts where the
 ball crosses its hitting line (free fall from the ball's state, no drag or spin) and drives the
-bat through that point (engine.bot.target: a path the arm's PD law tracks), four learned numbers
+bat through that point (engine.physics.bot.target: a path the arm's PD law tracks), four learned numbers
 deciding how:
 
     params = (line, pace, lift, tilt): the hitting line (m behind the table's centre), the bat's
@@ -36,8 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.bot import Bot, target
-from engine.rules import Phase
+from engine.physics.bot import Bot, target
+from engine.play.rules import Phase
 
 GRAVITY = 9.81  # m/s^2
 PARAMS_FILE = Path(__file__).with_name("cem_params.json")
@@ -122,7 +122,7 @@ def train(iterations: int = 10, population: int = 16, elite: int = 4, episodes: 
     and the untrained START_MEAN's."""
     import gymnasium
 
-    import engine.env  # noqa: F401 - registers the environments (pyflakes: used by gymnasium.make)
+    import engine.learning.env  # noqa: F401 - registers the environments (pyflakes: used by gymnasium.make)
 
     env = gymnasium.make("pingpong/Return-v0", opponent=OPPONENT, action_type="target")
     rng = np.random.default_rng(seed)
@@ -187,8 +187,8 @@ def main() -> None:
     curve_png(result, out / "cem_curve.png")
     params_file = out / "cem_params.json"
     params_file.write_text(json.dumps(result, indent=1))
-    from engine.match import match_record
-    from engine.scene import load_scene
+    from engine.physics.scene import load_scene
+    from engine.play.match import match_record
 
     os.environ[PARAMS_ENV] = str(params_file.resolve())  # Learned plays what was just learned
     record = match_record(load_scene("match_rigid"), 0, f"{Path(__file__).resolve()}:Learned", "novice", best_of=1)

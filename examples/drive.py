@@ -1,8 +1,8 @@
 """Drive: predict the ball with the table's own physics, then place a fast, safe drive deep.
 
 - Prediction: the flight is integrated with gravity, drag and Magnus lift, the bounce on the table
-  with restitution and friction (engine.equipment's constants, with their sources, and
-  engine.contact.impact, the engine's own impact model).
+  with restitution and friction (engine.physics.equipment's constants, with their sources, and
+  engine.physics.contact.impact, the engine's own impact model).
 - Return: struck at the top of its bounce on the own court, aimed `depth` inside the other end line
   at the fastest pace whose arc clears the net by `net_margin`; the launch is solved on the
   predicted flight, the bat face and velocity giving it on the rubber's impact model.
@@ -14,13 +14,13 @@ import math
 
 import numpy as np
 
-from engine import contact
-from engine import equipment as eq
-from engine.bot import Bot, hold, target
-from engine.rules import Phase
+from engine.physics import contact
+from engine.physics import equipment as eq
+from engine.physics.bot import Bot, hold, target
+from engine.play.rules import Phase
 
-# The ball, the air, the table and the rubber as the engine has them (engine/equipment.py cites
-# each); the forces as engine/forces.py writes them.
+# The ball, the air, the table and the rubber as the engine has them (engine/physics/equipment.py cites
+# each); the forces as engine/physics/forces.py writes them.
 G, R, M = eq.GRAVITY, eq.BALL_RADIUS, eq.BALL_MASS
 I = eq.BALL_INERTIA_FACTOR * M * R**2
 K_DRAG = 0.5 * eq.AIR_DENSITY * eq.DRAG_COEFFICIENT * math.pi * R**2 / M  # a = -K_DRAG |v| v
@@ -108,7 +108,7 @@ class Drive(Bot):
     serve_z, serve_bounce, serve_pace = 0.25, 1.0, 6.5  # m toss height, m from the net, m/s
 
     def setup(self, end, scene):
-        # Beside the toss's line (10 cm behind the end line, y = 0: engine/match.py's toss).
+        # Beside the toss's line (10 cm behind the end line, y = 0: engine/play/match.py's toss).
         self.ready = np.array([self.end_sign * 1.75, 0.3, 0.2])
         self.plan, self.key, self.path = None, None, None
         # The engine's impact kernel compiles (or loads) here, not in a timed decision.

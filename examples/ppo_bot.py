@@ -1,8 +1,8 @@
 """A bot that plays a policy trained by examples/train_ppo.py (stable-baselines3's PPO).
 
-It shows the policy what the environment showed it in training (engine.agent_frame.observe: the
+It shows the policy what the environment showed it in training (engine.learning.agent_frame.observe: the
 bot's own frame, scaled into [-1, 1]) and plays the policy's action vector as the environment
-played it (engine.agent_frame.action_record), so the trained agent plays a match, a tournament or
+played it (engine.learning.agent_frame.action_record), so the trained agent plays a match, a tournament or
 a served match (`join --bot`) as it played its episodes:
 
     pingpong match --scene match_rigid --a examples/ppo_bot.py:PPOBot --b novice --best-of 3
@@ -19,9 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from engine import agent_frame
-from engine.ai import SKILLS
-from engine.bot import Bot, new_action
+from engine.learning import agent_frame
+from engine.physics.bot import Bot, new_action
+from engine.play.ai import SKILLS
 
 POLICY_FILE = Path(__file__).with_name("ppo_policy.zip")
 POLICY_ENV = "PPO_POLICY"  # the policy file PPOBot plays, if set

@@ -3,8 +3,8 @@
     make train                                   # the extra: stable-baselines3, torch's CPU build
     python examples/train_ppo.py --steps 2000000 --envs 2 --out runs/ppo
 
-The environment is the one made for learners (engine/agent_frame.py: the agent's own frame,
-bounded observations, actions in [-1, 1]) with the dense reward (engine/env.py REWARD_TERMS),
+The environment is the one made for learners (engine/learning/agent_frame.py: the agent's own frame,
+bounded observations, actions in [-1, 1]) with the dense reward (engine/learning/env.py REWARD_TERMS),
 against `novice`, one environment per process (stable-baselines3's SubprocVecEnv, forkserver:
 numba's threads make fork() unsafe); rewards normalised by VecNormalize (observations are
 bounded already). PPO's defaults otherwise (Schulman et al. 2017; stable-baselines3's
@@ -42,7 +42,7 @@ def make_env(action_type: str, seed: int, envs: int):
     kwargs = {"opponent": OPPONENT, "action_type": action_type, "reward": "dense"}
     vec_cls, vec_kwargs = (SubprocVecEnv, {"start_method": "forkserver"}) if envs > 1 else (DummyVecEnv, None)
     # "module:id" imports the registration in each worker process too
-    vec = make_vec_env(lambda: gymnasium.make(f"engine.env:{ENV_ID}", **kwargs), n_envs=envs, seed=seed,
+    vec = make_vec_env(lambda: gymnasium.make(f"engine.learning.env:{ENV_ID}", **kwargs), n_envs=envs, seed=seed,
                        vec_env_cls=vec_cls, vec_env_kwargs=vec_kwargs)
     return VecNormalize(vec, norm_obs=False, norm_reward=True)
 
@@ -52,7 +52,7 @@ def evaluate(model, action_type: str, episodes: int) -> dict:
     the share of episodes whose return bounced on the opponent's court."""
     import gymnasium
 
-    env = gymnasium.make(f"engine.env:{ENV_ID}", opponent=OPPONENT, action_type=action_type)
+    env = gymnasium.make(f"engine.learning.env:{ENV_ID}", opponent=OPPONENT, action_type=action_type)
     returns, landed = [], 0
     for k in range(episodes):
         obs, _ = env.reset(seed=EVAL_SEED + k)
@@ -122,8 +122,8 @@ def train(steps: int, envs: int, out: Path, seed: int = 0, action_type: str = "h
     curve_png(curve, out / "ppo_curve.png")
     summary = {"steps": int(model.num_timesteps), "envs": envs, "wall_seconds": wall,
                "steps_per_second": model.num_timesteps / wall, "held_out": evaluate(model, action_type, eval_episodes)}
-    from engine.match import match_record
-    from engine.scene import load_scene
+    from engine.physics.scene import load_scene
+    from engine.play.match import match_record
 
     os.environ["PPO_POLICY"] = str(policy.resolve())  # the bot plays what was just trained
     bot = f"{Path(__file__).resolve().with_name('ppo_bot.py')}:PPOBot"

@@ -52,7 +52,7 @@ WAKE_MARGIN = 0.05  # m
 NET_REACH = 0.25  # m
 # m: a linear tail's box (every knot's place from the switch on) stays within this of the built
 # box: the engine steps the ball tick by tick near a tail or a sleeping net only within the built
-# box grown by WAKE_MARGIN (engine.world's cloth_watch), so a tail reaching farther stays awake.
+# box grown by WAKE_MARGIN (engine.physics.world's cloth_watch), so a tail reaching farther stays awake.
 TAIL_BOX_MARGIN = 0.5 * WAKE_MARGIN
 NOT_FINITE = "a knot position or velocity is not finite after the net's tick"
 # Ball-knot contact defaults: a net thread is about 1 mm thick; the cloth's give comes from
@@ -64,17 +64,17 @@ MAX_HITS = 8
 # far in one (contact_substeps). Within a substep the contact and the springs are split (struck
 # knots ride with the ball, the springs pull at the step): an error of first order in the substep
 # that decides whether a fast shot goes through the mesh, and the stability bound alone does not
-# keep it small. 1 mm stops head-on shots at the scene's speed bound (engine.equipment.BALL_SPEED_MAX)
+# keep it small. 1 mm stops head-on shots at the scene's speed bound (engine.physics.equipment.BALL_SPEED_MAX)
 # on the match's 85 x 8 net (tests/net_kernel/test_ball.py, bench net-resolution's stress shots);
 # slow strokes, such as the AI's, already meet it at the bound's substeps and pay nothing more.
 CONTACT_TRAVEL = 1e-3
 # m/s: the closing speed the contact substeps follow at most (twice the ball's bound, 60 m/s:
-# engine.equipment.BALL_SPEED_MAX, which net_kernel may not import), so a net that went wrong
+# engine.physics.equipment.BALL_SPEED_MAX, which net_kernel may not import), so a net that went wrong
 # cannot ask for unbounded work; NET_REACH and finiteness catch it.
 CONTACT_SPEED_MAX = 120.0
 CG_TOL = 1e-8
 CG_MAX_ITER = 200
-# The ITTF ball (engine/equipment.py): 40 mm, 2.7 g (the defaults of NetSim.step).
+# The ITTF ball (engine/physics/equipment.py): 40 mm, 2.7 g (the defaults of NetSim.step).
 BALL_RADIUS = 0.02
 BALL_MASS = 2.7e-3
 

@@ -24,9 +24,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from engine.dtypes import CONTACT_DTYPE, physics_snapshot_dtype
-from engine.players import DEFAULT_BUDGET_S
-from engine.scene import Scene
+from engine.physics.dtypes import CONTACT_DTYPE, physics_snapshot_dtype
+from engine.physics.scene import Scene
+from engine.play.players import DEFAULT_BUDGET_S
 from processes.network.server.config import GatewayConfig
 from processes.runtime.control import READY_TIMEOUT_S, STARTUP_LIMIT_S, WorkerState, worker_main
 from processes.runtime.faults import FaultPlan
@@ -73,10 +73,10 @@ class ProcessRunResult:
     frames: np.ndarray | None = None  # decimated snapshots for a replay
 
     def match_summary(self, seed: int) -> dict:
-        """The run as engine.match.MatchResult.summary() reports an in-process match, with the
+        """The run as engine.play.match.MatchResult.summary() reports an in-process match, with the
         workers' own figures beside it (mode, startup, per worker, a bot's errors, a stop)."""
-        from engine.match import MatchResult, point_from_row
-        from engine.rules import Referee
+        from engine.play.match import MatchResult, point_from_row
+        from engine.play.rules import Referee
 
         points = [point_from_row(row) for row in self.points]
         spec = self.scene.match
@@ -120,7 +120,7 @@ class Supervisor:
         handoff_s: s, one wait of the physics for the AI's or the net's answer (RunOptions).
         slow_turn_s: fault injection for tests: every incarnation of `crash_worker` answers each
             turn (the AI, the net) or steps each match tick (the physics) this much later.
-        on_bot_error, bot_budget_s: engine.match.Match's on_bot_error and budget_s.
+        on_bot_error, bot_budget_s: engine.play.match.Match's on_bot_error and budget_s.
         timeline_dir: each worker writes its timeline there (RunOptions.timeline_dir).
     """
 
@@ -153,7 +153,7 @@ class Supervisor:
         self.layout: RunLayout | None = None
         # forkserver: workers fork from a clean server that never ran threads or kernels.
         self._ctx = multiprocessing.get_context("forkserver")
-        self._ctx.set_forkserver_preload(["processes.runtime.forkserver", "engine.world", "engine.match",
+        self._ctx.set_forkserver_preload(["processes.runtime.forkserver", "engine.physics.world", "engine.play.match",
                                           *worker_modules(self.kinds)])
         self.arena: Arena | None = None
         self._workers: list[_Worker] = []

@@ -13,9 +13,10 @@ ALLOWED = {
     # the net's modes to one BLAS thread (net_kernel/modes.py: the same bits in every process).
     "net_kernel": {"numpy", "numba", "net_kernel", "threadpoolctl"},
     # engine: no sockets, processes or zmq; net_kernel below it is fine; matplotlib draws the
-    # replay's picture (engine/render.py), which the Gymnasium environment (engine/env.py) renders;
-    # pettingzoo is the two-bat environment's API (engine/parallel_env.py); tomli_w writes a scene
-    # out as TOML (engine/scene.py scene_toml).
+    # replay's picture (engine/tools/render.py), which the Gymnasium environment
+    # (engine/learning/env.py) renders; pettingzoo is the two-bat environment's API
+    # (engine/learning/parallel_env.py); tomli_w writes a scene out as TOML (engine/physics/scene.py
+    # scene_toml).
     "engine": {"numpy", "numba", "engine", "net_kernel", "matplotlib", "gymnasium", "pettingzoo", "tomli_w"},
 }
 
@@ -43,6 +44,9 @@ MAX_MODULE_LINES = 700
 # processes/ holds its layers as subpackages; directly in it only the package, its entry point
 # and the supervisor.
 PROCESSES_TOP = {"__init__.py", "__main__.py", "supervisor.py"}
+# engine/ holds its rooms as subpackages (physics, play, learning, tools); directly in it only the
+# package.
+ENGINE_TOP = {"__init__.py"}
 
 
 def _module_name(path: Path) -> str:
@@ -121,6 +125,11 @@ def test_no_module_over_700_lines():
 def test_processes_keeps_its_layers_in_subpackages():
     top = {p.name for p in (ROOT / "processes").glob("*.py")}
     assert top <= PROCESSES_TOP, f"modules directly in processes/ (move them into a layer): {sorted(top - PROCESSES_TOP)}"
+
+
+def test_engine_keeps_its_rooms_in_subpackages():
+    top = {p.name for p in (ROOT / "engine").glob("*.py")}
+    assert top <= ENGINE_TOP, f"modules directly in engine/ (move them into a room): {sorted(top - ENGINE_TOP)}"
 
 
 MAX_FUNCTION_LINES = 120

@@ -24,7 +24,7 @@ def test_the_cross_entropy_method_raises_the_return_over_a_short_seeded_run():
 
 
 def test_the_learned_bot_plays_the_parameters_it_is_pointed_at(tmp_path, monkeypatch):
-    from engine.bot import load_bot
+    from engine.physics.bot import load_bot
 
     params = tmp_path / "cem_params.json"
     params.write_text('{"params": [1.2, 3.0, 0.5, 0.1]}')
@@ -52,8 +52,8 @@ def test_ppo_trains_saves_and_its_saved_bot_plays_a_match(tmp_path):
 def test_the_drive_example_beats_novice_from_either_end():
     """examples/drive.py, the hand-written bot the README offers as the one to read: a seeded
     best-of-3 against novice from each end (the same matches on every run of this code)."""
-    from engine.match import match_record
-    from engine.scene import load_scene
+    from engine.physics.scene import load_scene
+    from engine.play.match import match_record
 
     drive = f"{EXAMPLES / 'drive.py'}:Drive"
     scene = load_scene("match_rigid")

@@ -20,8 +20,8 @@ from tests.waits import DEADLINE_S, POLL_S, Deadline
 
 ROOT = Path(__file__).resolve().parents[1]
 IN_PROCESS = """\
-from engine.match import Match
-from engine.scene import load_scene
+from engine.physics.scene import load_scene
+from engine.play.match import Match
 from processes.cli.join import _warm_up
 for name in ("match_rigid", "match"):
     Match(load_scene(name), 0).play(max_ticks=2)

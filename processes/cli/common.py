@@ -15,7 +15,7 @@ class Formatter(argparse.ArgumentDefaultsHelpFormatter):
 
 
 FORMATTER = Formatter
-# engine.players.DEFAULT_BUDGET_S in ms, spelled out: the parser imports no engine (tests/processes/cli/test_cli.py
+# engine.play.players.DEFAULT_BUDGET_S in ms, spelled out: the parser imports no engine (tests/processes/cli/test_cli.py
 # checks the two agree).
 BOT_BUDGET_MS = 20.0
 
@@ -62,7 +62,7 @@ def bot_budget_s(args: argparse.Namespace) -> float:
 def check_players(players) -> None:
     """Load every bot among the players now, so a bad spec or file is told before anything starts
     (ValueError naming it)."""
-    from engine.bot import is_bot_spec, load_bot
+    from engine.physics.bot import is_bot_spec, load_bot
 
     for player in players:
         if player is not None and is_bot_spec(player):
@@ -71,7 +71,7 @@ def check_players(players) -> None:
 
 def with_players(scene, args: argparse.Namespace):
     """The scene with --a and --b as its bats' players (each kept from the scene when not given)."""
-    from engine.scene import with_skills
+    from engine.physics.scene import with_skills
 
     bot_budget_s(args)
     if args.a is None and args.b is None:

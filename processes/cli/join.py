@@ -19,8 +19,8 @@ if TYPE_CHECKING:
 
 def join_command(args: argparse.Namespace) -> int:
     """`pingpong join ADDRESS --as player|spectator [--bot [PLAYER]]`."""
-    from engine.bot import is_bot_spec
-    from engine.scene import SceneError
+    from engine.physics.bot import is_bot_spec
+    from engine.physics.scene import SceneError
     from processes.network.client.client import Client, Rejected, curve_client_options
     from processes.network.wire import NO_TOKEN
     from processes.network.wire import Slot
@@ -95,8 +95,8 @@ def _warm_up(skill: str) -> None:
     """Load (or compile) every kernel a player's client runs, with the bundled match scene and the
     AI profile `skill`: the kernels depend on types, not on the scene or the player, so the
     served scene's objects and a bot build at once later."""
-    from engine.scene import load_scene
-    from processes.network.client.bot import BotBrain
+    from engine.physics.scene import load_scene
+    from processes.network.client.brain import BotBrain
     from processes.network.client.prediction import Predictor
     from processes.network.wire import Slot
 
@@ -107,7 +107,7 @@ def _warm_up(skill: str) -> None:
 
 def _play(client: Client, welcome: wire.Message, args: argparse.Namespace, keyboard: bool) -> dict:
     """The session of `pingpong join` once welcomed: bot, keyboard or spectator."""
-    from processes.network.client.bot import BotBrain
+    from processes.network.client.brain import BotBrain
     from processes.network.client.interpolation import Interpolator
     from processes.network.client.keyboard import KeyboardPilot, TerminalKeys
     from processes.network.client.prediction import Predictor

@@ -14,7 +14,7 @@ FRAME_EVERY = 10  # replay frames every 10 ms at 1 kHz
 def _scene(args):
     from dataclasses import replace
 
-    from engine.scene import SceneError, load_scene
+    from engine.physics.scene import SceneError, load_scene
 
     scene = load_scene(args.scene)
     if scene.match is None:
@@ -82,10 +82,10 @@ def _print_summary(summary: dict) -> None:
 def match_command(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from engine import replay as replay_file
-    from engine.match import Match, point_row
-    from engine.scene import SceneError
-    from engine.world import SimulationError
+    from engine.physics.scene import SceneError
+    from engine.physics.world import SimulationError
+    from engine.play.match import Match, point_row
+    from engine.tools import replay as replay_file
 
     try:
         scene = _scene(args)
@@ -96,7 +96,7 @@ def match_command(args: argparse.Namespace) -> int:
         if args.in_process:
             match = Match(scene, seed=args.seed, on_bot_error=args.on_bot_error, budget_s=bot_budget_s(args))
             frames = []
-            from engine.dtypes import physics_snapshot_dtype
+            from engine.physics.dtypes import physics_snapshot_dtype
 
             record = np.zeros(1, physics_snapshot_dtype(len(scene.bats)))
             events = []
@@ -134,8 +134,8 @@ def match_command(args: argparse.Namespace) -> int:
         print(f"pingpong: {exc}", file=sys.stderr)
         return 2
     if args.replay:
-        from engine.dtypes import CONTACT_DTYPE, POINT_DTYPE
-        from engine.scene import scene_toml
+        from engine.physics.dtypes import CONTACT_DTYPE, POINT_DTYPE
+        from engine.physics.scene import scene_toml
 
         replay_file.write(args.replay, scene_name=scene.name, scene_text=scene_toml(scene), seed=args.seed,
                           dt=scene.dt, frame_every=frame_every, frames=frame_array,
@@ -152,9 +152,9 @@ def match_command(args: argparse.Namespace) -> int:
 
 
 def _best_of(header: dict) -> int:
-    """The recorded match's best_of, from the scene text the replay carries (engine.scene.scene_toml:
+    """The recorded match's best_of, from the scene text the replay carries (engine.physics.scene.scene_toml:
     the scene as played, --a/--b and --set included)."""
-    from engine.scene import SceneError, scene_from_toml
+    from engine.physics.scene import SceneError, scene_from_toml
 
     try:
         scene = scene_from_toml(header.get("scene_toml", ""), header["scene"])
@@ -164,9 +164,9 @@ def _best_of(header: dict) -> int:
 
 
 def replay_command(args: argparse.Namespace) -> int:
-    from engine import replay as replay_file
-    from engine.geometry import Body
-    from engine.rules import REASONS
+    from engine.physics.geometry import Body
+    from engine.play.rules import REASONS
+    from engine.tools import replay as replay_file
 
     try:
         data = replay_file.read(args.file)
@@ -204,7 +204,7 @@ def replay_command(args: argparse.Namespace) -> int:
     }
     title = f"{h['scene']}, seed {h['seed']}: winner {summary['winner'] or '-'}, games {summary['games']}"
     if args.png or args.gif:
-        from engine import render
+        from engine.tools import render
 
         if args.png:
             render.png(data.frames, data.events, args.png, title)

@@ -9,7 +9,7 @@ from processes.cli.common import FORMATTER, add_common
 
 
 def _load(args: argparse.Namespace):
-    from engine.scene import load_scene, with_overrides
+    from engine.physics.scene import load_scene, with_overrides
 
     scene = load_scene(args.scene)
     changes = {}
@@ -36,7 +36,7 @@ def _print_human(summary: dict) -> None:
 
 
 def _process_summary(result, reference=None) -> dict:
-    from engine.geometry import Body
+    from engine.physics.geometry import Body
     from processes.supervisor import first_difference
 
     world = result.final["world"]
@@ -73,9 +73,9 @@ def _process_summary(result, reference=None) -> dict:
 
 def run_scene_command(args: argparse.Namespace) -> int:
     """Run a scene in-process, or in worker processes with --processes, and print the summary."""
-    from engine.run import run
-    from engine.scene import SceneError
-    from engine.world import SimulationError
+    from engine.physics.scene import SceneError
+    from engine.physics.world import SimulationError
+    from engine.tools.run import run
 
     try:
         scene = _load(args)
@@ -116,7 +116,7 @@ def run_scene_command(args: argparse.Namespace) -> int:
 
 def stability_command(args: argparse.Namespace) -> int:
     """Run the stability suite; exit 1 if any case failed other than the known failures it lists."""
-    from engine.stability import cases, run_case
+    from engine.tools.stability import cases, run_case
 
     chosen = [c for c in cases() if (args.long or not c.long) and (args.case is None or args.case in c.name)]
     if not chosen:

@@ -26,8 +26,8 @@ def serve_command(args: argparse.Namespace) -> int:
     import tempfile
     from dataclasses import replace
 
-    from engine.scene import SceneError, load_scene, with_remote_players
-    from engine.world import SimulationError
+    from engine.physics.scene import SceneError, load_scene, with_remote_players
+    from engine.physics.world import SimulationError
     from processes.cli.common import bot_budget_s, with_players
     from processes.network.client.client import load_curve_key
     from processes.network.server.config import GatewayConfig

@@ -2,7 +2,7 @@
 
 Any key the scene's TOML may hold can be swept (`match.ai_hz=50,100,250`, `integrator=verlet,rk4`,
 `net.resolution=[92,8],[184,16]`): each cell's values are set in the scene's TOML document and
-validated by engine.scene like the file's own keys, so a bad key or value is refused with the
+validated by engine.physics.scene like the file's own keys, so a bad key or value is refused with the
 validator's message before any match runs. Each cell's matches are tasks like a tournament's,
 in the same DIR/matches.jsonl (keyed by the cell's scene, so a rerun resumes).
 """
@@ -112,7 +112,7 @@ def sweep_command(args: argparse.Namespace) -> int:
         0; 2 for a bad --set, option or scene (before any match runs); 130 after Ctrl-C, 1
         after a failed task.
     """
-    from engine.scene import SceneError, load_scene
+    from engine.physics.scene import SceneError, load_scene
     from processes.cli import standings
 
     try:

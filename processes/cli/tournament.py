@@ -1,7 +1,7 @@
 """`pingpong tournament`: many matches as tasks on a local process pool or on Ray, resumable.
 
 Every ordered pair of AI profiles (each at both ends) plays every seed; one match is one task,
-`engine.match.match_record` in a pool process or a Ray worker. Where the tasks run is an
+`engine.play.match.match_record` in a pool process or a Ray worker. Where the tasks run is an
 existing engine's business (concurrent.futures, Ray), not ours: this module submits them, writes
 each finished match as one line of DIR/matches.jsonl and shows the progress. A rerun with the
 same DIR skips the matches already there, so Ctrl-C loses only the matches still running.
@@ -22,9 +22,9 @@ from typing import TYPE_CHECKING
 from processes.cli.common import FORMATTER, add_bot_options, bot_budget_s
 
 if TYPE_CHECKING:
-    from engine.scene import Scene
+    from engine.physics.scene import Scene
 
-# engine.scene.SKILL_NAMES, spelled out: the parser imports no engine (tests/processes/cli/test_cli.py
+# engine.physics.scene.SKILL_NAMES, spelled out: the parser imports no engine (tests/processes/cli/test_cli.py
 # checks the two agree).
 SKILL_NAMES = ("pro", "club", "novice")
 
@@ -36,7 +36,7 @@ ABANDONED_DIR = "abandoned"  # the records of matches given up, for the task's r
 
 @dataclass(frozen=True)
 class MatchTask:
-    """One match to play: the arguments of engine.match.match_record, and its record's key."""
+    """One match to play: the arguments of engine.play.match.match_record, and its record's key."""
 
     scene: Scene
     seed: int
@@ -48,7 +48,7 @@ class MatchTask:
     cell: dict = field(default_factory=dict)  # a sweep's overrides, copied into the record
     bots: dict = field(default_factory=dict)  # {spec: source} of its file bots, shipped with the task
     on_bot_error: str = "point"
-    bot_budget_s: float | None = None  # None: engine.players.DEFAULT_BUDGET_S
+    bot_budget_s: float | None = None  # None: engine.play.players.DEFAULT_BUDGET_S
 
     @property
     def key(self) -> tuple:
@@ -65,8 +65,8 @@ def plan(scene: Scene, pairs: list[tuple[str, str]], seeds: int, best_of: int | 
     """The tasks of `pairs` (player at end A, player at end B: AI profiles or bot specs) over
     seeds 0 .. seeds - 1. A file bot's source goes with each task, so a worker on any machine
     plays the bot that was planned (and a changed bot is a new match: its source is in the hash)."""
-    from engine.bot import bot_source, is_bot_spec
-    from engine.match import match_hash, match_scene
+    from engine.physics.bot import bot_source, is_bot_spec
+    from engine.play.match import match_hash, match_scene
 
     tasks = []
     for a, b in pairs:
@@ -97,9 +97,9 @@ def play(task: MatchTask, crash_marker: str | None = None, abandon_dir: str | No
     holds its record, as it stood, with the bot named; a task run again finds it there (Ray
     re-runs the task of a worker that ended) and returns it instead of playing the match again.
     """
-    from engine.bot import register_sources
-    from engine.match import MatchRecorder
-    from engine.players import DEFAULT_BUDGET_S
+    from engine.physics.bot import register_sources
+    from engine.play.match import MatchRecorder
+    from engine.play.players import DEFAULT_BUDGET_S
     from processes.runtime.watchdog import DecisionWatchdog
 
     if crash_marker is not None and not os.path.exists(crash_marker):
@@ -186,7 +186,7 @@ def _local_results(tasks: list[MatchTask], workers: int, crash_marker: str | Non
 
     # forkserver, as the supervisor: numba's threads make fork() after a kernel has run unsafe.
     ctx = multiprocessing.get_context("forkserver")
-    ctx.set_forkserver_preload(["engine.match"])
+    ctx.set_forkserver_preload(["engine.play.match"])
     todo = list(tasks)
     while todo:
         pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_ignore_sigint)
@@ -377,7 +377,7 @@ def tournament_command(args: argparse.Namespace) -> int:
         0; 2 for a bad option or scene; 130 after Ctrl-C, 1 after a failed task (the finished
         matches kept either way).
     """
-    from engine.scene import SceneError, load_scene
+    from engine.physics.scene import SceneError, load_scene
     from processes.cli import standings
 
     try:

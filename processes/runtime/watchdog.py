@@ -1,10 +1,10 @@
 """DecisionWatchdog: a match played in this process is given up when a bot cannot be interrupted.
 
-The engine interrupts a bot's decision that runs past its hang time (engine.players.HangAlarm:
+The engine interrupts a bot's decision that runs past its hang time (engine.play.players.HangAlarm:
 SIGALRM in the main thread). A bot blocked where no signal reaches it (in C code that neither
 returns nor takes EINTR, or with SIGALRM blocked) keeps the main thread forever, and with it a
 tournament's pool process or a whole `pingpong match --in-process`. This thread looks at the
-decision in progress (engine.players.decision_in_progress) and, once it is ABANDON_GRACE_S past
+decision in progress (engine.play.players.decision_in_progress) and, once it is ABANDON_GRACE_S past
 its interrupt, hands a description of it to `abandon` and ends the process (os._exit): the
 main thread cannot be freed, only left.
 """
@@ -13,7 +13,7 @@ from __future__ import annotations
 import os
 import threading
 
-from engine.players import decision_in_progress
+from engine.play.players import decision_in_progress
 
 ABANDON_GRACE_S = 2.0  # after the interrupt was due: a loaded machine's signal handler has had its chance
 LOOK_EVERY_S = 0.1

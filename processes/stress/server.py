@@ -212,7 +212,7 @@ def main(argv: list[str]) -> int:
         resource.setrlimit(resource.RLIMIT_NOFILE, (hard, hard))
     from dataclasses import replace
 
-    from engine.scene import load_scene, with_remote_players
+    from engine.physics.scene import load_scene, with_remote_players
     from processes.network.server.config import GatewayConfig
     from processes.runtime.stops import ignore_stop_signals
     from processes.supervisor import Supervisor

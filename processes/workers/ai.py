@@ -3,11 +3,11 @@
 At every AI control tick B the physics worker copies the state into the next slot of the
 `ai_views` ring, posts the turn on the queue (processes.runtime.handoff.TurnQueue) and steps
 on. The AI takes the turns in order and lets the players decide from each view with
-engine.match.ai_decide (the very function the in-process match calls), then writes the plans
+engine.play.match.ai_decide (the very function the in-process match calls), then writes the plans
 after it (each AI's ctl row: the planned path, the face normal, gains and limits, or a raw
 force, or the brake) and whether a player decided into the turn's slot of `ai_answers` before
 it counts the turn answered. The physics puts the plans in effect match.delay ticks after B
-(engine.match.decision_delay), waiting only if the answer is not there yet, so the AI thinks
+(engine.play.match.decision_delay), waiting only if the answer is not there yet, so the AI thinks
 while the physics steps. A restarted AI worker goes on from the players' state it kept and the
 decisions it journalled since (StateKeeper), then from the queue's counts, so a killed AI
 worker leaves the match as the reference plays it.
@@ -15,7 +15,7 @@ worker leaves the match as the reference plays it.
 Most turns need no decision: while the rally key, the striker and the serve stay as they were
 and the world clock has not reached the AIs' wakes (BatAI.wakes: a stroke is to be decided, a
 plan runs out), Players.decide lets nobody decide, and the turn costs a few microseconds; the
-physics plays the plans in effect with the arm law (engine.arm.control_bats) itself. The plans
+physics plays the plans in effect with the arm law (engine.play.arm.control_bats) itself. The plans
 cross only from the AI to the physics, and the bats still get forces only.
 
 A stroke is thought out between the turns (BatAI.think_step) while the physics steps on: the AI
@@ -32,10 +32,10 @@ import time
 
 import numpy as np
 
-from engine.bot import FAULT_CODES
-from engine.dtypes import physics_snapshot_dtype
-from engine.match import ai_decide, make_ais
-from engine.world import build_model, copy_record
+from engine.physics.bot import FAULT_CODES
+from engine.physics.dtypes import physics_snapshot_dtype
+from engine.physics.world import build_model, copy_record
+from engine.play.match import ai_decide, make_ais
 from processes.runtime.shm import Arena
 from processes.runtime.control import Control
 from processes.runtime.timeline import IDLE, THINK, WORK, Timeline
@@ -48,7 +48,7 @@ class Answerer:
     """The AI side of a turn: the AIs' decision from one state, as an ANSWER_DTYPE record.
 
     Args:
-        ais: engine.players.Players. n_bats: the scene's bats. say_faults: write each fault
+        ais: engine.play.players.Players. n_bats: the scene's bats. say_faults: write each fault
             on stderr as it happens (a served match, whose operator sees no summary of them);
             else the physics records it and the match's summary says it, once.
     """
@@ -92,7 +92,7 @@ class StateKeeper:
 
     The view of each turn at which a player decided goes into the `ai_journal` ring before the
     turn is counted answered (one record copy); after every AI_KEEP_EVERY-th decision is
-    answered, the worker pickles its players' state (engine.players.Players.state), the
+    answered, the worker pickles its players' state (engine.play.players.Players.state), the
     decision's count and its answer into `ai_state`. A restarted worker loads that state and
     decides the journal's later views again: the same decisions, bit for bit (the strokes do not
     depend on how the thinking was spread; at the turns in between nobody decided, which changes

@@ -1,5 +1,5 @@
 """The physics worker's side of the AI's turns: AIDriver, the engine's ai_driver
-(engine.match.Match) done by the AI worker through the run's shared rings.
+(engine.play.match.Match) done by the AI worker through the run's shared rings.
 
 The physics worker's other stand-ins live beside it: RemoteNet (processes.workers.remote_net,
 the net worker's side of NetSim) and RemoteInputs (processes.workers.remote_inputs, the
@@ -11,9 +11,9 @@ from __future__ import annotations
 import time
 from collections import deque
 
-from engine.bot import FAULTS
-from engine.match import Match
-from engine.world import copy_record
+from engine.physics.bot import FAULTS
+from engine.physics.world import copy_record
+from engine.play.match import Match
 from processes.runtime.control import Control
 from processes.runtime.shm import Arena
 from processes.runtime.timeline import WAIT_AI, WORK, Timeline
@@ -25,7 +25,7 @@ AI_GIVE_UP_S = 60.0
 
 
 class AIDriver:
-    """An ai_driver for engine.match.Match whose players decide in the AI worker, match.delay
+    """An ai_driver for engine.play.match.Match whose players decide in the AI worker, match.delay
     ticks ahead of the physics.
 
     request() at every control tick B writes the state into the next slot of the `ai_views` ring

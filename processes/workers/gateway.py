@@ -16,7 +16,7 @@ import time
 import numpy as np
 import zmq
 
-from engine.dtypes import physics_snapshot_dtype
+from engine.physics.dtypes import physics_snapshot_dtype
 from processes.network.server.config import GatewayConfig
 from processes.network.server.gateway import STATS_EVERY_S, Gateway
 from processes.network.server.seats import SeatStore

@@ -34,12 +34,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from engine.arm import CTL_SIZE
-from engine.dtypes import (CONTACT_DTYPE, POINT_DTYPE, ai_answer_dtype, net_show_dtype, net_snapshot_dtype,
-                           physics_snapshot_dtype)
-from engine.match import control_period, decision_delay
-from engine.scene import Scene
-from engine.world import NET_RUN_TICKS
+from engine.physics.dtypes import (CONTACT_DTYPE, POINT_DTYPE, ai_answer_dtype, net_show_dtype, net_snapshot_dtype,
+                                   physics_snapshot_dtype)
+from engine.physics.scene import Scene
+from engine.physics.world import NET_RUN_TICKS
+from engine.play.arm import CTL_SIZE
+from engine.play.match import control_period, decision_delay
 from net_kernel import build_topology
 from processes.network.server.seats import SEAT_DTYPE
 from processes.runtime.control import STATUS_DTYPE
@@ -58,7 +58,7 @@ MAX_BATS = 2
 ANSWER_DTYPE = ai_answer_dtype(MAX_BATS, CTL_SIZE)
 FAULT_TEXT_BYTES = ANSWER_DTYPE["fault_text"].base.itemsize
 # What a restarted AI worker decides on from (processes.workers.ai.StateKeeper): the AIs' state
-# after a decision (engine.players.Players.state, the decision's count and its answer), pickled,
+# after a decision (engine.play.players.Players.state, the decision's count and its answer), pickled,
 # and the views of the decisions since, replayed. Two AI profiles' plans, thoughts and random
 # states take a few kilobytes (a bot's own objects are not kept). The state is kept after every
 # AI_KEEP_EVERY-th decision is answered, off the physics' path; the journal holds the decisions since.
@@ -67,7 +67,7 @@ AI_STATE_DTYPE = np.dtype([("size", "<i8"), ("data", "u1", (AI_STATE_BYTES,))])
 AI_KEEP_EVERY = 8
 AI_JOURNAL_TURNS = 2 * AI_KEEP_EVERY  # the decisions since the state kept, and those of a keep cut short
 
-# The physics' hand-off of a run of ticks near the net to the net worker (engine.world's
+# The physics' hand-off of a run of ticks near the net to the net worker (engine.physics.world's
 # _run_near_net), and the net's answer (NetSim.step_run's).
 NET_IO_DTYPE = np.dtype([
     ("tick", "<i8"),  # the run's first tick (the physics' tick at its start)

@@ -1,7 +1,7 @@
 """The net worker: the cloth net (net_kernel.NetSim) in a process of its own.
 
 Two kinds of ticks reach it from the physics worker:
-- Runs of ticks with the ball in the net's reach (engine.world: inside model.cloth_reach, the net
+- Runs of ticks with the ball in the net's reach (engine.physics.world: inside model.cloth_reach, the net
   awake or the ball near its frozen shape): the physics steps the ball's ticks of a run without
   the net, gives it the baton and waits. The ball's state at each tick's start crosses in the
   shared `net_io` record and the net's answer (how many ticks it stepped, up to the first that
@@ -17,7 +17,7 @@ Two kinds of ticks reach it from the physics worker:
 Either way the net steps the same ticks with the same inputs as the in-process NetSim, which
 keeps lockstep runs bit for bit equal to the reference.
 
-The worker publishes its whole state (engine.dtypes.net_snapshot_dtype) before and after every
+The worker publishes its whole state (engine.physics.dtypes.net_snapshot_dtype) before and after every
 run stepped with the ball and after every run of free ticks, into the two SnapshotBlocks in
 turn, so the state before the last run is always kept too. That makes restarts exact: a
 restarted net worker resumes from its newest state (and steps the free ticks still granted); a
@@ -31,8 +31,8 @@ import time
 
 import numpy as np
 
-from engine.dtypes import net_show_dtype, net_snapshot_dtype
-from engine.world import build_model
+from engine.physics.dtypes import net_show_dtype, net_snapshot_dtype
+from engine.physics.world import build_model
 from net_kernel import NetSim, build_topology
 from net_kernel.sim import compile_kernels
 from processes.network.wire import NET_HZ
@@ -177,7 +177,7 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
     topo = build_topology(scene.cloth)
     sim = NetSim(topo, scene.dt)
     compile_kernels(topo, scene.dt)  # before "ready": nothing compiles mid-run
-    watch = build_model(scene).cloth_watch  # the box engine.world steps the ball tick by tick in
+    watch = build_model(scene).cloth_watch  # the box engine.physics.world steps the ball tick by tick in
     baton = options.handles.net_baton.attach(arena["net_baton"].array)
     faults = options.faults
     row = NetIO(arena["net_io"].array)

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from engine.players import DEFAULT_BUDGET_S
+from engine.play.players import DEFAULT_BUDGET_S
 
 if TYPE_CHECKING:  # for the annotations only: the options module stays cheap to import
     from multiprocessing.synchronize import Event
@@ -47,8 +47,8 @@ class RunOptions:
         gateway: the gateway's configuration, for a scene with the effect "remote".
         handoff_s: s, the physics waits this long for the AI's or the net's answer to a turn,
             then gives the turn again (a restarted worker takes it) and waits again.
-        on_bot_error: "point" or "stop" (engine.match.Match). bot_budget_s: CPU s a bot's
-            decision may take (engine.players).
+        on_bot_error: "point" or "stop" (engine.play.match.Match). bot_budget_s: CPU s a bot's
+            decision may take (engine.play.players).
         timeline_dir: a directory into which each worker writes its timeline at its end
             (processes.runtime.timeline: when it worked, waited and for whom), None: none kept.
         handles: the run's IPC objects (RunHandles).

@@ -8,9 +8,9 @@ import time
 
 import numpy as np
 
-from engine.dtypes import physics_snapshot_dtype
-from engine.match import Match, point_from_row, point_row
-from engine.world import State, build_model, copy_record, initial_state, new_events, step
+from engine.physics.dtypes import physics_snapshot_dtype
+from engine.physics.world import State, build_model, copy_record, initial_state, new_events, step
+from engine.play.match import Match, point_from_row, point_row
 from processes.runtime.control import Control
 from processes.runtime.shm import Arena
 from processes.runtime.timeline import WORK, Timeline

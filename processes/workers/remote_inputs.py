@@ -8,8 +8,8 @@ from collections import Counter
 
 import numpy as np
 
-from engine.arm import brake_force
-from engine.match import Match
+from engine.play.arm import brake_force
+from engine.play.match import Match
 from processes.network.wire import MAX_FORCE_N, MAX_TORQUE_NM
 from processes.runtime.locks import LockTable
 from processes.runtime.mailbox import Mailbox
@@ -23,7 +23,7 @@ def remote_input_refusal(bat: int, values, remote_bats: frozenset[int]) -> str |
 
     The gateway posts only inputs that wire.decode accepted (finite, |force| <= MAX_FORCE_N,
     |torque| <= MAX_TORQUE_NM); these writes bypass
-    engine.world._check_inputs (they go straight into the bats' records), so the same rules
+    engine.physics.world._check_inputs (they go straight into the bats' records), so the same rules
     are checked again here, where they are applied: a bad input is refused and counted by
     the caller, never applied.
 
@@ -55,7 +55,7 @@ class RemoteInputs:
     acknowledged. An input holds from the tick it is applied for hold_ticks (the gateway's
     input_hold_s of match time), unless another comes; then, and for a bat whose seat has had no
     input yet, the arm is idle: every tick, before the step, its force is the brake of
-    engine.arm.brake_force from the bat's velocity at that tick (the law the client's
+    engine.play.arm.brake_force from the bat's velocity at that tick (the law the client's
     prediction applies too). Computed here from the state being stepped, the brake has no delay
     whatever the load: a gateway posting it from the snapshots it saw braked with a delay that
     grew with the load, and a PD law with enough delay drives the bat instead of stopping it.

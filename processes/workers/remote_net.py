@@ -1,4 +1,4 @@
-"""The physics worker's stand-in for engine.world's NetSim (RemoteNet): the net stepped by the net
+"""The physics worker's stand-in for engine.physics.world's NetSim (RemoteNet): the net stepped by the net
 worker, handed its turn through shared memory, so the physics steps the same bits as in-process."""
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ TAIL_NUDGE_TICKS = 16
 
 
 class RemoteNet:
-    """The physics worker's stand-in for the NetSim in engine.world: same `sleeping`, `in_tail`,
+    """The physics worker's stand-in for the NetSim in engine.physics.world: same `sleeping`, `in_tail`,
     step_run() and step_free().
 
     Args:
@@ -99,7 +99,7 @@ class RemoteNet:
     def step_run(self, ball: np.ndarray, ball_radius: float, ball_inv_mass: float,
                  free_outside: np.ndarray) -> tuple[int, NetContact]:
         """NetSim.step_run, done by the net worker in one hand-off (called after the run's ball
-        ticks, as engine.world does). Its first ticks cost no hand-off while the net's last answer
+        ticks, as engine.physics.world does). Its first ticks cost no hand-off while the net's last answer
         says it sleeps or rings in its tail and the ball is far from the box it froze or rings in:
         NetSim.step leaves such a net untouched or only counts the tick."""
         local = self.local

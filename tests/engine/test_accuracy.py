@@ -14,9 +14,9 @@ from bench import accuracy
 from bench.accuracy import fitted_order
 from bench.study import write_block
 from bench.trajectories import SHOTS, Case, compare, reference_shot, run_case, shot_scene
-from engine.collision import CONTACT_TOL
-from engine.integrators import ORDERS
-from engine.world import build_model
+from engine.physics.collision import CONTACT_TOL
+from engine.physics.integrators import ORDERS
+from engine.physics.world import build_model
 from tests.waits import DEADLINE_S
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -142,10 +142,10 @@ def test_pareto_front_keeps_only_undominated_rows():
 _COUNTING = textwrap.dedent("""
     import json, math, sys, types
     import numpy as np
-    import engine.collision as collision, engine.forces as forces
-    from engine.geometry import NET_BOX, POST_BOXES
-    from engine.scene import parse_scene
-    from engine.world import build_model, initial_state
+    import engine.physics.collision as collision, engine.physics.forces as forces
+    from engine.physics.geometry import NET_BOX, POST_BOXES
+    from engine.physics.scene import parse_scene
+    from engine.physics.world import build_model, initial_state
 
     calls = {"disc_sdf": 0, "net_box_sdf": 0, "drag_sqrt": 0}
     disc_sdf, box_sdf = collision.disc_sdf, collision.box_sdf
@@ -170,7 +170,7 @@ _COUNTING = textwrap.dedent("""
     scene = parse_scene(data, "counting")
     m, s = build_model(scene), initial_state(scene)
     bats = s.bat_motion if len(scene.bats) else None
-    # The engine's ball tick with the model's arguments, as engine.world.step passes them.
+    # The engine's ball tick with the model's arguments, as engine.physics.world.step passes them.
     support = 0
     for _ in range(40):
         n, support = collision.ball_tick(s.ball_flat[0:9], m.dt, support, m.flight, m.geometry, bats,
@@ -200,7 +200,7 @@ def test_disabled_effects_run_no_code():
 
 def test_engine_runs_as_plain_python():
     # A coverage run (NUMBA_DISABLE_JIT=1) runs the kernels as plain Python: they must work that way too.
-    code = "from engine.scene import load_scene; from engine.run import run; print(run(load_scene('drop'), 3).ticks)"
+    code = "from engine.physics.scene import load_scene; from engine.tools.run import run; print(run(load_scene('drop'), 3).ticks)"
     env = {**os.environ, "NUMBA_DISABLE_JIT": "1", "PYTHONPATH": str(ROOT)}
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=DEADLINE_S, cwd=ROOT)
     assert out.returncode == 0, out.stderr[-400:]

@@ -1,14 +1,14 @@
-"""What a learner sees and does (engine.agent_frame, the environments' version 1): the same game
+"""What a learner sees and does (engine.learning.agent_frame, the environments' version 1): the same game
 for A and B in their own frames, every entry in [-1, 1], actions mapped onto the arm."""
 import gymnasium
 import numpy as np
 import pytest
 
-import engine.env  # noqa: F401 - registers the ids
-from engine import agent_frame
-from engine.bot import new_action, new_observation
-from engine.dtypes import ACTION_DTYPE
-from engine.rules import Phase
+from engine.learning import agent_frame
+import engine.learning.env  # noqa: F401 - registers the ids
+from engine.physics.bot import new_action, new_observation
+from engine.physics.dtypes import ACTION_DTYPE
+from engine.play.rules import Phase
 
 
 def _turned(q):

@@ -2,15 +2,15 @@
 import numpy as np
 import pytest
 
-from engine.ai import NO_STRIKE, SKILLS, STOP_EVENTS, STOP_RETURN_STRIKE, STOP_SERVE_STRIKE, BatAI, strike_index
-from engine.collision import EVENT_ROW, MAX_IMPACTS_PER_TICK, SCRATCH_SHAPE, ball_tick
-from engine.contact import impact
-from engine.dtypes import BAT_DTYPE
-from engine.geometry import Body
-from engine.integrators import ADAPT_SIZE, WORK_SHAPE
-from engine.match import LocalAI, Match, make_ais
-from engine.scene import load_scene
-from engine.world import build_model
+from engine.physics.collision import EVENT_ROW, MAX_IMPACTS_PER_TICK, SCRATCH_SHAPE, ball_tick
+from engine.physics.contact import impact
+from engine.physics.dtypes import BAT_DTYPE
+from engine.physics.geometry import Body
+from engine.physics.integrators import ADAPT_SIZE, WORK_SHAPE
+from engine.physics.scene import load_scene
+from engine.physics.world import build_model
+from engine.play.ai import NO_STRIKE, SKILLS, STOP_EVENTS, STOP_RETURN_STRIKE, STOP_SERVE_STRIKE, BatAI, strike_index
+from engine.play.match import LocalAI, Match, make_ais
 
 SCENE = load_scene("match_rigid")
 

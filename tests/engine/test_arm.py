@@ -1,13 +1,13 @@
 """The arm: its PD law at rest and at its limits, and the idle arm's brake."""
 import numpy as np
 
-from engine.ai import SKILLS, BatAI
-from engine.arm import (BAT_FLOATS, BRAKE_MAX_N, BRAKE_PER_S, CTL_D_ANGLE, CTL_HOLD, CTL_INERTIA, CTL_K_ANGLE,
-                        CTL_KD, CTL_KP, CTL_MASS, CTL_MAX_FORCE, CTL_MAX_SPEED, CTL_MAX_TORQUE, CTL_NORMAL, CTL_SIZE,
-                        bat_control, brake_force)
-from engine.dtypes import BAT_DTYPE
+from engine.physics.dtypes import BAT_DTYPE
+from engine.play.ai import SKILLS, BatAI
+from engine.play.arm import (BAT_FLOATS, BRAKE_MAX_N, BRAKE_PER_S, CTL_D_ANGLE, CTL_HOLD, CTL_INERTIA, CTL_K_ANGLE,
+                             CTL_KD, CTL_KP, CTL_MASS, CTL_MAX_FORCE, CTL_MAX_SPEED, CTL_MAX_TORQUE, CTL_NORMAL,
+                             CTL_SIZE, bat_control, brake_force)
 
-MASS = 0.18  # kg, engine.equipment.BAT_MASS
+MASS = 0.18  # kg, engine.physics.equipment.BAT_MASS
 
 
 def _arm(max_force=120.0, max_speed=18.0):

@@ -8,8 +8,8 @@ for hundreds of snapshots: the finite guard covered the ball only.
 import numpy as np
 import pytest
 
-from engine.bat import BAT_MAX_SPEED, BAT_MAX_SPIN, HALL_HI_X, HALL_HI_Z, HALL_LO_X
-from engine.world import SimulationError, build_model, initial_state, new_events, step
+from engine.physics.bat import BAT_MAX_SPEED, BAT_MAX_SPIN, HALL_HI_X, HALL_HI_Z, HALL_LO_X
+from engine.physics.world import SimulationError, build_model, initial_state, new_events, step
 from tests.helpers.scenes import make_scene
 
 BATS = {"a": {"pos": [-1.5, 0.0, 0.2]}, "b": {"pos": [1.5, 0.0, 0.2]}}

@@ -1,10 +1,10 @@
-"""The cloth net coupled to the ball (net_kernel.NetSim inside engine.world.advance)."""
+"""The cloth net coupled to the ball (net_kernel.NetSim inside engine.physics.world.advance)."""
 import numpy as np
 import pytest
 
-from engine.geometry import Body
-from engine.scene import SceneError, parse_scene
-from engine.world import build_model, initial_state, new_events, step
+from engine.physics.geometry import Body
+from engine.physics.scene import SceneError, parse_scene
+from engine.physics.world import build_model, initial_state, new_events, step
 from net_kernel import NetSpec
 from net_kernel.topology import resolution_spec
 from tests.helpers.scenes import make_scene, run_ticks

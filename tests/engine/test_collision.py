@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from engine import equipment
-from engine.geometry import Body, disc_sdf
-from engine.world import build_model, initial_state, new_events, step
+from engine.physics import equipment
+from engine.physics.geometry import Body, disc_sdf
+from engine.physics.world import build_model, initial_state, new_events, step
 from tests.helpers.scenes import make_scene
 
 R = equipment.BALL_RADIUS
@@ -12,7 +12,7 @@ R = equipment.BALL_RADIUS
 
 def bat_gap(state, bat=0):
     """Gap between the ball and a bat's surface, m (negative = penetration)."""
-    from engine.bat import face_normal
+    from engine.physics.bat import face_normal
 
     axis = np.zeros(3)
     face_normal(state.bats["quat"][bat], axis)

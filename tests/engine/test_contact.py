@@ -4,8 +4,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from engine import equipment
-from engine.contact import impact
+from engine.physics import equipment
+from engine.physics.contact import impact
 
 R = equipment.BALL_RADIUS
 M = equipment.BALL_MASS

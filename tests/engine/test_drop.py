@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from engine import equipment
-from engine.run import run
+from engine.physics import equipment
+from engine.tools.run import run
 from tests.helpers.scenes import make_scene
 
 H0 = 0.30  # m, drop height of the ball's bottom (ITTF rule 2.1.3)

@@ -7,17 +7,17 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-import engine.env  # noqa: F401 - registers pingpong/Return-v0 and pingpong/Rally-v0
-from engine.ai import SKILLS
-from engine.ai.bot import ProfileBot
-from engine.env import OBSERVATION_NAMES, RETURN_LANDED, RETURN_STRIKE, PingPongEnv
-from engine.replay import read
+import engine.learning.env  # noqa: F401 - registers pingpong/Return-v0 and pingpong/Rally-v0
+from engine.learning.env import OBSERVATION_NAMES, RETURN_LANDED, RETURN_STRIKE, PingPongEnv
+from engine.play.ai import SKILLS
+from engine.play.ai.profile_bot import ProfileBot
+from engine.tools.replay import read
 
 
 @pytest.mark.parametrize("env_id", ["pingpong/Return-v0", "pingpong/Rally-v0", "pingpong/Return-v1",
                                     "pingpong/Rally-v1"])
 def test_the_environments_pass_gymnasiums_checker(env_id):
-    from engine import agent_frame
+    from engine.learning import agent_frame
 
     env = gymnasium.make(env_id, render_mode="rgb_array")
     check_env(env.unwrapped, skip_render_check=False)
@@ -110,7 +110,7 @@ def test_the_cloth_net_is_there_when_asked_for():
 
 
 def test_async_vector_env_steps_the_same_episodes_as_single_environments():
-    make = [lambda: gymnasium.make("engine.env:pingpong/Return-v0") for _ in range(2)]  # imports engine.env
+    make = [lambda: gymnasium.make("engine.learning.env:pingpong/Return-v0") for _ in range(2)]  # imports engine.learning.env
     vector = gymnasium.vector.AsyncVectorEnv(make, context="forkserver")
     try:
         obs, _ = vector.reset(seed=[21, 22])
@@ -146,7 +146,7 @@ def test_a_drive_episode_starts_with_the_engine_ais_return_coming_at_the_agent()
 def test_the_ball_machine_feeds_the_agents_court_within_its_ranges():
     """The curriculum: a machine's ball, drawn within the ranges, whose first bounce is on the
     agent's court (the referee's phase goes from the opponent's shot in the air to bounced)."""
-    from engine.rules import Phase
+    from engine.play.rules import Phase
 
     env = gymnasium.make("pingpong/Return-v1", opponent="novice", player=0, ball_speed=(4.0, 7.0),
                          ball_spin=(-60.0, 60.0))

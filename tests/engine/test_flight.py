@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from engine.integrators import METHODS
+from engine.physics.integrators import METHODS
 from tests.helpers.scenes import make_scene, run_ticks
 
 G = 9.81
@@ -40,7 +40,7 @@ def test_dt_zero_changes_nothing(integrator):
     scene = make_scene(["gravity", "drag", "magnus", "table", "net", "bats"],
                        dict(BALL, spin=[0.0, 100.0, 0.0]), integrator=integrator,
                        bats={"a": {"pos": [-1.5, 0.0, 0.2], "vel": [1.0, 0.0, 0.0], "ang_vel": [0.0, 0.0, 3.0]}})
-    from engine.world import build_model, initial_state, new_events, step
+    from engine.physics.world import build_model, initial_state, new_events, step
 
     model, state, events = build_model(scene), initial_state(scene), new_events()
     before = (state.ball.tobytes(), state.bats.tobytes(), state.world.tobytes())

@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from engine import equipment
-from engine.forces import ball_accel, drag_factor, magnus_factor
+from engine.physics import equipment
+from engine.physics.forces import ball_accel, drag_factor, magnus_factor
 
 K_DRAG = drag_factor(equipment.DRAG_COEFFICIENT)
 K_MAGNUS = magnus_factor(equipment.MAGNUS_COEFFICIENT)

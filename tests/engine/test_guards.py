@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from engine.scene import SceneError, parse_scene
-from engine.world import SimulationError, build_model, initial_state, new_events, step
+from engine.physics.scene import SceneError, parse_scene
+from engine.physics.world import SimulationError, build_model, initial_state, new_events, step
 from tests.helpers.scenes import make_scene
 
 BATS = {"a": {"pos": [-1.5, 0.0, 0.2]}, "b": {"pos": [1.5, 0.0, 0.2]}}

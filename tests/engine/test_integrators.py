@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from engine import equipment, reference
-from engine.forces import drag_factor, magnus_factor
-from engine.integrators import ADAPT_SIZE, METHODS, ORDERS, WORK_SHAPE, advance
+from engine.physics import equipment, reference
+from engine.physics.forces import drag_factor, magnus_factor
+from engine.physics.integrators import ADAPT_SIZE, METHODS, ORDERS, WORK_SHAPE, advance
 
 G = equipment.GRAVITY
 K_DRAG = drag_factor(equipment.DRAG_COEFFICIENT)

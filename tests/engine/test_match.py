@@ -3,8 +3,8 @@ from dataclasses import replace
 
 import pytest
 
-from engine.match import Match
-from engine.scene import SceneError, load_scene, parse_scene
+from engine.physics.scene import SceneError, load_scene, parse_scene
+from engine.play.match import Match
 
 SCENE = load_scene("match_rigid")
 

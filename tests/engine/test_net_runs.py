@@ -1,9 +1,9 @@
-"""Runs of ticks near the cloth net (engine.world._run_near_net): the ball stepped ahead of the net
+"""Runs of ticks near the cloth net (engine.physics.world._run_near_net): the ball stepped ahead of the net
 and the ticks after its touch undone give the same bits as a tick at a time."""
 from dataclasses import replace
 
-from engine.match import Match
-from engine.scene import load_scene
+from engine.physics.scene import load_scene
+from engine.play.match import Match
 from net_kernel import NO_CONTACT
 
 

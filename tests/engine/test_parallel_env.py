@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 from pettingzoo.test import parallel_api_test
 
-from engine.ai import SKILLS
-from engine.ai.bot import ProfileBot
-from engine.env import RETURN_LANDED, RETURN_STRIKE
-from engine.parallel_env import AGENTS, PingPongParallelEnv
+from engine.learning.env import RETURN_LANDED, RETURN_STRIKE
+from engine.learning.parallel_env import AGENTS, PingPongParallelEnv
+from engine.play.ai import SKILLS
+from engine.play.ai.profile_bot import ProfileBot
 
 
 def test_pettingzoos_parallel_api_test_passes():

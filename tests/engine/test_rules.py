@@ -1,8 +1,8 @@
 """The referee against scripted contact sequences (ITTF Handbook, chapter 2)."""
 import pytest
 
-from engine.geometry import Body
-from engine.rules import Phase, Reason, Referee
+from engine.physics.geometry import Body
+from engine.play.rules import Phase, Reason, Referee
 
 A, B = 0, 1
 BAT = {A: Body.BAT_A, B: Body.BAT_B}

@@ -3,9 +3,9 @@ from dataclasses import replace
 
 import pytest
 
-from engine.match import decision_delay
-from engine.scene import (SCENES_DIR, SceneError, load_scene, scene_digest, scene_from_toml, scene_toml,
-                          with_overrides, with_remote_players, with_skills)
+from engine.physics.scene import (SCENES_DIR, SceneError, load_scene, scene_digest, scene_from_toml, scene_toml,
+                                  with_overrides, with_remote_players, with_skills)
+from engine.play.match import decision_delay
 from net_kernel.topology import AIR_DAMPING_PHYSICAL
 
 

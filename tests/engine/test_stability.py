@@ -1,4 +1,4 @@
-"""The stability suite (engine/stability.py): every hard case stays stable or is refused."""
+"""The stability suite (engine/tools/stability.py): every hard case stays stable or is refused."""
 import math
 
 import numpy as np
@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from engine.stability import (
+from engine.tools.stability import (
     ALL,
     CLOTH_EFFECTS,
     FIXED,

@@ -1,13 +1,13 @@
-"""engine.tick.advance_run, the kernel of a run of ticks near the cloth net: the same ticks as
+"""engine.physics.tick.advance_run, the kernel of a run of ticks near the cloth net: the same ticks as
 advance_ticks one at a time, with the ball kept at each tick's start and the record after each."""
 import math
 
 import numpy as np
 import pytest
 
-from engine.scene import load_scene
-from engine.tick import ERR_BATS_BEFORE, STOP_LIMIT
-from engine.world import (
+from engine.physics.scene import load_scene
+from engine.physics.tick import ERR_BATS_BEFORE, STOP_LIMIT
+from engine.physics.world import (
     SimulationError,
     _advance_kernel,
     _advance_run_kernel,

@@ -4,9 +4,9 @@ import gymnasium
 import numpy as np
 import pytest
 
-import engine.env  # noqa: F401 - registers the ids and their vector entry point
-from engine.env import PingPongEnv
-from engine.vector_env import PingPongVectorEnv
+import engine.learning.env  # noqa: F401 - registers the ids and their vector entry point
+from engine.learning.env import PingPongEnv
+from engine.learning.vector_env import PingPongVectorEnv
 
 KWARGS = {"opponent": "novice", "max_seconds": 0.12}  # 12 control periods an episode: several autoresets
 

@@ -4,8 +4,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from engine.dtypes import physics_snapshot_dtype
-from engine.scene import load_scene
+from engine.physics.dtypes import physics_snapshot_dtype
+from engine.physics.scene import load_scene
 from processes.network.client.client import Client
 from processes.network.server.config import GatewayConfig
 from processes.network.server.gateway import Gateway

@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 
-from engine.rules import REASONS, Phase, Reason
+from engine.play.rules import REASONS, Phase, Reason
 from processes.network import wire
 from processes.network.wire import EventKind, GoodbyeReason, InputMode, Kind, RejectReason, Role, Slot
 

@@ -1,6 +1,6 @@
 """Scenes built in a test from keyword pieces, and a scene run in-process for some ticks."""
-from engine.scene import parse_scene
-from engine.world import build_model, initial_state, new_events, step
+from engine.physics.scene import parse_scene
+from engine.physics.world import build_model, initial_state, new_events, step
 
 
 def make_scene(effects, ball, **top):

@@ -88,7 +88,7 @@ def match_net():
 
 @pytest.mark.parametrize("y, z", [(-0.31, 0.05), (0.12, 0.09), (0.47, 0.11)])
 def test_a_60_m_per_s_shot_is_stopped_by_the_match_net(match_net, y, z):
-    # 60 m/s, the scene's bound (engine.equipment.BALL_SPEED_MAX), head-on below the cord: at the
+    # 60 m/s, the scene's bound (engine.physics.equipment.BALL_SPEED_MAX), head-on below the cord: at the
     # stability bound's 10 substeps the ball moved 6 mm a substep and went through; with the
     # substeps CONTACT_TRAVEL asks for near the ball (60) it is stopped, as on the 184 x 16 net.
     sim = NetSim(match_net, dt=DT)

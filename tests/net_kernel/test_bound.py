@@ -3,7 +3,7 @@ tick that leaves it is an error naming it."""
 import numpy as np
 import pytest
 
-from engine.scene import load_scene
+from engine.physics.scene import load_scene
 from net_kernel import NetBoundError, NetSim, build_topology
 from net_kernel.bound import BOUND_ENERGY_FACTOR
 from net_kernel.sim import BALL_MASS, BALL_RADIUS

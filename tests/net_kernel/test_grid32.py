@@ -4,7 +4,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from engine.scene import SceneError, parse_scene
+from engine.physics.scene import SceneError, parse_scene
 from net_kernel import kernels, reference
 from net_kernel.sim import NetSim
 from net_kernel.topology import NetSpec, build_topology, resolution_spec, validate_spec

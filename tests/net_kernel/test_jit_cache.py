@@ -9,7 +9,7 @@ from pathlib import Path
 import numba
 import pytest
 
-import engine.tick
+import engine.physics.tick
 import net_kernel
 import net_kernel.jit_cache
 from net_kernel.jit_cache import keyed_packages, sources_hash
@@ -46,7 +46,7 @@ def test_the_kernels_cache_where_the_key_says():
     root = Path(net_kernel.__file__).resolve().parent.parent
     assert Path(numba.config.CACHE_DIR).name == sources_hash(keyed_packages(root))
     assert os.environ["NUMBA_CACHE_DIR"] == numba.config.CACHE_DIR  # what child processes inherit
-    for kernel in (step_grid, engine.tick.advance_ticks):  # a net kernel in a subpackage, an engine kernel
+    for kernel in (step_grid, engine.physics.tick.advance_ticks):  # a net kernel in a subpackage, an engine kernel
         assert kernel._cache._cache_path.startswith(numba.config.CACHE_DIR)  # noqa: SLF001
 
 

@@ -10,8 +10,8 @@ import time
 import numpy as np
 import pytest
 
-from engine.run import run
-from engine.scene import load_scene, with_overrides
+from engine.physics.scene import load_scene, with_overrides
+from engine.tools.run import run
 from processes.runtime.shm import Arena, leftover_segments
 from processes.supervisor import Supervisor, first_difference, workers_for
 from processes.runtime.control import STATUS_DTYPE, WorkerState

@@ -8,7 +8,7 @@ Keys (from the player's own end, looking at the net):
     q / Ctrl-C        leave
 
 The client never moves its bat: it turns the target into force and torque with the engine's own
-arm controller (engine.arm.bat_control, the PD law with the arm's limits that the AI drives its
+arm controller (engine.play.arm.bat_control, the PD law with the arm's limits that the AI drives its
 bat with), from the bat's predicted state, and sends those as inputs. A key source is either
 the terminal (`TerminalKeys`, cbreak mode, restored on exit) or any iterable of key batches
 (`IterableKeys`, what tests feed), so the same loop runs with and without a TTY.
@@ -22,9 +22,9 @@ import tty
 
 import numpy as np
 
-from engine.ai import HALF_LENGTH, HALF_WIDTH, SKILLS, BatAI
-from engine.arm import (CTL_D_ANGLE, CTL_HOLD, CTL_INERTIA, CTL_K_ANGLE, CTL_KD, CTL_KP, CTL_MASS, CTL_MAX_FORCE,
-                        CTL_MAX_SPEED, CTL_MAX_TORQUE, CTL_N_SEGMENTS, CTL_NORMAL, CTL_SIZE, bat_control)
+from engine.play.ai import HALF_LENGTH, HALF_WIDTH, SKILLS, BatAI
+from engine.play.arm import (CTL_D_ANGLE, CTL_HOLD, CTL_INERTIA, CTL_K_ANGLE, CTL_KD, CTL_KP, CTL_MASS, CTL_MAX_FORCE,
+                             CTL_MAX_SPEED, CTL_MAX_TORQUE, CTL_N_SEGMENTS, CTL_NORMAL, CTL_SIZE, bat_control)
 from processes.network.wire import Slot
 
 STEP_M = 0.05  # target move per key press
@@ -120,8 +120,8 @@ class KeyboardPilot:
     """A bat target moved by keys and the force and torque that drive our bat to it.
 
     Args:
-        model: engine.world.Model of the served scene. slot: our seat, A or B.
-        skill: engine.ai.SKILLS name whose arm limits (force, torque, speed) apply.
+        model: engine.physics.world.Model of the served scene. slot: our seat, A or B.
+        skill: engine.play.ai.SKILLS name whose arm limits (force, torque, speed) apply.
     """
 
     def __init__(self, model, slot: Slot, skill: str = "pro"):

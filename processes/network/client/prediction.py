@@ -1,6 +1,6 @@
 """Client-side prediction of the server's snapshots (a player).
 
-A player's client runs the engine itself (engine.world.step, the kernel the server runs) from
+A player's client runs the engine itself (engine.physics.world.step, the kernel the server runs) from
 the last authoritative snapshot, applying its own inputs at the ticks it stamped them with,
 so the ball and its own bat move on its screen (and under its controller) at once instead of a
 round trip later. On each snapshot of tick T acknowledging input seq s it reconciles: rewind to
@@ -13,7 +13,7 @@ What the client cannot know, it predicts as follows, and the statistics measure 
 - an input holds from the tick it was stamped with (the server applies it on arrival, about a
   one-way trip later), and an input not yet acknowledged at T holds from T at the earliest;
   it holds for the wire's INPUT_HOLD_S at most (then the server's idle arm brakes the bat
-  every tick, engine.arm.brake_force), counted in ticks from its stamp (the server's physics
+  every tick, engine.play.arm.brake_force), counted in ticks from its stamp (the server's physics
   counts from the tick it applied it);
 - the ball at a snapshot is in flight (the wire has no support flag: a resting ball settles
   again within a tick);
@@ -26,8 +26,8 @@ from collections import deque
 
 import numpy as np
 
-from engine.arm import brake_force
-from engine.world import SimulationError, build_model, initial_state, new_events, step
+from engine.physics.world import SimulationError, build_model, initial_state, new_events, step
+from engine.play.arm import brake_force
 from processes.network.wire import INPUT_HOLD_S, Slot
 
 MAX_AHEAD_TICKS = 500  # a prediction runs at most this far past the last snapshot (0.5 s at 1 kHz)
@@ -117,7 +117,7 @@ class Predictor:
     """The player's prediction of the ball and its own bat, reconciled on every snapshot.
 
     Args:
-        scene: the served scene (engine.scene.Scene): the same physics as the server.
+        scene: the served scene (engine.physics.scene.Scene): the same physics as the server.
         slot: our seat (Slot.A or Slot.B); its bat is the one our inputs drive.
         history: ticks of predictions kept to compare with the snapshots that arrive later.
     """

@@ -1,7 +1,7 @@
 """The served scene on a client: the one its welcome names by digest, from the client's cache or
 asked of the server, so a client predicts with exactly the server's physics.
 
-The cache keeps each scene's TOML text (engine.scene.scene_toml) as DIGEST.toml in
+The cache keeps each scene's TOML text (engine.physics.scene.scene_toml) as DIGEST.toml in
 $PINGPONG_SCENE_CACHE, else $XDG_CACHE_HOME/pingpong/scenes, else ~/.cache/pingpong/scenes. A
 cached text is used only if it still reads as a scene of that digest (a file edited, or written
 by a version whose scenes mean something else, is asked for again and replaced).
@@ -12,7 +12,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from engine.scene import Scene, SceneError, scene_digest, scene_from_toml
+from engine.physics.scene import Scene, SceneError, scene_digest, scene_from_toml
 from processes.network import wire
 from processes.network.client.client import JOIN_TIMEOUT_S, Client
 

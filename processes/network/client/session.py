@@ -19,7 +19,7 @@ from processes.network.client.prediction import Predictor, RoundTrip, ServerCloc
 from processes.network.wire import Kind, Slot
 
 if TYPE_CHECKING:  # for the annotations only: a session imports none of its players' modules
-    from processes.network.client.bot import BotBrain
+    from processes.network.client.brain import BotBrain
     from processes.network.client.interpolation import Interpolator
     from processes.network.client.keyboard import KeyboardPilot
 

@@ -70,7 +70,7 @@ from collections import Counter
 import numpy as np
 import zmq
 
-from engine.scene import Scene
+from engine.physics.scene import Scene
 from processes.network import wire
 from processes.network.server.config import ROUTER_RCVHWM, GatewayConfig
 from processes.network.server.events import MatchEvents
@@ -109,8 +109,8 @@ class Gateway:
 
     Args:
         zctx: a zmq.Context. config: GatewayConfig.
-        scene: the served engine.scene.Scene: its name, best_of, dt and digest go in every
-            welcome, its TOML text (engine.scene.scene_toml) to a session that asks for it.
+        scene: the served engine.physics.scene.Scene: its name, best_of, dt and digest go in every
+            welcome, its TOML text (engine.physics.scene.scene_toml) to a session that asks for it.
         remote_slots: the seats remote players may take (Slot.A and/or Slot.B).
         post_input(bat, seq, tick, inputs6) -> bool: hand an accepted input to the physics
             (False: it could not be queued; counted).

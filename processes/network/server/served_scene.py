@@ -1,14 +1,14 @@
 """The scene a gateway serves: what its welcomes say of it, and its text for a client that asks."""
 from __future__ import annotations
 
-from engine.scene import Scene, scene_digest, scene_toml
+from engine.physics.scene import Scene, scene_digest, scene_toml
 from processes.network import wire
 from processes.network.server.sessions import Session
 
 
 class ServedScene:
-    """A served engine.scene.Scene as the wire carries it: name, best_of and dt (every welcome),
-    its digest (welcome.scene_digest) and its TOML text (engine.scene.scene_toml) cut into
+    """A served engine.physics.scene.Scene as the wire carries it: name, best_of and dt (every welcome),
+    its digest (welcome.scene_digest) and its TOML text (engine.physics.scene.scene_toml) cut into
     scene_part messages (`parts`), sent to a session that asks (scene_request)."""
 
     def __init__(self, scene: Scene):

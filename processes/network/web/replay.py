@@ -7,14 +7,14 @@ import json
 
 import numpy as np
 
-from engine.scene import SceneError, scene_digest, scene_from_toml
+from engine.physics.scene import SceneError, scene_digest, scene_from_toml
 from processes.network import wire
 from processes.network.web import STATIC
 from processes.network.wire import Kind, protocol
 
 
 def _digest(text: str, name: str) -> bytes:
-    """The recorded scene's digest (its TOML text, engine.scene.scene_toml), zeros if the replay
+    """The recorded scene's digest (its TOML text, engine.physics.scene.scene_toml), zeros if the replay
     carries none that reads as a scene (an older file)."""
     try:
         return bytes.fromhex(scene_digest(scene_from_toml(text, name)))
@@ -23,7 +23,7 @@ def _digest(text: str, name: str) -> bytes:
 
 
 def replay_messages(replay, best_of: int) -> list[bytes]:
-    """The wire messages a spectator would have got of a recorded match (engine.replay.Replay):
+    """The wire messages a spectator would have got of a recorded match (engine.tools.replay.Replay):
     a welcome, a snapshot per frame, a point event per decided rally (and a game and a match
     event where it decided one), in tick order."""
     header, frames = replay.header, replay.frames

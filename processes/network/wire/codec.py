@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from engine.rules import REASONS
+from engine.play.rules import REASONS
 from processes.network.wire.checks import (BadEnum, BadFlags, BadMagic, BadText, BadVersion, NonFinite, OutOfRange,
                                            TooLong, TooShort, UnknownType, WireError, _text)
 from processes.network.wire.messages import (HEADER_DTYPE, HEADER_SIZE, MAGIC, MAX_FORCE_N, MAX_REALTIME_FACTOR,
@@ -34,7 +34,7 @@ class Message:
 
     def to_dict(self) -> dict:
         """Plain JSON-able values: enums by name, tokens in hex, arrays as lists; an event's
-        reason also by name (reason_name, engine.rules.REASONS)."""
+        reason also by name (reason_name, engine.play.rules.REASONS)."""
         out: dict[str, Any] = {"kind": self.kind.name.lower(), "seq": self.seq, "tick": self.tick, "flags": self.flags}
         for name, value in self.fields.items():
             if isinstance(value, enum.IntEnum):
@@ -199,7 +199,7 @@ def encode(kind, *, seq: int = 0, tick: int = 0, flags: int = 0, **fields) -> by
 
 # --- helpers for the gateway ----------------------------------------------------------------------
 def snapshot_from_physics(record, *, seq: int, input_seq=(0, 0), realtime_factor: float = 1.0) -> bytes:
-    """A snapshot message from one engine.dtypes.physics_snapshot_dtype(2) record (and the
+    """A snapshot message from one engine.physics.dtypes.physics_snapshot_dtype(2) record (and the
     realtime factor its sender measured; a replay's is 1). The wire numbers rallies from 1 (the
     first is tossed as the match begins); the engine's counter, from 0, counts those decided."""
     ball, bats, world, rally = record["ball"], record["bats"], record["world"], record["rally"]

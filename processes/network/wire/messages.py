@@ -5,7 +5,7 @@ import enum
 
 import numpy as np
 
-from engine.rules import REASONS, Phase, Reason
+from engine.play.rules import REASONS, Phase, Reason
 from processes.network.wire.checks import BadEnum, OutOfRange, _box, _norm_at_most, _unit, _within, _zero
 
 MAGIC = b"PPNG"
@@ -14,13 +14,13 @@ PROTOCOL_VERSION = 5  # 2: welcome.feed_port (the spectator feed); 3: net (the c
 # scene_request and scene (the served scene travels with the match)
 
 # Ranges: generous for real play, tight enough that a corrupted or hostile value is refused.
-MAX_FORCE_N = 500.0  # |force| of an input; the AI arm's own limit is 50..120 N (engine/ai/skill.py SKILLS)
+MAX_FORCE_N = 500.0  # |force| of an input; the AI arm's own limit is 50..120 N (engine/play/ai/skill.py SKILLS)
 MAX_TORQUE_NM = 50.0  # |torque| of an input; the AI's limit is 2..4 N m
 MAX_POS_M = 8.0  # every position component: twice the distance at which the ball is out of play (4 m)
 MAX_SPEED_MS = 100.0  # |velocity| of ball or bat; the fastest recorded smash is ~31 m/s
 MAX_SPIN_RADS = 2000.0  # |spin| of the ball; top players reach ~150 rev/s = 940 rad/s
 MAX_BAT_ANG_VEL_RADS = 1000.0  # |angular velocity| of a bat
-MAX_GAMES_WON = 5  # best of 9 is the longest match a scene allows (engine/scene.py)
+MAX_GAMES_WON = 5  # best of 9 is the longest match a scene allows (engine/physics/scene.py)
 MAX_BEST_OF = 9  # games of the longest match a scene allows
 MAX_DT_S = 0.05  # the scene's own bound on a tick's length
 SERVER_SILENCE_BEATS = 4  # a client takes a server silent for max(timeout_ms, this many heartbeat_ms) as gone
@@ -32,7 +32,7 @@ NET_STEP_M = 1e-5  # one unit of a net message's knot offset: 0.01 mm
 NET_MAX_OFFSET = 32767  # |offset| in steps: 0.32767 m from the rest grid, twice the net's height
 NET_CHUNK_KNOTS = 640  # knots per net message: 3891 bytes, within MAX_FRAME_BYTES like every message
 NET_MAX_SIDE = 4000  # knots along a side of the net at most (net_kernel.topology's own bound)
-DIGEST_SIZE = 8  # bytes of a scene's digest: engine.scene.scene_digest's 16 hex digits
+DIGEST_SIZE = 8  # bytes of a scene's digest: engine.physics.scene.scene_digest's 16 hex digits
 SCENE_CHUNK = 4000  # bytes of scene text a scene_part carries: 4036 bytes, within MAX_FRAME_BYTES
 MAX_SCENE_PARTS = 16  # scene_parts of one scene at most: 64000 bytes of TOML
 MAX_SCENE_REQUESTS = 4  # scene requests one session may make; more count as bad messages
@@ -215,7 +215,7 @@ class Welcome(_Spec):
                                          none come on the session but the net's state right after
                                          the welcome; 0: none, they come on the session (always
                                          for a player)
-        158     8  scene_digest  u1[8]   the served scene's digest (engine.scene.scene_digest: sha256
+        158     8  scene_digest  u1[8]   the served scene's digest (engine.physics.scene.scene_digest: sha256
                                          over what it simulates, its first 8 bytes); a client
                                          without that scene asks for it (scene_request)
     """
@@ -274,7 +274,7 @@ class Input(_Spec):
     which tick (header seq is echoed there once the server applied it). The gateway refuses an
     input whose slot is not the session's own; the physics lets go of it if no other input
     follows within input_hold_s (0.1 s of match time by default) and then brakes the bat to
-    rest itself, every tick (engine.arm.brake_force). Mode 2 (target) is
+    rest itself, every tick (engine.play.arm.brake_force). Mode 2 (target) is
     reserved: valid on the wire, refused by this gateway like another bat's input. No input is
     answered: one that breaks a field's rule below (a force-mode input whose target fields are
     not all zero, say) is dropped and counted as a bad message, a refused one is counted as
@@ -338,7 +338,7 @@ class Snapshot(_Spec):
                                            began, so 1 during the first
         324     4  score        <u2[2]     points of A, B in the current game
         328     2  games_won    u1[2]      games won by A, B, <= 5
-        330     1  phase        u1         engine.rules.Phase, 0..5
+        330     1  phase        u1         engine.play.rules.Phase, 0..5
         331     1  server       u1         player serving this rally: 0 A, 1 B
         332     1  striker      u1         player who struck last (or must serve): 0 A, 1 B
         333     1  winner       i1         -1 while the match is on, else 0 A or 1 B
@@ -385,7 +385,7 @@ class Event(_Spec):
           0    24  header             HEADER_DTYPE
          24     1  event      u1      EventKind: 1 point, 2 game, 3 match
          25     1  winner     i1      0 A, 1 B; -1 only for a let (a point event, reason let)
-         26     1  reason     u1      index into engine.rules.REASONS of the deciding rally
+         26     1  reason     u1      index into engine.play.rules.REASONS of the deciding rally
          27     1  game       u1      game index, 0-based, < 9
          28     4  score      <u2[2]  points of A, B after the rally (the game's final score)
          32     2  games_won  u1[2]   games won by A, B after the rally, <= 5
@@ -402,7 +402,7 @@ class Event(_Spec):
     def check(rec):
         reason = int(rec["reason"])
         if reason >= len(REASONS):
-            raise BadEnum(f"event.reason: must index engine.rules.REASONS (0..{len(REASONS) - 1}), got {reason}")
+            raise BadEnum(f"event.reason: must index engine.play.rules.REASONS (0..{len(REASONS) - 1}), got {reason}")
         let = REASONS[reason] is Reason.LET
         winner = int(rec["winner"])
         if let and not (winner == -1 and rec["event"] == EventKind.POINT):

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from engine import rules
+from engine.play import rules
 from processes.network import wire
 from processes.network.wire import messages
 
@@ -126,7 +126,7 @@ ENUMS = {  # block name: (enum, where the wire carries it, wire values or None)
     "input_mode": (wire.InputMode, "input.mode", None),
     "reject_reason": (wire.RejectReason, "reject.reason", None),
     "event_kind": (wire.EventKind, "event.event", None),
-    "event_reason": (rules.Reason, "event.reason (an index into engine.rules.REASONS)",
+    "event_reason": (rules.Reason, "event.reason (an index into engine.play.rules.REASONS)",
                      {reason: i for i, reason in enumerate(rules.REASONS)}),
     "phase": (rules.Phase, "snapshot.phase", None),
     "goodbye_reason": (wire.GoodbyeReason, "goodbye.reason", None),

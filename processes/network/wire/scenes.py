@@ -7,7 +7,7 @@ from processes.network.wire.messages import DIGEST_SIZE, MAX_SCENE_PARTS, SCENE_
 
 
 def scene_parts(digest: bytes, text: str, tick: int = 0) -> list[bytes]:
-    """The scene_part messages of one scene's TOML `text` (engine.scene.scene_toml) with its
+    """The scene_part messages of one scene's TOML `text` (engine.physics.scene.scene_toml) with its
     digest (the welcome's scene_digest). Raises ValueError for a text beyond MAX_SCENE_PARTS parts."""
     raw = text.encode("utf-8")
     if not raw or len(digest) != DIGEST_SIZE:

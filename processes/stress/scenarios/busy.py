@@ -26,8 +26,8 @@ import asyncio
 import os
 import threading
 
-from engine.equipment import BALL_MASS
-from engine.scene import load_scene
+from engine.physics.equipment import BALL_MASS
+from engine.physics.scene import load_scene
 from processes.network.wire import GoodbyeReason, Kind
 from processes.stress.harness import Child, Run, bot, until
 from processes.stress.hogs import CpuHogs

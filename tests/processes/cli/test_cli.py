@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from engine.scene import SCENES_DIR
+from engine.physics.scene import SCENES_DIR
 from tests.waits import DEADLINE_S
 
 EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
@@ -230,8 +230,8 @@ def test_help_imports_no_engine_numpy_numba_or_zmq():
 
 
 def test_the_parsers_spelled_out_defaults_are_the_runs():
-    from engine.players import DEFAULT_BUDGET_S
-    from engine.scene import SKILL_NAMES
+    from engine.physics.scene import SKILL_NAMES
+    from engine.play.players import DEFAULT_BUDGET_S
     from processes.cli import common, serve, tournament
     from processes.workers import PLAYERS_TIMEOUT_S
 

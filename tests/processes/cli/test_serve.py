@@ -58,7 +58,7 @@ def test_two_bot_players_and_a_spectator_play_a_served_match(served, tmp_path, s
     endpoint = hello["listening"]
     assert endpoint.startswith("tcp://127.0.0.1:")
     # the clients leave at the match's end; --seconds is only their own safety net
-    # one player of the bot API from its file, one AI profile: the same door (engine.players' seat)
+    # one player of the bot API from its file, one AI profile: the same door (engine.play.players' seat)
     bots = [pingpong("join", endpoint, "--as", "player", "--bot", *player, "--json", "--seconds", f"{DEADLINE_S:.0f}")
             for player in (["examples/attack.py:Attack"], [])]
     served.extend(bots)

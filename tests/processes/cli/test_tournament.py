@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 from scipy.stats import binomtest
 
-from engine.match import match_record
-from engine.scene import load_scene
+from engine.physics.scene import load_scene
+from engine.play.match import match_record
 from processes.cli import main, standings, sweep
 from processes.cli.tournament import MATCHES_FILE, pairs_of, plan, run_tasks
 from tests.helpers.commands import ctrl_c_able

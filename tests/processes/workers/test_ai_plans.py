@@ -1,15 +1,15 @@
 """The AI worker's side of a turn (processes.workers.ai.Answerer) in this process: the players
 deciding from a copy of each control tick's state, their thinking spread between the turns, and
 the plans taken up only where a player decided, give the same match bit for bit as the
-reference (engine.match.LocalAI)."""
+reference (engine.play.match.LocalAI)."""
 from collections import deque
 
 import numpy as np
 import pytest
 
-from engine.dtypes import physics_snapshot_dtype
-from engine.match import Match, make_ais
-from engine.scene import load_scene
+from engine.physics.dtypes import physics_snapshot_dtype
+from engine.physics.scene import load_scene
+from engine.play.match import Match, make_ais
 from processes.workers.ai import Answerer
 
 SCENE = load_scene("match_rigid")

@@ -5,9 +5,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from engine.dtypes import physics_snapshot_dtype
-from engine.match import Match, control_period, decision_delay, match_scene
-from engine.scene import load_scene
+from engine.physics.dtypes import physics_snapshot_dtype
+from engine.physics.scene import load_scene
+from engine.play.match import Match, control_period, decision_delay, match_scene
 from processes.supervisor import Supervisor, WorkerRefused, first_difference
 from tests.helpers.commands import pingpong
 from tests.waits import DEADLINE_S

@@ -6,8 +6,8 @@ import tomllib
 import numpy as np
 import pytest
 
-from engine.dtypes import physics_snapshot_dtype
-from engine.scene import SceneError, load_scene, parse_scene, with_remote_players
+from engine.physics.dtypes import physics_snapshot_dtype
+from engine.physics.scene import SceneError, load_scene, parse_scene, with_remote_players
 from processes.runtime import shm
 from processes.network.server.config import GatewayConfig
 from processes.supervisor import workers_for
@@ -30,7 +30,7 @@ def test_a_snapshot_acknowledges_the_inputs_applied_before_its_tick_not_the_next
     """The physics applies an input after publishing tick T (for the step T -> T+1); a gateway
     reading tick T's snapshot right then must still say the previous seq (the bug this replaced:
     it read the live 'applied' seqs, one tick ahead of the snapshot)."""
-    from engine.match import Match
+    from engine.play.match import Match
     from processes.workers.gateway import _consistent_snapshot
     from processes.workers.layout import (REMOTE_ACK_DTYPE, REMOTE_ACK_RING, REMOTE_CAPACITY, REMOTE_INPUT_DTYPE,
                                           RUN_LOCK_NAMES, read_ack, write_ack)

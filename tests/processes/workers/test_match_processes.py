@@ -3,11 +3,11 @@ reproduce the in-process match bit for bit."""
 import numpy as np
 import pytest
 
-from engine.dtypes import physics_snapshot_dtype
-from engine.geometry import Body
-from engine.match import Match, point_row
-from engine.replay import read, write
-from engine.scene import load_scene
+from engine.physics.dtypes import physics_snapshot_dtype
+from engine.physics.geometry import Body
+from engine.physics.scene import load_scene
+from engine.play.match import Match, point_row
+from engine.tools.replay import read, write
 from processes.supervisor import Supervisor, first_difference, workers_for
 
 SCENE = load_scene("match")

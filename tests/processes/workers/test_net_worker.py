@@ -5,9 +5,9 @@ from pathlib import Path
 
 import pytest
 
-from engine.geometry import Body
-from engine.run import run
-from engine.scene import load_scene, parse_scene
+from engine.physics.geometry import Body
+from engine.physics.scene import load_scene, parse_scene
+from engine.tools.run import run
 from processes.supervisor import Supervisor, WorkerFailed, first_difference, workers_for
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -126,7 +126,7 @@ def test_the_net_is_shown_as_the_net_worker_steps_it_also_in_its_tail(no_leftove
     from net_kernel import NetSim, build_topology
     from processes.runtime import shm
     from processes.workers.net import NetShow
-    from engine.dtypes import net_show_dtype
+    from engine.physics.dtypes import net_show_dtype
 
     scene = load_scene("match")
     topo = build_topology(scene.cloth)

@@ -9,9 +9,10 @@ import math
 import numpy as np
 import pytest
 
-from engine.bat import BAT_MAX_SPEED, BAT_MAX_SPIN, HALL_HI_X, HALL_HI_Y, HALL_HI_Z, HALL_LO_X, HALL_LO_Y, HALL_LO_Z
-from engine.match import Match
-from engine.scene import load_scene, with_remote_players
+from engine.physics.bat import (BAT_MAX_SPEED, BAT_MAX_SPIN, HALL_HI_X, HALL_HI_Y, HALL_HI_Z, HALL_LO_X, HALL_LO_Y,
+                                HALL_LO_Z)
+from engine.physics.scene import load_scene, with_remote_players
+from engine.play.match import Match
 from processes.network import wire
 from processes.runtime import shm
 from processes.workers.remote_inputs import remote_input_refusal
@@ -144,9 +145,9 @@ def test_a_player_pushing_its_bat_to_the_limits_publishes_only_encodable_states(
 
 
 def _braked_every_tick(mass, vel_before, force_after):
-    """The ticks t (indices of vel_before) whose force is not engine.arm's brake from the
+    """The ticks t (indices of vel_before) whose force is not engine.play.arm's brake from the
     velocity at t's start, bit for bit."""
-    from engine.arm import brake_force
+    from engine.play.arm import brake_force
 
     out = np.zeros(6)
     return [t for t in range(len(vel_before))
@@ -179,8 +180,8 @@ def test_a_still_players_bat_stays_braked_with_the_physics_slowed_on_purpose(no_
     # so it never speeds up but by the ball's touch, and it comes to rest.
     from dataclasses import replace
 
-    from engine.arm import BRAKE_PER_S
-    from engine.geometry import Body
+    from engine.physics.geometry import Body
+    from engine.play.arm import BRAKE_PER_S
     from processes.supervisor import Supervisor
 
     scene = with_remote_players(load_scene("match_rigid"), 1)
@@ -198,7 +199,7 @@ def test_a_still_players_bat_stays_braked_with_the_physics_slowed_on_purpose(no_
     assert grew == [], f"bat A sped up without the ball at ticks {grew[:10]}"
     assert speed[0] == 2.0
     # From the last touch (or the start) on only the brake acts: below its clip each tick takes
-    # BRAKE_PER_S * dt of the speed away, at the clip more (engine.arm), so at the end the speed
+    # BRAKE_PER_S * dt of the speed away, at the clip more (engine.play.arm), so at the end the speed
     # is at most speed[last] (1 - BRAKE_PER_S dt)^(ticks - last); 1e-9: the float64 steps' rounding.
     last = max(touched, default=-1) + 1
     bound = speed[last] * (1.0 - BRAKE_PER_S * scene.dt) ** (ticks - last)

@@ -1,14 +1,14 @@
-"""The bot brain (processes.network.client.bot): any player of the bot API on a served match's
+"""The bot brain (processes.network.client.brain): any player of the bot API on a served match's
 client, through the match's own seat: what it is shown, when it decides, how its faults are named."""
 import numpy as np
 import pytest
 
-from engine.arm import ARM_BRAKE, CTL_KIND
-from engine.match import control_period, decision_delay
-from engine.scene import load_scene, with_remote_players
-from engine.world import initial_state
+from engine.physics.scene import load_scene, with_remote_players
+from engine.physics.world import initial_state
+from engine.play.arm import ARM_BRAKE, CTL_KIND
+from engine.play.match import control_period, decision_delay
 from processes.network import wire
-from processes.network.client.bot import BotBrain
+from processes.network.client.brain import BotBrain
 from processes.network.wire import Slot
 from tests import bots
 

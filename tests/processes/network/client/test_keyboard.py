@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from engine.scene import load_scene
-from engine.world import build_model, initial_state
+from engine.physics.scene import load_scene
+from engine.physics.world import build_model, initial_state
 from processes.network.client.client import Client
 from processes.network.client.session import SessionOptions, run_session
 from processes.network.server.config import GatewayConfig
@@ -27,7 +27,7 @@ from processes.network.wire import Slot
 from tests.waits import DEADLINE_S
 
 ROOT = Path(__file__).resolve().parents[4]
-PRO_MAX_FORCE_N = 120.0  # engine.ai.SKILLS["pro"].max_force_n
+PRO_MAX_FORCE_N = 120.0  # engine.play.ai.SKILLS["pro"].max_force_n
 
 
 def test_parse_keys_reads_letters_arrows_and_keeps_a_cut_escape():

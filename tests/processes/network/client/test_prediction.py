@@ -5,8 +5,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from engine.scene import load_scene
-from engine.world import build_model, initial_state, new_events, step
+from engine.physics.scene import load_scene
+from engine.physics.world import build_model, initial_state, new_events, step
 from processes.network import wire
 from processes.network.client.prediction import MAX_AHEAD_TICKS, ErrorStats, Predictor, ServerClock
 from processes.network.wire import Slot

@@ -5,7 +5,7 @@ from dataclasses import replace
 
 import pytest
 
-from engine.scene import SceneError, scene_digest, scene_toml
+from engine.physics.scene import SceneError, scene_digest, scene_toml
 from processes.network import wire
 from processes.network.client.scenes import served_scene
 from processes.network.wire import Kind

@@ -15,7 +15,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from engine.scene import load_scene
+from engine.physics.scene import load_scene
 from net_kernel import NetSim, build_topology
 from processes.network import wire
 from processes.network.client.client import Client

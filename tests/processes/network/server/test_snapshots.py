@@ -7,7 +7,7 @@ import time
 import numpy as np
 import zmq
 
-from engine.scene import load_scene
+from engine.physics.scene import load_scene
 from processes.network import wire
 from processes.network.server.config import GatewayConfig
 from processes.network.server.gateway import Gateway
@@ -73,8 +73,8 @@ def test_the_rally_number_is_the_rally_in_play_and_an_event_carries_the_rally_it
     # A whole best-of-1 match in process, served tick by tick as the gateway worker serves it:
     # the first rally is number 1 from its toss on, every point event carries the number the
     # snapshots carried while it was played, and the match event the last rally's.
-    from engine.dtypes import POINT_DTYPE
-    from engine.match import Match, point_row
+    from engine.physics.dtypes import POINT_DTYPE
+    from engine.play.match import Match, point_row
 
     from dataclasses import replace
 

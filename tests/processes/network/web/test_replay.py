@@ -7,8 +7,8 @@ from tests.helpers.browser import await_page, errors, get, screenshot
 
 
 def test_the_replay_page_plays_offline_from_one_file(browser, tmp_path):
-    from engine.dtypes import physics_snapshot_dtype
-    from engine.rules import REASONS, Reason
+    from engine.physics.dtypes import physics_snapshot_dtype
+    from engine.play.rules import REASONS, Reason
     from processes.network.web.replay import replay_page
 
     welcome = wire.encode(Kind.WELCOME, tick=0, slot=wire.Slot.NONE, best_of=1, snapshot_hz=100, heartbeat_ms=500,

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from engine.rules import REASONS, Phase, Reason
+from engine.play.rules import REASONS, Phase, Reason
 from processes.network import wire
 from processes.network.wire import (BadEnum, BadFlags, BadMagic, BadText, BadVersion, DropCounter, EventKind,
                                     InputMode, Kind, NonFinite, OutOfRange, Role, Slot, TooLong, TooShort, UnknownType,
@@ -408,9 +408,9 @@ def test_drop_counter_counts_by_reason():
 def test_snapshots_of_a_real_match_pass_the_decoder():
     """The ranges leave room for real play: 3 s of an AI match (the serve, strikes, bounces),
     every 10th tick, encodes and decodes to the engine's exact numbers."""
-    from engine.dtypes import physics_snapshot_dtype
-    from engine.match import Match
-    from engine.scene import load_scene
+    from engine.physics.dtypes import physics_snapshot_dtype
+    from engine.physics.scene import load_scene
+    from engine.play.match import Match
 
     match = Match(load_scene("match_rigid"), seed=3)
     record = np.zeros(1, physics_snapshot_dtype(2))

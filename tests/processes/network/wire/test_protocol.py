@@ -3,7 +3,7 @@ from pathlib import Path
 
 import pytest
 
-from engine import rules
+from engine.play import rules
 from processes.network import wire
 from processes.network.wire import protocol
 

@@ -1,0 +1,122 @@
+"""The native vector environment: N tables of engine.learning.env.PingPongEnv stepped in this process.
+
+    import gymnasium
+    import engine.learning.env  # registers the ids and their vector entry point
+
+    vector = gymnasium.make_vec("pingpong/Return-v1", num_envs=8, vectorization_mode="vector_entry_point",
+                                opponent="novice")
+    obs, infos = vector.reset(seed=0)      # table k seeded 0 + k, as Gymnasium's own vector envs do
+
+Gymnasium 1.x's VectorEnv API (gymnasium.vector.VectorEnv): batched observations (N, D) written
+in place into one array, actions (N, A), rewards, terminations and truncations (N,), infos as
+Gymnasium's vector infos (a key's values in an array, "_key" the mask of the tables that gave it).
+Autoreset is Gymnasium's default, AutoresetMode.NEXT_STEP: the step after a table's episode ended
+resets that table (its action is ignored) and returns the reset's observation with reward 0 and
+neither terminated nor truncated. reset(options={"reset_mask": mask}) resets only the masked
+tables. Table k's episodes are those of a single PingPongEnv reset with the same seed, bit for
+bit, as they are those of gymnasium.vector.SyncVectorEnv (tests/engine/test_vector_env.py).
+
+The tables are stepped one after another: each step of a table is one control period of its
+match, whose physics is one numba call (engine.physics.tick.advance_ticks) between the referee's and the
+players' Python work (the opponent's AI, the agent's seat, the referee's judgement of each
+contact). The batch saves Gymnasium's per-environment wrappers and, against AsyncVectorEnv, the
+pipes and the N processes; it does not make the Python work of a table cheaper, which is most of
+a step's time, so one numba call over the batch's physics would not be either.
+"""
+from __future__ import annotations
+
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from engine.learning.env import PingPongEnv
+
+
+class PingPongVectorEnv(VectorEnv):
+    """N PingPongEnv tables in this process as one Gymnasium VectorEnv (see the module's docstring).
+
+    Args:
+        num_envs: the tables (>= 1). max_episode_steps: as gymnasium.make's (None: none; the
+            tables' own max_seconds still truncates). The other keywords are PingPongEnv's, the
+            same for every table.
+    """
+
+    def __init__(self, num_envs: int, max_episode_steps: int | None = None, **kwargs):
+        if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise ValueError(f"num_envs: a positive number of tables, got {num_envs!r}")
+        if max_episode_steps is not None and max_episode_steps < 1:
+            raise ValueError(f"max_episode_steps: None or a positive number of steps, got {max_episode_steps!r}")
+        self.num_envs = int(num_envs)
+        self.envs = [PingPongEnv(**kwargs) for _ in range(self.num_envs)]
+        first = self.envs[0]
+        self.render_mode = first.render_mode
+        self.metadata = {**PingPongEnv.metadata, "autoreset_mode": AutoresetMode.NEXT_STEP}
+        self.single_observation_space = first.observation_space
+        self.single_action_space = first.action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self.max_episode_steps = max_episode_steps
+        self._obs = np.zeros((self.num_envs,) + self.single_observation_space.shape)
+        self._rewards = np.zeros(self.num_envs)
+        self._terminations = np.zeros(self.num_envs, dtype=np.bool_)
+        self._truncations = np.zeros(self.num_envs, dtype=np.bool_)
+        self._autoreset = np.zeros(self.num_envs, dtype=np.bool_)
+        self._elapsed = np.zeros(self.num_envs, dtype=np.int64)
+
+    def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
+        """Reset the tables (or those of options["reset_mask"]); seed None, an int (table k gets
+        seed + k) or one seed a table."""
+        if seed is None:
+            seeds = [None] * self.num_envs
+        elif isinstance(seed, (int, np.integer)):
+            seeds = [int(seed) + k for k in range(self.num_envs)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"seed: a list of one seed per table ({self.num_envs}), got {len(seeds)}")
+        options = dict(options or {})
+        mask = options.pop("reset_mask", None)
+        if mask is None:
+            mask = np.ones(self.num_envs, dtype=np.bool_)
+        elif not (isinstance(mask, np.ndarray) and mask.dtype == np.bool_ and mask.shape == (self.num_envs,)
+                  and mask.any()):
+            raise ValueError(f"options['reset_mask']: a numpy bool array of shape ({self.num_envs},) with at least "
+                             f"one True, got {mask!r}")
+        infos: dict = {}
+        for k in np.flatnonzero(mask):
+            self._obs[k], info = self.envs[k].reset(seed=seeds[k], options=options or None)
+            infos = self._add_info(infos, info, k)
+        self._terminations[mask] = self._truncations[mask] = self._autoreset[mask] = False
+        self._elapsed[mask] = 0
+        return self._obs.copy(), infos
+
+    def step(self, actions):
+        """One control period of every table; a table whose episode ended at the last step is
+        reset instead (AutoresetMode.NEXT_STEP)."""
+        actions = np.asarray(actions, dtype=np.float64)
+        if actions.shape != self.action_space.shape:
+            raise ValueError(f"actions: shape {self.action_space.shape} (a row a table), got {actions.shape}")
+        infos: dict = {}
+        for k, env in enumerate(self.envs):
+            if self._autoreset[k]:
+                self._obs[k], info = env.reset()
+                self._rewards[k] = 0.0
+                self._terminations[k] = self._truncations[k] = False
+                self._elapsed[k] = 0
+            else:
+                self._obs[k], self._rewards[k], self._terminations[k], truncated, info = env.step(actions[k])
+                self._elapsed[k] += 1
+                self._truncations[k] = truncated or (self.max_episode_steps is not None
+                                                     and self._elapsed[k] >= self.max_episode_steps)
+            infos = self._add_info(infos, info, k)
+        self._autoreset[:] = self._terminations | self._truncations
+        return self._obs.copy(), self._rewards.copy(), self._terminations.copy(), self._truncations.copy(), infos
+
+    def render(self):
+        """Each table's picture (PingPongEnv.render), a tuple; None without render_mode "rgb_array"."""
+        if self.render_mode != "rgb_array":
+            return None
+        return tuple(env.render() for env in self.envs)
+
+    def close_extras(self, **kwargs):
+        self.envs = []

@@ -1,0 +1,1 @@
+"""Tools over the simulation: running a scene, the stability study, rendering and replay files."""
