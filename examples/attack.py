@@ -2,11 +2,11 @@
 
 The flight is predicted as free fall (no drag, no spin): near enough a few tenths of a second
 ahead, which is all a drive needs once the ball has bounced on the bot's court. Each stroke is
-planned once (engine.physics.bot.target) and returned until it is played, so the arm tracks one path.
+planned once (engine.play.bot.target) and returned until it is played, so the arm tracks one path.
 """
 import numpy as np
 
-from engine.physics.bot import Bot, hold, target
+from engine.play.bot import Bot, hold, target
 from engine.play.rules import Phase
 
 GRAVITY = 9.81  # m/s^2

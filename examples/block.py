@@ -1,7 +1,7 @@
 """Block it back: wait behind the end line in the ball's line, face tilted up, and let the ball come."""
 import numpy as np
 
-from engine.physics.bot import Bot, hold
+from engine.play.bot import Bot, hold
 
 
 class Block(Bot):

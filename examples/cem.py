@@ -3,7 +3,7 @@
 The policy plans one stroke for each ball that has bounced on its court (and serves as
 examples/attack.py does, which Return-v0 never asks of it): it predicts where the
 ball crosses its hitting line (free fall from the ball's state, no drag or spin) and drives the
-bat through that point (engine.physics.bot.target: a path the arm's PD law tracks), four learned numbers
+bat through that point (engine.play.bot.target: a path the arm's PD law tracks), four learned numbers
 deciding how:
 
     params = (line, pace, lift, tilt): the hitting line (m behind the table's centre), the bat's
@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.physics.bot import Bot, target
+from engine.play.bot import Bot, target
 from engine.play.rules import Phase
 
 GRAVITY = 9.81  # m/s^2

@@ -16,7 +16,7 @@ import numpy as np
 
 from engine.physics import contact
 from engine.physics import equipment as eq
-from engine.physics.bot import Bot, hold, target
+from engine.play.bot import Bot, hold, target
 from engine.play.rules import Phase
 
 # The ball, the air, the table and the rubber as the engine has them (engine/physics/equipment.py cites

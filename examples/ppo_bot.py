@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from engine.learning import agent_frame
-from engine.physics.bot import Bot, new_action
+from engine.play.bot import Bot, new_action
 from engine.play.ai import SKILLS
 
 POLICY_FILE = Path(__file__).with_name("ppo_policy.zip")

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from engine.physics.bot import Bot, force, hold, new_action
+from engine.play.bot import Bot, force, hold, new_action
 
 FILE = str(Path(__file__).resolve())
 FAIL_AT = 30  # the decision (counted from 1) at which each one first fails

@@ -24,7 +24,7 @@ def test_the_cross_entropy_method_raises_the_return_over_a_short_seeded_run():
 
 
 def test_the_learned_bot_plays_the_parameters_it_is_pointed_at(tmp_path, monkeypatch):
-    from engine.physics.bot import load_bot
+    from engine.play.bot import load_bot
 
     params = tmp_path / "cem_params.json"
     params.write_text('{"params": [1.2, 3.0, 0.5, 0.1]}')

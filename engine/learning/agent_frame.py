@@ -18,7 +18,7 @@ non-finite value is a ValueError):
 - hold: the pose to hold (x, y, z mapped onto HOLD_LOW..HOLD_HIGH in the agent's frame: its
   own half of the playing space) and the face normal (3, normalised; zero: towards the net);
 - target: hold's six, then the velocity to reach the pose with (x TARGET_SPEED m/s) and when,
-  (a + 1) / 2 * TARGET_MAX_S s after the observation (engine.physics.bot.target);
+  (a + 1) / 2 * TARGET_MAX_S s after the observation (engine.play.bot.target);
 - force: force and torque, each component times the arm's limit over sqrt(3), so that every
   vector is within the arm's limits (engine.play.ai.skill.SKILLS).
 """
@@ -30,7 +30,7 @@ import numpy as np
 from gymnasium import spaces
 
 from engine.physics.bat import face_normal, rotate
-from engine.physics.bot import force, hold, target
+from engine.play.bot import force, hold, target
 from engine.play.match import OUT_OF_PLAY_DISTANCE
 from engine.play.rules import Phase
 

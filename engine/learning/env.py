@@ -10,7 +10,7 @@
 processes need). gymnasium.vector.AsyncVectorEnv steps N of them in N processes; use its
 context="forkserver" (numba's threads make fork() after a kernel has run unsafe).
 
-The agent is a bot (engine.physics.bot.Bot) in an engine.play.match.Match, at its end's seat: each step is
+The agent is a bot (engine.play.bot.Bot) in an engine.play.match.Match, at its end's seat: each step is
 one control period; its action is an ACTION_DTYPE record made from the action vector, checked
 and played exactly as a bot's (engine.play.players.Seat), from the control tick a decision delay
 after the observation it answers (engine.play.match.decision_delay: the scene's
@@ -63,7 +63,7 @@ import numpy as np
 from gymnasium import spaces
 
 from engine.learning import agent_frame, ball_machine
-from engine.physics.bot import Bot, force, hold, new_action, target
+from engine.play.bot import Bot, force, hold, new_action, target
 from engine.physics.dtypes import CONTACT_DTYPE, OBSERVATION_DTYPE, POINT_DTYPE, physics_snapshot_dtype
 from engine.physics.scene import load_scene, scene_toml
 from engine.physics.world import build_model, initial_state, new_events
@@ -128,8 +128,8 @@ def flatten(observation, out: np.ndarray) -> np.ndarray:
 
 def action_space(action_type: str, arm: str = "pro") -> spaces.Box:
     """The action vector's space. hold: the pose (m, inside the playing space) and the face normal
-    (any non-zero vector; normalised) of engine.physics.bot.hold; target: those, then the velocity (m/s)
-    to reach the pose with and in how long (s) (engine.physics.bot.target, then holding the pose; the same
+    (any non-zero vector; normalised) of engine.play.bot.hold; target: those, then the velocity (m/s)
+    to reach the pose with and in how long (s) (engine.play.bot.target, then holding the pose; the same
     vector again keeps the path planned when it was first given, so that the path is played);
     force: force (N) and torque (N m), each component within the arm's limit over sqrt(3), so
     every vector is within the arm's limits."""

@@ -33,7 +33,7 @@ BAT_STATE_DTYPE = np.dtype(
     ]
 )
 
-# What a player (engine.physics.bot.Bot) sees at each of its control ticks, and all it sees: the ball as
+# What a player (engine.play.bot.Bot) sees at each of its control ticks, and all it sees: the ball as
 # the wire's snapshot shows it, its own bat and the other one, the referee's public state and the
 # clock. World frame and SI units like everything else; players are 0 (A, x < 0) and 1 (B).
 OBSERVATION_DTYPE = np.dtype(
@@ -56,7 +56,7 @@ OBSERVATION_DTYPE = np.dtype(
 # How many segments an arm target's path holds: backswing, swing, follow-through.
 ARM_SEGMENTS = 3
 
-# What a player answers (engine.physics.bot): kind ACTION_TARGET, the arm's target (a pose to hold and
+# What a player answers (engine.play.bot): kind ACTION_TARGET, the arm's target (a pose to hold and
 # a path of cubic Hermite segments of the bat centre, (t0, t1, p0, v0, p1, v1) with times s
 # in the world clock, positions m, velocities m/s), which engine.play.arm's PD law turns into force
 # and torque within the arm's limits; or kind ACTION_FORCE, the force and torque themselves,
@@ -172,7 +172,7 @@ def ai_answer_dtype(max_bats: int, ctl_size: int) -> np.dtype:
     state it answers; changed: 1 if a player decided there, 0 if none could decide differently;
     ctl: (max_bats, ctl_size) each AI's plan after it (engine.play.arm's CTL_* layout), in the order of
     the scene's AI bats, which the physics plays from the tick the decision takes effect; fault:
-    (max_bats,) per bat, engine.physics.bot.FAULTS index of what went wrong with its player's decision
+    (max_bats,) per bat, engine.play.bot.FAULTS index of what went wrong with its player's decision
     (0: nothing), fault_text: what, in words.
     """
     return np.dtype([("turn", "<i8"), ("tick", "<i8"), ("changed", "<i8"), ("ctl", "<f8", (max_bats, ctl_size)),

@@ -12,7 +12,6 @@ from typing import Any
 import tomli_w
 
 from engine.physics import equipment
-from engine.physics.bot import is_bot_spec
 from engine.physics.integrators import METHODS
 from net_kernel.sim import SAFETY
 from net_kernel.topology import (
@@ -303,9 +302,15 @@ def _read_bat(r: _Reader, name: str, data: Any) -> BatSpec:
     )
 
 
+def is_bot_spec(player: str) -> bool:
+    """Whether a player name is a bot spec ("FILE.py:Class" or "module:Class", engine.play.bot),
+    not an AI profile: a scene names its players, the match loads them."""
+    return ":" in player
+
+
 def _read_skill(r: _Reader, data: dict, path: str) -> str:
     """bats.X.skill: an AI profile (SKILL_NAMES) or a bot ("FILE.py:Class", "module:Class"; loaded
-    when the match starts, engine.physics.bot.load_bot)."""
+    when the match starts, engine.play.bot.load_bot)."""
     skill = r.string(data, "skill", f"{path}.skill", "")
     if skill not in SKILL_NAMES and not is_bot_spec(skill):
         raise r.fail(f"{path}.skill", f"must be one of {', '.join(SKILL_NAMES)} or a bot (FILE.py:Class or "
@@ -577,7 +582,7 @@ def _cloth_data(scene: Scene) -> dict[str, Any]:
 
 def with_skills(scene: Scene, skill_a: str, skill_b: str) -> Scene:
     """The scene with bat A played by skill_a and bat B by skill_b: AI profiles (SKILL_NAMES) or
-    bot specs ("FILE.py:Class", "module:Class"; engine.physics.bot.load_bot)."""
+    bot specs ("FILE.py:Class", "module:Class"; engine.play.bot.load_bot)."""
     if len(scene.bats) != 2:
         raise SceneError(f"{scene.source}: two AI players need both bats; the scene has {len(scene.bats)}")
     for name, skill in zip(BAT_NAMES, (skill_a, skill_b)):

@@ -27,9 +27,9 @@ from typing import Protocol
 import numpy as np
 
 from engine.physics import equipment
-from engine.physics.bot import ON_BOT_ERROR, BotError, bot_source, is_bot_spec
+from engine.play.bot import ON_BOT_ERROR, BotError, bot_source
 from engine.physics.dtypes import CONTACT_DTYPE, POINT_DTYPE, physics_snapshot_dtype
-from engine.physics.scene import Scene, SceneError, scene_digest, with_skills
+from engine.physics.scene import Scene, SceneError, is_bot_spec, scene_digest, with_skills
 from engine.physics.world import advance, build_model, copy_record, initial_state, new_events, step
 from engine.play.arm import ARM_BRAKE, BAT_FLOATS, CTL_KIND, CTL_MASS, CTL_SIZE, control_bats
 from engine.play.players import DEFAULT_BUDGET_S, Players, make_players
@@ -118,7 +118,7 @@ def ai_decide(players: Players, tick: int, now: float, ball_flat: np.ndarray, ba
     the in-process match and the AI worker call, so lockstep runs decide bit for bit the same.
 
     ball_flat: (9,) the ball; bats: the (n_bats,) BAT_DTYPE array; rally: the state's
-    RALLY_DTYPE record. Returns the decisions' faults [(player, fault, detail)] (engine.physics.bot.FAULTS
+    RALLY_DTYPE record. Returns the decisions' faults [(player, fault, detail)] (engine.play.bot.FAULTS
     names).
     """
     return players.decide(tick, now, ball_flat, bats, rally)
@@ -459,7 +459,7 @@ class MatchRecorder:
     of a match compare by one string; bot_errors (Match.bot_errors without their details,
     which may hold times) and stopped (whether a bot's fault stopped the match); with
     `abandoned`, why the match was given up where it stood (a bot that could not be
-    interrupted). skill_a and skill_b are AI profiles or bot specs (engine.physics.bot.load_bot).
+    interrupted). skill_a and skill_b are AI profiles or bot specs (engine.play.bot.load_bot).
     """
 
     def __init__(self, scene: Scene, seed: int, skill_a: str, skill_b: str, best_of: int | None = None,

@@ -3,7 +3,7 @@ shown, how its answer is checked, and the force law that plays it.
 
 At a control tick a seat whose player may decide differently (a bot: always; an AI profile:
 when BatAI.wakes says so, or the rally's key changed) gets a fresh observation and answers; the
-answer is checked (engine.physics.bot.check_action) against its arm's limits and, within its CPU time
+answer is checked (engine.play.bot.check_action) against its arm's limits and, within its CPU time
 budget, becomes the seat's plan: its row of the ctl array, an arm target that
 engine.play.arm.control_bats tracks or a raw force and torque. A decision that raises, returns
 something malformed or non-finite, or overruns is a fault: the seat's plan becomes the idle arm's
@@ -19,9 +19,10 @@ import traceback
 
 import numpy as np
 
-from engine.physics.bot import (A_FORCE, A_HOLD, A_SEGMENTS, ACTION_FLOATS, ACTION_FORCE, Bot, bot_name, check_action,
-                                is_bot_spec, load_bot, new_observation)
 from engine.physics.dtypes import BAT_DTYPE, OBSERVATION_DTYPE
+from engine.physics.scene import is_bot_spec
+from engine.play.bot import (A_FORCE, A_HOLD, A_SEGMENTS, ACTION_FLOATS, ACTION_FORCE, Bot, bot_name, check_action,
+                             load_bot, new_observation)
 from engine.play.ai import SKILLS, BatAI
 from engine.play.ai.profile_bot import ProfileBot
 from engine.play.arm import (ARM_BRAKE, ARM_FORCE, ARM_TARGET, BAT_FLOATS, CTL_D_ANGLE, CTL_FORCE, CTL_HOLD,
@@ -118,7 +119,7 @@ class Seat:
     """One AI-driven bat's player.
 
     Args:
-        bot: the engine.physics.bot.Bot (set up here). name: for messages. player: its bat (0 or 1).
+        bot: the engine.play.bot.Bot (set up here). name: for messages. player: its bat (0 or 1).
         scene: the match scene. mass: kg, inertia: kg m^2, of its bat. ctl: its (CTL_SIZE,) row
             of Players.ctl. budget_s: CPU s per decision (the bot's own budget_s wins).
         interrupt: stop a hung decision with SIGALRM (HangAlarm); False where signals cannot
@@ -289,7 +290,7 @@ class Players(dict):
                 (n_bats,) BAT_DTYPE array. rally: its RALLY_DTYPE record.
 
         Returns:
-            The faults of this control tick: [(player, fault, detail)], engine.physics.bot.FAULTS names.
+            The faults of this control tick: [(player, fault, detail)], engine.play.bot.FAULTS names.
         """
         floats = self.bat_floats(bats)
         key = decision_key(rally)

@@ -46,7 +46,7 @@ class Reason(enum.Enum):
     DOUBLE_HIT = "double_hit"  # 2.10.1.6: struck twice in succession
     OBSTRUCTION = "obstruction"  # 2.10.1.8: touched above the playing surface before it bounced
     LET = "let"  # 2.9.1.1: a service touching the net assembly, otherwise good: replayed
-    BOT_ERROR = "bot_error"  # the player's bot failed a decision (engine.physics.bot.FAULTS), the match plays on
+    BOT_ERROR = "bot_error"  # the player's bot failed a decision (engine.play.bot.FAULTS), the match plays on
 
 
 REASONS = tuple(Reason)  # stable codes for logs and replay files: REASONS.index(reason)

@@ -62,7 +62,8 @@ def bot_budget_s(args: argparse.Namespace) -> float:
 def check_players(players) -> None:
     """Load every bot among the players now, so a bad spec or file is told before anything starts
     (ValueError naming it)."""
-    from engine.physics.bot import is_bot_spec, load_bot
+    from engine.physics.scene import is_bot_spec
+    from engine.play.bot import load_bot
 
     for player in players:
         if player is not None and is_bot_spec(player):

@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 
 def join_command(args: argparse.Namespace) -> int:
     """`pingpong join ADDRESS --as player|spectator [--bot [PLAYER]]`."""
-    from engine.physics.bot import is_bot_spec
+    from engine.physics.scene import is_bot_spec
     from engine.physics.scene import SceneError
     from processes.network.client.client import Client, Rejected, curve_client_options
     from processes.network.wire import NO_TOKEN

@@ -150,9 +150,10 @@ def standings(records: list[dict], profiles: list[str]) -> dict:
 
 def labels(profiles: list[str]) -> dict[str, str]:
     """{profile: how tables and plots name it}: an AI profile by its name, a bot by its class and
-    file ("Attack (attack.py)", engine.physics.bot.bot_name), or by its whole spec where two bots would
+    file ("Attack (attack.py)", engine.play.bot.bot_name), or by its whole spec where two bots would
     read the same."""
-    from engine.physics.bot import bot_name, is_bot_spec
+    from engine.physics.scene import is_bot_spec
+    from engine.play.bot import bot_name
 
     short = {p: bot_name(p) if is_bot_spec(p) else p for p in profiles}
     seen = [short[p] for p in profiles]

@@ -65,7 +65,8 @@ def plan(scene: Scene, pairs: list[tuple[str, str]], seeds: int, best_of: int | 
     """The tasks of `pairs` (player at end A, player at end B: AI profiles or bot specs) over
     seeds 0 .. seeds - 1. A file bot's source goes with each task, so a worker on any machine
     plays the bot that was planned (and a changed bot is a new match: its source is in the hash)."""
-    from engine.physics.bot import bot_source, is_bot_spec
+    from engine.physics.scene import is_bot_spec
+    from engine.play.bot import bot_source
     from engine.play.match import match_hash, match_scene
 
     tasks = []
@@ -97,7 +98,7 @@ def play(task: MatchTask, crash_marker: str | None = None, abandon_dir: str | No
     holds its record, as it stood, with the bot named; a task run again finds it there (Ray
     re-runs the task of a worker that ended) and returns it instead of playing the match again.
     """
-    from engine.physics.bot import register_sources
+    from engine.play.bot import register_sources
     from engine.play.match import MatchRecorder
     from engine.play.players import DEFAULT_BUDGET_S
     from processes.runtime.watchdog import DecisionWatchdog

@@ -32,7 +32,7 @@ import time
 
 import numpy as np
 
-from engine.physics.bot import FAULT_CODES
+from engine.play.bot import FAULT_CODES
 from engine.physics.dtypes import physics_snapshot_dtype
 from engine.physics.world import build_model, copy_record
 from engine.play.match import ai_decide, make_ais

@@ -11,7 +11,7 @@ from __future__ import annotations
 import time
 from collections import deque
 
-from engine.physics.bot import FAULTS
+from engine.play.bot import FAULTS
 from engine.physics.world import copy_record
 from engine.play.match import Match
 from processes.runtime.control import Control

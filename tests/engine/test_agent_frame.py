@@ -6,7 +6,7 @@ import pytest
 
 from engine.learning import agent_frame
 import engine.learning.env  # noqa: F401 - registers the ids
-from engine.physics.bot import new_action, new_observation
+from engine.play.bot import new_action, new_observation
 from engine.physics.dtypes import ACTION_DTYPE
 from engine.play.rules import Phase
 

@@ -6,7 +6,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from engine.physics.bot import ACTION_FORCE, BotError, check_action, force, hold, load_bot, new_action
+from engine.play.bot import ACTION_FORCE, BotError, check_action, force, hold, load_bot, new_action
 from engine.physics.dtypes import BAT_DTYPE, BAT_STATE_DTYPE, OBSERVATION_DTYPE
 from engine.physics.scene import SceneError, load_scene
 from engine.play.ai.profile_bot import ProfileBot
@@ -143,7 +143,7 @@ def test_actions_are_checked_against_the_arms_limits():
 def test_a_bad_bot_spec_says_what_is_wrong(tmp_path):
     with pytest.raises(ValueError, match="no file"):
         load_bot("no/such/file.py:Bot")
-    with pytest.raises(ValueError, match="must be a subclass of engine.physics.bot.Bot"):
+    with pytest.raises(ValueError, match="must be a subclass of engine.play.bot.Bot"):
         load_bot(bots.spec("NotABot"))
     with pytest.raises(ValueError, match="FILE.py:ClassName"):
         load_bot("just-a-name:")
@@ -159,7 +159,7 @@ def test_a_file_bot_imports_the_modules_beside_it(tmp_path):
     (tmp_path / "pp_helper_beside.py").write_text("X = 1.6\n")
     (tmp_path / "pp_helper_later.py").write_text("Z = 0.2\n")
     (tmp_path / "hbot.py").write_text(
-        "from engine.physics.bot import Bot, hold\n"
+        "from engine.play.bot import Bot, hold\n"
         "from pp_helper_beside import X\n"
         "class HBot(Bot):\n"
         "    def act(self, obs):\n"

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from engine.physics.bot import A_HOLD, A_SEGMENTS, ACTION_FLOATS, ACTION_TARGET, Bot, new_action
+from engine.play.bot import A_HOLD, A_SEGMENTS, ACTION_FLOATS, ACTION_TARGET, Bot, new_action
 from engine.physics.dtypes import OBSERVATION_DTYPE
 from engine.play.ai.player import BatAI
 from engine.play.ai.skill import Skill

@@ -1,4 +1,4 @@
-"""The bot brain: any player of the bot API (engine.physics.bot) playing one bat of a served match
+"""The bot brain: any player of the bot API (engine.play.bot) playing one bat of a served match
 (`pingpong join --bot [PLAYER]`), shown the predicted state, answering through the arm law."""
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from engine.physics.bot import BotError
+from engine.play.bot import BotError
 from engine.physics.dtypes import BAT_DTYPE, RALLY_DTYPE
 from engine.physics.scene import Scene
 from engine.physics.world import build_model
@@ -33,7 +33,7 @@ class BotBrain:
 
     A decision that raises, returns something malformed or overruns its budget is a fault, as in
     a match: the arm brakes until the next good decision, and the fault is kept in `errors`
-    (engine.physics.bot.BotError) and reported; the server, which never sees the bot, awards no point for it.
+    (engine.play.bot.BotError) and reported; the server, which never sees the bot, awards no point for it.
 
     Raises ValueError (naming the bot) if the player cannot be loaded, made or set up.
     """

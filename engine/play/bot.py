@@ -7,7 +7,7 @@ and torque within the arm's limits, or the force and torque themselves within th
 That is all that crosses: the observation is a read-only copy made for the bot (no engine
 state, no view into it), and the action drives the bot's own bat only, through its arm.
 
-    from engine.physics.bot import Bot, hold
+    from engine.play.bot import Bot, hold
 
     class Wall(Bot):
         def act(self, obs):
@@ -151,7 +151,7 @@ def check_action(action, max_force: float, max_torque: float) -> tuple[str, str]
     if not isinstance(action, (np.ndarray, np.void)) or action.dtype != ACTION_DTYPE or action.shape != ():
         what = f"{type(action).__name__} of dtype {getattr(action, 'dtype', None)}, shape {getattr(action, 'shape', None)}"
         return "malformed", (f"returned {what}; act() must return one engine.physics.dtypes.ACTION_DTYPE record "
-                             "(engine.physics.bot.new_action(), target() or force())")
+                             "(engine.play.bot.new_action(), target() or force())")
     floats = np.frombuffer(action, np.float64, ACTION_FLOATS) if isinstance(action, np.void) else \
         action.reshape(1).view(np.uint8)[:ACTION_FLOATS * 8].view(np.float64)
     kind = int(action["kind"])
@@ -182,11 +182,6 @@ def check_action(action, max_force: float, max_torque: float) -> tuple[str, str]
         if not t1 > t0:
             return "malformed", f"segment {k} runs from t0 = {t0!r} to t1 = {t1!r} s: it must end after it starts"
     return None
-
-
-def is_bot_spec(player: str) -> bool:
-    """Whether a player name is a bot spec ("FILE.py:Class" or "module:Class"), not a profile."""
-    return ":" in player
 
 
 def bot_name(spec: str) -> str:
@@ -264,7 +259,7 @@ def load_bot(spec: str) -> type[Bot]:
     if not (isinstance(cls, type) and issubclass(cls, Bot)):
         found = "nothing" if cls is None else repr(cls)
         raise ValueError(f"bot {spec!r}: {where} defines {found} named {cls_name}; it must be a subclass of "
-                         "engine.physics.bot.Bot")
+                         "engine.play.bot.Bot")
     _LOADED[spec] = cls
     return cls
 
