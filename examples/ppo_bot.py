@@ -9,7 +9,8 @@ a served match (`join --bot`) as it played its episodes:
 
 The policy is ppo_policy.zip beside this file, or the one the PPO_POLICY environment variable
 names; its ppo_policy.json (written beside it) says the action type it was trained with.
-Needs the `train` extra (`make train`).
+Return-v1 never asks its agent to serve, so the service is examples/drive.py's (imported from
+beside this file). Needs the `train` extra (`make train`).
 """
 from __future__ import annotations
 
@@ -19,9 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
+from drive import Drive  # examples/drive.py, beside this file: the service
 from engine.learning import agent_frame
-from engine.play.bot import Bot, new_action
 from engine.play.ai import SKILLS
+from engine.play.bot import Bot, new_action
+from engine.play.rules import Phase
 
 POLICY_FILE = Path(__file__).with_name("ppo_policy.zip")
 POLICY_ENV = "PPO_POLICY"  # the policy file PPOBot plays, if set
@@ -42,8 +45,15 @@ class PPOBot(Bot):
         arm = SKILLS[self.arm]
         self.limits = arm.max_force_n, arm.max_torque_nm
         self.model.predict(self.obs, deterministic=True)  # the first pass builds torch's kernels: not in a decision
+        self.server = Drive()
+        self.server.player, self.server.end_sign, self.server.normal = self.player, self.end_sign, self.normal
+        self.server.rng, self.server.latency = self.rng, self.latency
+        self.server.setup(end, scene)
 
     def act(self, observation):
+        if int(observation["phase"]) == Phase.WAITING_SERVE and int(observation["to_strike"]) == self.player:
+            self.last = None
+            return self.server.act(observation)
         agent_frame.observe(observation, self.player, self.obs)
         vector, _ = self.model.predict(self.obs, deterministic=True)
         a = agent_frame.checked_action(vector, self.action_type)
