@@ -44,6 +44,7 @@ MATERIAL_BODIES = ("table", "floor", "net", "bat")
 # Explicit net substeps per tick beyond which a scene is refused: each is a full pass over the
 # net, and the default 184 x 16 net needs 25, so 1000 already makes a tick 40 times as costly.
 MAX_NET_SUBSTEPS = 1000
+MAX_DT = 0.05  # s: the longest tick a scene may ask for (the wire's welcome.dt bound says the same)
 
 
 class SceneError(ValueError):
@@ -345,7 +346,7 @@ def parse_scene(data: dict, source: str) -> Scene:
     match = _read_match(r, data, effects, bats)
     air = r.table(data.get("air", {}), "air", ("density", "drag_coefficient", "magnus_coefficient", "gravity"))
     materials = _read_materials(r, data.get("materials", {}))
-    dt = r.number(data, "dt", "dt", 0.001, low=0.0, high=0.05, low_open=True)
+    dt = r.number(data, "dt", "dt", 0.001, low=0.0, high=MAX_DT, low_open=True)
     if cloth is not None:
         _check_net_substeps(r, cloth, dt)
     return Scene(
@@ -597,8 +598,8 @@ def with_overrides(scene: Scene, **changes: Any) -> Scene:
     """A copy of the scene with some fields changed and re-validated (CLI --dt, --integrator)."""
     if "integrator" in changes and changes["integrator"] not in METHODS:
         raise SceneError(f"{scene.source}: integrator: must be one of {', '.join(METHODS)}; got {changes['integrator']!r}")
-    if "dt" in changes and not (math.isfinite(changes["dt"]) and 0.0 < changes["dt"] <= 0.05):
-        raise SceneError(f"{scene.source}: dt: must be in (0.0, 0.05] s, got {changes['dt']}")
+    if "dt" in changes and not (math.isfinite(changes["dt"]) and 0.0 < changes["dt"] <= MAX_DT):
+        raise SceneError(f"{scene.source}: dt: must be in (0.0, {MAX_DT}] s, got {changes['dt']}")
     return replace(scene, **changes)
 
 

@@ -28,7 +28,7 @@ import numpy as np
 
 from engine.physics.world import SimulationError, build_model, initial_state, new_events, step
 from engine.play.arm import brake_force
-from processes.network.wire import INPUT_HOLD_S, Slot
+from processes.network.wire import INPUT_HOLD_S, Slot, hold_ticks
 
 MAX_AHEAD_TICKS = 500  # a prediction runs at most this far past the last snapshot (0.5 s at 1 kHz)
 CLOCK_WINDOW = 16  # snapshots over which the least-delayed one sets the server's clock (short: a
@@ -135,7 +135,7 @@ class Predictor:
         self._held = np.zeros(6)  # our input in effect at the base snapshot (the acknowledged one)
         self._held_from = 0  # the tick it was stamped with
         self._input_from = 0  # the stamp of the input in effect while predicting
-        self.hold_ticks = int(round((INPUT_HOLD_S if input_hold_s is None else input_hold_s) / self.model.dt))
+        self.hold_ticks = hold_ticks(INPUT_HOLD_S if input_hold_s is None else input_hold_s, self.model.dt)
         self._bat_mass = float(self.model.bat_mass[slot.bat])
         self._brake = np.zeros(6)
         self._next_input = 0  # index into _sent of the next input to take effect while predicting

@@ -65,19 +65,20 @@ from processes.network.wire.messages import (DEFAULT_GRACE_S, DEFAULT_HEARTBEAT_
                                              MAX_SPEED_MS, MAX_SPIN_RADS, MAX_TORQUE_NM, NAME_SIZE, NET_CHUNK_KNOTS,
                                              NET_HZ, NET_MAX_OFFSET, NET_MAX_SIDE, NET_STEP_M, NO_TOKEN, Net,
                                              PROTOCOL_VERSION, Reject, RejectReason, Role, SERVER_SILENCE_BEATS,
-                                             SIZES, SPECS, Slot, Snapshot, TOKEN_SIZE, Welcome)
+                                             SIZES, SPECS, Slot, Snapshot, TOKEN_SIZE, Welcome, hold_ticks)
 
 
 __all__ = [
     "BadEnum", "BadFlags", "BadMagic", "BadText", "BadVersion", "DEFAULT_GRACE_S", "DEFAULT_HEARTBEAT_S",
     "DEFAULT_MAX_SPECTATORS", "DEFAULT_SNAPSHOT_HZ", "DEFAULT_SNDHWM", "DEFAULT_TIMEOUT_S", "DETAIL_SIZE",
-    "DIGEST_SIZE", "DropCounter", "Event", "EventKind", "Goodbye", "GoodbyeReason", "HEADER_DTYPE", "HEADER_FIELDS", "HEADER_SIZE",
-    "Heartbeat", "Hello", "INPUT_HOLD_S", "Input", "InputMode", "Kind", "MAGIC", "MAX_BAD", "MAX_BAT_ANG_VEL_RADS",
-    "MAX_BEST_OF", "MAX_DT_S", "MAX_SCENE_PARTS", "MAX_SCENE_REQUESTS", "MAX_FORCE_N", "MAX_FRAME_BYTES", "MAX_GAMES_WON", "MAX_POS_M", "MAX_REALTIME_FACTOR",
-    "MAX_SPEED_MS", "MAX_SPIN_RADS", "MAX_TORQUE_NM", "Message", "NAME_SIZE", "NET_CHUNK_KNOTS", "NET_HZ",
-    "NET_MAX_OFFSET", "NET_MAX_SIDE", "NET_STEP_M", "NO_TOKEN", "Net", "NonFinite", "OutOfRange", "PROTOCOL_VERSION",
-    "QUAT_TOL", "REASON_CODES", "Reject", "RejectReason", "Role", "SCENE_CHUNK", "SERVER_SILENCE_BEATS", "SIZES",
-    "SPECS", "SceneAssembly", "ScenePart", "SceneRequest", "Slot",
-    "Snapshot", "TOKEN_SIZE", "TooLong", "TooShort", "UnknownType", "WIRE_ERRORS", "Welcome", "WireError", "decode",
-    "encode", "net_knots", "net_messages", "net_rest", "own_force_inputs", "scene_parts", "snapshot_from_physics"
+    "DIGEST_SIZE", "DropCounter", "Event", "EventKind", "Goodbye", "GoodbyeReason", "HEADER_DTYPE", "HEADER_FIELDS",
+    "HEADER_SIZE", "Heartbeat", "Hello", "INPUT_HOLD_S", "Input", "InputMode", "Kind", "MAGIC", "MAX_BAD",
+    "MAX_BAT_ANG_VEL_RADS", "MAX_BEST_OF", "MAX_DT_S", "MAX_FORCE_N", "MAX_FRAME_BYTES", "MAX_GAMES_WON",
+    "MAX_POS_M", "MAX_REALTIME_FACTOR", "MAX_SCENE_PARTS", "MAX_SCENE_REQUESTS", "MAX_SPEED_MS", "MAX_SPIN_RADS",
+    "MAX_TORQUE_NM", "Message", "NAME_SIZE", "NET_CHUNK_KNOTS", "NET_HZ", "NET_MAX_OFFSET", "NET_MAX_SIDE",
+    "NET_STEP_M", "NO_TOKEN", "Net", "NonFinite", "OutOfRange", "PROTOCOL_VERSION", "QUAT_TOL", "REASON_CODES",
+    "Reject", "RejectReason", "Role", "SCENE_CHUNK", "SERVER_SILENCE_BEATS", "SIZES", "SPECS", "SceneAssembly",
+    "ScenePart", "SceneRequest", "Slot", "Snapshot", "TOKEN_SIZE", "TooLong", "TooShort", "UnknownType",
+    "WIRE_ERRORS", "Welcome", "WireError", "decode", "encode", "hold_ticks", "net_knots", "net_messages",
+    "net_rest", "own_force_inputs", "scene_parts", "snapshot_from_physics"
 ]

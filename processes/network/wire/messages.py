@@ -22,7 +22,7 @@ MAX_SPIN_RADS = 2000.0  # |spin| of the ball; top players reach ~150 rev/s = 940
 MAX_BAT_ANG_VEL_RADS = 1000.0  # |angular velocity| of a bat
 MAX_GAMES_WON = 5  # best of 9 is the longest match a scene allows (engine/physics/scene.py)
 MAX_BEST_OF = 9  # games of the longest match a scene allows
-MAX_DT_S = 0.05  # the scene's own bound on a tick's length
+MAX_DT_S = 0.05  # the scene's own bound on a tick's length (engine.physics.scene.MAX_DT)
 SERVER_SILENCE_BEATS = 4  # a client takes a server silent for max(timeout_ms, this many heartbeat_ms) as gone
 MAX_REALTIME_FACTOR = 1000.0  # snapshot.realtime_factor: a realtime server runs at most about 1
 TOKEN_SIZE = 16  # bytes of a rejoin token; all zero = none
@@ -47,6 +47,12 @@ NET_HZ = 60  # net messages per second at most, while the net is awake: the page
 # The physics counts it in match time from the tick it applied the input, then brakes the bat;
 # a client's prediction lets go of its input as the physics does.
 INPUT_HOLD_S = 0.1  # s of match time, an input is let go of this long after the physics applied it
+
+
+def hold_ticks(hold_s: float, dt: float) -> int:
+    """Ticks of dt s an input holds for hold_s s of match time: at least one (the tick it is applied
+    for); the physics lets go after them and a client's prediction does the same."""
+    return max(1, round(hold_s / dt))
 
 # The gateway's settings that a client sees, at their defaults (server.gateway.GatewayConfig
 # takes them from here; docs/protocol.md publishes them).
