@@ -115,14 +115,14 @@ def async_steps_per_second(n: int, seconds: float, net: str) -> float:
 def players_per_control_tick(ticks: int) -> dict:
     """Match.ai_seconds per control tick with A played by pro and by the Block bot (B: novice)."""
     from engine.physics.scene import load_scene
-    from engine.play.match import Match, control_period, match_scene
+    from engine.play.match import Match, match_scene
 
     base = load_scene("match_rigid")
     out = {}
     for name, player in (("pro", "pro"), ("block_bot", f"{EXAMPLES / 'block.py'}:Block")):
         match = Match(match_scene(base, player, "novice", best_of=5), seed=0)
         result = match.play(max_ticks=ticks)
-        control_ticks = result.ticks // control_period(match.scene)
+        control_ticks = result.ticks // match.compiled.control_period
         seat = match.ais[0]
         out[name] = {"ticks": result.ticks, "ai_us_per_control_tick": 1e6 * match.ai_seconds / control_ticks,
                      "decisions_of_a": seat.decisions,

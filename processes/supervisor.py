@@ -25,6 +25,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from engine.physics.dtypes import CONTACT_DTYPE, physics_snapshot_dtype
+from engine.physics.compiled import compile_scene
 from engine.physics.scene import Scene
 from engine.play.players import DEFAULT_BUDGET_S
 from processes.network.server.config import GatewayConfig
@@ -131,6 +132,7 @@ class Supervisor:
                  restart_budget: int = RESTART_BUDGET, on_bot_error: str = "point",
                  bot_budget_s: float | None = DEFAULT_BUDGET_S, timeline_dir: str | None = None):
         self.scene = scene
+        self.compiled = compile_scene(scene)  # once: every worker is handed it
         self.ticks = ticks
         self.mode = mode
         self.trace = trace
@@ -173,7 +175,7 @@ class Supervisor:
                                                        feed_bind=worker.ready.get("feed") or ""))
         worker.process = self._ctx.Process(
             target=worker_main, name=f"pingpong-{worker.kind}",
-            args=(worker_target(worker.kind), child, self.arena.layout(), worker.index, self.scene, options))
+            args=(worker_target(worker.kind), child, self.arena.layout(), worker.index, self.compiled, options))
         worker.conn = parent
         try:
             worker.process.start()
@@ -287,7 +289,7 @@ class Supervisor:
         started = time.monotonic()
         end = "shutdown"  # what the workers are told as they stop (the gateway's goodbye)
         try:
-            self.layout = build_layout(self.scene, self.kinds, self.ticks, self.trace, self.frame_every, self._ctx)
+            self.layout = build_layout(self.compiled, self.kinds, self.ticks, self.trace, self.frame_every, self._ctx)
             self.arena = self.layout.arena
             stops.arm()  # a stop signal that came while the segments were being made raises here
             self._workers = [_Worker(kind, i) for i, kind in enumerate(self.kinds)]

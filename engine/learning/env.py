@@ -13,7 +13,7 @@ context="forkserver" (numba's threads make fork() after a kernel has run unsafe)
 The agent is a bot (engine.play.bot.Bot) in an engine.play.match.Match, at its end's seat: each step is
 one control period; its action is an ACTION_DTYPE record made from the action vector, checked
 and played exactly as a bot's (engine.play.players.Seat), from the control tick a decision delay
-after the observation it answers (engine.play.match.decision_delay: the scene's
+after the observation it answers (CompiledScene.decision_delay: the scene's
 match.decision_latency, a player's reaction), and the observation vector is the bot's
 OBSERVATION_DTYPE record, field by field (OBSERVATION_NAMES). Rewards and ends come from the
 referee: the agent's strikes, its returns bouncing on the opponent's court, the point.
@@ -66,10 +66,11 @@ from engine.learning import agent_frame, ball_machine
 from engine.play.bot import Bot, force, hold, new_action, target
 from engine.physics.dtypes import CONTACT_DTYPE, OBSERVATION_DTYPE, POINT_DTYPE, physics_snapshot_dtype
 from engine.physics.scene import load_scene, scene_toml
-from engine.physics.world import build_model, initial_state, new_events
+from engine.physics.compiled import compile_scene
+from engine.physics.world import new_events
 from engine.play.ai import SKILLS
 from engine.play.ai.profile_bot import ProfileBot
-from engine.play.match import Match, control_period, match_scene, point_row
+from engine.play.match import Match, match_scene, point_row
 from engine.play.players import decision_key
 from engine.play.rules import Phase
 from engine.tools import render
@@ -206,7 +207,8 @@ class PingPongEnv(gymnasium.Env):
             flight = match_scene(load_scene(SCENES["rigid"]), "pro", "pro", best_of=1)
             flight = replace(flight, effects=flight.effects - {"ai", "referee"}, match=None,
                              bats=tuple(replace(bat, skill=None) for bat in flight.bats))
-            self._flight = (build_model(flight), initial_state(flight), new_events())
+            flight = compile_scene(flight)
+            self._flight = (flight.model, flight.initial_state(), new_events())
         self.task, self.opponent, self.player, self.net = task, opponent, player, net
         self.action_type, self.render_mode = action_type, render_mode
         self.record = record or render_mode == "rgb_array"
@@ -279,7 +281,7 @@ class PingPongEnv(gymnasium.Env):
         scene = replace(scene, match=replace(scene.match, first_server="ab"[server]))
         self.seed_of_match = seed
         self.match = Match(scene, seed=seed)
-        self.every = control_period(scene)
+        self.every = self.match.compiled.control_period
         self.seats = {end: self.match.ais[end] for end in self.ends}
         self.seat = self.seats[self.player]
         self.agent: Agent = self.seat.bot
@@ -321,7 +323,7 @@ class PingPongEnv(gymnasium.Env):
         rewards, decided, landed = self.play_period()
         terminated = decided or (self.task == "return" and landed[self.player])
         self.steps += 1
-        truncated = not terminated and self.steps * self.every * self.match.scene.dt >= self.max_seconds
+        truncated = not terminated and self.steps * self.every * self.match.model.dt >= self.max_seconds
         self._ended = terminated or truncated
         info = {"points": len(self.match.referee.points), "bot_errors": list(self.match.bot_errors)}
         return self.observation(), rewards[self.player], terminated, truncated, info
@@ -449,7 +451,7 @@ class PingPongEnv(gymnasium.Env):
         match = self.match
         points = match.referee.points
         replay_file.write(path, scene_name=match.scene.name, scene_text=scene_toml(match.scene), seed=self.seed_of_match,
-                          dt=match.scene.dt, frame_every=FRAME_EVERY, frames=np.array(self.frames),
+                          dt=match.model.dt, frame_every=FRAME_EVERY, frames=np.array(self.frames),
                           events=np.array(self.events, CONTACT_DTYPE) if self.events else np.zeros(0, CONTACT_DTYPE),
                           points=np.array([point_row(p, 0) for p in points]) if points else
                           np.zeros(0, POINT_DTYPE),

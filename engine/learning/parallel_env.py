@@ -70,7 +70,7 @@ class PingPongParallelEnv(ParallelEnv):
             table.act(end, actions[agent])
         rewards, decided, _ = table.play_period()
         table.steps += 1
-        truncated = not decided and table.steps * table.every * table.match.scene.dt >= table.max_seconds
+        truncated = not decided and table.steps * table.every * table.match.model.dt >= table.max_seconds
         observations = self._observations()
         ref = table.match.referee
         info = {"points": len(ref.points), "bot_errors": list(table.match.bot_errors)}

@@ -88,10 +88,10 @@ class MatchSpec:
     first_server: str = "a"
     ai_hz: float = 100.0  # control rate of the AI (scenes/match.toml says why); forces are held between its updates
     # s from a player's decision to the control tick its plan takes effect, in whole control
-    # periods, at least one (engine.play.match.decision_delay). Half the fastest profile's reaction
-    # time (pro 0.10 s, engine.play.ai.skill): within a human's visuomotor delay of 100-200 ms, so a
-    # stroke starts when its reaction time says, and long enough for the AI worker to think
-    # while the physics steps on.
+    # periods, at least one (engine.physics.compiled.CompiledScene.decision_delay). Half the
+    # fastest profile's reaction time (pro 0.10 s, engine.play.ai.skill): within a human's
+    # visuomotor delay of 100-200 ms, so a stroke starts when its reaction time says, and long
+    # enough for the AI worker to think while the physics steps on.
     decision_latency: float = 0.05
     max_rally_s: float = 10.0  # a rally still undecided after this long is judged out of play
     toss_speed: float = 2.6  # m/s upwards: the toss rises ~34 cm (ITTF 2.6.2: at least 16 cm)

@@ -44,7 +44,7 @@ from engine.physics.tick import (
     advance_run,
     advance_ticks,
 )
-from net_kernel import NO_CONTACT, NetContact, NetSim, build_topology
+from net_kernel import NO_CONTACT, NetContact, NetSim, NetTopology, build_topology
 from net_kernel.sim import KNOT_RADIUS, NET_REACH, WAKE_MARGIN
 
 # The most ticks near the net the engine steps the ball ahead of the net (_run_near_net); a
@@ -229,8 +229,10 @@ class State:
     run_bytes: np.ndarray | None = None  # (NET_RUN_TICKS, record's bytes) uint8 view of run_records
 
 
-def initial_state(scene: Scene) -> State:
-    """State at tick 0 from the scene's initial conditions."""
+def initial_state(scene: Scene, topology: NetTopology | None = None) -> State:
+    """State at tick 0 from the scene's initial conditions; its cloth net (a NetSim, if the scene
+    steps one) from `topology`, built from scene.cloth if None
+    (engine.physics.compiled.CompiledScene.initial_state passes the run's)."""
     record = np.zeros(1, physics_snapshot_dtype(len(scene.bats)))
     ball = record["ball"]
     ball["pos"][0] = scene.ball.pos
@@ -245,7 +247,9 @@ def initial_state(scene: Scene) -> State:
         motion[i, BAT_RADIUS] = spec.radius
         motion[i, BAT_HALF_THICKNESS] = spec.half_thickness
     world = record["world"]
-    net_sim = NetSim(build_topology(scene.cloth), scene.dt) if scene.cloth is not None and "net" in scene.effects else None
+    net_sim = None
+    if scene.cloth is not None and "net" in scene.effects:
+        net_sim = NetSim(build_topology(scene.cloth) if topology is None else topology, scene.dt)
     state = State(
         record=record,
         ball=ball,

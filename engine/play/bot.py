@@ -63,9 +63,10 @@ class Bot:
         rng: a numpy Generator seeded from the match's seed and the player, for repeatable play.
         latency: s from an observation to the control tick from which the action decided on it
             is played (the scene's match.decision_latency in whole control periods,
-            engine.play.match.decision_delay): a player's visuomotor delay. The action is played
-            until a later one takes effect; its arm target is tracked by the arm's PD law on the
-            bat's state at each control tick, so plan a path for when it takes effect.
+            engine.physics.compiled.CompiledScene.decision_delay): a player's visuomotor delay.
+            The action is played until a later one takes effect; its arm target is tracked by
+            the arm's PD law on the bat's state at each control tick, so plan a path for when it
+            takes effect.
     Class attributes a bot may set:
         arm: the AI profile ("pro", "club", "novice") whose arm limits (force, torque, speed)
             drive this bot's bat.

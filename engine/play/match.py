@@ -3,10 +3,10 @@
 This is the reference the multi-process match must reproduce bit for bit in lockstep. A player
 is a brain and an arm. At each AI control tick B (every P ticks) the players decide from the
 state at B (their plans: an arm target to track, a raw force, or the idle arm's brake), and the
-plans decided at B - D take effect (D = decision_delay: match.decision_latency in whole control
-periods); the arm law (engine.play.arm.control_bats) then turns the plans in effect and the bats'
-state at B into the forces and torques held until B + P; the physics steps to B + P; the referee
-judges each tick's contact events; a decided rally is followed by the next server's toss.
+plans decided at B - D take effect (D = CompiledScene.decision_delay: match.decision_latency
+in whole control periods); the arm law (engine.play.arm.control_bats) then turns the plans in
+effect and the bats' state at B into the forces and torques held until B + P; the physics steps
+to B + P; the referee judges each tick's contact events; a decided rally is followed by the next server's toss.
 
 The decision latency is what lets the physics and the AI run at the same time in separate
 processes: the AI thinks about the state at B while the physics steps B .. B + D, and nothing
@@ -30,7 +30,8 @@ from engine.physics import equipment
 from engine.play.bot import ON_BOT_ERROR, BotError, bot_source
 from engine.physics.dtypes import CONTACT_DTYPE, POINT_DTYPE, physics_snapshot_dtype
 from engine.physics.scene import Scene, SceneError, is_bot_spec, scene_digest, with_skills
-from engine.physics.world import advance, build_model, copy_record, initial_state, new_events, step
+from engine.physics.compiled import CompiledScene, compile_scene
+from engine.physics.world import advance, copy_record, new_events, step
 from engine.play.arm import ARM_BRAKE, BAT_FLOATS, CTL_KIND, CTL_MASS, CTL_SIZE, control_bats
 from engine.play.players import DEFAULT_BUDGET_S, Players, make_players
 from engine.play.rules import REASONS, Phase, PointRecord, Referee
@@ -88,28 +89,18 @@ class MatchResult:
         }
 
 
-def control_period(scene: Scene) -> int:
-    """Ticks between the AI's control ticks."""
-    return max(1, int(round(1.0 / (scene.match.ai_hz * scene.dt))))
-
-
-def decision_delay(scene: Scene) -> int:
-    """Ticks from a decision to the control tick its plan takes effect: match.decision_latency in
-    whole control periods, at least one."""
-    period = control_period(scene)
-    return period * max(1, int(round(scene.match.decision_latency / (period * scene.dt))))
-
-
-def make_ais(scene: Scene, model, seed: int, eager: bool = True, budget_s: float | None = DEFAULT_BUDGET_S,
+def make_ais(scene: Scene | CompiledScene, seed: int, eager: bool = True, budget_s: float | None = DEFAULT_BUDGET_S,
              interrupt: bool | None = None) -> Players:
-    """The player of every bat that has one (an AI profile or a bot), seeded from the match seed
+    """The player of every bat that has one (an AI profile or a bot) of a scene (compiled here if it
+    is not yet: engine.physics.compiled), seeded from the match seed
     and its player (engine.play.players.make_players). interrupt: stop a bot's hung decision with
     SIGALRM; None: wherever this is a process's main thread.
 
     eager=False: each AI profile thinks a stroke out only in the steps its think_step is given
     (and what is left when it is due), as the AI worker does between its turns; the same strokes.
     """
-    return make_players(scene, model, seed, control_period(scene), decision_delay(scene), eager=eager,
+    run = compile_scene(scene)
+    return make_players(run.scene, run.model, seed, run.control_period, run.decision_delay, eager=eager,
                         budget_s=budget_s, interrupt=interrupt)
 
 
@@ -212,16 +203,22 @@ class Match:
     oversized or overran its budget_s of CPU) is recorded in bot_errors when it is collected;
     on_bot_error "point" gives the rally to the other player (reason bot_error), "stop" ends
     the match there (stopped holds the BotError).
+
+    `scene` is a Scene or the run's CompiledScene (engine.physics.compiled): a worker passes the
+    one the supervisor compiled; a Scene is compiled here.
     """
 
-    def __init__(self, scene: Scene, seed: int = 0, ai_driver: PlayerDriver | None = None, on_bot_error: str = "point",
-                 budget_s: float | None = DEFAULT_BUDGET_S):
+    def __init__(self, scene: Scene | CompiledScene, seed: int = 0, ai_driver: PlayerDriver | None = None,
+                 on_bot_error: str = "point", budget_s: float | None = DEFAULT_BUDGET_S):
+        run = compile_scene(scene)
+        scene = run.scene
         if scene.match is None:
             raise ValueError(f"{scene.source}: scene {scene.name!r} has no referee; a match needs the effect 'referee'")
+        self.compiled = run
         self.scene = scene
         self.seed = seed
-        self.model = build_model(scene)
-        self.state = initial_state(scene)
+        self.model = run.model
+        self.state = run.initial_state()
         self.events = new_events()
         spec = scene.match
         self.referee = Referee(best_of=spec.best_of, first_server="ab".index(spec.first_server))
@@ -231,14 +228,14 @@ class Match:
         self.bot_errors: list[dict] = []
         self.stopped: BotError | None = None
         self.has_ai = any(bat.skill is not None for bat in scene.bats)
-        self.ais = make_ais(scene, self.model, seed, budget_s=budget_s) if ai_driver is None else {}
+        self.ais = make_ais(run, seed, budget_s=budget_s) if ai_driver is None else {}
         self.ai_driver: PlayerDriver = ai_driver or LocalAI(self.ais)
         self.ai_bats = [i for i, bat in enumerate(scene.bats) if bat.skill is not None]
         self._ai_players = np.array(self.ai_bats, np.int64)
         self.inputs = np.zeros((len(scene.bats), 6))  # held by the bats until the next control tick
         self.arm = idle_arms(self.model, self.ai_bats)  # the AI bats' plans in effect (engine.play.arm's ctl rows)
-        self.ai_every = control_period(scene)
-        self.delay = decision_delay(scene)
+        self.ai_every = run.control_period
+        self.delay = run.decision_delay
         self._bat_floats = self.state.bats.view(np.float64).reshape(len(scene.bats), BAT_FLOATS)
         # Per call of tick(), which runs once a control period or more often: its Python is part
         # of every chunk the physics worker steps, so its constants and views are made here once.
@@ -411,7 +408,7 @@ class Match:
             if point is not None and on_point is not None:
                 on_point(self, point)
         wall = time.perf_counter() - start
-        return MatchResult(self.scene, self.seed, self.referee, ticks, ticks * self.scene.dt, wall, compile_seconds,
+        return MatchResult(self.scene, self.seed, self.referee, ticks, ticks * self.model.dt, wall, compile_seconds,
                            self.ai_seconds, self.ais.stats if self.ais else {}, self.bot_errors,
                            None if self.stopped is None else str(self.stopped))
 

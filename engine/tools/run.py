@@ -106,5 +106,5 @@ def run(scene: Scene, ticks: int | None = None, model: Model | None = None, trac
         z_prev, vz_prev = z, vz
     wall = time.perf_counter() - start
     all_events = np.concatenate(collected) if collected else events[:0].copy()
-    return RunResult(scene=scene, ticks=n_ticks, sim_seconds=n_ticks * scene.dt, wall_seconds=wall,
+    return RunResult(scene=scene, ticks=n_ticks, sim_seconds=n_ticks * model.dt, wall_seconds=wall,
                      compile_seconds=compile_seconds, events=all_events, bounce_heights_m=heights, state=state, trace=states)

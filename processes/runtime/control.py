@@ -152,9 +152,10 @@ def _beat_while_starting(row, started: threading.Event) -> None:
         row["heartbeat"] = time.monotonic()
 
 
-def worker_main(target, conn, layout: dict, status_index: int, scene, options) -> None:
-    """Process entry point: attach the run's memory, run `target(control, arena, scene, options)`
-    (a worker function of the processes.workers registry), ship any error back with its traceback."""
+def worker_main(target, conn, layout: dict, status_index: int, compiled, options) -> None:
+    """Process entry point: attach the run's memory, run `target(control, arena, compiled, options)`
+    (a worker function of the processes.workers registry; compiled: the run's
+    engine.physics.compiled.CompiledScene), ship any error back with its traceback."""
     # Ctrl-C (the terminal's process group) and a SIGTERM to the whole group (systemd, `kill --
     # -PGID`) are the supervisor's to act on: it stops its workers in order (the gateway's goodbyes
     # and last counters first), and kills one that does not stop.
@@ -169,7 +170,7 @@ def worker_main(target, conn, layout: dict, status_index: int, scene, options) -
     started = threading.Event()
     threading.Thread(target=_beat_while_starting, args=(row, started), name="startup-heartbeat", daemon=True).start()
     try:
-        target(control, arena, scene, options)
+        target(control, arena, compiled, options)
         control.set_state(WorkerState.DONE)
     except StopRequested:
         control.set_state(WorkerState.STOPPED)

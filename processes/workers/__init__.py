@@ -4,9 +4,11 @@ from importlib import import_module
 from processes.workers.layout import RunLayout, build_layout
 from processes.workers.options import PLAYERS_TIMEOUT_S, RunHandles, RunOptions
 
-# Each worker is a function (control, arena, scene, options) that processes.runtime.control.worker_main
-# runs, named "module:function" and imported only when a run starts it (as Gymnasium's registry
-# names its environments' entry points): importing the registry, or the run's layout, loads no worker.
+# Each worker is a function (control, arena, compiled, options) that
+# processes.runtime.control.worker_main runs (compiled: the run's
+# engine.physics.compiled.CompiledScene, built once by the supervisor), named "module:function"
+# and imported only when a run starts it (as Gymnasium's registry names its environments' entry
+# points): importing the registry, or the run's layout, loads no worker.
 WORKERS = {
     "physics": "processes.workers.physics:physics_worker",
     "ai": "processes.workers.ai:ai_worker",

@@ -7,7 +7,7 @@ engine.play.match.ai_decide (the very function the in-process match calls), then
 after it (each AI's ctl row: the planned path, the face normal, gains and limits, or a raw
 force, or the brake) and whether a player decided into the turn's slot of `ai_answers` before
 it counts the turn answered. The physics puts the plans in effect match.delay ticks after B
-(engine.play.match.decision_delay), waiting only if the answer is not there yet, so the AI thinks
+(CompiledScene.decision_delay), waiting only if the answer is not there yet, so the AI thinks
 while the physics steps. A restarted AI worker goes on from the players' state it kept and the
 decisions it journalled since (StateKeeper), then from the queue's counts, so a killed AI
 worker leaves the match as the reference plays it.
@@ -34,7 +34,8 @@ import numpy as np
 
 from engine.play.bot import FAULT_CODES
 from engine.physics.dtypes import physics_snapshot_dtype
-from engine.physics.world import build_model, copy_record
+from engine.physics.compiled import CompiledScene
+from engine.physics.world import copy_record
 from engine.play.match import ai_decide, make_ais
 from processes.runtime.shm import Arena
 from processes.runtime.control import Control
@@ -159,18 +160,17 @@ class StateKeeper:
                           f"kept)", file=sys.stderr, flush=True)
 
 
-def ai_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
+def ai_worker(control: Control, arena: Arena, compiled: CompiledScene, options: RunOptions) -> None:
     """options: seed, handles.ai_queue, bot_budget_s; faults (tests: end this process after its
     first turn at or after the crash tick; answer each turn slow_turn_s later). A bot's hung
     decision is interrupted (SIGALRM)."""
-    model = build_model(scene)
-    ais = make_ais(scene, model, options.seed, eager=False, budget_s=options.bot_budget_s, interrupt=True)
+    ais = make_ais(compiled, options.seed, eager=False, budget_s=options.bot_budget_s, interrupt=True)
     thinkers = ais.thinkers
     queue = options.handles.ai_queue.attach(arena["ai_queue"].array)
     answers = arena["ai_answers"].array
     views = arena["ai_views"].array
     size = len(views)
-    answerer = Answerer(ais, len(scene.bats), say_faults=options.gateway is not None)
+    answerer = Answerer(ais, len(compiled.scene.bats), say_faults=options.gateway is not None)
     keeper = StateKeeper(arena, ais, answerer)
     faults = options.faults
     ais.warm_up()

@@ -13,6 +13,7 @@ from collections import deque
 
 from engine.play.bot import FAULTS
 from engine.physics.world import copy_record
+from engine.physics.scene import Scene
 from engine.play.match import Match
 from processes.runtime.control import Control
 from processes.runtime.shm import Arena
@@ -38,7 +39,7 @@ class AIDriver:
     same order, so the plans, the faults and the AIs' random draws are the reference's bit for bit.
     """
 
-    def __init__(self, control: Control, arena: Arena, options: RunOptions, scene):
+    def __init__(self, control: Control, arena: Arena, options: RunOptions, scene: Scene):
         self.control = control
         self.queue = options.handles.ai_queue.attach(arena["ai_queue"].array)
         self.handoff_s = options.handoff_s

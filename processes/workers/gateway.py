@@ -16,6 +16,7 @@ import time
 import numpy as np
 import zmq
 
+from engine.physics.compiled import CompiledScene
 from engine.physics.dtypes import physics_snapshot_dtype
 from processes.network.server.config import GatewayConfig
 from processes.network.server.gateway import STATS_EVERY_S, Gateway
@@ -50,7 +51,7 @@ def _read_net(block, out: np.ndarray) -> tuple[int, bool, np.ndarray] | None:
     return int(row["tick"]), bool(row["asleep"]), row["pos"]
 
 
-def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
+def gateway_worker(control: Control, arena: Arena, compiled: CompiledScene, options: RunOptions) -> None:
     """Serve the run's match to network clients until the match ends or the supervisor stops it.
 
     options: gateway (GatewayConfig), handles.lock_path, ticks (the run's tick limit),
@@ -72,6 +73,7 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
     acks = arena["remote_acks"].array
     points = arena["points"].array
     snapshots = arena["physics"]
+    scene = compiled.scene
     record = np.zeros(1, physics_snapshot_dtype(len(scene.bats)))
     post = np.zeros((), REMOTE_INPUT_DTYPE)
 
@@ -88,7 +90,7 @@ def gateway_worker(control: Control, arena: Arena, scene, options: RunOptions) -
         net_grid = (spec.cols, spec.rows, spec.width, spec.height)
         shown = arena[NET_SHOW]
         shown_net = np.zeros(1, shown.dtype)
-    gateway = Gateway(zctx, config, scene=scene, remote_slots=remote, post_input=post_input, seat_store=seat_store,
+    gateway = Gateway(zctx, config, scene=compiled, remote_slots=remote, post_input=post_input, seat_store=seat_store,
                       net_grid=net_grid)
     start_event = options.handles.start_event
     n_ticks = options.ticks

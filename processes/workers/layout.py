@@ -36,11 +36,9 @@ import numpy as np
 
 from engine.physics.dtypes import (CONTACT_DTYPE, POINT_DTYPE, ai_answer_dtype, net_show_dtype, net_snapshot_dtype,
                                    physics_snapshot_dtype)
-from engine.physics.scene import Scene
+from engine.physics.compiled import CompiledScene
 from engine.physics.world import NET_RUN_TICKS
 from engine.play.arm import CTL_SIZE
-from engine.play.match import control_period, decision_delay
-from net_kernel import build_topology
 from processes.network.server.seats import SEAT_DTYPE
 from processes.runtime.control import STATUS_DTYPE
 from processes.runtime.handoff import QUEUE_WORDS, TICK_SLOT_DTYPE, Baton, TurnQueue
@@ -155,12 +153,12 @@ REMOTE_ACK_RING = 1024  # ticks (1 s at 1 kHz): a reader this late gets None, ne
 RUN_LOCK_NAMES = ("remote_inputs",)
 
 
-def ai_ring_size(scene: Scene) -> int:
+def ai_ring_size(compiled: CompiledScene) -> int:
     """Slots of the AI's rings of views and answers: a turn's slot is taken again only after its
     plans took effect (the physics waits for that), and one turn a control tick is given, so the
     turns of one decision delay, the one being given and one whose slot a killed physics may have
     been writing fit.""" 
-    return decision_delay(scene) // control_period(scene) + 3
+    return compiled.decision_delay // compiled.control_period + 3
 
 
 def write_ack(ring: np.ndarray, tick: int, input_seq) -> None:
@@ -217,15 +215,16 @@ class RunLayout:
             shutil.rmtree(self._lock_dir, ignore_errors=True)
 
 
-def build_layout(scene: Scene, kinds: list[str], ticks: int, trace: bool, frame_every: int, ctx) -> RunLayout:
+def build_layout(compiled: CompiledScene, kinds: list[str], ticks: int, trace: bool, frame_every: int, ctx) -> RunLayout:
     """Create the run's blocks for the workers `kinds` (processes.workers.workers_for).
 
     Args:
-        scene: the scene. kinds: the run's workers. ticks: the run's length (sizes trace and frames).
+        compiled: the run's scene (engine.physics.compiled). kinds: the run's workers. ticks: the run's length (sizes trace and frames).
         trace: keep every tick's snapshot. frame_every: a replay frame every this many ticks, 0: none.
         ctx: the multiprocessing context the workers start from (batons and events belong to it).
     """
     arena = Arena()
+    scene = compiled.scene
     snapshot = physics_snapshot_dtype(len(scene.bats))
     layout = RunLayout(arena)
     try:
@@ -239,7 +238,7 @@ def build_layout(scene: Scene, kinds: list[str], ticks: int, trace: bool, frame_
             if frame_every:
                 arena.shared_array("frames", snapshot, ticks // frame_every + 1)
         if "net" in kinds:
-            n_knots = build_topology(scene.cloth).n_knots
+            n_knots = compiled.topology.n_knots
             for name in NET_BLOCKS:
                 arena.snapshot_block(name, net_snapshot_dtype(n_knots), 1)
             if "gateway" in kinds:
@@ -250,7 +249,7 @@ def build_layout(scene: Scene, kinds: list[str], ticks: int, trace: bool, frame_
             # The views and the answers are ordered by the queue's counts (a slot is written before
             # the count that covers it moves, and x86-64 keeps stores in order), so neither needs a
             # seqlock or a lock. Turn and tick -1: none yet.
-            ring = ai_ring_size(scene)
+            ring = ai_ring_size(compiled)
             arena.shared_array("ai_views", snapshot, ring)
             answers = arena.shared_array("ai_answers", ANSWER_DTYPE, ring).array
             answers["turn"], answers["tick"] = -1, -1

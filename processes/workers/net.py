@@ -32,8 +32,8 @@ import time
 import numpy as np
 
 from engine.physics.dtypes import net_show_dtype, net_snapshot_dtype
-from engine.physics.world import build_model
-from net_kernel import NetSim, build_topology
+from engine.physics.compiled import CompiledScene
+from net_kernel import NetSim
 from net_kernel.sim import compile_kernels
 from processes.network.wire import NET_HZ
 from processes.runtime.handoff import HandoffTimeout
@@ -169,15 +169,15 @@ def _finish(control: Control, sim: NetSim, net_tick: int, busy: float, steps: in
                                "tail_ticks": sim.tail_ticks})
 
 
-def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
+def net_worker(control: Control, arena: Arena, compiled: CompiledScene, options: RunOptions) -> None:
     """options: handles.net_baton (processes.runtime.handoff.Baton); faults (tests: end this process
     after publishing the state after the run that holds the crash tick and before saying it is
     done, the hardest moment, or after publishing a run of free ticks that holds it: a net in its
     linear tail, say; answer each run slow_turn_s later)."""
-    topo = build_topology(scene.cloth)
-    sim = NetSim(topo, scene.dt)
-    compile_kernels(topo, scene.dt)  # before "ready": nothing compiles mid-run
-    watch = build_model(scene).cloth_watch  # the box engine.physics.world steps the ball tick by tick in
+    topo = compiled.topology
+    sim = compiled.net_sim()
+    compile_kernels(topo, compiled.dt)  # before "ready": nothing compiles mid-run
+    watch = compiled.model.cloth_watch  # the box engine.physics.world steps the ball tick by tick in
     baton = options.handles.net_baton.attach(arena["net_baton"].array)
     faults = options.faults
     row = NetIO(arena["net_io"].array)
@@ -192,7 +192,7 @@ def net_worker(control: Control, arena: Arena, scene, options: RunOptions) -> No
         net_tick = 0
         held = _publish(sim, net_tick, state, blocks, 1)
     published = net_tick  # the tick of the newest published state
-    show = NetShow(arena[NET_SHOW], topo.n_knots, scene.dt) if NET_SHOW in arena.blocks else None
+    show = NetShow(arena[NET_SHOW], topo.n_knots, compiled.dt) if NET_SHOW in arena.blocks else None
     if show is not None:
         show.publish(sim, net_tick)  # before "ready": a gateway shows the net from its first session on
     served = row.served

@@ -9,7 +9,8 @@ import time
 import numpy as np
 
 from engine.physics.dtypes import physics_snapshot_dtype
-from engine.physics.world import State, build_model, copy_record, initial_state, new_events, step
+from engine.physics.compiled import CompiledScene
+from engine.physics.world import State, copy_record, new_events, step
 from engine.play.match import Match, point_from_row, point_row
 from processes.runtime.control import Control
 from processes.runtime.shm import Arena
@@ -72,7 +73,7 @@ class _Publisher:
             self.faults.crash(tick)
 
 
-def physics_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
+def physics_worker(control: Control, arena: Arena, compiled: CompiledScene, options: RunOptions) -> None:
     """Run the physics ticks: lockstep (as fast as possible) or realtime (paced by the wall clock).
 
     options: ticks (total to reach), mode ("lockstep" | "realtime"), trace (bool), faults (tests:
@@ -80,10 +81,10 @@ def physics_worker(control: Control, arena: Arena, scene, options: RunOptions) -
         match's every tick slow_turn_s longer), and for a match: seed, handles.ai_queue (when the
         scene has AI bats), handles.lock_path (when it has remote players).
     """
-    if scene.match is not None:
-        return _match_worker(control, arena, scene, options)
-    model = build_model(scene)
-    state = initial_state(scene)
+    if compiled.scene.match is not None:
+        return _match_worker(control, arena, compiled, options)
+    model = compiled.model
+    state = compiled.initial_state()
     events = new_events()
     snapshots = arena["physics"]
     # Compile (or load from the cache) before reporting ready: a zero-length tick is an identity.
@@ -188,11 +189,12 @@ def _await_players(control: Control, options: RunOptions, tick: int, timeout_s: 
     return time.monotonic() - start
 
 
-def _match_worker(control: Control, arena: Arena, scene, options: RunOptions) -> None:
+def _match_worker(control: Control, arena: Arena, compiled: CompiledScene, options: RunOptions) -> None:
+    scene = compiled.scene
     n_bats = len(scene.bats)
     has_ai = any(bat.skill is not None for bat in scene.bats)
     driver = AIDriver(control, arena, options, scene) if has_ai else None
-    match = Match(scene, options.seed, ai_driver=driver, on_bot_error=options.on_bot_error)
+    match = Match(compiled, options.seed, ai_driver=driver, on_bot_error=options.on_bot_error)
     snapshots = arena["physics"]
     points_log = arena["points"].array
     frames = arena["frames"].array if "frames" in arena.blocks else None

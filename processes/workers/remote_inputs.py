@@ -10,7 +10,7 @@ import numpy as np
 
 from engine.play.arm import brake_force
 from engine.play.match import Match
-from processes.network.wire import MAX_FORCE_N, MAX_TORQUE_NM, hold_ticks
+from processes.network.wire import MAX_FORCE_N, MAX_TORQUE_NM
 from processes.runtime.locks import LockTable
 from processes.runtime.mailbox import Mailbox
 from processes.runtime.shm import Arena
@@ -70,7 +70,7 @@ class RemoteInputs:
         self.match = match
         self.remote_bats = frozenset(i for i, bat in enumerate(match.scene.bats) if bat.remote)
         self.refused: Counter[str] = Counter()
-        self.hold_ticks = hold_ticks(options.gateway.input_hold_s, match.model.dt)
+        self.hold_ticks = match.compiled.ticks(options.gateway.input_hold_s)
         # the tick from which each bat's arm is idle; 0: from the start (a restarted physics has
         # lost its players' holds: it brakes until their next input)
         self.idle_from = np.zeros(len(match.scene.bats), np.int64)

@@ -171,7 +171,7 @@ class _SpreadThinking(LocalAI):
 
 def test_strokes_thought_out_in_steps_are_the_strokes_thought_out_at_once():
     eager = Match(SCENE, seed=6)
-    spread = Match(SCENE, seed=6, ai_driver=_SpreadThinking(make_ais(SCENE, eager.model, 6, eager=False), 1))
+    spread = Match(SCENE, seed=6, ai_driver=_SpreadThinking(make_ais(SCENE, 6, eager=False), 1))
     for _ in range(15_000):
         eager.tick()
         spread.tick()

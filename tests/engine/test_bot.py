@@ -6,11 +6,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from engine.physics.compiled import compile_scene
 from engine.play.bot import ACTION_FORCE, BotError, check_action, force, hold, load_bot, new_action
 from engine.physics.dtypes import BAT_DTYPE, BAT_STATE_DTYPE, OBSERVATION_DTYPE
 from engine.physics.scene import SceneError, load_scene
 from engine.play.ai.profile_bot import ProfileBot
-from engine.play.match import Match, control_period, match_record, match_scene
+from engine.play.match import Match, match_record, match_scene
 from engine.play.rules import Reason
 from tests import bots
 
@@ -37,7 +38,7 @@ def test_the_engines_ai_plays_through_the_bot_api():
 def test_a_bot_decides_at_every_control_tick_and_sees_a_copy_of_the_state():
     match = _match(bots.spec("Spy"))
     match.play(max_ticks=2000)
-    every = control_period(match.scene)
+    every = match.compiled.control_period
     seen = match.ais[0].bot.seen
     assert len(seen) == 2000 // every  # decisions at ticks 0, every, ... (the last one's force unplayed)
     last = seen[-1]
@@ -71,7 +72,7 @@ def test_a_raw_force_moves_only_the_bots_own_bat():
 def test_a_failing_bot_gives_the_point_away_and_the_match_goes_on(name, fault):
     match = _match(bots.spec(name))
     result = match.play(max_ticks=6000)
-    every = control_period(match.scene)
+    every = match.compiled.control_period
     first = match.bot_errors[0]
     assert first["fault"] == fault and first["player"] == "a" and first["bot"] == bots.spec(name)
     assert first["tick"] == (bots.FAIL_AT - 1) * every  # the tick of the state it decided from
@@ -107,7 +108,7 @@ def test_a_decision_that_never_returns_is_interrupted_and_the_outer_alarm_kept()
 def test_a_failing_bot_stops_the_match_when_told_to():
     match = _match(bots.spec("Raises"), on_bot_error="stop")
     result = match.play(max_ticks=6000)
-    every = control_period(match.scene)
+    every = match.compiled.control_period
     assert match.stopped is not None and len(match.bot_errors) == 1
     assert result.ticks == (bots.FAIL_AT - 1) * every + match.delay  # stopped when the failed decision took effect
     assert "RuntimeError: no idea what to do" in result.stopped
@@ -116,7 +117,7 @@ def test_a_failing_bot_stops_the_match_when_told_to():
 def test_the_failed_decisions_are_in_the_match_record():
     record = match_record(BASE, 3, bots.spec("Oversized"), "novice", best_of=1, max_ticks=3000, budget_s=BUDGET_S)
     assert record["bot_errors"][0] == {"player": "a", "bot": bots.spec("Oversized"),
-                                       "tick": (bots.FAIL_AT - 1) * control_period(BASE), "fault": "oversized"}
+                                       "tick": (bots.FAIL_AT - 1) * compile_scene(BASE).control_period, "fault": "oversized"}
     assert record["reasons"]["a"].get("bot_error", 0) >= 1 and not record["stopped"]
 
 

@@ -3,9 +3,9 @@ from dataclasses import replace
 
 import pytest
 
+from engine.physics.compiled import compile_scene
 from engine.physics.scene import (SCENES_DIR, SceneError, load_scene, scene_digest, scene_from_toml, scene_toml,
                                   with_overrides, with_remote_players, with_skills)
-from engine.play.match import decision_delay
 from net_kernel.topology import AIR_DAMPING_PHYSICAL
 
 
@@ -88,9 +88,9 @@ def test_the_decision_latency_is_checked_and_counts_in_whole_control_periods():
         load_scene("match_rigid", {"match.decision_latency": 0.5})
     with pytest.raises(SceneError, match="match.decision_latency: must be a number"):
         load_scene("match_rigid", {"match.decision_latency": "soon"})
-    assert decision_delay(load_scene("match_rigid")) == 50  # 0.05 s at dt 1 ms: five control periods of 10 ticks
-    assert decision_delay(load_scene("match_rigid", {"match.decision_latency": 0.0})) == 10  # at least one period
-    assert decision_delay(load_scene("match_rigid", {"match.decision_latency": 0.1, "match.ai_hz": 50})) == 100
+    assert compile_scene(load_scene("match_rigid")).decision_delay == 50  # 0.05 s at dt 1 ms: five control periods of 10 ticks
+    assert compile_scene(load_scene("match_rigid", {"match.decision_latency": 0.0})).decision_delay == 10  # at least one period
+    assert compile_scene(load_scene("match_rigid", {"match.decision_latency": 0.1, "match.ai_hz": 50})).decision_delay == 100
 
 
 SERVED_AND_PLAYED = [  # scenes as a run makes them from files: served to remote players, played by bots

@@ -10,9 +10,8 @@ import numpy as np
 from engine.play.bot import BotError
 from engine.physics.dtypes import BAT_DTYPE, RALLY_DTYPE
 from engine.physics.scene import Scene
-from engine.physics.world import build_model
+from engine.physics.compiled import compile_scene
 from engine.play.arm import control_bats
-from engine.play.match import control_period, decision_delay
 from engine.play.players import DEFAULT_BUDGET_S, make_players
 from engine.play.rules import Phase
 from processes.network import wire
@@ -43,10 +42,11 @@ class BotBrain:
         me = slot.bat
         bats = tuple(replace(bat, skill=player if i == me else None, remote=False) for i, bat in enumerate(scene.bats))
         self.scene = replace(scene, bats=bats, effects=scene.effects | {"ai"})
-        self.model = build_model(self.scene)
+        compiled = compile_scene(self.scene)
+        self.model = compiled.model
         self.player, self.spec = me, player
-        self.period = control_period(self.scene)
-        self.delay = decision_delay(self.scene)
+        self.period = compiled.control_period
+        self.delay = compiled.decision_delay
         self.players = make_players(self.scene, self.model, seed, self.period, self.delay, budget_s=budget_s)
         for thinker in self.players.thinkers:
             thinker.warm_up()

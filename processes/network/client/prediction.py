@@ -26,9 +26,10 @@ from collections import deque
 
 import numpy as np
 
-from engine.physics.world import SimulationError, build_model, initial_state, new_events, step
+from engine.physics.compiled import compile_scene
+from engine.physics.world import SimulationError, new_events, step
 from engine.play.arm import brake_force
-from processes.network.wire import INPUT_HOLD_S, Slot, hold_ticks
+from processes.network.wire import INPUT_HOLD_S, Slot
 
 MAX_AHEAD_TICKS = 500  # a prediction runs at most this far past the last snapshot (0.5 s at 1 kHz)
 CLOCK_WINDOW = 16  # snapshots over which the least-delayed one sets the server's clock (short: a
@@ -117,7 +118,8 @@ class Predictor:
     """The player's prediction of the ball and its own bat, reconciled on every snapshot.
 
     Args:
-        scene: the served scene (engine.physics.scene.Scene): the same physics as the server.
+        scene: the served scene (engine.physics.scene.Scene, or compiled:
+            engine.physics.compiled.CompiledScene): the same physics as the server.
         slot: our seat (Slot.A or Slot.B); its bat is the one our inputs drive.
         history: ticks of predictions kept to compare with the snapshots that arrive later.
     """
@@ -125,8 +127,9 @@ class Predictor:
     def __init__(self, scene, slot: Slot, history: int = 2048, input_hold_s: float | None = None):
         if slot not in (Slot.A, Slot.B):
             raise ValueError(f"a predictor drives a player's bat: slot must be A or B, got {slot!r}")
-        self.model = build_model(scene)
-        self.state = initial_state(scene)
+        compiled = compile_scene(scene)
+        self.model = compiled.model
+        self.state = compiled.initial_state()
         self.events = new_events()
         self.player = slot.bat
         self.dt = self.model.dt
@@ -135,7 +138,7 @@ class Predictor:
         self._held = np.zeros(6)  # our input in effect at the base snapshot (the acknowledged one)
         self._held_from = 0  # the tick it was stamped with
         self._input_from = 0  # the stamp of the input in effect while predicting
-        self.hold_ticks = hold_ticks(INPUT_HOLD_S if input_hold_s is None else input_hold_s, self.model.dt)
+        self.hold_ticks = compiled.ticks(INPUT_HOLD_S if input_hold_s is None else input_hold_s)
         self._bat_mass = float(self.model.bat_mass[slot.bat])
         self._brake = np.zeros(6)
         self._next_input = 0  # index into _sent of the next input to take effect while predicting

@@ -70,6 +70,7 @@ from collections import Counter
 import numpy as np
 import zmq
 
+from engine.physics.compiled import CompiledScene, compile_scene
 from engine.physics.scene import Scene
 from processes.network import wire
 from processes.network.server.config import ROUTER_RCVHWM, GatewayConfig
@@ -109,8 +110,9 @@ class Gateway:
 
     Args:
         zctx: a zmq.Context. config: GatewayConfig.
-        scene: the served engine.physics.scene.Scene: its name, best_of, dt and digest go in every
-            welcome, its TOML text (engine.physics.scene.scene_toml) to a session that asks for it.
+        scene: the served engine.physics.scene.Scene, or the run's CompiledScene
+            (engine.physics.compiled): its name, best_of, dt and digest go in every welcome, its
+            TOML text (engine.physics.scene.scene_toml) to a session that asks for it.
         remote_slots: the seats remote players may take (Slot.A and/or Slot.B).
         post_input(bat, seq, tick, inputs6) -> bool: hand an accepted input to the physics
             (False: it could not be queued; counted).
@@ -121,11 +123,11 @@ class Gateway:
         net_grid: (cols, rows, width m, height m) of a cloth net (service_net); None: no net messages.
     """
 
-    def __init__(self, zctx, config: GatewayConfig, *, scene: Scene, remote_slots, post_input,
+    def __init__(self, zctx, config: GatewayConfig, *, scene: Scene | CompiledScene, remote_slots, post_input,
                  clock=time.monotonic, seat_store: SeatStore | None = None, net_grid=None):
         self.config = config
-        self.served = ServedScene(scene)
-        self.dt = scene.dt
+        self.served = ServedScene(compile_scene(scene))
+        self.dt = self.served.dt
         self.post_input = post_input
         self.clock = clock
         self.seats = {slot: Seat(slot, slot in set(remote_slots)) for slot in (Slot.A, Slot.B)}

@@ -65,7 +65,7 @@ from processes.network.wire.messages import (DEFAULT_GRACE_S, DEFAULT_HEARTBEAT_
                                              MAX_SPEED_MS, MAX_SPIN_RADS, MAX_TORQUE_NM, NAME_SIZE, NET_CHUNK_KNOTS,
                                              NET_HZ, NET_MAX_OFFSET, NET_MAX_SIDE, NET_STEP_M, NO_TOKEN, Net,
                                              PROTOCOL_VERSION, Reject, RejectReason, Role, SERVER_SILENCE_BEATS,
-                                             SIZES, SPECS, Slot, Snapshot, TOKEN_SIZE, Welcome, hold_ticks)
+                                             SIZES, SPECS, Slot, Snapshot, TOKEN_SIZE, Welcome)
 
 
 __all__ = [
@@ -79,6 +79,6 @@ __all__ = [
     "NET_STEP_M", "NO_TOKEN", "Net", "NonFinite", "OutOfRange", "PROTOCOL_VERSION", "QUAT_TOL", "REASON_CODES",
     "Reject", "RejectReason", "Role", "SCENE_CHUNK", "SERVER_SILENCE_BEATS", "SIZES", "SPECS", "SceneAssembly",
     "ScenePart", "SceneRequest", "Slot", "Snapshot", "TOKEN_SIZE", "TooLong", "TooShort", "UnknownType",
-    "WIRE_ERRORS", "Welcome", "WireError", "decode", "encode", "hold_ticks", "net_knots", "net_messages",
+    "WIRE_ERRORS", "Welcome", "WireError", "decode", "encode", "net_knots", "net_messages",
     "net_rest", "own_force_inputs", "scene_parts", "snapshot_from_physics"
 ]

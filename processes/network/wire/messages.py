@@ -44,15 +44,11 @@ MAX_BAD = 64  # bad messages one session may send before it is kicked
 NET_HZ = 60  # net messages per second at most, while the net is awake: the page's frame rate
 # A remote arm's input holds at most this long: a client that stalls (or whose snapshots stop)
 # must not leave its bat pushed by a constant force (120 N on a 0.17 kg bat is 70 m/s in 0.1 s).
-# The physics counts it in match time from the tick it applied the input, then brakes the bat;
-# a client's prediction lets go of its input as the physics does.
+# The physics counts it in match time from the tick it applied the input
+# (engine.physics.compiled.CompiledScene.ticks: at least that one tick), then brakes the bat; a
+# client's prediction lets go of its input as the physics does.
 INPUT_HOLD_S = 0.1  # s of match time, an input is let go of this long after the physics applied it
 
-
-def hold_ticks(hold_s: float, dt: float) -> int:
-    """Ticks of dt s an input holds for hold_s s of match time: at least one (the tick it is applied
-    for); the physics lets go after them and a client's prediction does the same."""
-    return max(1, round(hold_s / dt))
 
 # The gateway's settings that a client sees, at their defaults (server.gateway.GatewayConfig
 # takes them from here; docs/protocol.md publishes them).

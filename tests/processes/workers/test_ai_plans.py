@@ -23,7 +23,7 @@ class _Follow:
 
     def __init__(self, scene, seed: int, think_steps: int):
         match = Match(scene, seed)  # only for its model: the AIs must be built as the reference's
-        self.ais = make_ais(scene, match.model, seed, eager=False)
+        self.ais = make_ais(scene, seed, eager=False)
         self.answerer = Answerer(self.ais, len(scene.bats))
         self.view = np.zeros(1, physics_snapshot_dtype(len(scene.bats)))
         self.think_steps = think_steps

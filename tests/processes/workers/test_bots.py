@@ -5,9 +5,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from engine.physics.compiled import compile_scene
 from engine.physics.dtypes import physics_snapshot_dtype
 from engine.physics.scene import load_scene
-from engine.play.match import Match, control_period, decision_delay, match_scene
+from engine.play.match import Match, match_scene
 from processes.supervisor import Supervisor, WorkerRefused, first_difference
 from tests.helpers.commands import pingpong
 from tests.waits import DEADLINE_S
@@ -46,7 +47,7 @@ def test_the_example_bots_play_in_processes_as_in_process(no_leftovers):
     assert len(match.referee.points) > 0 and match.bot_errors == []
     assert result.workers["physics"]["bot_errors"] == []
     # a bot decides at every control tick: every one is a turn of the AI worker
-    assert result.workers["physics"]["ai_turns"] == TICKS // control_period(scene)
+    assert result.workers["physics"]["ai_turns"] == TICKS // compile_scene(scene).control_period
 
 
 def test_a_raising_bot_in_the_worker_is_recorded_as_in_process(no_leftovers):
@@ -67,7 +68,7 @@ def test_a_bot_that_never_returns_is_interrupted_and_the_match_goes_on(no_leftov
     _same_run(result, trace)
     assert result.workers["physics"]["bot_errors"] == match.bot_errors
     errors = result.workers["physics"]["bot_errors"]
-    every = control_period(scene)
+    every = compile_scene(scene).control_period
     assert errors[0]["fault"] == "overran" and errors[0]["tick"] == (bots.FAIL_AT - 1) * every
     assert "interrupted" in errors[0]["detail"]
     assert result.ticks == 3000 or int(result.final["rally"]["winner"]) == 1  # it played on
@@ -78,8 +79,8 @@ def test_a_bot_that_never_returns_is_interrupted_and_the_match_goes_on(no_leftov
 def test_a_bot_stops_a_match_in_processes_when_told_to(no_leftovers):
     scene = match_scene(BASE, bots.spec("NotANumber"), "pro", best_of=1)
     result = Supervisor(scene, TICKS, "lockstep", seed=1, on_bot_error="stop", bot_budget_s=BUDGET_S).run()
-    every = control_period(scene)
-    assert result.ticks == (bots.FAIL_AT - 1) * every + decision_delay(scene)  # when the failed decision took effect
+    every = compile_scene(scene).control_period
+    assert result.ticks == (bots.FAIL_AT - 1) * every + compile_scene(scene).decision_delay  # when the failed decision took effect
     assert result.workers["physics"]["stopped"].startswith(f"bot {bots.spec('NotANumber')} (player A) at tick")
 
 

@@ -3,16 +3,17 @@ client, through the match's own seat: what it is shown, when it decides, how its
 import numpy as np
 import pytest
 
+from engine.physics.compiled import compile_scene
 from engine.physics.scene import load_scene, with_remote_players
 from engine.physics.world import initial_state
 from engine.play.arm import ARM_BRAKE, CTL_KIND
-from engine.play.match import control_period, decision_delay
 from processes.network import wire
 from processes.network.client.brain import BotBrain
 from processes.network.wire import Slot
 from tests import bots
 
 SCENE = with_remote_players(load_scene("match_rigid"), 2)
+COMPILED = compile_scene(SCENE)
 
 
 def _snapshot(tick: int, rally: int = 3):
@@ -25,7 +26,7 @@ def _snapshot(tick: int, rally: int = 3):
 
 def test_a_bot_decides_once_a_control_period_on_what_the_snapshot_shows():
     brain = BotBrain(SCENE, Slot.B, bots.spec("Spy"))
-    period = control_period(SCENE)
+    period = COMPILED.control_period
     for tick in range(0, 3 * period):
         forces = brain.control(_snapshot(tick), SCENE.dt)
         assert forces.shape == (6,) and np.isfinite(forces).all()
@@ -39,13 +40,13 @@ def test_a_bot_decides_once_a_control_period_on_what_the_snapshot_shows():
 
 def test_a_bots_fault_is_named_as_in_a_match_and_its_arm_brakes():
     brain = BotBrain(SCENE, Slot.A, bots.spec("Raises"))
-    period, failed_at = control_period(SCENE), (bots.FAIL_AT - 1) * control_period(SCENE)
-    for tick in range(0, failed_at + decision_delay(SCENE) + 1):  # until the faulted plan is in effect
+    period, failed_at = COMPILED.control_period, (bots.FAIL_AT - 1) * COMPILED.control_period
+    for tick in range(0, failed_at + COMPILED.decision_delay + 1):  # until the faulted plan is in effect
         brain.control(_snapshot(tick), SCENE.dt)
     first = brain.errors[0]
     assert (first.player, first.tick, first.fault) == (0, failed_at, "raised")
     assert "no idea what to do" in first.detail
-    faults = decision_delay(SCENE) // period + 1  # every decision from the first failing one on
+    faults = COMPILED.decision_delay // period + 1  # every decision from the first failing one on
     assert len(brain.errors) == brain.stats["errors"] == brain.stats["faults"] == faults
     assert brain.arm[0, CTL_KIND] == ARM_BRAKE  # the idle arm's brake, as in a match
 
