@@ -29,17 +29,17 @@ def _scene_of(name: str, args: argparse.Namespace):
     return scene, ticks
 
 
-def _in_worker_processes(scene, ticks: int, seed: int) -> dict:
-    """One headless lockstep match in worker processes: its summary, startup, workers' reports,
-    the shares of its wall time in which none, one and two or more workers worked
-    (processes.runtime.timeline.busy_share) and the workers' timelines."""
+def _in_worker_processes(scene, ticks: int, seed: int, speculate: bool = False) -> dict:
+    """One headless lockstep match in worker processes (speculating: RunOptions.speculate): its
+    summary, startup, workers' reports, the shares of its wall time in which none, one and two or
+    more workers worked (processes.runtime.timeline.busy_share) and the workers' timelines."""
     with tempfile.TemporaryDirectory(prefix="pingpong-timeline-") as directory:
-        result = Supervisor(scene, ticks, "lockstep", seed=seed, timeline_dir=directory).run()
+        result = Supervisor(scene, ticks, "lockstep", seed=seed, timeline_dir=directory, speculate=speculate).run()
         marks = timelines.load(directory)
     multi = result.match_summary(seed)
     start = float(marks["physics"]["t"][0])
     end = max(float(m["t"][-1]) for m in marks.values())
-    return {"summary": multi, "startup_seconds": result.startup_seconds, "workers": result.workers,
+    return {"summary": multi, "startup_seconds": result.startup_seconds, "workers": result.workers, "speculate": speculate,
             "working": timelines.busy_share(marks, start, end), "timeline": marks}
 
 
@@ -79,7 +79,7 @@ def _bench_scene(scene, args: argparse.Namespace, rounds: list[dict], references
         "processes": {"wall_seconds": multi["wall_seconds"], "realtime_factor": multi["realtime_factor"],
                       "realtime_factors": factors,
                       "startup_seconds": median["startup_seconds"], "workers": median["workers"],
-                      "working": median["working"],
+                      "working": median["working"], "speculate": median["speculate"],
                       "us_per_tick": 1e6 * multi["wall_seconds"] / max(multi["ticks"], 1)},
         "over_in_process": {"median": statistics.median(ratios), "rounds": ratios},
         "in_process": {"wall_seconds": reference["wall_seconds"], "realtime_factor": reference["realtime_factor"],
@@ -118,6 +118,10 @@ def _arguments(parser: argparse.ArgumentParser) -> None:
                         help="draw the first scene's median round as a timeline: per worker, when it works, waits (for "
                              "whom) and idles, over --timeline-seconds of wall time where the physics waited most")
     parser.add_argument("--timeline-seconds", type=float, default=1.5, help="the timeline's span of wall time, s")
+    parser.add_argument("--speculate", action="store_true",
+                        help="the worker processes of the scenes with a cloth net speculate: the physics steps on past "
+                             "its runs near the net before the net has answered them and goes back where the net "
+                             "touched the ball (a trial: no worker restarts)")
 
 
 def _run(args: argparse.Namespace, progress=None) -> dict:
@@ -142,7 +146,8 @@ def _run(args: argparse.Namespace, progress=None) -> dict:
         for k, (scene, ticks) in enumerate(scenes):
             if progress is not None:
                 progress(f"{scene.name}: in worker processes, then in-process (round {r + 1} of {args.repeat})")
-            rounds[k].append(_in_worker_processes(scene, ticks, args.seed))
+            speculate = args.speculate and scene.cloth is not None
+            rounds[k].append(_in_worker_processes(scene, ticks, args.seed, speculate))
             references[k].append(_in_process(scene, ticks, args.seed))
     reports = [_bench_scene(scene, args, scene_rounds, scene_references)
                for (scene, _), scene_rounds, scene_references in zip(scenes, rounds, references)]
@@ -184,7 +189,8 @@ def _print_bench(report: dict, first: dict) -> None:
         beside += f", rounds {', '.join(f'{x:.2f}' for x in ratio['processes_rounds'])}"
     beside += ")" if ratio else ""
     median = f", the median of {len(rounds)} rounds ({', '.join(f'{x:.1f}' for x in rounds)})" if len(rounds) > 1 else ""
-    print(f"  worker processes (lockstep): {p['wall_seconds']:.2f} s wall, {p['realtime_factor']:.1f}x realtime{beside}, "
+    mode = "lockstep, speculating" if p.get("speculate") else "lockstep"
+    print(f"  worker processes ({mode}): {p['wall_seconds']:.2f} s wall, {p['realtime_factor']:.1f}x realtime{beside}, "
           f"{p['us_per_tick']:.1f} us/tick, startup {p['startup_seconds']:.2f} s{median}")
     for kind, info in p["workers"].items():
         awake = info.get("awake_ticks")
@@ -193,6 +199,8 @@ def _print_bench(report: dict, first: dict) -> None:
             awake_text += f", {info['tail_ticks']} in its linear tail"
         if info.get("net_runs"):
             awake_text += f", {info['net_ball_ticks']} ticks near the net in {info['net_runs']} hand-offs"
+        if "net_rollbacks" in info:
+            awake_text += f", speculating: {info['net_rollbacks']} go-backs, {info['net_ticks_again']} ticks stepped again"
         split = [f"{who} {info[key]:.2f} s" for who, key in (("net", "handoff_net_s"), ("AI", "handoff_ai_s")) if key in info]
         split_text = f" ({', '.join(split)})" if len(split) == 2 else ""
         print(f"    {kind:<8} own work {info['busy_s']:.2f} s, hand-offs {info['handoff_s']:.2f} s{split_text}{awake_text}")

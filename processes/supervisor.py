@@ -33,8 +33,8 @@ from processes.runtime.control import READY_TIMEOUT_S, STARTUP_LIMIT_S, WorkerSt
 from processes.runtime.faults import FaultPlan
 from processes.runtime.shm import Arena
 from processes.runtime.stops import StopSignals
-from processes.workers import (PLAYERS_TIMEOUT_S, RunHandles, RunLayout, RunOptions, build_layout, worker_modules,
-                               worker_target, workers_for)
+from processes.workers import (PLAYERS_TIMEOUT_S, RunHandles, RunLayout, RunOptions, build_layout,
+                               speculation_refusal, worker_modules, worker_target, workers_for)
 from processes.workers.layout import EVENT_LOG_CAPACITY
 
 STOP_TIMEOUT_S = 5.0
@@ -123,6 +123,9 @@ class Supervisor:
             turn (the AI, the net) or steps each match tick (the physics) this much later.
         on_bot_error, bot_budget_s: engine.play.match.Match's on_bot_error and budget_s.
         timeline_dir: each worker writes its timeline there (RunOptions.timeline_dir).
+        speculate: the physics steps on past the net's runs before their answers
+            (RunOptions.speculate): a trial, for a lockstep match with a cloth net and AI
+            profiles, without traces, frames, faults or restarts (ValueError otherwise).
     """
 
     def __init__(self, scene: Scene, ticks: int, mode: str = "lockstep", trace: bool = False,
@@ -130,7 +133,8 @@ class Supervisor:
                  crash_worker: str = "physics", gateway=None, players_timeout: float = PLAYERS_TIMEOUT_S,
                  handoff_s: float = RunOptions.handoff_s, slow_turn_s: float = 0.0, crash_kind: str = "kill",
                  restart_budget: int = RESTART_BUDGET, on_bot_error: str = "point",
-                 bot_budget_s: float | None = DEFAULT_BUDGET_S, timeline_dir: str | None = None):
+                 bot_budget_s: float | None = DEFAULT_BUDGET_S, timeline_dir: str | None = None,
+                 speculate: bool = False):
         self.scene = scene
         self.compiled = compile_scene(scene)  # once: every worker is handed it
         self.ticks = ticks
@@ -144,7 +148,14 @@ class Supervisor:
             gateway = GatewayConfig()
         self.options = RunOptions(ticks=ticks, mode=mode, trace=trace, seed=seed, frame_every=frame_every,
                                   players_timeout=players_timeout, gateway=gateway, handoff_s=handoff_s,
-                                  on_bot_error=on_bot_error, bot_budget_s=bot_budget_s, timeline_dir=timeline_dir)
+                                  on_bot_error=on_bot_error, bot_budget_s=bot_budget_s, timeline_dir=timeline_dir,
+                                  speculate=speculate)
+        if speculate:
+            refusal = speculation_refusal(scene, self.kinds, mode, trace, frame_every,
+                                          crash_at_tick is not None or slow_turn_s > 0)
+            if refusal is not None:
+                raise ValueError(f"speculate: {refusal}")
+            restart_budget = 0  # a trial: a worker's death ends the run
         FaultPlan(kind=crash_kind)  # a bad kind is refused here, before anything starts
         self.crash_kind = crash_kind
         if restart_budget < 0:
@@ -164,7 +175,7 @@ class Supervisor:
         parent, child = self._ctx.Pipe()
         layout = self.layout
         handles = RunHandles(ai_queue=layout.ai_queue, net_baton=layout.net_baton, lock_path=layout.lock_path,
-                             start_event=layout.start_event)
+                             start_event=layout.start_event, net_queue=layout.net_queue)
         faults = None  # the worker's, only where a test or `pingpong stress` asked for one
         if worker.kind == self.crash_worker and (self.crash_at_tick is not None or self.slow_turn_s):
             faults = FaultPlan(self.crash_at_tick if worker.restarts == 0 else None, self.crash_kind, self.slow_turn_s)
@@ -289,7 +300,8 @@ class Supervisor:
         started = time.monotonic()
         end = "shutdown"  # what the workers are told as they stop (the gateway's goodbye)
         try:
-            self.layout = build_layout(self.compiled, self.kinds, self.ticks, self.trace, self.frame_every, self._ctx)
+            self.layout = build_layout(self.compiled, self.kinds, self.ticks, self.trace, self.frame_every, self._ctx,
+                                       self.options.speculate)
             self.arena = self.layout.arena
             stops.arm()  # a stop signal that came while the segments were being made raises here
             self._workers = [_Worker(kind, i) for i, kind in enumerate(self.kinds)]
@@ -344,13 +356,16 @@ class Supervisor:
                 # player decided, and those whose answer it waited for; its cloth net ticks: handed to
                 # the net worker with the ball (waited for), and without it (not waited for), and
                 # the ball ticks given again because the net's answer took longer than handoff_s;
-                # its hand-offs' wall time split into the waits for the net and for the AI
+                # its hand-offs' wall time split into the waits for the net and for the AI; a
+                # speculating run's go-backs and the ticks they stepped again
                 **({k: w.report[k] for k in ("ai_turns", "ai_decisions", "ai_waited_turns", "net_ball_ticks", "net_runs", "net_free_ticks",
-                                             "net_turns_again", "handoff_net_s", "handoff_ai_s", "bot_errors", "stopped")
+                                             "net_turns_again", "handoff_net_s", "handoff_ai_s", "bot_errors", "stopped",
+                                             "net_rollbacks", "net_ticks_again")
                     if k in w.report} if w.kind == "physics" else {}),
-                # the AI worker's thinking between its turns, and the strokes it had to finish late
+                # the AI worker's thinking between its turns, and the strokes it had to finish late;
+                # a speculating run's decisions taken back
                 **({k: w.report[k] for k in ("think_s", "late_thoughts", "late_thinking_s", "turns", "decisions", "longest_turn_s",
-                                             "bot_faults") if k in w.report} if w.kind == "ai" else {}),
+                                             "bot_faults", "taken_back") if k in w.report} if w.kind == "ai" else {}),
                 # the cloth net's ticks stepped awake (its cost: a sleeping net's ticks cost nothing)
                 # and held in its linear tail (a count each)
                 **({k: w.report[k] for k in ("awake_ticks", "tail_ticks") if k in w.report} if w.kind == "net" else {}),

@@ -104,15 +104,16 @@ def make_ais(scene: Scene | CompiledScene, seed: int, eager: bool = True, budget
                         budget_s=budget_s, interrupt=interrupt)
 
 
-def ai_decide(players: Players, tick: int, now: float, ball_flat: np.ndarray, bats: np.ndarray, rally) -> list:
+def ai_decide(players: Players, tick: int, now: float, ball_flat: np.ndarray, bats: np.ndarray, rally,
+              before=None) -> list:
     """Every player's decision from one state, into its plan (players.ctl): the one function both
     the in-process match and the AI worker call, so lockstep runs decide bit for bit the same.
 
     ball_flat: (9,) the ball; bats: the (n_bats,) BAT_DTYPE array; rally: the state's
-    RALLY_DTYPE record. Returns the decisions' faults [(player, fault, detail)] (engine.play.bot.FAULTS
-    names).
+    RALLY_DTYPE record; before: Players.decide's. Returns the decisions' faults [(player, fault,
+    detail)] (engine.play.bot.FAULTS names).
     """
-    return players.decide(tick, now, ball_flat, bats, rally)
+    return players.decide(tick, now, ball_flat, bats, rally, before)
 
 
 def idle_arms(model, ai_bats: list[int]) -> np.ndarray:
@@ -285,6 +286,24 @@ class Match:
         The plans in effect and the decisions in flight are not in the record: they belong to the
         driver, whose resume(match, tick) takes them up again (the AI worker keeps its answers).
         """
+        self._restore_record(record, points)
+        self.ai_driver.resume(self, int(self.state.world[0]["tick"]))
+
+    def checkpoint(self) -> tuple:
+        """What rollback() takes the match back to: the state now (one record's copy), the count
+        of points decided and the plans in effect. The driver's decisions in flight are its own."""
+        return self.state.record.view(np.uint8).copy(), len(self.referee.points), self.arm.copy()
+
+    def rollback(self, checkpoint: tuple) -> None:
+        """Back to a checkpoint(), bit for bit: a speculating physics worker whose guess went
+        wrong (processes.workers.speculation) steps again from there."""
+        record, points, arm = checkpoint
+        self.state.record.view(np.uint8)[:] = record  # every byte as it was, the rally's too
+        self._restore_record(self.state.record[0], self.referee.points[:points])
+        self.arm[:] = arm
+
+    def _restore_record(self, record, points: list[PointRecord]) -> None:
+        """The state, the held forces and the referee from a record and the point log."""
         self.state.ball[0] = record["ball"]
         self.state.bats[:] = record["bats"]
         self.state.world[0] = record["world"]
@@ -297,7 +316,6 @@ class Match:
         self.rally = int(rally["rally"])
         self.rally_started = float(rally["rally_started"])
         self._sync_rally()
-        self.ai_driver.resume(self, int(self.state.world[0]["tick"]))
 
     def tick(self, max_ticks: int = 1) -> PointRecord | None:
         """Advance up to max_ticks ticks, stopping where the match must act; returns a point

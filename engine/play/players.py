@@ -282,12 +282,14 @@ class Players(dict):
             self._bats = bats
         return self._floats
 
-    def decide(self, tick: int, now: float, ball_flat: np.ndarray, bats: np.ndarray, rally) -> list:
+    def decide(self, tick: int, now: float, ball_flat: np.ndarray, bats: np.ndarray, rally, before=None) -> list:
         """The decisions of every seat that may decide differently now: their plans (rows of ctl).
 
         Args:
             tick, now: the state's tick and time (s). ball_flat: (9,) the ball. bats: the
                 (n_bats,) BAT_DTYPE array. rally: its RALLY_DTYPE record.
+            before: called once before the first seat decides, if one does (a speculating AI
+                worker keeps its way back there: processes.workers.ai.TakeBacks).
 
         Returns:
             The faults of this control tick: [(player, fault, detail)], engine.play.bot.FAULTS names.
@@ -298,6 +300,8 @@ class Players(dict):
         decided = False
         for seat in self.values():
             if seat.needs_decision(key, now):
+                if not decided and before is not None:
+                    before()
                 decided = True
                 fault = seat.decide(tick, now, ball_flat, floats, rally, key)
                 if fault is not None:

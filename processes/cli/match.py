@@ -122,7 +122,8 @@ def match_command(args: argparse.Namespace) -> int:
 
             board = _Scoreboard(scene) if not args.json and sys.stdout.isatty() else None
             supervisor = Supervisor(scene, ticks, args.mode, seed=args.seed, frame_every=frame_every,
-                                    on_bot_error=args.on_bot_error, bot_budget_s=bot_budget_s(args))
+                                    on_bot_error=args.on_bot_error, bot_budget_s=bot_budget_s(args),
+                                    speculate=args.speculate)
             if board is not None:
                 with board.live:
                     result = supervisor.run(progress=board.update)
@@ -245,6 +246,10 @@ def add_commands(sub) -> None:
     match.add_argument("--ticks", type=int, default=None, help="stop after this many ticks even if undecided")
     match.add_argument("--replay", default=None, help="write a replay file here")
     match.add_argument("--in-process", action="store_true", help="run the in-process reference instead of workers")
+    match.add_argument("--speculate", action="store_true",
+                       help="a trial: the physics steps on past the ball's runs near the cloth net before the net "
+                            "worker has answered them, and goes back where the net touched the ball (lockstep, no "
+                            "replay, AI profiles only; no worker restarts)")
     add_players(match)
     add_common(match)
     match.set_defaults(func=match_command)

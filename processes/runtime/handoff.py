@@ -262,6 +262,23 @@ class TurnQueue:
                     raise HandoffTimeout(f"{self.name}: turn {turn} was not answered within {give_up} s "
                                          f"(answered {words[1]} of {words[0]})")
 
+    def nudge(self) -> None:
+        """Wake the worker without a turn, if it sleeps: it rereads the shared state beside the
+        queue it works from (a speculating net's grants, processes.workers.net)."""
+        words = self._words
+        if words[3]:
+            words[3] = 0
+            self._posted.release()
+
+    def rewind(self, turns: int) -> None:
+        """Take back the turns posted after turn `turns`: the next post is turn `turns` + 1 again.
+        Only for a worker that will not take a turn past `turns` until the hub tells it otherwise
+        (a speculating net halted at a touch, processes.workers.net)."""
+        if not self._words[1] <= turns <= self._words[0]:
+            raise ValueError(f"{self.name}: cannot rewind to turn {turns} (answered {self._words[1]}, "
+                             f"posted {self._words[0]})")
+        self._words[0] = turns
+
     def stop(self) -> None:
         self._words[2] = STOP
         self._posted.release()
@@ -271,6 +288,24 @@ class TurnQueue:
     def stopped(self) -> bool:
         """Told to stop (also seen by a worker restarted after the stop's post)."""
         return self._words[2] == STOP
+
+    def wait_work(self, after: int, timeout: float, pending) -> bool:
+        """wait_posted, also ending when pending() says there is work beside the turns (a nudge
+        points to it); False after `timeout` s without either."""
+        words = self._words
+        clock = time.perf_counter
+        started = clock()
+        while words[0] <= after and words[2] != STOP and not pending():
+            now = clock()
+            if now - started < SPIN_S:
+                continue
+            if now - started > timeout:
+                return False
+            words[3] = 1
+            if words[0] <= after and words[2] != STOP and not pending():
+                self._posted.acquire(timeout=NAP_S)
+            words[3] = 0
+        return True
 
     def wait_posted(self, after: int, timeout: float) -> bool:
         """Wait until a turn after `after` is posted, or a stop; False after `timeout` s without either."""

@@ -2,7 +2,7 @@
 from importlib import import_module
 
 from processes.workers.layout import RunLayout, build_layout
-from processes.workers.options import PLAYERS_TIMEOUT_S, RunHandles, RunOptions
+from processes.workers.options import PLAYERS_TIMEOUT_S, RunHandles, RunOptions, speculation_refusal
 
 # Each worker is a function (control, arena, compiled, options) that
 # processes.runtime.control.worker_main runs (compiled: the run's
@@ -43,5 +43,5 @@ def workers_for(scene) -> list[str]:
     return kinds
 
 
-__all__ = ["PLAYERS_TIMEOUT_S", "WORKERS", "RunHandles", "RunLayout", "RunOptions", "build_layout", "worker_modules",
-           "worker_target", "workers_for"]
+__all__ = ["PLAYERS_TIMEOUT_S", "WORKERS", "RunHandles", "RunLayout", "RunOptions", "build_layout",
+           "speculation_refusal", "worker_modules", "worker_target", "workers_for"]

@@ -66,12 +66,13 @@ class Answerer:
         self.ctl = self.record["ctl"][0][:len(ais)]
         self.faults = 0
 
-    def answer(self, view: np.ndarray, turn: int) -> np.ndarray:
-        """Decide from view[0] (a physics snapshot record) for turn `turn`; returns self.record, (1,)."""
+    def answer(self, view: np.ndarray, turn: int, before=None) -> np.ndarray:
+        """Decide from view[0] (a physics snapshot record) for turn `turn`; returns self.record, (1,).
+        before: called once before a player decides, if one does (engine.play.players.Players.decide)."""
         copy_record(view, self.snap)  # our own copy, byte for byte: the AIs keep views into it
         rally = self.rally
         tick = int(self.world["tick"])
-        faults = ai_decide(self.ais, tick, float(self.world["time"]), self.ball_flat, self.bats, rally)
+        faults = ai_decide(self.ais, tick, float(self.world["time"]), self.ball_flat, self.bats, rally, before)
         record = self.record
         record["fault"] = 0
         record["changed"] = self.ais.decided
@@ -85,6 +86,51 @@ class Answerer:
         self.ctl[:] = self.ais.ctl
         record["turn"], record["tick"] = turn, tick
         return record
+
+    def void(self, turn: int) -> np.ndarray:
+        """The answer of a turn taken back (a speculating run): nobody decided."""
+        record = self.record
+        record["changed"], record["fault"], record["turn"], record["tick"] = 0, 0, turn, -1
+        return record
+
+
+class TakeBacks:
+    """The AI worker's way back from decisions on states a speculating physics may take back
+    (RunOptions.speculate; processes.workers.speculation): before deciding at a turn that
+    `ai_spec` does not yet say final, it keeps the players' state (pickled: nothing is shared
+    with the players it goes on with); when `ai_void` marks such a turn taken back, the players
+    become what they were before its decision. The turns taken back are answered without a
+    decision; the physics posts their control ticks again as new turns, decided from the states
+    it steps again, so the decisions are the in-process match's."""
+
+    def __init__(self, arena: Arena, ais):
+        self.void = arena["ai_void"].array
+        self.final = arena["ai_spec"].array
+        self.ais = ais
+        self.turn = 0  # the turn being answered
+        self.kept: list[tuple[int, bytes]] = []  # (turn, the players' state before its decision), oldest first
+        self.taken_back = 0  # decisions taken back
+
+    def voided(self, turn: int) -> bool:
+        """Is `turn` taken back? Before that, the players go back from any decision taken back."""
+        kept = self.kept
+        final = int(self.final[0])  # read first: the physics marks the turns it takes back before it raises it
+        void, size = self.void, len(self.void)
+        for k, (decided, state) in enumerate(kept):
+            if void[decided % size] == decided:
+                self.ais.load_state(pickle.loads(state))
+                self.taken_back += len(kept) - k
+                del kept[k:]
+                break
+        while kept and kept[0][0] <= final:
+            kept.pop(0)
+        return void[turn % size] == turn
+
+    def before(self) -> None:
+        """A player is about to decide at self.turn: keep the players' state unless the turn is final."""
+        turn = self.turn
+        if turn > int(self.final[0]):
+            self.kept.append((turn, pickle.dumps(self.ais.state(), protocol=pickle.HIGHEST_PROTOCOL)))
 
 
 class StateKeeper:
@@ -171,7 +217,9 @@ def ai_worker(control: Control, arena: Arena, compiled: CompiledScene, options: 
     views = arena["ai_views"].array
     size = len(views)
     answerer = Answerer(ais, len(compiled.scene.bats), say_faults=options.gateway is not None)
-    keeper = StateKeeper(arena, ais, answerer)
+    # A speculating run restarts no worker: its way back is TakeBacks, in place of the keeper's.
+    keeper = StateKeeper(arena, ais, answerer) if not options.speculate else None
+    takebacks = TakeBacks(arena, ais) if options.speculate else None
     faults = options.faults
     ais.warm_up()
 
@@ -181,12 +229,13 @@ def ai_worker(control: Control, arena: Arena, compiled: CompiledScene, options: 
             copy_record(record, answers, turn % size)
             queue.answer(turn)
 
-    keeper.load(publish)  # a restart: what the AIs were after their last decision answered
+    if keeper is not None:
+        keeper.load(publish)  # a restart: what the AIs were after their last decision answered
     done = queue.answered
     control.start(0)
     timeline = Timeline(options.timeline_dir, "ai") if options.timeline_dir is not None else None
     busy = think = longest = 0.0
-    turns = 0
+    turns = decisions = 0
     try:
         while True:
             if queue.posted > done:
@@ -195,17 +244,25 @@ def ai_worker(control: Control, arena: Arena, compiled: CompiledScene, options: 
                 t0 = time.perf_counter()
                 turn = done + 1
                 view = views[turn % size:turn % size + 1]
-                record = answerer.answer(view, turn)
+                before = None
+                if takebacks is not None:
+                    if takebacks.voided(turn):
+                        publish(turn, answerer.void(turn))
+                        done = turn
+                        continue
+                    takebacks.turn, before = turn, takebacks.before
+                record = answerer.answer(view, turn, before)
                 tick = int(record[0]["tick"])
                 decided = ais.decided
-                if decided:
+                decisions += decided
+                if decided and keeper is not None:
                     keeper.write(view, turn, tick)
                 if faults is not None:
                     faults.delay()
                 publish(turn, record)
                 done = turn
                 turns += 1
-                if decided:
+                if decided and keeper is not None:
                     keeper.keep(tick)  # off the physics' path: it has its answer
                 took = time.perf_counter() - t0
                 busy += took
@@ -235,7 +292,8 @@ def ai_worker(control: Control, arena: Arena, compiled: CompiledScene, options: 
         control.finish(busy, 0.0, {"tick": int(control.row["tick"]), "busy_s": busy, "think_s": think,
                                    "late_thoughts": sum(ai.late_thoughts for ai in thinkers),
                                    "late_thinking_s": sum(ai.late_thinking_s for ai in thinkers),
-                                   "turns": turns, "decisions": keeper.decisions, "longest_turn_s": longest,
+                                   "turns": turns, "decisions": decisions if keeper is None else keeper.decisions,
+                                   "taken_back": 0 if takebacks is None else takebacks.taken_back, "longest_turn_s": longest,
                                    "bot_faults": answerer.faults})
     finally:
-        del views, answers, answerer, keeper
+        del views, answers, answerer, keeper, takebacks

@@ -45,6 +45,10 @@ class AIDriver:
         self.handoff_s = options.handoff_s
         self.views = arena["ai_views"].array
         self.answers = arena["ai_answers"].array
+        # a speculating run's (processes.workers.speculation): the turns taken back, and the
+        # newest turn no go-back can take back (None: a run that does not speculate)
+        self.void = arena["ai_void"].array if "ai_void" in arena.blocks else None
+        self.final = arena["ai_spec"].array if "ai_spec" in arena.blocks else None
         self.n_ai = sum(1 for bat in scene.bats if bat.skill is not None)
         self.pending: deque = deque()  # (tick, turn) of the turns given whose plans are yet to take effect
         self.given = -1  # the tick of the newest turn given
@@ -96,6 +100,27 @@ class AIDriver:
                 faults.append((player, given, FAULTS[int(answer["fault"][player])],
                                bytes(answer["fault_text"][player]).decode("utf-8", "replace")))
         return faults
+
+    def checkpoint(self) -> tuple:
+        """What rollback() takes the driver back to: its turns in flight and the turns posted."""
+        return tuple(self.pending), self.given, self.queue.posted
+
+    def rollback(self, checkpoint: tuple) -> None:
+        """Back to a checkpoint() (a speculating physics worker goes back to the state it was
+        taken at): the turns posted since are taken back (marked in `ai_void`, so the AI worker
+        answers them without deciding and forgets what it decided at them); the turns of the
+        control ticks stepped again are posted anew."""
+        pending, self.given, posted = checkpoint
+        void = self.void
+        size = len(void)
+        for turn in range(posted + 1, self.queue.posted + 1):
+            void[turn % size] = turn
+        self.pending = deque(pending)
+
+    def confirm(self, turn: int) -> None:
+        """No go-back will take back turn `turn` or any before it (the AI worker keeps no way back
+        from their decisions)."""
+        self.final[0] = turn
 
     def resume(self, match: Match, tick: int) -> None:
         """After a restart at `tick`: the turns still to take effect from the rings, and the plans

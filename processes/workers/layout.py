@@ -86,6 +86,25 @@ NET_IO_DTYPE = np.dtype([
 NET_BLOCKS = ("net_a", "net_b")
 NET_SHOW = "net_show"
 
+# A speculating run (RunOptions.speculate): the physics posts its runs near the net on a queue
+# (processes.runtime.handoff.TurnQueue, "net_queue") into the ring `net_runs` and steps on as if
+# the net touched none of them; the net answers each in order into `net_answers` (a run's turn
+# number mod SPEC_RUNS is its slot in both) and halts at a touch until the physics has gone back
+# to it (processes.workers.speculation). The words of `net_spec`: the tick below which the net
+# may step without the ball (granted) and the number of the physics' go-backs (epoch).
+SPEC_RUNS = 64
+SPEC_RUN_DTYPE = np.dtype([("tick", "<i8"), ("count", "<i8"), ("ball", "<f8", (NET_RUN_TICKS, 2, 3)),
+                           ("radius", "<f8"), ("inv_mass", "<f8")])
+SPEC_ANSWER_DTYPE = np.dtype([
+    ("run", "<i8"), ("taken", "<i8"), ("toi", "<f8"), ("impulse", "<f8", 3), ("offset", "<f8", 3),
+    ("sleeping", "<i8"), ("tail_until", "<i8"), ("box", "<f8", (2, 3)), ("bounded", "<i8"), ("bound", "<f8", (2, 3))])
+SPEC_GRANTED, SPEC_EPOCH = 0, 1  # words of net_spec
+# The AI's rings in a speculating run hold the turns of every control tick the physics may still
+# go back over (a turn's answer is collected again after a go-back), and `ai_void` marks the
+# turns a go-back took back (the turn's number in its slot); `ai_spec` holds the newest turn
+# no go-back can take back.
+AI_SPEC_RING = 1024
+
 def _net_word(name: str) -> int:
     return NET_IO_DTYPE.fields[name][1] // 8  # every field of NET_IO_DTYPE is made of 8-byte words
 
@@ -153,12 +172,12 @@ REMOTE_ACK_RING = 1024  # ticks (1 s at 1 kHz): a reader this late gets None, ne
 RUN_LOCK_NAMES = ("remote_inputs",)
 
 
-def ai_ring_size(compiled: CompiledScene) -> int:
+def ai_ring_size(compiled: CompiledScene, speculate: bool = False) -> int:
     """Slots of the AI's rings of views and answers: a turn's slot is taken again only after its
     plans took effect (the physics waits for that), and one turn a control tick is given, so the
     turns of one decision delay, the one being given and one whose slot a killed physics may have
     been writing fit.""" 
-    return compiled.decision_delay // compiled.control_period + 3
+    return AI_SPEC_RING if speculate else compiled.decision_delay // compiled.control_period + 3
 
 
 def write_ack(ring: np.ndarray, tick: int, input_seq) -> None:
@@ -200,11 +219,12 @@ class RunLayout:
     net_baton: Baton | None = None
     lock_path: str | None = None
     start_event: Event | None = None
+    net_queue: TurnQueue | None = None
     _lock_dir: str | None = None
 
     def stop_turns(self) -> None:
         """Stop the turns: a worker waiting for its turn exits at once."""
-        for turns in (self.ai_queue, self.net_baton):
+        for turns in (self.ai_queue, self.net_baton, self.net_queue):
             if turns is not None:
                 turns.stop()
 
@@ -215,13 +235,15 @@ class RunLayout:
             shutil.rmtree(self._lock_dir, ignore_errors=True)
 
 
-def build_layout(compiled: CompiledScene, kinds: list[str], ticks: int, trace: bool, frame_every: int, ctx) -> RunLayout:
+def build_layout(compiled: CompiledScene, kinds: list[str], ticks: int, trace: bool, frame_every: int, ctx,
+                 speculate: bool = False) -> RunLayout:
     """Create the run's blocks for the workers `kinds` (processes.workers.workers_for).
 
     Args:
         compiled: the run's scene (engine.physics.compiled). kinds: the run's workers. ticks: the run's length (sizes trace and frames).
         trace: keep every tick's snapshot. frame_every: a replay frame every this many ticks, 0: none.
         ctx: the multiprocessing context the workers start from (batons and events belong to it).
+        speculate: the blocks of a speculating run (RunOptions.speculate) too.
     """
     arena = Arena()
     scene = compiled.scene
@@ -245,11 +267,19 @@ def build_layout(compiled: CompiledScene, kinds: list[str], ticks: int, trace: b
                 arena.snapshot_block(NET_SHOW, net_show_dtype(n_knots), 1)
             arena.shared_array("net_io", NET_IO_DTYPE, 1)
             layout.net_baton = Baton("net", ctx, arena.shared_array("net_baton", TICK_SLOT_DTYPE, 1).array)
+            if speculate:
+                arena.shared_array("net_runs", SPEC_RUN_DTYPE, SPEC_RUNS)
+                arena.shared_array("net_answers", SPEC_ANSWER_DTYPE, SPEC_RUNS).array["run"] = -1
+                arena.shared_array("net_spec", np.int64, 2)
+                layout.net_queue = TurnQueue("net", ctx, arena.shared_array("net_queue", np.int64, QUEUE_WORDS).array)
         if "ai" in kinds:
             # The views and the answers are ordered by the queue's counts (a slot is written before
             # the count that covers it moves, and x86-64 keeps stores in order), so neither needs a
             # seqlock or a lock. Turn and tick -1: none yet.
-            ring = ai_ring_size(compiled)
+            ring = ai_ring_size(compiled, speculate)
+            if speculate:
+                arena.shared_array("ai_void", np.int64, ring).array[:] = -1
+                arena.shared_array("ai_spec", np.int64, 1)
             arena.shared_array("ai_views", snapshot, ring)
             answers = arena.shared_array("ai_answers", ANSWER_DTYPE, ring).array
             answers["turn"], answers["tick"] = -1, -1

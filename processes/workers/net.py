@@ -33,14 +33,14 @@ import numpy as np
 
 from engine.physics.dtypes import net_show_dtype, net_snapshot_dtype
 from engine.physics.compiled import CompiledScene
-from net_kernel import NetSim
+from net_kernel import NO_CONTACT, NetSim
 from net_kernel.sim import compile_kernels
 from processes.network.wire import NET_HZ
 from processes.runtime.handoff import HandoffTimeout
 from processes.runtime.shm import Arena
 from processes.runtime.control import Control
 from processes.runtime.timeline import IDLE, WORK, Timeline
-from processes.workers.layout import NET_BLOCKS, NET_SHOW, NetIO
+from processes.workers.layout import NET_BLOCKS, NET_SHOW, SPEC_EPOCH, SPEC_GRANTED, SPEC_RUNS, NetIO
 from processes.workers.options import RunOptions
 
 FREE_BEAT_TICKS = 256  # free ticks between two heartbeats: well inside the supervisor's stall timeout
@@ -169,15 +169,22 @@ def _finish(control: Control, sim: NetSim, net_tick: int, busy: float, steps: in
                                "tail_ticks": sim.tail_ticks})
 
 
+def _built(compiled: CompiledScene) -> tuple[NetSim, np.ndarray]:
+    """The run's net, its kernels compiled before "ready" (nothing compiles mid-run), and the box
+    engine.physics.world steps the ball tick by tick in (model.cloth_watch)."""
+    compile_kernels(compiled.topology, compiled.dt)
+    return compiled.net_sim(), compiled.model.cloth_watch
+
+
 def net_worker(control: Control, arena: Arena, compiled: CompiledScene, options: RunOptions) -> None:
     """options: handles.net_baton (processes.runtime.handoff.Baton); faults (tests: end this process
     after publishing the state after the run that holds the crash tick and before saying it is
     done, the hardest moment, or after publishing a run of free ticks that holds it: a net in its
     linear tail, say; answer each run slow_turn_s later)."""
     topo = compiled.topology
-    sim = compiled.net_sim()
-    compile_kernels(topo, compiled.dt)  # before "ready": nothing compiles mid-run
-    watch = compiled.model.cloth_watch  # the box engine.physics.world steps the ball tick by tick in
+    sim, watch = _built(compiled)
+    if options.speculate:
+        return _answer_queued_runs(control, arena, options, sim, watch)
     baton = options.handles.net_baton.attach(arena["net_baton"].array)
     faults = options.faults
     row = NetIO(arena["net_io"].array)
@@ -289,3 +296,85 @@ def net_worker(control: Control, arena: Arena, compiled: CompiledScene, options:
     finally:
         row.close()
         del blocks, show
+
+
+def _answer_queued_runs(control: Control, arena: Arena, options: RunOptions, sim: NetSim, watch: np.ndarray) -> None:
+    """The net worker of a speculating run (RunOptions.speculate; processes.workers.speculation):
+    the runs come on a queue (`net_queue`, their data in the `net_runs` ring) and the ticks
+    between them as a grant (`net_spec`); it steps the granted ticks up to the next run's first,
+    the run (NetSim.step_run), answers it into `net_answers` and goes on, the physics meanwhile
+    stepping past its runs as if the net touched none. At a touch it halts, the tick after the
+    touch being the physics' to step again, until the physics has gone back (its epoch moves):
+    the runs and grants after the touch were the physics' guesses, and it gives them again.
+    A trial: no restarts (the supervisor's budget is 0), so nothing is published but the end."""
+    queue = options.handles.net_queue.attach(arena["net_queue"].array)
+    runs, answers = arena["net_runs"].array, arena["net_answers"].array
+    words = memoryview(arena["net_spec"].array.view("<i8")).cast("B").cast("q")
+    ball = np.zeros(runs["ball"].shape[1:])
+    net_tick = done = steps = 0
+    epoch = words[SPEC_EPOCH]
+    halted = False
+    busy = 0.0
+    timeline = Timeline(options.timeline_dir, "net") if options.timeline_dir is not None else None
+    control.start(0)
+
+    def pending() -> bool:
+        return words[SPEC_EPOCH] != epoch if halted else words[SPEC_GRANTED] > net_tick
+
+    try:
+        while True:
+            if halted and words[SPEC_EPOCH] != epoch:
+                epoch, halted = words[SPEC_EPOCH], False  # the physics went back: its new runs follow
+            granted = words[SPEC_GRANTED]  # before the queue's count: a grant past a run follows its post
+            posted = queue.posted
+            run = runs[(done + 1) % SPEC_RUNS] if posted > done and not halted else None
+            target = granted if run is None else min(granted, int(run["tick"]))
+            if not halted and (net_tick < target or run is not None and net_tick == int(run["tick"])):
+                t0 = time.perf_counter()
+                if timeline is not None:
+                    timeline.mark(WORK)
+                while net_tick < target:
+                    ticks = min(target - net_tick, FREE_BEAT_TICKS)
+                    sim.step_free(ticks)
+                    net_tick += ticks
+                    steps += ticks
+                    control.beat(net_tick)
+                if run is not None and net_tick == int(run["tick"]):
+                    count = int(run["count"])
+                    ball[:count] = run["ball"][:count]
+                    taken, contact = sim.step_run(ball[:count], float(run["radius"]), float(run["inv_mass"]), watch)
+                    net_tick += taken
+                    steps += taken
+                    done += 1
+                    _write_answer(answers[done % SPEC_RUNS], sim, done, taken, contact, net_tick)
+                    queue.answer(done)
+                    halted = contact.toi != NO_CONTACT
+                    control.beat(net_tick)
+                busy += time.perf_counter() - t0
+                continue
+            if queue.stopped and (halted or posted <= done and granted <= net_tick):
+                break
+            if timeline is not None:
+                timeline.mark(IDLE)
+            if not queue.wait_work(done if not halted else queue.posted, Control.HEARTBEAT_S, pending):
+                control.beat(net_tick)  # nothing to do: still alive, still listening
+        _finish(control, sim, net_tick, busy, steps, timeline)
+    finally:
+        words.release()
+        del runs, answers
+
+
+def _write_answer(answer, sim: NetSim, run: int, taken: int, contact, net_tick: int) -> None:
+    """A queued run's answer (SPEC_ANSWER_DTYPE) from NetSim.step_run's, its number written last."""
+    answer["taken"] = taken
+    answer["toi"] = contact.toi
+    answer["impulse"] = contact.impulse
+    answer["offset"] = contact.offset
+    answer["sleeping"] = sim.sleeping
+    answer["tail_until"] = tail_until(sim, net_tick)
+    answer["box"] = sim.box
+    bound = sim.bound_box() if not sim.sleeping and sim.tail is None else None
+    answer["bounded"] = bound is not None
+    if bound is not None:
+        answer["bound"] = bound
+    answer["run"] = run

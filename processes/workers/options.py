@@ -25,7 +25,8 @@ class RunHandles:
 
     Attributes:
         ai_queue, net_baton: the AI's turns (processes.runtime.handoff.TurnQueue) and the net's
-            turns' baton (None: no such worker). lock_path: the run's lock table (a run with a gateway).
+            turns' baton (None: no such worker). net_queue: a speculating run's queue of the
+            net's runs (RunOptions.speculate; else None). lock_path: the run's lock table (a run with a gateway).
         start_event: set by the gateway while every remote seat is held (a run with a gateway).
     """
 
@@ -33,6 +34,7 @@ class RunHandles:
     net_baton: Baton | None = None
     lock_path: str | None = None
     start_event: Event | None = None
+    net_queue: TurnQueue | None = None
 
 
 @dataclass(frozen=True)
@@ -51,6 +53,11 @@ class RunOptions:
             decision may take (engine.play.players).
         timeline_dir: a directory into which each worker writes its timeline at its end
             (processes.runtime.timeline: when it worked, waited and for whom), None: none kept.
+        speculate: a lockstep match with a cloth net: the physics steps on past the ball's runs
+            near the net before the net has answered them, as if the net touched none, and
+            goes back to the touch where it did (processes.workers.speculation). A trial: no
+            worker is restarted, and a run that keeps traces, frames or has remote players or a
+            bot in a seat is refused.
         handles: the run's IPC objects (RunHandles).
         faults: tests and `pingpong stress` only: what this incarnation of this worker does
             wrong (FaultPlan); None in every other run.
@@ -67,9 +74,32 @@ class RunOptions:
     on_bot_error: str = "point"
     bot_budget_s: float | None = DEFAULT_BUDGET_S
     timeline_dir: str | None = None
+    speculate: bool = False
     handles: RunHandles = field(default_factory=RunHandles)
     faults: FaultPlan | None = None
 
     def __post_init__(self):
         if self.mode not in ("lockstep", "realtime"):
             raise ValueError(f"mode must be lockstep or realtime, got {self.mode!r}")
+
+
+def speculation_refusal(scene, kinds: list[str], mode: str, trace: bool, frame_every: int,
+                        faults: bool) -> str | None:
+    """Why a run cannot speculate (RunOptions.speculate), or None: it can. scene: the run's
+    engine.physics.scene.Scene; kinds: its workers; faults: fault injection asked for."""
+    from engine.physics.scene import is_bot_spec
+
+    if scene.match is None or "net" not in kinds:
+        return f"scene {scene.name!r} is not a match with a cloth net: there is no net's answer to step past"
+    if mode != "lockstep":
+        return "a realtime run shows each tick as it is stepped; only a lockstep run speculates"
+    if trace or frame_every:
+        return "traces and replay frames keep every tick as it is stepped; leave speculate off to keep them"
+    if "remote" in scene.effects:
+        return "remote players see each tick as it is stepped; leave speculate off to serve a match"
+    bots = [bat.skill for bat in scene.bats if bat.skill is not None and is_bot_spec(bat.skill)]
+    if bots:
+        return f"a bot's own objects cannot be taken back to an earlier decision ({', '.join(bots)}); use AI profiles"
+    if faults:
+        return "fault injection restarts workers, which a speculating run does not do"
+    return None

@@ -19,6 +19,7 @@ from processes.workers.ai_driver import AIDriver
 from processes.workers.options import RunOptions
 from processes.workers.remote_inputs import RemoteInputs
 from processes.workers.remote_net import RemoteNet
+from processes.workers.speculation import SpeculativeNet, run_speculating
 
 
 class _Pacer:
@@ -62,15 +63,23 @@ class _Publisher:
             self.snapshots.publish(self.record, 0)
 
     def publish(self, tick: int, events: np.ndarray, n_events: int) -> None:
+        self.publish_events(events, n_events)
+        if self.trace is not None:
+            copy_record(self.record, self.trace, tick)
+        self.publish_snapshot(tick)
+        if self.faults is not None and self.faults.crashes_in(tick, tick + 1):
+            self.faults.crash(tick)
+
+    def publish_events(self, events: np.ndarray, n_events: int) -> None:
+        """Events into the event log's ring, in order."""
         capacity = self.log.shape[0]
         for k in range(n_events):
             self.log[(self.total_events + k) % capacity] = events[k]
         self.total_events += n_events
-        if self.trace is not None:
-            copy_record(self.record, self.trace, tick)
-        self.snapshots.publish(self.record, tick)
-        if self.faults is not None and self.faults.crashes_in(tick, tick + 1):
-            self.faults.crash(tick)
+
+    def publish_snapshot(self, tick: int, record: np.ndarray | None = None) -> None:
+        """The state at `tick` as the snapshot: `record` ((1,) physics_snapshot_dtype), the state's by default."""
+        self.snapshots.publish(self.record if record is None else record, tick)
 
 
 def physics_worker(control: Control, arena: Arena, compiled: CompiledScene, options: RunOptions) -> None:
@@ -113,11 +122,13 @@ def physics_worker(control: Control, arena: Arena, compiled: CompiledScene, opti
     _finish(control, tick, busy, net, options, timeline=timeline)
 
 
-def _remote_net(control: Control, arena: Arena, options: RunOptions, state: State) -> RemoteNet | None:
-    """With a net worker: the state's cloth net becomes its stand-in (after any resume)."""
+def _remote_net(control: Control, arena: Arena, options: RunOptions, state: State) -> RemoteNet | SpeculativeNet | None:
+    """With a net worker: the state's cloth net becomes its stand-in (after any resume); a
+    speculating run's posts the runs without waiting (processes.workers.speculation)."""
     if options.handles.net_baton is None:
         return None
-    state.net_sim = RemoteNet(control, arena, options, state.world[0], state.net_sim)
+    stand_in = SpeculativeNet if options.speculate else RemoteNet
+    state.net_sim = stand_in(control, arena, options, state.world[0], state.net_sim)
     return state.net_sim
 
 
@@ -138,6 +149,8 @@ def _stop_net(net, options: RunOptions) -> float:
     """Tell the net worker the run is over; the wall time spent waiting for it."""
     if net is None:
         return 0.0
+    if isinstance(net, SpeculativeNet):
+        return net.stop()
     options.handles.net_baton.stop()
     return net.waits
 
@@ -157,8 +170,11 @@ def _finish(control: Control, tick: int, busy: float, net, options: RunOptions, 
     handoff = net_waits
     report = {"tick": tick}
     if net is not None:
-        report.update(net_ball_ticks=net.ball_ticks, net_runs=net.runs, net_free_ticks=net.free_ticks,
-                      net_turns_again=net.turns_again, handoff_net_s=net_waits)
+        speculating = isinstance(net, SpeculativeNet)
+        report.update(net_ball_ticks=net.ball_ticks, net_runs=net.runs_posted if speculating else net.runs,
+                      net_free_ticks=net.free_ticks, net_turns_again=net.turns_again, handoff_net_s=net_waits)
+        if speculating:
+            report.update(net_rollbacks=net.rollbacks, net_ticks_again=net.ticks_again)
     if driver is not None:
         handoff += driver.waits
         options.handles.ai_queue.stop()
@@ -227,6 +243,10 @@ def _match_worker(control: Control, arena: Arena, compiled: CompiledScene, optio
         start_wall = time.monotonic() - tick * match.model.dt  # pace from when play starts
     pacer = _Pacer(start_wall, match.model.dt, control.row) if options.mode == "realtime" else None
     n_ticks = options.ticks
+    if options.speculate:
+        busy = run_speculating(control, match, net, driver, out, points_log, n_ticks)
+        _finish(control, match.current_tick, busy, net, options, match, driver, remote, timeline)
+        return
     faults = options.faults
     crash_at_tick = None if faults is None else faults.crash_at_tick
     busy = 0.0

@@ -133,6 +133,24 @@ def test_a_turn_nobody_answers_times_out_naming_it(ctx, no_leftovers):
         arena.close()
 
 
+def test_turns_taken_back_are_posted_again_and_never_below_the_answered(ctx, no_leftovers):
+    arena = Arena()
+    try:
+        queue = TurnQueue("net", ctx, arena.shared_array("words", np.int64, QUEUE_WORDS).array)
+        for _ in range(5):
+            queue.post()
+        queue.answer(2)
+        queue.rewind(3)  # turns 4 and 5 taken back: the next post is turn 4 again
+        assert queue.post() == 4
+        with pytest.raises(ValueError, match=r"net: cannot rewind to turn 1 \(answered 2, posted 4\)"):
+            queue.rewind(1)
+        assert not queue.wait_work(4, 0.05, lambda: False)  # nothing posted after turn 4, nothing pending
+        assert queue.wait_work(4, 0.05, lambda: True)  # work beside the turns ends the wait at once
+        del queue
+    finally:
+        arena.close()
+
+
 def test_bench_handoff_quick_json():
     done = subprocess.run([sys.executable, "-m", "processes", "bench", "handoff", "--quick", "--json"],
                           capture_output=True, text=True, timeout=DEADLINE_S, stdin=subprocess.DEVNULL)
