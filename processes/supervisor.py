@@ -19,6 +19,7 @@ from __future__ import annotations
 import logging
 import multiprocessing
 import multiprocessing.connection
+import os
 import time
 from dataclasses import dataclass, field, replace
 
@@ -105,6 +106,12 @@ class _Worker:
         self.report: dict = {}  # what it reported with "done"
 
 
+def _contended(kinds: list[str]) -> bool:
+    """Do the run's computing workers (physics, net, AI: the gateway mostly waits on its sockets)
+    outnumber the cores this process may run on?"""
+    return sum(kind != "gateway" for kind in kinds) > len(os.sched_getaffinity(0))
+
+
 class Supervisor:
     """One run of a scene in separate processes.
 
@@ -126,6 +133,8 @@ class Supervisor:
         speculate: the physics steps on past the net's runs before their answers
             (RunOptions.speculate): a trial, for a lockstep match with a cloth net and AI
             profiles, without traces, frames, faults or restarts (ValueError otherwise).
+        gate_ai_turns: RunOptions.gate_ai_turns; None: where the computing workers outnumber
+            the cores this process may run on.
     """
 
     def __init__(self, scene: Scene, ticks: int, mode: str = "lockstep", trace: bool = False,
@@ -134,7 +143,7 @@ class Supervisor:
                  handoff_s: float = RunOptions.handoff_s, slow_turn_s: float = 0.0, crash_kind: str = "kill",
                  restart_budget: int = RESTART_BUDGET, on_bot_error: str = "point",
                  bot_budget_s: float | None = DEFAULT_BUDGET_S, timeline_dir: str | None = None,
-                 speculate: bool = False):
+                 speculate: bool = False, gate_ai_turns: bool | None = None):
         self.scene = scene
         self.compiled = compile_scene(scene)  # once: every worker is handed it
         self.ticks = ticks
@@ -149,6 +158,7 @@ class Supervisor:
         self.options = RunOptions(ticks=ticks, mode=mode, trace=trace, seed=seed, frame_every=frame_every,
                                   players_timeout=players_timeout, gateway=gateway, handoff_s=handoff_s,
                                   on_bot_error=on_bot_error, bot_budget_s=bot_budget_s, timeline_dir=timeline_dir,
+                                  gate_ai_turns=_contended(self.kinds) if gate_ai_turns is None else gate_ai_turns,
                                   speculate=speculate)
         if speculate:
             refusal = speculation_refusal(scene, self.kinds, mode, trace, frame_every,
@@ -352,13 +362,14 @@ class Supervisor:
                 "handoff_s": float(status[w.index]["handoff_s"]),
                 **({"gateway": w.report.get("gateway", {})} if w.kind == "gateway" else {}),
                 **({k: w.report[k] for k in ("remote_inputs_refused", "remote_brake_ticks") if k in w.report}),
-                # the physics' AI turns (since its last start), one a control tick: those at which a
-                # player decided, and those whose answer it waited for; its cloth net ticks: handed to
+                # the physics' AI turns (since its last start), at the control ticks where a player
+                # could decide (the others skipped): those at which a player decided, and those whose
+                # answer it waited for; its cloth net ticks: handed to
                 # the net worker with the ball (waited for), and without it (not waited for), and
                 # the ball ticks given again because the net's answer took longer than handoff_s;
                 # its hand-offs' wall time split into the waits for the net and for the AI; a
                 # speculating run's go-backs and the ticks they stepped again
-                **({k: w.report[k] for k in ("ai_turns", "ai_decisions", "ai_waited_turns", "net_ball_ticks", "net_runs", "net_free_ticks",
+                **({k: w.report[k] for k in ("ai_turns", "ai_skipped", "ai_decisions", "ai_waited_turns", "net_ball_ticks", "net_runs", "net_free_ticks",
                                              "net_turns_again", "handoff_net_s", "handoff_ai_s", "bot_errors", "stopped",
                                              "net_rollbacks", "net_ticks_again")
                     if k in w.report} if w.kind == "physics" else {}),

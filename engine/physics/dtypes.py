@@ -173,7 +173,11 @@ def ai_answer_dtype(max_bats: int, ctl_size: int) -> np.dtype:
     ctl: (max_bats, ctl_size) each AI's plan after it (engine.play.arm's CTL_* layout), in the order of
     the scene's AI bats, which the physics plays from the tick the decision takes effect; fault:
     (max_bats,) per bat, engine.play.bot.FAULTS index of what went wrong with its player's decision
-    (0: nothing), fault_text: what, in words.
+    (0: nothing), fault_text: what, in words; gate_key, gate_due, gate_end: each AI's decision
+    gate after it (engine.play.players.Players.gates: its key at its last decision, its wakes in
+    s), from which the physics knows whether anybody could decide at its next control ticks.
     """
     return np.dtype([("turn", "<i8"), ("tick", "<i8"), ("changed", "<i8"), ("ctl", "<f8", (max_bats, ctl_size)),
-                     ("fault", "<i4", (max_bats,)), ("fault_text", "S240", (max_bats,))])
+                     ("fault", "<i4", (max_bats,)), ("fault_text", "S240", (max_bats,)),
+                     ("gate_key", "<i8", (max_bats, 4)), ("gate_due", "<f8", (max_bats,)),
+                     ("gate_end", "<f8", (max_bats,))])

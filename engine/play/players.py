@@ -107,6 +107,20 @@ def _floats(record: np.ndarray, start: int, count: int) -> np.ndarray:
     return record.reshape(1).view(np.uint8)[start:start + count * 8].view(np.float64)
 
 
+# A seat's decision gate (Players.gates, gate_open) when it has not decided yet: no key equals it.
+NO_KEY = (-1, -1, -1, -1)
+
+
+def gate_open(key: tuple, now: float, keys: np.ndarray, dues: np.ndarray, ends: np.ndarray) -> bool:
+    """Would Players.decide let a seat decide now, from the seats' gates (Players.gates: each
+    seat's key at its last decision and its wakes)? Seat.needs_decision's test, for a caller
+    that holds only the gates (the physics worker, processes.workers.ai_driver)."""
+    for k in range(len(dues)):
+        if now >= dues[k] or now > ends[k] or key != tuple(keys[k]):
+            return True
+    return False
+
+
 def decision_key(rally) -> tuple[int, int, int, int]:
     """What a decision depends on besides the clock and the ball, from a RALLY_DTYPE record:
     (rally, shots, the player to strike next, whether that strike is a service)."""
@@ -308,6 +322,15 @@ class Players(dict):
                     faults.append(fault)
         self.decided = decided
         return faults
+
+    def gates(self, keys: np.ndarray, dues: np.ndarray, ends: np.ndarray) -> None:
+        """Each seat's decision gate after the decisions so far, in seat order: its key at its last
+        decision (NO_KEY: none yet) into keys[k] (4 ints) and its wakes (Seat.wakes: -inf, -inf
+        for a seat asked at every control tick) into dues[k], ends[k] (s). gate_open(key, now,
+        ...) is then decide()'s test of whether anybody decides."""
+        for k, seat in enumerate(self.values()):
+            keys[k] = NO_KEY if seat.key is None else seat.key
+            dues[k], ends[k] = seat.wakes()
 
     def state(self) -> dict:
         """Every seat's state() and the arm targets, picklable: the same scene's Players that loads

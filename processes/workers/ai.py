@@ -51,12 +51,15 @@ class Answerer:
     Args:
         ais: engine.play.players.Players. n_bats: the scene's bats. say_faults: write each fault
             on stderr as it happens (a served match, whose operator sees no summary of them);
-            else the physics records it and the match's summary says it, once.
+            else the physics records it and the match's summary says it, once. gates: write
+            the players' gates into each answer (a run that gates its AI turns,
+            RunOptions.gate_ai_turns).
     """
 
-    def __init__(self, ais, n_bats: int, say_faults: bool = False):
+    def __init__(self, ais, n_bats: int, say_faults: bool = False, gates: bool = False):
         self.ais = ais
         self.say_faults = say_faults
+        self.gates = gates
         self.snap = np.zeros(1, physics_snapshot_dtype(n_bats))
         self.ball_flat = self.snap["ball"].view("<f8")  # views into the snapshot copy: nothing else is copied
         self.bats = self.snap["bats"][0]
@@ -64,6 +67,7 @@ class Answerer:
         self.world = self.snap[0]["world"]
         self.record = np.zeros(1, ANSWER_DTYPE)
         self.ctl = self.record["ctl"][0][:len(ais)]
+        self.gate_key, self.gate_due, self.gate_end = (self.record[name][0] for name in ("gate_key", "gate_due", "gate_end"))
         self.faults = 0
 
     def answer(self, view: np.ndarray, turn: int, before=None) -> np.ndarray:
@@ -84,6 +88,9 @@ class Answerer:
                       f"{fault}: {detail}", file=sys.stderr, flush=True)
             self.faults += 1
         self.ctl[:] = self.ais.ctl
+        if self.gates:
+            n = len(self.ais)
+            self.ais.gates(self.gate_key[:n], self.gate_due[:n], self.gate_end[:n])
         record["turn"], record["tick"] = turn, tick
         return record
 
@@ -91,6 +98,7 @@ class Answerer:
         """The answer of a turn taken back (a speculating run): nobody decided."""
         record = self.record
         record["changed"], record["fault"], record["turn"], record["tick"] = 0, 0, turn, -1
+        self.gate_due[:] = -np.inf  # no gate: the physics never reads a turn taken back
         return record
 
 
@@ -216,7 +224,8 @@ def ai_worker(control: Control, arena: Arena, compiled: CompiledScene, options: 
     answers = arena["ai_answers"].array
     views = arena["ai_views"].array
     size = len(views)
-    answerer = Answerer(ais, len(compiled.scene.bats), say_faults=options.gateway is not None)
+    answerer = Answerer(ais, len(compiled.scene.bats), say_faults=options.gateway is not None,
+                        gates=options.gate_ai_turns)
     # A speculating run restarts no worker: its way back is TakeBacks, in place of the keeper's.
     keeper = StateKeeper(arena, ais, answerer) if not options.speculate else None
     takebacks = TakeBacks(arena, ais) if options.speculate else None

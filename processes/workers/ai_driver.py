@@ -15,6 +15,7 @@ from engine.play.bot import FAULTS
 from engine.physics.world import copy_record
 from engine.physics.scene import Scene
 from engine.play.match import Match
+from engine.play.players import decision_key, gate_open
 from processes.runtime.control import Control
 from processes.runtime.shm import Arena
 from processes.runtime.timeline import WAIT_AI, WORK, Timeline
@@ -29,10 +30,15 @@ class AIDriver:
     """An ai_driver for engine.play.match.Match whose players decide in the AI worker, match.delay
     ticks ahead of the physics.
 
-    request() at every control tick B writes the state into the next slot of the `ai_views` ring
+    request() at a control tick B writes the state into the next slot of the `ai_views` ring
     and posts it on the queue, and returns at once: the AI worker takes the turns in order and
     lets the players decide where a decision can change (Players.decide: the decision key
     changed, or the clock reached a player's wakes), which at most control ticks is nowhere.
+    Each answer carries the players' gates after it (Players.gates), so in a run that gates its
+    AI turns (RunOptions.gate_ai_turns) where the newest turn posted is answered, request() asks
+    the gates itself (players.gate_open) and posts no turn at a control tick where nobody could
+    decide: there the AI would answer "unchanged". While an answer is still out, every control
+    tick is a turn.
     collect() at B + match.delay waits (bounded) until the AI has answered B's turn and, if a
     player decided there, puts the plans in effect (match.arm) and returns the faults. The
     players decide in the AI worker from exactly the states they decide from in-process, in the
@@ -43,6 +49,7 @@ class AIDriver:
         self.control = control
         self.queue = options.handles.ai_queue.attach(arena["ai_queue"].array)
         self.handoff_s = options.handoff_s
+        self.gated = options.gate_ai_turns
         self.views = arena["ai_views"].array
         self.answers = arena["ai_answers"].array
         # a speculating run's (processes.workers.speculation): the turns taken back, and the
@@ -52,14 +59,20 @@ class AIDriver:
         self.n_ai = sum(1 for bat in scene.bats if bat.skill is not None)
         self.pending: deque = deque()  # (tick, turn) of the turns given whose plans are yet to take effect
         self.given = -1  # the tick of the newest turn given
+        self.last_turn = 0  # the newest turn given (0: none): its answer holds the players' gates now
+        self.gates = None  # (keys, dues, ends) from last_turn's answer, once read
         self.timeline: Timeline | None = None  # the physics' (its waits for the AI are marked), or None
         self.waits = 0.0  # wall time spent waiting for the AI (its work beyond our own)
         self.turns = self.waited = self.decided = 0  # turns given; of them, waited for; decided by a player
+        self.skipped = 0  # control ticks at which nobody could decide: no turn given
 
     def request(self, match: Match, now: float) -> None:
         tick = int(match.state.world[0]["tick"])
         if tick <= self.given:
             return  # given before a restart, from the same state
+        if self.gated and self._closed(match, now):
+            self.skipped += 1
+            return
         turn = self.queue.posted + 1
         size = len(self.views)
         if self.pending and turn - self.pending[0][1] >= size - 1:
@@ -69,7 +82,24 @@ class AIDriver:
         self.queue.post()
         self.pending.append((tick, turn))
         self.given = tick
+        self.last_turn, self.gates = turn, None
         self.turns += 1
+
+    def _closed(self, match: Match, now: float) -> bool:
+        """Is nobody able to decide now, as the gates after the newest turn given say (False while
+        its answer is out: then nothing is known)?"""
+        gates = self.gates
+        if gates is None:
+            turn = self.last_turn
+            if turn == 0 or self.queue.answered < turn:
+                return False
+            answer = self.answers[turn % len(self.answers)]
+            if int(answer["turn"]) != turn:
+                return False  # a restarted AI worker's answer of an earlier incarnation: ask
+            n = self.n_ai
+            gates = self.gates = (answer["gate_key"][:n].copy(), answer["gate_due"][:n].copy(),
+                                  answer["gate_end"][:n].copy())
+        return not gate_open(decision_key(match.rally_record), now, *gates)
 
     def collect(self, match: Match, tick: int) -> list:
         """The plans of the turn given at tick - match.delay into match.arm, if a player decided
@@ -102,15 +132,16 @@ class AIDriver:
         return faults
 
     def checkpoint(self) -> tuple:
-        """What rollback() takes the driver back to: its turns in flight and the turns posted."""
-        return tuple(self.pending), self.given, self.queue.posted
+        """What rollback() takes the driver back to: its turns in flight, the turns posted, the
+        newest one given and its gates."""
+        return tuple(self.pending), self.given, self.queue.posted, self.last_turn, self.gates
 
     def rollback(self, checkpoint: tuple) -> None:
         """Back to a checkpoint() (a speculating physics worker goes back to the state it was
         taken at): the turns posted since are taken back (marked in `ai_void`, so the AI worker
         answers them without deciding and forgets what it decided at them); the turns of the
         control ticks stepped again are posted anew."""
-        pending, self.given, posted = checkpoint
+        pending, self.given, posted, self.last_turn, self.gates = checkpoint
         void = self.void
         size = len(void)
         for turn in range(posted + 1, self.queue.posted + 1):
@@ -130,6 +161,7 @@ class AIDriver:
         first = -(-tick // period) * period  # the first control tick still to do
         posted = self.queue.posted
         self.pending.clear()
+        self.last_turn, self.gates = posted, None  # the gates after the newest turn given, once answered
         for turn in range(max(1, posted - size + 2), posted + 1):  # slots a killed physics was not writing
             given = int(self.views[turn % size]["world"]["tick"])
             if given >= first - match.delay:

@@ -53,6 +53,11 @@ class RunOptions:
             decision may take (engine.play.players).
         timeline_dir: a directory into which each worker writes its timeline at its end
             (processes.runtime.timeline: when it worked, waited and for whom), None: none kept.
+        gate_ai_turns: the physics gives the AI a turn only at the control ticks where a player
+            could decide (processes.workers.ai_driver.AIDriver), not at every one: for a run
+            whose workers outnumber the cores, where a turn nobody needs costs another worker
+            its CPU; with a core to itself the AI answers every turn and stays awake, so a
+            decision is answered sooner (the supervisor decides).
         speculate: a lockstep match with a cloth net: the physics steps on past the ball's runs
             near the net before the net has answered them, as if the net touched none, and
             goes back to the touch where it did (processes.workers.speculation). A trial: no
@@ -74,6 +79,7 @@ class RunOptions:
     on_bot_error: str = "point"
     bot_budget_s: float | None = DEFAULT_BUDGET_S
     timeline_dir: str | None = None
+    gate_ai_turns: bool = False
     speculate: bool = False
     handles: RunHandles = field(default_factory=RunHandles)
     faults: FaultPlan | None = None

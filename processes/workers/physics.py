@@ -162,8 +162,9 @@ def _finish(control: Control, tick: int, busy: float, net, options: RunOptions, 
     busy_s counts the physics' own work; the hand-offs to the AI and the net (and their work
     inside them, which they report themselves) are reported apart, as handoff_s, and split into
     handoff_net_s and handoff_ai_s (what the physics waited for each). The report
-    also carries the AI's turns (one a control tick), those at which a player decided and those
-    whose answer was waited for, the cloth net's ticks (handed to the net worker with the ball and waited
+    also carries the AI's turns (at the control ticks where a player could decide; the others,
+    skipped, are counted too), those at which a player decided and those whose answer was waited
+    for, the cloth net's ticks (handed to the net worker with the ball and waited
     for, or granted without it), the remote inputs refused by reason and the match's bot errors.
     """
     net_waits = _stop_net(net, options)
@@ -178,8 +179,8 @@ def _finish(control: Control, tick: int, busy: float, net, options: RunOptions, 
     if driver is not None:
         handoff += driver.waits
         options.handles.ai_queue.stop()
-        report.update(ai_turns=driver.turns, ai_decisions=driver.decided, ai_waited_turns=driver.waited,
-                      handoff_ai_s=driver.waits)
+        report.update(ai_turns=driver.turns, ai_skipped=driver.skipped, ai_decisions=driver.decided,
+                      ai_waited_turns=driver.waited, handoff_ai_s=driver.waits)
         driver.close()
     if match is not None:
         report.update(remote_inputs_refused={} if remote is None else dict(remote.refused), bot_errors=match.bot_errors,

@@ -19,6 +19,14 @@ What makes it exact:
   every run before it is confirmed.
 - The AI worker keeps a way back from its decisions on states not yet final
   (processes.workers.ai.TakeBacks), and the turns taken back are posted again as new turns.
+
+What keeps it cheap: a guess is only as deep as the net is behind, and a wrong one is stepped
+again. Where the ball flies into the net (its centre crosses the net's plane inside the net as
+built, grown by the radii) the touch is certain: the loop waits there, asleep, until the runs
+before it are answered, and that run is waited for (SpeculativeNet.heading_through); after any
+touch the next runs are waited for until one comes back untouched (a ball resting on the net
+touches it every tick).
+
 A trial: no worker is restarted (a death ends the run), and the runs that keep every tick
 (traces, frames), serve remote players or seat a bot are refused (options.speculation_refusal).
 """
@@ -29,6 +37,7 @@ from collections import deque
 
 import numpy as np
 
+from engine.physics.equipment import BALL_RADIUS
 from net_kernel import NO_CONTACT, NetContact, NetSim
 from net_kernel.sim import ball_far_from_box
 from processes.runtime.control import Control
@@ -64,6 +73,10 @@ class SpeculativeNet:
         self.words = memoryview(arena["net_spec"].array.view("<i8")).cast("B").cast("q")
         self.in_flight: deque = deque()  # (number, first tick, ticks) of the runs posted, not yet confirmed
         self.known: dict[int, tuple] = {}  # first tick -> the net's answer, for the run stepped again
+        # The net as built: a ball whose centre passes its plane (x = 0) inside this (y, z) span
+        # touches it for sure, so that run is waited for instead of guessed.
+        built, reach = local.box, BALL_RADIUS + local.knot_radius
+        self.through = (float(built[0, 1]), float(built[1, 1]), float(built[0, 2]), float(built[1, 2]) + reach)
         # After a touch the next runs are waited for, as without speculation, until one comes back
         # untouched: a ball resting on the net touches it every tick, and each guess would go back.
         self.synchronous = False
@@ -143,7 +156,7 @@ class SpeculativeNet:
         queue.post()
         self.runs_posted += 1
         self.ball_ticks += count - j
-        if self.synchronous and not self.in_flight:
+        if (self.synchronous or self._through(ball[j:], local.dt)) and not self.in_flight:
             taken, contact = self._answer_now(number)
             return j + taken, contact
         self.in_flight.append((number, tick, count - j))
@@ -152,6 +165,27 @@ class SpeculativeNet:
             self._knowledge = None
         self._none[:] = 0.0
         return count, NetContact(NO_CONTACT, self._none, self._none)
+
+    def heading_through(self, ball_flat: np.ndarray, ticks: int) -> bool:
+        """Will the ball's centre (ball_flat: pos, vel) pass the net's plane inside the net as built
+        within `ticks` ticks, flying straight? Then the net touches it for sure, and whatever the
+        physics steps past that run on a guess would be stepped again."""
+        x, vx = float(ball_flat[0]), float(ball_flat[3])
+        if vx == 0.0 or not 0.0 <= -x / vx <= ticks * self.local.dt:
+            return False
+        t = -x / vx
+        y, z = float(ball_flat[1]) + float(ball_flat[4]) * t, float(ball_flat[2]) + float(ball_flat[5]) * t
+        y_lo, y_hi, z_lo, z_hi = self.through
+        return y_lo < y < y_hi and z_lo < z < z_hi
+
+    def _through(self, ball: np.ndarray, dt: float) -> bool:
+        """Does the ball's centre pass the net's plane inside the net as built in these ticks?"""
+        y_lo, y_hi, z_lo, z_hi = self.through
+        for k in range(len(ball)):
+            x, y, z = ball[k, 0]
+            if x * (x + ball[k, 1, 0] * dt) <= 0.0 and y_lo < y < y_hi and z_lo < z < z_hi:
+                return True
+        return False
 
     def _answer_now(self, number: int) -> tuple[int, NetContact]:
         """Wait for run `number`'s answer (nothing before it in flight) and take it as it is, as
@@ -325,6 +359,12 @@ def run_speculating(control: Control, match, net: SpeculativeNet, driver, out, p
             if not net.in_flight:
                 busy += time.perf_counter() - t0
                 break  # the end, every run confirmed
+            net.wait_oldest()
+            busy += time.perf_counter() - t0
+            continue
+        if net.in_flight and net.heading_through(match.state.ball_flat, match.ai_every):
+            # The ball flies into the net: a guess past it would be stepped again; wait (asleep:
+            # the net and the AI have both cores) until every run before it is answered.
             net.wait_oldest()
             busy += time.perf_counter() - t0
             continue

@@ -49,14 +49,19 @@ def test_an_ai_scene_starts_an_ai_worker_and_a_plain_one_does_not():
     assert workers_for(load_scene("rally")) == ["physics"]
 
 
-def test_lockstep_match_equals_the_in_process_match_bit_for_bit(no_leftovers):
-    result = Supervisor(SCENE, TICKS, "lockstep", trace=True, seed=5).run()
+@pytest.mark.parametrize("gate_ai_turns", [False, True])
+def test_lockstep_match_equals_the_in_process_match_bit_for_bit(no_leftovers, gate_ai_turns):
+    """Also with the AI's turns given only where a player could decide (RunOptions.gate_ai_turns)."""
+    result = Supervisor(SCENE, TICKS, "lockstep", trace=True, seed=5, gate_ai_turns=gate_ai_turns).run()
     match, trace = reference_trace(5, TICKS)
     assert first_difference(result.trace, trace) is None
     assert len(result.points) == len(match.referee.points) > 0
     expected = np.array([point_row(p, 0) for p in match.referee.points])
     np.testing.assert_array_equal(result.points[["winner", "reason", "shots", "score_after"]],
                                   expected[["winner", "reason", "shots", "score_after"]])
+    physics = result.workers["physics"]
+    assert physics["ai_turns"] + physics["ai_skipped"] == TICKS // match.ai_every
+    assert (physics["ai_skipped"] > 0) == gate_ai_turns
 
 
 # A physics worker killed with no decision in flight, with one and with two (taken up from the

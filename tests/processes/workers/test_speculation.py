@@ -19,7 +19,7 @@ def test_a_speculating_match_is_the_in_process_match_bit_for_bit(no_leftovers):
     """A whole game on the cloth net: the net touches the ball in it (so the physics goes back,
     and the AI with it: decisions taken back), and the state, the points and the events are the
     reference's all the same."""
-    result = Supervisor(ONE_GAME, 200_000, "lockstep", seed=0, speculate=True).run()
+    result = Supervisor(ONE_GAME, 200_000, "lockstep", seed=0, speculate=True, gate_ai_turns=True).run()
     reference = Match(ONE_GAME, seed=0)
     events: list = []
     reference.play(max_ticks=200_000, events_out=events)
