@@ -162,10 +162,9 @@ class Supervisor:
                                   speculate=speculate)
         if speculate:
             refusal = speculation_refusal(scene, self.kinds, mode, trace, frame_every,
-                                          crash_at_tick is not None or slow_turn_s > 0)
+                                          crash_at_tick is not None)
             if refusal is not None:
                 raise ValueError(f"speculate: {refusal}")
-            restart_budget = 0  # a trial: a worker's death ends the run
         FaultPlan(kind=crash_kind)  # a bad kind is refused here, before anything starts
         self.crash_kind = crash_kind
         if restart_budget < 0:
@@ -233,6 +232,9 @@ class Supervisor:
     def _restart(self, worker: _Worker, why: str, start_wall: float, detail: str = "") -> None:
         now = time.monotonic()
         worker.restarted_at = [t for t in worker.restarted_at if now - t < RESTART_WINDOW_S]
+        if self.options.speculate:
+            raise WorkerFailed(f"{worker.kind} worker {why}; a speculating run restarts no worker (run without "
+                               f"speculate to have a dead worker restarted)\n{detail}")
         if len(worker.restarted_at) >= self.restart_budget:
             raise WorkerFailed(f"{worker.kind} worker {why}; past its restart budget ({self.restart_budget} "
                                f"restarts within {RESTART_WINDOW_S:.0f} s, {worker.restarts} in all)\n{detail}")

@@ -346,6 +346,8 @@ def _answer_queued_runs(control: Control, arena: Arena, options: RunOptions, sim
                     net_tick += taken
                     steps += taken
                     done += 1
+                    if options.faults is not None:
+                        options.faults.delay()  # a slow net (tests): the physics speculates further
                     _write_answer(answers[done % SPEC_RUNS], sim, done, taken, contact, net_tick)
                     queue.answer(done)
                     halted = contact.toi != NO_CONTACT

@@ -90,9 +90,10 @@ class RunOptions:
 
 
 def speculation_refusal(scene, kinds: list[str], mode: str, trace: bool, frame_every: int,
-                        faults: bool) -> str | None:
+                        crashes: bool) -> str | None:
     """Why a run cannot speculate (RunOptions.speculate), or None: it can. scene: the run's
-    engine.physics.scene.Scene; kinds: its workers; faults: fault injection asked for."""
+    engine.physics.scene.Scene; kinds: its workers; crashes: a worker is to crash (fault
+    injection; a slow worker is no refusal)."""
     from engine.physics.scene import is_bot_spec
 
     if scene.match is None or "net" not in kinds:
@@ -106,6 +107,6 @@ def speculation_refusal(scene, kinds: list[str], mode: str, trace: bool, frame_e
     bots = [bat.skill for bat in scene.bats if bat.skill is not None and is_bot_spec(bat.skill)]
     if bots:
         return f"a bot's own objects cannot be taken back to an earlier decision ({', '.join(bots)}); use AI profiles"
-    if faults:
-        return "fault injection restarts workers, which a speculating run does not do"
+    if crashes:
+        return "a crash is injected to have the worker restarted, which a speculating run does not do"
     return None
