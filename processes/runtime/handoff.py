@@ -187,6 +187,11 @@ class Baton:
         self._done.release()
 
 
+def _nothing_else() -> bool:
+    """TurnQueue.wait_work's `pending` for a worker that has no work beside its turns."""
+    return False
+
+
 QUEUE_WORDS = 4  # a TurnQueue's shared words: turns posted, turns answered, command (RUN or STOP), worker asleep
 
 
@@ -309,20 +314,7 @@ class TurnQueue:
 
     def wait_posted(self, after: int, timeout: float) -> bool:
         """Wait until a turn after `after` is posted, or a stop; False after `timeout` s without either."""
-        words = self._words
-        clock = time.perf_counter
-        started = clock()
-        while words[0] <= after and words[2] != STOP:
-            now = clock()
-            if now - started < SPIN_S:
-                continue
-            if now - started > timeout:
-                return False
-            words[3] = 1
-            if words[0] <= after and words[2] != STOP:
-                self._posted.acquire(timeout=NAP_S)
-            words[3] = 0
-        return True
+        return self.wait_work(after, timeout, _nothing_else)
 
     def answer(self, turn: int) -> None:
         """Turn `turn` is answered (its answer already written)."""

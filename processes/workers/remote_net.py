@@ -22,7 +22,69 @@ NET_GIVE_UP_S = 60.0
 TAIL_NUDGE_TICKS = 16
 
 
-class RemoteNet:
+class KnownNet:
+    """What the physics worker knows of the net worker's net from its answers: asleep, the tick
+    its linear tail falls asleep, the box its knots froze or ring in, and the box its energy
+    bounds an awake net's knots to. Nothing known yet (a fresh run's net is as built and awake; a
+    resumed one, whatever the net says at its first answer): awake is the guess that can cost a
+    hand-off but no bit. The stand-ins for NetSim (RemoteNet, speculation.SpeculativeNet) build
+    on it.
+
+    Args:
+        world: the physics state's world record (its tick says which tick is being stepped).
+        local: a NetSim of the same net as built (its knot radius, tick and built shape).
+    """
+
+    def __init__(self, world, local: NetSim):
+        self.world = world
+        self.local = local
+        self._sleeping = False
+        self._tail_until = -1  # the tick at which the tail of the last answer falls asleep (-1: no tail)
+        self.box = local.box.copy()
+        self._bounded = False  # whether `bound` holds the awake net's knots (the net's last answer)
+        self.bound = np.zeros((2, 3))
+
+    @property
+    def sleeping(self) -> bool:
+        """Asleep after the ticks done, as far as the net's last answer tells."""
+        return self._sleeping or 0 <= self._tail_until <= int(self.world["tick"])
+
+    @property
+    def in_tail(self) -> bool:
+        """In its linear tail after the ticks done, as far as the net's last answer tells."""
+        return self._tail_until > int(self.world["tick"])
+
+    def learn(self, sleeping, tail_until, box, bounded, bound) -> None:
+        """The net as an answer says it is after its run."""
+        self._sleeping = bool(sleeping)
+        self._tail_until = int(tail_until)
+        self.box[:] = box
+        self._bounded = bool(bounded)
+        if self._bounded:
+            self.bound[:] = bound
+
+    def far_ticks(self, ball: np.ndarray, first: int, ball_radius: float) -> int:
+        """How many of a run's first ticks (ball[j]: the ball at tick first + j's start) the ball
+        cannot touch the net in, as far as what is known tells: a sleeping net or one ringing in
+        its tail and the ball far from the box it froze or rings in (NetSim.step leaves it or only
+        counts the tick), an awake net and the ball far from its bound (NetSim.step takes the tick
+        free: the knots' own box lies inside)."""
+        local = self.local
+        j = 0
+        while j < len(ball):
+            tick = first + j
+            if self._sleeping or self._tail_until > tick or 0 <= self._tail_until <= tick:
+                if not ball_far_from_box(self.box, True, local.knot_radius, local.dt, ball[j, 0], ball[j, 1],
+                                         ball_radius):
+                    break
+            elif not (self._bounded and ball_far_from_box(self.bound, False, local.knot_radius, local.dt, ball[j, 0],
+                                                          ball[j, 1], ball_radius)):
+                break
+            j += 1
+        return j
+
+
+class RemoteNet(KnownNet):
     """The physics worker's stand-in for the NetSim in engine.physics.world: same `sleeping`, `in_tail`,
     step_run() and step_free().
 
@@ -47,10 +109,9 @@ class RemoteNet:
     """
 
     def __init__(self, control: Control, arena: Arena, options: RunOptions, world, local: NetSim):
+        super().__init__(world, local)
         self.control = control
         self.timeline: Timeline | None = None  # the physics' (its waits for the net are marked), or None
-        self.local = local
-        self.world = world
         self.baton = options.handles.net_baton.attach(arena["net_baton"].array)
         self.handoff_s = options.handoff_s
         self.io = NetIO(arena["net_io"].array)
@@ -60,24 +121,7 @@ class RemoteNet:
         self.runs = 0  # hand-offs of those ticks (a run of them each)
         self.free_ticks = 0  # ticks granted without the ball (not waited for)
         self.turns_again = 0  # turns given again because the net's answer took longer than one wait's bound
-        # Nothing known yet (a fresh run's net is as built and awake; a resumed one, whatever the
-        # net says at its first answer): awake is the guess that can cost a hand-off but no bit.
-        self._sleeping = False
-        self._tail_until = -1  # the tick at which the tail of the last answer falls asleep (-1: no tail)
-        self.box = local.box.copy()
-        self._bounded = False  # whether `bound` holds the awake net's knots (the net's last answer)
-        self.bound = np.zeros((2, 3))
         self._nudged = -TAIL_NUDGE_TICKS  # the tick of the last wake-up for free ticks
-
-    @property
-    def sleeping(self) -> bool:
-        """Asleep after the ticks done, as far as the net's last answer tells."""
-        return self._sleeping or 0 <= self._tail_until <= int(self.world["tick"])
-
-    @property
-    def in_tail(self) -> bool:
-        """In its linear tail after the ticks done, as far as the net's last answer tells."""
-        return self._tail_until > int(self.world["tick"])
 
     def step_free(self, ticks: int) -> None:
         """NetSim.step_free: grant the net the ticks just done (the world's tick is past them) and go on."""
@@ -102,28 +146,17 @@ class RemoteNet:
         ticks, as engine.physics.world does). Its first ticks cost no hand-off while the net's last answer
         says it sleeps or rings in its tail and the ball is far from the box it froze or rings in:
         NetSim.step leaves such a net untouched or only counts the tick."""
-        local = self.local
         count = len(ball)
         first = int(self.world["tick"]) - count
-        j = 0
-        granted = False
-        while j < count:
-            tick = first + j
-            tail = self._tail_until > tick  # the net's state at this tick's start
-            if self._sleeping or tail or 0 <= self._tail_until <= tick:
-                if not ball_far_from_box(self.box, True, local.knot_radius, local.dt, ball[j, 0], ball[j, 1],
-                                         ball_radius):
-                    break
-            elif not (self._bounded and ball_far_from_box(self.bound, False, local.knot_radius, local.dt, ball[j, 0],
-                                                          ball[j, 1], ball_radius)):
-                break
-            if not self._sleeping and not 0 <= self._tail_until <= tick:
-                # A tick of the tail, or of an awake net far from its bound: stepped free (NetSim.step
-                # with the ball far from the knots' own box, which lies inside, does so too).
-                self.io.granted = tick + 1
-                self.free_ticks += 1
-                granted = True
-            j += 1
+        j = self.far_ticks(ball, first, ball_radius)
+        # The ticks of the tail, or of an awake net far from its bound, among them: stepped free
+        # (NetSim.step with the ball far from the knots' own box, which lies inside, does so
+        # too); a sleeping net's (from the tick its tail falls asleep on) wait for its next turn.
+        awake_to = first if self._sleeping else first + j if self._tail_until < 0 else min(first + j, self._tail_until)
+        granted = awake_to > first
+        if granted:
+            self.io.granted = awake_to
+            self.free_ticks += awake_to - first
         if granted and not self.in_tail:
             self.baton.nudge()  # an awake net's ticks: the net worker steps them on the other core
         if j == count:
@@ -149,12 +182,7 @@ class RemoteNet:
         self.baton.wait_done_or_retry(tick, self.handoff_s, NET_GIVE_UP_S, self._ask_again)
         if self.timeline is not None:
             self.timeline.mark(WORK)
-        self._sleeping = bool(row.sleeping)
-        self._tail_until = row.tail_until
-        self.box[:] = row.box
-        self._bounded = bool(row.bounded)
-        if self._bounded:
-            self.bound[:] = row.bound
+        self.learn(row.sleeping, row.tail_until, row.box, row.bounded, row.bound)
         self.waits += time.perf_counter() - started
         self.ball_ticks += row.taken
         self.runs += 1

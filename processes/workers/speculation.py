@@ -39,17 +39,17 @@ import numpy as np
 
 from engine.physics.equipment import BALL_RADIUS
 from net_kernel import NO_CONTACT, NetContact, NetSim
-from net_kernel.sim import ball_far_from_box
 from processes.runtime.control import Control
 from processes.runtime.shm import Arena
 from processes.runtime.timeline import WAIT_NET, WORK, Timeline
 from processes.workers.layout import SPEC_EPOCH, SPEC_GRANTED, SPEC_RUNS
 from processes.workers.options import RunOptions
+from processes.workers.remote_net import KnownNet
 
 NET_GIVE_UP_S = 60.0  # the longest wait for a run's answer (the net worker is never restarted here)
 
 
-class SpeculativeNet:
+class SpeculativeNet(KnownNet):
     """The speculating physics worker's stand-in for NetSim (engine.physics.world.NetStepper):
     step_run posts the run and answers "no touch" (or, stepping again after a go-back, the net's
     answer); poll() reads the net's answers in order and names the first run the net touched.
@@ -62,10 +62,9 @@ class SpeculativeNet:
     """
 
     def __init__(self, control: Control, arena: Arena, options: RunOptions, world, local: NetSim):
+        super().__init__(world, local)
         self.control = control
         self.timeline: Timeline | None = None
-        self.local = local
-        self.world = world
         self.handoff_s = options.handoff_s
         self.queue = options.handles.net_queue.attach(arena["net_queue"].array)
         self.runs = arena["net_runs"].array
@@ -80,24 +79,11 @@ class SpeculativeNet:
         # After a touch the next runs are waited for, as without speculation, until one comes back
         # untouched: a ball resting on the net touches it every tick, and each guess would go back.
         self.synchronous = False
-        self._sleeping = False
-        self._tail_until = -1
-        self.box = local.box.copy()
-        self._bounded = False
-        self.bound = np.zeros((2, 3))
         self._knowledge: tuple | None = None  # the tuple `knowledge` gave last (None: changed since)
         self._none = np.zeros(3)
         self.waits = 0.0
         self.ball_ticks = self.runs_posted = self.free_ticks = self.turns_again = 0
         self.rollbacks = self.ticks_again = 0  # go-backs, and the ticks they stepped again
-
-    @property
-    def sleeping(self) -> bool:
-        return self._sleeping or 0 <= self._tail_until <= int(self.world["tick"])
-
-    @property
-    def in_tail(self) -> bool:
-        return self._tail_until > int(self.world["tick"])
 
     @property
     def free(self) -> int:
@@ -127,18 +113,8 @@ class SpeculativeNet:
                 self.known.clear()
                 self.knowledge = after
                 return start - first + taken, NetContact(toi, impulse, offset)
-        j = 0
-        while j < count:  # the ticks provably out of the net's reach, as processes.workers.remote_net grants them
-            tick = first + j
-            if self._sleeping or self._tail_until > tick or 0 <= self._tail_until <= tick:
-                if not ball_far_from_box(self.box, True, local.knot_radius, local.dt, ball[j, 0], ball[j, 1],
-                                         ball_radius):
-                    break
-            elif not (self._bounded and ball_far_from_box(self.bound, False, local.knot_radius, local.dt, ball[j, 0],
-                                                          ball[j, 1], ball_radius)):
-                break
-            self.free_ticks += 1
-            j += 1
+        j = self.far_ticks(ball, first, ball_radius)
+        self.free_ticks += j
         tick = first + j
         self._grant(tick)
         if j == count:
@@ -274,12 +250,7 @@ class SpeculativeNet:
 
     def _learn(self, answer) -> None:
         self._knowledge = None
-        self._sleeping = bool(answer["sleeping"])
-        self._tail_until = int(answer["tail_until"])
-        self.box[:] = answer["box"]
-        self._bounded = bool(answer["bounded"])
-        if self._bounded:
-            self.bound[:] = answer["bound"]
+        self.learn(answer["sleeping"], answer["tail_until"], answer["box"], answer["bounded"], answer["bound"])
 
     def stop(self) -> float:
         """The run is over (every run answered): tell the net worker; the wall time waited for it."""
