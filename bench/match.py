@@ -203,7 +203,8 @@ def _print_bench(report: dict, first: dict) -> None:
             awake_text += f", speculating: {info['net_rollbacks']} go-backs, {info['net_ticks_again']} ticks stepped again"
         split = [f"{who} {info[key]:.2f} s" for who, key in (("net", "handoff_net_s"), ("AI", "handoff_ai_s")) if key in info]
         split_text = f" ({', '.join(split)})" if len(split) == 2 else ""
-        print(f"    {kind:<8} own work {info['busy_s']:.2f} s, hand-offs {info['handoff_s']:.2f} s{split_text}{awake_text}")
+        cpu = f" (CPU {info['cpu_s']:.2f} s)" if "cpu_s" in info else ""
+        print(f"    {kind:<8} own work {info['busy_s']:.2f} s{cpu}, hand-offs {info['handoff_s']:.2f} s{split_text}{awake_text}")
     working = p["working"]
     print(f"    two or more workers at work {working['two']:.0%} of the wall time, one {working['one']:.0%}, "
           f"none {working['none']:.0%}")

@@ -79,6 +79,7 @@ class Control:
         self._tick_word = tick_word
         self._parent = os.getppid()
         self._next_check = 0.0
+        self._cpu_start = time.process_time()  # from the run's start on (start())
 
     def start(self, report=None) -> float:
         """The start handshake: say ready (with `report`), wait (bounded) for "go", run.
@@ -89,13 +90,16 @@ class Control:
         self.send("ready", report)
         start_wall = self.wait_for("go", GO_TIMEOUT_S)
         self.set_state(WorkerState.RUNNING)
+        self._cpu_start = time.process_time()
         return start_wall
 
     def finish(self, busy_s: float, handoff_s: float, report: dict) -> None:
-        """Add the worker's own work and its hand-offs to its status row; say done with `report`."""
+        """Add the worker's own work and its hand-offs to its status row; say done with `report`,
+        and with the CPU time this incarnation used since the run started (cpu_s: its own work
+        counts wall time, in which a worker another one took the core from counts too)."""
         self.row["busy_s"] = float(self.row["busy_s"]) + busy_s
         self.row["handoff_s"] = float(self.row["handoff_s"]) + handoff_s
-        self.send("done", report)
+        self.send("done", {**report, "cpu_s": time.process_time() - self._cpu_start})
 
     def set_state(self, state: WorkerState) -> None:
         self.row["state"] = state
