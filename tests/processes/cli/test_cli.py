@@ -149,6 +149,16 @@ def test_bench_match_quick_json(tmp_path):
     assert report["timeline"]["path"] == str(picture) and picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_bench_match_speculating_plays_the_same_match():
+    done = subprocess.run([sys.executable, "-m", "processes", "bench", "match", "--quick", "--json", "--speculate"],
+                          capture_output=True, text=True, timeout=DEADLINE_S, stdin=subprocess.DEVNULL)
+    assert done.returncode == 0, done.stderr
+    report = json.loads(done.stdout)
+    assert report["same_match"] is True and report["processes"]["speculate"] is True
+    assert {"net_rollbacks", "net_ticks_again"} <= set(report["processes"]["workers"]["physics"])
+    assert all("cpu_s" in info for info in report["processes"]["workers"].values())
+
+
 def test_bench_match_sets_the_air_damped_match_beside_the_default():
     done = subprocess.run([sys.executable, "-m", "processes", "bench", "match", "--scene", "match,match_air",
                            "--quick", "--ticks", "3000", "--repeat", "2", "--json"],
