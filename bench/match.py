@@ -121,7 +121,7 @@ def _arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--speculate", action="store_true",
                         help="the worker processes of the scenes with a cloth net speculate: the physics steps on past "
                              "its runs near the net before the net has answered them and goes back where the net "
-                             "touched the ball (a trial: no worker restarts)")
+                             "touched the ball")
 
 
 def _run(args: argparse.Namespace, progress=None) -> dict:

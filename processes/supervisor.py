@@ -131,8 +131,9 @@ class Supervisor:
         on_bot_error, bot_budget_s: engine.play.match.Match's on_bot_error and budget_s.
         timeline_dir: each worker writes its timeline there (RunOptions.timeline_dir).
         speculate: the physics steps on past the net's runs before their answers
-            (RunOptions.speculate): a trial, for a lockstep match with a cloth net and AI
-            profiles, without traces, frames, faults or restarts (ValueError otherwise).
+            (RunOptions.speculate): for a lockstep match with a cloth net and AI profiles,
+            without traces or frames (ValueError otherwise); a dead worker is restarted as in
+            any run (processes.workers.speculation).
         gate_ai_turns: RunOptions.gate_ai_turns; None: where the computing workers outnumber
             the cores this process may run on.
     """
@@ -161,8 +162,7 @@ class Supervisor:
                                   gate_ai_turns=_contended(self.kinds) if gate_ai_turns is None else gate_ai_turns,
                                   speculate=speculate)
         if speculate:
-            refusal = speculation_refusal(scene, self.kinds, mode, trace, frame_every,
-                                          crash_at_tick is not None)
+            refusal = speculation_refusal(scene, self.kinds, mode, trace, frame_every)
             if refusal is not None:
                 raise ValueError(f"speculate: {refusal}")
         FaultPlan(kind=crash_kind)  # a bad kind is refused here, before anything starts
@@ -232,9 +232,6 @@ class Supervisor:
     def _restart(self, worker: _Worker, why: str, start_wall: float, detail: str = "") -> None:
         now = time.monotonic()
         worker.restarted_at = [t for t in worker.restarted_at if now - t < RESTART_WINDOW_S]
-        if self.options.speculate:
-            raise WorkerFailed(f"{worker.kind} worker {why}; a speculating run restarts no worker (run without "
-                               f"speculate to have a dead worker restarted)\n{detail}")
         if len(worker.restarted_at) >= self.restart_budget:
             raise WorkerFailed(f"{worker.kind} worker {why}; past its restart budget ({self.restart_budget} "
                                f"restarts within {RESTART_WINDOW_S:.0f} s, {worker.restarts} in all)\n{detail}")

@@ -247,9 +247,9 @@ def add_commands(sub) -> None:
     match.add_argument("--replay", default=None, help="write a replay file here")
     match.add_argument("--in-process", action="store_true", help="run the in-process reference instead of workers")
     match.add_argument("--speculate", action="store_true",
-                       help="a trial: the physics steps on past the ball's runs near the cloth net before the net "
-                            "worker has answered them, and goes back where the net touched the ball (lockstep, no "
-                            "replay, AI profiles only; no worker restarts)")
+                       help="the physics steps on past the ball's runs near the cloth net before the net worker "
+                            "has answered them, and goes back where the net touched the ball (lockstep, no replay, "
+                            "AI profiles only)")
     add_players(match)
     add_common(match)
     match.set_defaults(func=match_command)

@@ -256,16 +256,24 @@ class TurnQueue:
         (a heartbeat: the worker may be restarting, and goes on from the counts); raises
         HandoffTimeout after `give_up` s."""
         words = self._words
-        if words[1] < turn and words[3]:
+        self.wait_for(lambda: words[1] >= turn, f"turn {turn} was not answered", timeout, give_up,
+                      lambda: on_wait(turn))
+
+    def wait_for(self, ready, what: str, timeout: float, give_up: float, on_wait) -> None:
+        """Wait until ready(), which the worker makes true before it counts an answer (the count's
+        post wakes this wait), waking a sleeping worker first. Every `timeout` s without it:
+        on_wait(); raises HandoffTimeout saying `what` after `give_up` s."""
+        words = self._words
+        if not ready() and words[3]:
             words[3] = 0
             self._posted.release()
         deadline = time.monotonic() + give_up
-        while words[1] < turn:
+        while not ready():
             if not _acquire(self._answered, timeout):
-                on_wait(turn)
+                on_wait()
                 if time.monotonic() > deadline:
-                    raise HandoffTimeout(f"{self.name}: turn {turn} was not answered within {give_up} s "
-                                         f"(answered {words[1]} of {words[0]})")
+                    raise HandoffTimeout(f"{self.name}: {what} within {give_up} s (answered {words[1]} of "
+                                         f"{words[0]})")
 
     def nudge(self) -> None:
         """Wake the worker without a turn, if it sleeps: it rereads the shared state beside the

@@ -102,6 +102,9 @@ class Answerer:
         return record
 
 
+TAKEN_BACK = -2  # a journal entry's turn: its decision was taken back
+
+
 class TakeBacks:
     """The AI worker's way back from decisions on states a speculating physics may take back
     (RunOptions.speculate; processes.workers.speculation): before deciding at a turn that
@@ -116,17 +119,22 @@ class TakeBacks:
         self.final = arena["ai_spec"].array
         self.ais = ais
         self.turn = 0  # the turn being answered
-        self.kept: list[tuple[int, bytes]] = []  # (turn, the players' state before its decision), oldest first
+        self.decisions = 0  # the decisions journalled before it (StateKeeper)
+        # (turn, the decisions journalled before it, the players' state before its decision), oldest first
+        self.kept: list[tuple[int, int, bytes]] = []
         self.taken_back = 0  # decisions taken back
+        self.on_taken_back = None  # called with the decisions journalled before the first taken back
 
     def voided(self, turn: int) -> bool:
         """Is `turn` taken back? Before that, the players go back from any decision taken back."""
         kept = self.kept
         final = int(self.final[0])  # read first: the physics marks the turns it takes back before it raises it
         void, size = self.void, len(self.void)
-        for k, (decided, state) in enumerate(kept):
+        for k, (decided, _, state) in enumerate(kept):
             if void[decided % size] == decided:
                 self.ais.load_state(pickle.loads(state))
+                if self.on_taken_back is not None:
+                    self.on_taken_back(kept[k][1])
                 self.taken_back += len(kept) - k
                 del kept[k:]
                 break
@@ -134,11 +142,29 @@ class TakeBacks:
             kept.pop(0)
         return void[turn % size] == turn
 
+    def voided_turn(self, turn: int) -> bool:
+        """Is `turn` marked taken back (its slot of `ai_void` holds it)?"""
+        return self.void[turn % len(self.void)] == turn
+
+    def at(self, turn: int, decisions: int):
+        """The turn about to be answered and the decisions journalled before it; returns the hook
+        Players.decide calls before a player decides (before)."""
+        self.turn, self.decisions = turn, decisions
+        return self.before
+
     def before(self) -> None:
         """A player is about to decide at self.turn: keep the players' state unless the turn is final."""
         turn = self.turn
         if turn > int(self.final[0]):
-            self.kept.append((turn, pickle.dumps(self.ais.state(), protocol=pickle.HIGHEST_PROTOCOL)))
+            self.kept.append((turn, self.decisions, pickle.dumps(self.ais.state(), protocol=pickle.HIGHEST_PROTOCOL)))
+
+    def settled(self) -> tuple[int, bytes | None]:
+        """The players' state after every decision no go-back can take back: (the decisions
+        journalled before it, the state pickled), or (-1, None): the players' state now."""
+        if self.kept:
+            _, decisions, state = self.kept[0]
+            return decisions, state
+        return -1, None
 
 
 class StateKeeper:
@@ -155,14 +181,22 @@ class StateKeeper:
     reference plays it. A bot's own objects are not kept (pickling them at every decision would
     cost what the bot is made of): a restarted worker's bot starts afresh from the scene, and
     says so.
+
+    In a speculating run (takebacks: its TakeBacks) the state kept is the one after every
+    decision no go-back can take back (TakeBacks.settled), and a restarted worker decides again
+    only the journal's decisions at turns not taken back, keeping a way back from those not yet
+    final.
     """
 
-    def __init__(self, arena: Arena, ais, answerer: Answerer):
+    def __init__(self, arena: Arena, ais, answerer: Answerer, takebacks: TakeBacks | None = None):
         self.block = arena["ai_state"]
         self.views = arena["ai_journal"].array
         self.entries = arena["ai_journal_turns"].array  # (turn, tick, decision) of each view; turn -1: torn or none
         self.ais = ais
         self.answerer = answerer
+        self.takebacks = takebacks
+        if takebacks is not None:
+            takebacks.on_taken_back = self.take_back
         self.record = np.zeros(1, AI_STATE_DTYPE)
         self.decisions = 0  # the decisions journalled
 
@@ -175,12 +209,30 @@ class StateKeeper:
         copy_record(view, self.views, k)
         self.entries[k, 0] = turn
 
+    def take_back(self, decisions: int) -> None:
+        """The journalled decisions after the first `decisions` are taken back: marked so (turn
+        TAKEN_BACK), a restart decides them never again."""
+        entries = self.entries
+        for k in range(len(entries)):
+            if entries[k, 0] >= 0 and entries[k, 2] > decisions:
+                entries[k, 0] = TAKEN_BACK
+
     def keep(self, tick: int) -> None:
         """Publish the state after the decision just answered (`tick`), if it is an AI_KEEP_EVERY-th."""
         if self.decisions % AI_KEEP_EVERY:
             return
-        data = pickle.dumps((self.decisions, self.ais.state(), self.answerer.record.copy(), self.answerer.faults),
-                            protocol=pickle.HIGHEST_PROTOCOL)
+        decisions, state, answer = self.decisions, None, self.answerer.record.copy()
+        if self.takebacks is not None:
+            decisions, state = self.takebacks.settled()
+            if state is None:
+                decisions = self.decisions
+            answer = None  # the answer after a decision taken back may follow it: none is kept
+            if self.decisions - decisions > len(self.entries) - AI_KEEP_EVERY:
+                raise RuntimeError(f"the AI's journal of {len(self.entries)} decisions cannot hold the "
+                                   f"{self.decisions - decisions} not yet final (layout.AI_SPEC_JOURNAL)")
+        if state is None:
+            state = self.ais.state()
+        data = pickle.dumps((decisions, state, answer, self.answerer.faults), protocol=pickle.HIGHEST_PROTOCOL)
         if len(data) > AI_STATE_BYTES:
             raise RuntimeError(f"the AIs' state takes {len(data)} bytes, above AI_STATE_BYTES = {AI_STATE_BYTES}")
         self.record["size"] = len(data)
@@ -195,16 +247,24 @@ class StateKeeper:
             self.block.snapshot(self.record)
             size = int(self.record["size"][0])
             decisions, state, answer, faults = pickle.loads(self.record["data"][0][:size].tobytes())
-            self.ais.load_state(state)
-            self.answerer.record[:] = answer
+            self.ais.load_state(pickle.loads(state) if isinstance(state, bytes) else state)
+            if answer is not None:
+                self.answerer.record[:] = answer
             self.answerer.faults = faults
         later = sorted((int(d), int(turn), k) for k, (turn, tick, d) in enumerate(self.entries)
-                       if turn >= 0 and d > decisions)
+                       if (turn >= 0 or turn == TAKEN_BACK) and d > decisions)
         if [d for d, _, _ in later] != list(range(decisions + 1, decisions + 1 + len(later))):
             raise RuntimeError(f"the AI's journal lacks decisions after decision {decisions} (it holds "
                                f"{[d for d, _, _ in later]}): AI_JOURNAL_TURNS = {len(self.entries)} is too few")
+        takebacks = self.takebacks
         for d, turn, k in later:
-            publish(turn, self.answerer.answer(self.views[k:k + 1], turn))
+            before = None
+            if turn == TAKEN_BACK or takebacks is not None and takebacks.voided_turn(turn):
+                decisions = d
+                continue  # taken back (the worker killed before it marked the journal): as if never decided
+            if takebacks is not None:
+                before = takebacks.at(turn, d - 1)
+            publish(turn, self.answerer.answer(self.views[k:k + 1], turn, before))
             decisions = d
         self.decisions = decisions
         if decisions:
@@ -226,9 +286,8 @@ def ai_worker(control: Control, arena: Arena, compiled: CompiledScene, options: 
     size = len(views)
     answerer = Answerer(ais, len(compiled.scene.bats), say_faults=options.gateway is not None,
                         gates=options.gate_ai_turns)
-    # A speculating run restarts no worker: its way back is TakeBacks, in place of the keeper's.
-    keeper = StateKeeper(arena, ais, answerer) if not options.speculate else None
     takebacks = TakeBacks(arena, ais) if options.speculate else None
+    keeper = StateKeeper(arena, ais, answerer, takebacks)
     faults = options.faults
     ais.warm_up()
 
@@ -238,8 +297,7 @@ def ai_worker(control: Control, arena: Arena, compiled: CompiledScene, options: 
             copy_record(record, answers, turn % size)
             queue.answer(turn)
 
-    if keeper is not None:
-        keeper.load(publish)  # a restart: what the AIs were after their last decision answered
+    keeper.load(publish)  # a restart: what the AIs were after their last decision answered
     done = queue.answered
     control.start(0)
     timeline = Timeline(options.timeline_dir, "ai") if options.timeline_dir is not None else None
@@ -259,19 +317,19 @@ def ai_worker(control: Control, arena: Arena, compiled: CompiledScene, options: 
                         publish(turn, answerer.void(turn))
                         done = turn
                         continue
-                    takebacks.turn, before = turn, takebacks.before
+                    before = takebacks.at(turn, keeper.decisions)
                 record = answerer.answer(view, turn, before)
                 tick = int(record[0]["tick"])
                 decided = ais.decided
                 decisions += decided
-                if decided and keeper is not None:
+                if decided:
                     keeper.write(view, turn, tick)
                 if faults is not None:
                     faults.delay()
                 publish(turn, record)
                 done = turn
                 turns += 1
-                if decided and keeper is not None:
+                if decided:
                     keeper.keep(tick)  # off the physics' path: it has its answer
                 took = time.perf_counter() - t0
                 busy += took
@@ -301,7 +359,7 @@ def ai_worker(control: Control, arena: Arena, compiled: CompiledScene, options: 
         control.finish(busy, 0.0, {"tick": int(control.row["tick"]), "busy_s": busy, "think_s": think,
                                    "late_thoughts": sum(ai.late_thoughts for ai in thinkers),
                                    "late_thinking_s": sum(ai.late_thinking_s for ai in thinkers),
-                                   "turns": turns, "decisions": decisions if keeper is None else keeper.decisions,
+                                   "turns": turns, "decisions": keeper.decisions,
                                    "taken_back": 0 if takebacks is None else takebacks.taken_back, "longest_turn_s": longest,
                                    "bot_faults": answerer.faults})
     finally:

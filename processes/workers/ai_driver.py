@@ -19,6 +19,7 @@ from engine.play.players import decision_key, gate_open
 from processes.runtime.control import Control
 from processes.runtime.shm import Arena
 from processes.runtime.timeline import WAIT_AI, WORK, Timeline
+from processes.workers.cut import Cuts
 from processes.workers.options import RunOptions
 
 # A wait for an answer beats every options.handoff_s (the AI worker may be restarting, and goes
@@ -56,6 +57,7 @@ class AIDriver:
         # newest turn no go-back can take back (None: a run that does not speculate)
         self.void = arena["ai_void"].array if "ai_void" in arena.blocks else None
         self.final = arena["ai_spec"].array if "ai_spec" in arena.blocks else None
+        self.cuts = Cuts(arena["spec_cut"].array) if "spec_cut" in arena.blocks else None
         self.n_ai = sum(1 for bat in scene.bats if bat.skill is not None)
         self.pending: deque = deque()  # (tick, turn) of the turns given whose plans are yet to take effect
         self.given = -1  # the tick of the newest turn given
@@ -155,7 +157,23 @@ class AIDriver:
 
     def resume(self, match: Match, tick: int) -> None:
         """After a restart at `tick`: the turns still to take effect from the rings, and the plans
-        in effect from the answer of the turn before them, which holds the plans after it."""
+        in effect from the answer of the turn before them, which holds the plans after it. A
+        speculating run's from the snapshot's cut (processes.workers.cut) and `ai_spec`: the
+        turns posted after the newest one confirmed were posted from states that may have been
+        guesses, and are taken back; those between the cut and it, from the states the physics
+        steps again, take effect as they were (their decisions are final)."""
+        if self.cuts is not None:
+            _, arm, (pending, given, posted, last_turn, gates) = self.cuts.read(tick)
+            final = max(int(self.final[0]), posted)  # the physics confirms after it publishes
+            self.rollback((pending, given, final, last_turn, gates))
+            match.arm[:] = arm
+            size = len(self.views)
+            for turn in range(posted + 1, final + 1):
+                if self.void[turn % len(self.void)] != turn:
+                    self.given = int(self.views[turn % size]["world"]["tick"])
+                    self.pending.append((self.given, turn))
+                    self.last_turn, self.gates = turn, None
+            return
         size = len(self.views)
         period = match.ai_every
         first = -(-tick // period) * period  # the first control tick still to do

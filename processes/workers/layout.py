@@ -19,6 +19,10 @@ and removes them at the end. The blocks of a run, by name:
 | ai_answers | ANSWER_DTYPE ring of ai_ring_size: turn k's answer in slot k % size, before its count | ai | physics |
 | ai_journal, ai_journal_turns | physics snapshot ring of AI_JOURNAL_TURNS, and each one's (turn, tick, decision): the views of the turns a player decided at, before they are counted answered | ai | a restarted ai |
 | ai_state | AI_STATE_DTYPE (SnapshotBlock): the AIs' pickled state after a decision, after it is counted answered | ai | a restarted ai |
+| net_queue, net_runs, net_answers, net_spec | a speculating run's runs near the net, their answers and its words (SPEC_WORDS) | physics the runs, net the answers | both |
+| net_states | net_state_dtype ring of SPEC_RUNS: the net's state after each run it answered | net | a restarted net |
+| spec_cut | processes.workers.cut.CUT_DTYPE, two rows: what goes with each snapshot published | physics | a restarted physics |
+| ai_void, ai_spec | a speculating run's turns taken back, and the newest turn no go-back can take back | physics | ai |
 | remote_header, remote_inputs | Mailbox of REMOTE_INPUT_DTYPE (locked) | gateway posts | physics drains |
 | remote_applied, remote_acks | seqs applied per bat, REMOTE_ACK_DTYPE ring | physics | gateway |
 | seats | network.server.seats.SEAT_DTYPE (SnapshotBlock) | gateway | a restarted gateway |
@@ -45,6 +49,7 @@ from processes.runtime.handoff import QUEUE_WORDS, TICK_SLOT_DTYPE, Baton, TurnQ
 from processes.runtime.locks import HOLDER_DTYPE, LockTable
 from processes.runtime.mailbox import MAILBOX_HEADER
 from processes.runtime.shm import Arena
+from processes.workers.cut import CUT_DTYPE, CUT_ROWS
 
 if TYPE_CHECKING:
     from multiprocessing.synchronize import Event
@@ -91,19 +96,32 @@ NET_SHOW = "net_show"
 # the net touched none of them; the net answers each in order into `net_answers` (a run's turn
 # number mod SPEC_RUNS is its slot in both) and halts at a touch until the physics has gone back
 # to it (processes.workers.speculation). The words of `net_spec`: the tick below which the net
-# may step without the ball (granted) and the number of the physics' go-backs (epoch).
+# may step without the ball (granted), the number of the physics' go-backs (epoch), and the run
+# whose end a restarted physics sends the net back to (back; -1: none asked).
 SPEC_RUNS = 64
 SPEC_RUN_DTYPE = np.dtype([("tick", "<i8"), ("count", "<i8"), ("ball", "<f8", (NET_RUN_TICKS, 2, 3)),
                            ("radius", "<f8"), ("inv_mass", "<f8")])
 SPEC_ANSWER_DTYPE = np.dtype([
     ("run", "<i8"), ("taken", "<i8"), ("toi", "<f8"), ("impulse", "<f8", 3), ("offset", "<f8", 3),
     ("sleeping", "<i8"), ("tail_until", "<i8"), ("box", "<f8", (2, 3)), ("bounded", "<i8"), ("bound", "<f8", (2, 3))])
-SPEC_GRANTED, SPEC_EPOCH = 0, 1  # words of net_spec
+SPEC_GRANTED, SPEC_EPOCH, SPEC_BACK = 0, 1, 2  # words of net_spec
+SPEC_WORDS = 3
+# A speculating run's AI journal: the decisions since the newest state that no go-back can take
+# back, which may be many turns behind the newest (the physics keeps AI_SPEC_RING turns in flight).
+AI_SPEC_JOURNAL = 256
 # The AI's rings in a speculating run hold the turns of every control tick the physics may still
 # go back over (a turn's answer is collected again after a go-back), and `ai_void` marks the
 # turns a go-back took back (the turn's number in its slot); `ai_spec` holds the newest turn
 # no go-back can take back.
 AI_SPEC_RING = 1024
+
+
+def net_state_dtype(n_knots: int) -> np.dtype:
+    """A slot of a speculating run's `net_states` ring: the net's state after run `run` (written
+    before the run is counted answered), the physics' go-backs counted when it was answered
+    (epoch) and whether the net touched the ball in it (then the net halted there until the
+    epoch moved)."""
+    return np.dtype([("run", "<i8"), ("epoch", "<i8"), ("touched", "<i8"), ("state", net_snapshot_dtype(n_knots))])
 
 def _net_word(name: str) -> int:
     return NET_IO_DTYPE.fields[name][1] // 8  # every field of NET_IO_DTYPE is made of 8-byte words
@@ -257,6 +275,8 @@ def build_layout(compiled: CompiledScene, kinds: list[str], ticks: int, trace: b
             arena.shared_array("trace", snapshot, ticks + 1)
         if scene.match is not None:
             arena.shared_array("points", POINT_DTYPE, POINT_LOG_CAPACITY)
+            if speculate:
+                arena.shared_array("spec_cut", CUT_DTYPE, CUT_ROWS).array["tick"] = -1
             if frame_every:
                 arena.shared_array("frames", snapshot, ticks // frame_every + 1)
         if "net" in kinds:
@@ -270,7 +290,8 @@ def build_layout(compiled: CompiledScene, kinds: list[str], ticks: int, trace: b
             if speculate:
                 arena.shared_array("net_runs", SPEC_RUN_DTYPE, SPEC_RUNS)
                 arena.shared_array("net_answers", SPEC_ANSWER_DTYPE, SPEC_RUNS).array["run"] = -1
-                arena.shared_array("net_spec", np.int64, 2)
+                arena.shared_array("net_spec", np.int64, SPEC_WORDS).array[SPEC_BACK] = -1
+                arena.shared_array("net_states", net_state_dtype(n_knots), SPEC_RUNS).array["run"] = -1
                 layout.net_queue = TurnQueue("net", ctx, arena.shared_array("net_queue", np.int64, QUEUE_WORDS).array)
         if "ai" in kinds:
             # The views and the answers are ordered by the queue's counts (a slot is written before
@@ -283,8 +304,9 @@ def build_layout(compiled: CompiledScene, kinds: list[str], ticks: int, trace: b
             arena.shared_array("ai_views", snapshot, ring)
             answers = arena.shared_array("ai_answers", ANSWER_DTYPE, ring).array
             answers["turn"], answers["tick"] = -1, -1
-            arena.shared_array("ai_journal", snapshot, AI_JOURNAL_TURNS)
-            arena.shared_array("ai_journal_turns", np.int64, (AI_JOURNAL_TURNS, 3)).array[:, 0] = -1  # (turn, tick, decision)
+            journal = AI_SPEC_JOURNAL if speculate else AI_JOURNAL_TURNS
+            arena.shared_array("ai_journal", snapshot, journal)
+            arena.shared_array("ai_journal_turns", np.int64, (journal, 3)).array[:, 0] = -1  # (turn, tick, decision)
             arena.snapshot_block("ai_state", AI_STATE_DTYPE, 1)
             layout.ai_queue = TurnQueue("ai", ctx, arena.shared_array("ai_queue", np.int64, QUEUE_WORDS).array)
         if "gateway" in kinds:

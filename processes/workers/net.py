@@ -40,7 +40,7 @@ from processes.runtime.handoff import HandoffTimeout
 from processes.runtime.shm import Arena
 from processes.runtime.control import Control
 from processes.runtime.timeline import IDLE, WORK, Timeline
-from processes.workers.layout import NET_BLOCKS, NET_SHOW, SPEC_EPOCH, SPEC_GRANTED, SPEC_RUNS, NetIO
+from processes.workers.layout import NET_BLOCKS, NET_SHOW, SPEC_BACK, SPEC_EPOCH, SPEC_GRANTED, SPEC_RUNS, NetIO
 from processes.workers.options import RunOptions
 
 FREE_BEAT_TICKS = 256  # free ticks between two heartbeats: well inside the supervisor's stall timeout
@@ -112,13 +112,8 @@ def _step_granted(sim: NetSim, row: NetIO, control: Control, net_tick: int) -> i
     return net_tick
 
 
-def _publish(sim: NetSim, tick: int, state: np.ndarray, blocks, held: int, show: NetShow | None = None) -> int:
-    """Publish the net's state at `tick` into the block other than `held`, the one holding the
-    state it was stepped from (a run's state before and after it then sit in different blocks,
-    and answering the same run again, which goes back to the state before it, overwrites only
-    the state after it), and show it (NetShow, a run with a gateway); returns the block it
-    published into."""
-    row = state[0]
+def _write_state(sim: NetSim, tick: int, row) -> None:
+    """The net's state at `tick` into a net_snapshot_dtype record (what _load takes back)."""
     row["tick"] = tick
     row["sleeping"] = sim.sleeping
     tail = sim.tail
@@ -131,6 +126,15 @@ def _publish(sim: NetSim, tick: int, state: np.ndarray, blocks, held: int, show:
         row["quiet_ticks"] = tail.quiet_ticks
         row["pos"] = tail.start_pos
         row["vel"] = tail.start_vel
+
+
+def _publish(sim: NetSim, tick: int, state: np.ndarray, blocks, held: int, show: NetShow | None = None) -> int:
+    """Publish the net's state at `tick` into the block other than `held`, the one holding the
+    state it was stepped from (a run's state before and after it then sit in different blocks,
+    and answering the same run again, which goes back to the state before it, overwrites only
+    the state after it), and show it (NetShow, a run with a gateway); returns the block it
+    published into."""
+    _write_state(sim, tick, state[0])
     into = 1 - held
     blocks[into].publish(state, tick)
     if show is not None:
@@ -306,23 +310,45 @@ def _answer_queued_runs(control: Control, arena: Arena, options: RunOptions, sim
     stepping past its runs as if the net touched none. At a touch it halts, the tick after the
     touch being the physics' to step again, until the physics has gone back (its epoch moves):
     the runs and grants after the touch were the physics' guesses, and it gives them again.
-    A trial: no restarts (the supervisor's budget is 0), so nothing is published but the end."""
+
+    Restarts: the net's state after each run goes into the run's slot of `net_states` before the
+    run is counted answered. A restarted net worker goes on from its state after the last run
+    answered (halted there if that run touched and the physics has not gone back since) and
+    steps the grants again; the free ticks between runs are stepped as they were. A restarted
+    physics worker resumes at a snapshot with some runs posted before it (processes.workers.cut)
+    and asks the net back to its state after the last of them (SPEC_BACK): the net goes there,
+    counts that run the last answered, and halts until the physics, having taken back the runs
+    after it, moves the epoch."""
     queue = options.handles.net_queue.attach(arena["net_queue"].array)
-    runs, answers = arena["net_runs"].array, arena["net_answers"].array
+    runs, answers, states = arena["net_runs"].array, arena["net_answers"].array, arena["net_states"].array
     words = memoryview(arena["net_spec"].array.view("<i8")).cast("B").cast("q")
+    faults = options.faults
     ball = np.zeros(runs["ball"].shape[1:])
-    net_tick = done = steps = 0
-    epoch = words[SPEC_EPOCH]
-    halted = False
+    built = np.zeros(1, states.dtype["state"])
+    _write_state(sim, 0, built[0])  # the net as built: the state after "run 0"
+    done = queue.answered
+    net_tick, touched, answered_in = _go_back(sim, states, built, done)
+    epoch = words[SPEC_EPOCH]  # moves only while the net is halted: at a touch, or asked back
+    halted = touched and epoch == answered_in  # a restart at a touch the physics has not gone back from
+    steps = 0
     busy = 0.0
     timeline = Timeline(options.timeline_dir, "net") if options.timeline_dir is not None else None
-    control.start(0)
+    control.start(net_tick)
 
     def pending() -> bool:
+        if words[SPEC_BACK] >= 0:
+            return True
         return words[SPEC_EPOCH] != epoch if halted else words[SPEC_GRANTED] > net_tick
 
     try:
         while True:
+            back = words[SPEC_BACK]
+            if back >= 0:  # a restarted physics: back to the state after run `back`, halted there
+                net_tick, _, _ = _go_back(sim, states, built, back)
+                done, epoch, halted = back, words[SPEC_EPOCH], True
+                words[SPEC_BACK] = -1
+                queue.answer(done)  # last: the physics waits for the count and the word both
+                continue
             if halted and words[SPEC_EPOCH] != epoch:
                 epoch, halted = words[SPEC_EPOCH], False  # the physics went back: its new runs follow
             granted = words[SPEC_GRANTED]  # before the queue's count: a grant past a run follows its post
@@ -346,11 +372,17 @@ def _answer_queued_runs(control: Control, arena: Arena, options: RunOptions, sim
                     net_tick += taken
                     steps += taken
                     done += 1
-                    if options.faults is not None:
-                        options.faults.delay()  # a slow net (tests): the physics speculates further
-                    _write_answer(answers[done % SPEC_RUNS], sim, done, taken, contact, net_tick)
-                    queue.answer(done)
                     halted = contact.toi != NO_CONTACT
+                    slot = states[done % SPEC_RUNS]
+                    slot["run"] = -1  # torn until its number is written, last
+                    _write_state(sim, net_tick, slot["state"])
+                    slot["epoch"], slot["touched"], slot["run"] = epoch, halted, done
+                    if faults is not None:
+                        faults.delay()  # a slow net (tests): the physics speculates further
+                    _write_answer(answers[done % SPEC_RUNS], sim, done, taken, contact, net_tick)
+                    if faults is not None and faults.crashes_in(-1, net_tick):
+                        faults.crash(net_tick)  # the first run past the crash tick, answered but not counted
+                    queue.answer(done)
                     control.beat(net_tick)
                 busy += time.perf_counter() - t0
                 continue
@@ -363,7 +395,21 @@ def _answer_queued_runs(control: Control, arena: Arena, options: RunOptions, sim
         _finish(control, sim, net_tick, busy, steps, timeline)
     finally:
         words.release()
-        del runs, answers
+        del runs, answers, states
+
+
+def _go_back(sim: NetSim, states: np.ndarray, built: np.ndarray, run: int) -> tuple[int, bool, int]:
+    """Load the net's state after run `run` (0: as built) from `net_states`; returns its tick,
+    whether the net touched the ball in that run and the epoch it was answered in."""
+    if run == 0:
+        _load(sim, built[0])
+        return 0, False, 0
+    slot = states[run % SPEC_RUNS]
+    if int(slot["run"]) != run:
+        raise RuntimeError(f"net worker: the state after run {run} is no longer kept (its slot holds run "
+                           f"{int(slot['run'])}; net_states keeps {SPEC_RUNS})")
+    _load(sim, slot["state"])
+    return int(slot["state"]["tick"]), bool(slot["touched"]), int(slot["epoch"])
 
 
 def _write_answer(answer, sim: NetSim, run: int, taken: int, contact, net_tick: int) -> None:

@@ -60,9 +60,8 @@ class RunOptions:
             decision is answered sooner (the supervisor decides).
         speculate: a lockstep match with a cloth net: the physics steps on past the ball's runs
             near the net before the net has answered them, as if the net touched none, and
-            goes back to the touch where it did (processes.workers.speculation). A trial: no
-            worker is restarted, and a run that keeps traces, frames or has remote players or a
-            bot in a seat is refused.
+            goes back to the touch where it did (processes.workers.speculation); a run that
+            keeps traces, frames or has remote players or a bot in a seat is refused.
         handles: the run's IPC objects (RunHandles).
         faults: tests and `pingpong stress` only: what this incarnation of this worker does
             wrong (FaultPlan); None in every other run.
@@ -89,11 +88,9 @@ class RunOptions:
             raise ValueError(f"mode must be lockstep or realtime, got {self.mode!r}")
 
 
-def speculation_refusal(scene, kinds: list[str], mode: str, trace: bool, frame_every: int,
-                        crashes: bool) -> str | None:
+def speculation_refusal(scene, kinds: list[str], mode: str, trace: bool, frame_every: int) -> str | None:
     """Why a run cannot speculate (RunOptions.speculate), or None: it can. scene: the run's
-    engine.physics.scene.Scene; kinds: its workers; crashes: a worker is to crash (fault
-    injection; a slow worker is no refusal)."""
+    engine.physics.scene.Scene; kinds: its workers."""
     from engine.physics.scene import is_bot_spec
 
     if scene.match is None or "net" not in kinds:
@@ -107,6 +104,4 @@ def speculation_refusal(scene, kinds: list[str], mode: str, trace: bool, frame_e
     bots = [bat.skill for bat in scene.bats if bat.skill is not None and is_bot_spec(bat.skill)]
     if bots:
         return f"a bot's own objects cannot be taken back to an earlier decision ({', '.join(bots)}); use AI profiles"
-    if crashes:
-        return "a crash is injected to have the worker restarted, which a speculating run does not do"
     return None

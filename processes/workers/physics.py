@@ -16,6 +16,7 @@ from processes.runtime.control import Control
 from processes.runtime.shm import Arena
 from processes.runtime.timeline import WORK, Timeline
 from processes.workers.ai_driver import AIDriver
+from processes.workers.cut import Cuts
 from processes.workers.options import RunOptions
 from processes.workers.remote_inputs import RemoteInputs
 from processes.workers.remote_net import RemoteNet
@@ -225,6 +226,9 @@ def _match_worker(control: Control, arena: Arena, compiled: CompiledScene, optio
         total = int(latest[0]["rally"]["points_total"])
         match.restore(latest[0], [point_from_row(points_log[i]) for i in range(total)])
     world = match.state.world[0]
+    cuts = Cuts(arena["spec_cut"].array) if options.speculate else None
+    if cuts is not None and not resumed:  # the cut of tick 0, before its snapshot
+        cuts.write(0, 0, match.arm.copy(), driver.checkpoint() if driver is not None else None)
     out = _Publisher(arena, record, options, int(world["events_total"]))
     out.start(resumed)
     net = _remote_net(control, arena, options, match.state)
@@ -245,7 +249,7 @@ def _match_worker(control: Control, arena: Arena, compiled: CompiledScene, optio
     pacer = _Pacer(start_wall, match.model.dt, control.row) if options.mode == "realtime" else None
     n_ticks = options.ticks
     if options.speculate:
-        busy = run_speculating(control, match, net, driver, out, points_log, n_ticks)
+        busy = run_speculating(control, match, net, driver, out, points_log, n_ticks, cuts, resumed, options.faults)
         _finish(control, match.current_tick, busy, net, options, match, driver, remote, timeline)
         return
     faults = options.faults

@@ -27,8 +27,15 @@ before it are answered, and that run is waited for (SpeculativeNet.heading_throu
 touch the next runs are waited for until one comes back untouched (a ball resting on the net
 touches it every tick).
 
-A trial: no worker is restarted (a death ends the run), and the runs that keep every tick
-(traces, frames), serve remote players or seat a bot are refused (options.speculation_refusal).
+Restarts: a snapshot is published only where every run before it is confirmed, and beside it
+the cut (processes.workers.cut): the runs posted before it and the AI driver's turns in flight
+there. A restarted physics resumes from the snapshot, takes back the AI turns posted after the
+cut and sends the net back to its state after the cut's last run (SpeculativeNet.go_back); a
+restarted net goes on from its state after the last run it answered (processes.workers.net),
+a restarted AI from its state kept and the decisions journalled since (processes.workers.ai).
+
+The runs that keep every tick (traces, frames), serve remote players or seat a bot are refused
+(options.speculation_refusal).
 """
 from __future__ import annotations
 
@@ -42,11 +49,15 @@ from net_kernel import NO_CONTACT, NetContact, NetSim
 from processes.runtime.control import Control
 from processes.runtime.shm import Arena
 from processes.runtime.timeline import WAIT_NET, WORK, Timeline
-from processes.workers.layout import SPEC_EPOCH, SPEC_GRANTED, SPEC_RUNS
+from processes.workers.cut import Cuts
+from processes.workers.layout import SPEC_BACK, SPEC_EPOCH, SPEC_GRANTED, SPEC_RUNS
 from processes.workers.options import RunOptions
 from processes.workers.remote_net import KnownNet
 
-NET_GIVE_UP_S = 60.0  # the longest wait for a run's answer (the net worker is never restarted here)
+NET_GIVE_UP_S = 60.0  # the longest wait for a run's answer, a restart of the net worker included
+# Ticks between two snapshots (and their cuts) at most while nothing else changes: a restarted
+# physics steps again at most this many ticks; a point decided is published at once.
+SNAPSHOT_EVERY_TICKS = 64
 
 
 class SpeculativeNet(KnownNet):
@@ -252,6 +263,20 @@ class SpeculativeNet(KnownNet):
         self._knowledge = None
         self.learn(answer["sleeping"], answer["tail_until"], answer["box"], answer["bounded"], answer["bound"])
 
+    def go_back(self, runs: int, tick: int) -> None:
+        """A restarted physics worker resumes at `tick`, `runs` runs near the net posted before it
+        (the snapshot's cut): the net goes back to its state after the last of them, the ticks
+        from there to `tick` granted free (as they were), and the runs posted after it are taken
+        back; waits (bounded, with heartbeats) until the net is there."""
+        words, queue = self.words, self.queue
+        words[SPEC_GRANTED] = tick
+        words[SPEC_BACK] = runs
+        queue.wait_for(lambda: words[SPEC_BACK] < 0 and queue.answered == runs,
+                       f"the net did not go back to its state after run {runs}", self.handoff_s, NET_GIVE_UP_S,
+                       lambda: self.control.beat(tick))
+        queue.rewind(runs)
+        words[SPEC_EPOCH] += 1  # last: the net worker goes on from here
+
     def stop(self) -> float:
         """The run is over (every run answered): tell the net worker; the wall time waited for it."""
         self.queue.stop()
@@ -265,12 +290,13 @@ class Checkpoints:
     published not yet (events, points), held until every run before it is confirmed."""
 
     def __init__(self):
-        # (run number, tick, Match.checkpoint, AIDriver.checkpoint or None, events held, what was known of the net)
+        # (run number, tick, Match.checkpoint, AIDriver.checkpoint or None, events held, what was known
+        # of the net, the runs posted before the call)
         self.kept: deque = deque()
         self.events: list = []  # (tick after the call, its events' copy) not yet published
 
-    def add(self, run: int, tick: int, match_cp, driver_cp, knowledge: tuple) -> None:
-        self.kept.append((run, tick, match_cp, driver_cp, len(self.events), knowledge))
+    def add(self, run: int, tick: int, match_cp, driver_cp, knowledge: tuple, runs_before: int) -> None:
+        self.kept.append((run, tick, match_cp, driver_cp, len(self.events), knowledge, runs_before))
 
     def confirmed_to(self, in_flight: deque) -> tuple | None:
         """Drop the checkpoints of the runs confirmed (no longer in flight); the oldest kept one, or None."""
@@ -292,26 +318,31 @@ class Checkpoints:
 
 
 def run_speculating(control: Control, match, net: SpeculativeNet, driver, out, points_log: np.ndarray,
-                    n_ticks: int) -> float:
+                    n_ticks: int, cuts: Cuts, resumed: bool, faults=None) -> float:
     """The speculating physics worker's loop over its Match (lockstep) until n_ticks or the
     match's end, every run confirmed; returns the wall time of its own work and waits.
 
     out: the worker's publisher (events, snapshots); driver: its AIDriver (None: no AI);
-    points_log: the run's point log (POINT_DTYPE in shared memory).
+    points_log: the run's point log (POINT_DTYPE in shared memory); cuts: the run's cuts, the
+    one at the match's tick written (a fresh run) or read (resumed: the match restored from the
+    snapshot, the driver from the cut); faults: the worker's FaultPlan (tests: end at the first
+    call at or after its crash tick that leaves runs in flight).
     """
     from engine.play.match import point_row
 
     kept = Checkpoints()
     tick = match.current_tick
+    if resumed:
+        net.go_back(cuts.read(tick)[0], tick)
     point_ticks = [tick] * len(match.referee.points)  # the tick after the call that decided each point
-    published = [0, len(match.referee.points), tick]  # events, points, the tick of the snapshot
+    published = [0, len(match.referee.points), tick, tick]  # events, points, the tick confirmed, of the snapshot
     ai_room = len(driver.views) - 2 * (match.delay // match.ai_every) - 4 if driver is not None else 0
     busy = 0.0
     while True:
         t0 = time.perf_counter()
         touched = net.poll()
         if touched is not None:
-            _, back_to, match_cp, driver_cp, _, knowledge = kept.take(touched)
+            _, back_to, match_cp, driver_cp, _, knowledge, _ = kept.take(touched)
             net.take_back(touched, knowledge)
             match.rollback(match_cp)
             del point_ticks[match_cp[1]:]
@@ -322,7 +353,9 @@ def run_speculating(control: Control, match, net: SpeculativeNet, driver, out, p
             busy += time.perf_counter() - t0
             continue
         oldest = kept.confirmed_to(net.in_flight)
-        _publish_confirmed(out, match, kept, oldest, points_log, published, point_ticks, point_row)
+        ending = (tick >= n_ticks or match.over) and not net.in_flight
+        _publish_confirmed(out, match, kept, oldest, points_log, published, point_ticks, point_row, cuts,
+                           (net.queue.posted, driver), ending)
         if driver is not None:
             driver.confirm(oldest[3][2] if oldest is not None else driver.queue.posted)
         if tick >= n_ticks or match.over or net.free < 2 or (
@@ -349,29 +382,40 @@ def run_speculating(control: Control, match, net: SpeculativeNet, driver, out, p
         while len(point_ticks) < len(match.referee.points):
             point_ticks.append(tick)
         if net.queue.posted > posted:
-            kept.add(net.queue.posted, before, match_cp, driver_cp, knowledge)
+            kept.add(net.queue.posted, before, match_cp, driver_cp, knowledge, posted)
         if match.n_events:
             kept.events.append((tick, match.events[:match.n_events].copy()))
         busy += time.perf_counter() - t0
+        if faults is not None and net.in_flight and faults.crashes_in(-1, tick + 1):
+            faults.crash(tick)  # a guess in flight: the restarted physics must send the net back
         control.beat(tick)
     return busy
 
 
 def _publish_confirmed(out, match, kept: Checkpoints, oldest, points_log: np.ndarray, published: list,
-                       point_ticks: list, point_row) -> None:
+                       point_ticks: list, point_row, cuts: Cuts, now: tuple, force: bool) -> None:
     """Publish what every run before it confirms: the events and points up to the oldest
-    checkpoint kept (all of them if none), and the state there as the snapshot."""
+    checkpoint kept (all of them if none), and the state there as the snapshot with its cut,
+    when a point was decided, SNAPSHOT_EVERY_TICKS after the last or `force` (the end).
+    now: (the runs posted, the AIDriver or None), the cut if no checkpoint is kept."""
     if oldest is None:
         events_to, points_to, tick, record = len(kept.events), len(match.referee.points), match.current_tick, None
     else:
-        _, tick, match_cp, _, events_to, _ = oldest
-        record, points_to = match_cp[0].view(match.state.record.dtype), match_cp[1]  # Match.checkpoint: the bytes
-    if tick == published[2] and events_to == published[0]:
+        _, tick, match_cp, driver_cp, events_to, _, runs = oldest
+        record, points_to, arm = match_cp[0].view(match.state.record.dtype), match_cp[1], match_cp[2]  # Match.checkpoint
+    if tick == published[2] and events_to == published[0] and not (force and tick != published[3]):
         return
     for _, events in kept.events[published[0]:events_to]:
         out.publish_events(events, len(events))
     points = match.referee.points
     for k in range(published[1], points_to):
         points_log[k] = point_row(points[k], point_ticks[k])
-    out.publish_snapshot(tick, record)
-    published[:] = [events_to, points_to, tick]
+    snapshot = published[3]
+    if force or points_to != published[1] or tick - snapshot >= SNAPSHOT_EVERY_TICKS:
+        if oldest is None:
+            runs, driver = now
+            arm, driver_cp = match.arm, (driver.checkpoint() if driver is not None else None)
+        cuts.write(tick, runs, arm, driver_cp)
+        out.publish_snapshot(tick, record)
+        snapshot = tick
+    published[:] = [events_to, points_to, tick, snapshot]
