@@ -29,12 +29,15 @@ def _scene_of(name: str, args: argparse.Namespace):
     return scene, ticks
 
 
-def _in_worker_processes(scene, ticks: int, seed: int, speculate: bool = False) -> dict:
-    """One headless lockstep match in worker processes (speculating: RunOptions.speculate): its
-    summary, startup, workers' reports, the shares of its wall time in which none, one and two or
-    more workers worked (processes.runtime.timeline.busy_share) and the workers' timelines."""
+def _in_worker_processes(scene, ticks: int, seed: int, speculate: bool | None = None) -> dict:
+    """One headless lockstep match in worker processes (speculate: Supervisor's): its summary,
+    startup, workers' reports, whether it speculated, the shares of its wall time in which none,
+    one and two or more workers worked (processes.runtime.timeline.busy_share) and the workers'
+    timelines."""
     with tempfile.TemporaryDirectory(prefix="pingpong-timeline-") as directory:
-        result = Supervisor(scene, ticks, "lockstep", seed=seed, timeline_dir=directory, speculate=speculate).run()
+        supervisor = Supervisor(scene, ticks, "lockstep", seed=seed, timeline_dir=directory, speculate=speculate)
+        result = supervisor.run()
+        speculate = supervisor.options.speculate
         marks = timelines.load(directory)
     multi = result.match_summary(seed)
     start = float(marks["physics"]["t"][0])
@@ -118,10 +121,10 @@ def _arguments(parser: argparse.ArgumentParser) -> None:
                         help="draw the first scene's median round as a timeline: per worker, when it works, waits (for "
                              "whom) and idles, over --timeline-seconds of wall time where the physics waited most")
     parser.add_argument("--timeline-seconds", type=float, default=1.5, help="the timeline's span of wall time, s")
-    parser.add_argument("--speculate", action="store_true",
+    parser.add_argument("--speculate", action=argparse.BooleanOptionalAction, default=None,
                         help="the worker processes of the scenes with a cloth net speculate: the physics steps on past "
                              "its runs near the net before the net has answered them and goes back where the net "
-                             "touched the ball")
+                             "touched the ball; default: wherever the run allows it")
 
 
 def _run(args: argparse.Namespace, progress=None) -> dict:
@@ -146,7 +149,8 @@ def _run(args: argparse.Namespace, progress=None) -> dict:
         for k, (scene, ticks) in enumerate(scenes):
             if progress is not None:
                 progress(f"{scene.name}: in worker processes, then in-process (round {r + 1} of {args.repeat})")
-            speculate = args.speculate and scene.cloth is not None
+            # --speculate asks it of the scenes with a cloth net; the others run as they must
+            speculate = None if args.speculate and scene.cloth is None else args.speculate
             rounds[k].append(_in_worker_processes(scene, ticks, args.seed, speculate))
             references[k].append(_in_process(scene, ticks, args.seed))
     reports = [_bench_scene(scene, args, scene_rounds, scene_references)

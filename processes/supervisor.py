@@ -131,9 +131,10 @@ class Supervisor:
         on_bot_error, bot_budget_s: engine.play.match.Match's on_bot_error and budget_s.
         timeline_dir: each worker writes its timeline there (RunOptions.timeline_dir).
         speculate: the physics steps on past the net's runs before their answers
-            (RunOptions.speculate): for a lockstep match with a cloth net and AI profiles,
-            without traces or frames (ValueError otherwise); a dead worker is restarted as in
-            any run (processes.workers.speculation).
+            (RunOptions.speculate): True for a lockstep match with a cloth net and AI profiles,
+            without traces or frames (ValueError otherwise); None (the default): wherever the
+            run allows it; False: never. A dead worker is restarted either way
+            (processes.workers.speculation).
         gate_ai_turns: RunOptions.gate_ai_turns; None: where the computing workers outnumber
             the cores this process may run on.
     """
@@ -144,7 +145,7 @@ class Supervisor:
                  handoff_s: float = RunOptions.handoff_s, slow_turn_s: float = 0.0, crash_kind: str = "kill",
                  restart_budget: int = RESTART_BUDGET, on_bot_error: str = "point",
                  bot_budget_s: float | None = DEFAULT_BUDGET_S, timeline_dir: str | None = None,
-                 speculate: bool = False, gate_ai_turns: bool | None = None):
+                 speculate: bool | None = None, gate_ai_turns: bool | None = None):
         self.scene = scene
         self.compiled = compile_scene(scene)  # once: every worker is handed it
         self.ticks = ticks
@@ -156,15 +157,14 @@ class Supervisor:
         self.kinds = workers_for(scene)
         if "gateway" in self.kinds and gateway is None:
             gateway = GatewayConfig()
+        refusal = speculation_refusal(scene, self.kinds, mode, trace, frame_every)
+        if speculate and refusal is not None:
+            raise ValueError(f"speculate: {refusal}")
         self.options = RunOptions(ticks=ticks, mode=mode, trace=trace, seed=seed, frame_every=frame_every,
                                   players_timeout=players_timeout, gateway=gateway, handoff_s=handoff_s,
                                   on_bot_error=on_bot_error, bot_budget_s=bot_budget_s, timeline_dir=timeline_dir,
                                   gate_ai_turns=_contended(self.kinds) if gate_ai_turns is None else gate_ai_turns,
-                                  speculate=speculate)
-        if speculate:
-            refusal = speculation_refusal(scene, self.kinds, mode, trace, frame_every)
-            if refusal is not None:
-                raise ValueError(f"speculate: {refusal}")
+                                  speculate=refusal is None if speculate is None else speculate)
         FaultPlan(kind=crash_kind)  # a bad kind is refused here, before anything starts
         self.crash_kind = crash_kind
         if restart_budget < 0:

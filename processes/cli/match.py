@@ -246,10 +246,10 @@ def add_commands(sub) -> None:
     match.add_argument("--ticks", type=int, default=None, help="stop after this many ticks even if undecided")
     match.add_argument("--replay", default=None, help="write a replay file here")
     match.add_argument("--in-process", action="store_true", help="run the in-process reference instead of workers")
-    match.add_argument("--speculate", action="store_true",
+    match.add_argument("--speculate", action=argparse.BooleanOptionalAction, default=None,
                        help="the physics steps on past the ball's runs near the cloth net before the net worker "
-                            "has answered them, and goes back where the net touched the ball (lockstep, no replay, "
-                            "AI profiles only)")
+                            "has answered them, and goes back where the net touched the ball (a lockstep match with "
+                            "a cloth net and AI profiles, no replay); default: wherever the run allows it")
     add_players(match)
     add_common(match)
     match.set_defaults(func=match_command)

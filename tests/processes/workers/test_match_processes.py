@@ -114,8 +114,10 @@ def test_net_worker_killed_in_its_linear_tail_resumes_and_stays_exact(no_leftove
 def test_net_worker_killed_stepping_its_last_tail_ticks_is_restarted_and_stops(no_leftovers):
     # The physics grants a tail's ticks and wakes the net worker only every TAIL_NUDGE_TICKS, so
     # the worker steps the last of them when told to stop, and is killed doing so: the worker
-    # that replaces it never gets that wake-up, reads the stop from the baton, and the run ends.
-    result = Supervisor(SCENE, TAIL_KILL, "lockstep", seed=2, crash_at_tick=TAIL_KILL - 1, crash_worker="net").run()
+    # that replaces it never gets that wake-up, reads the stop from the baton, and the run ends
+    # (the baton's run: a speculating net worker is tested in test_speculation.py).
+    result = Supervisor(SCENE, TAIL_KILL, "lockstep", seed=2, crash_at_tick=TAIL_KILL - 1, crash_worker="net",
+                        speculate=False).run()
     assert result.workers["net"]["restarts"] == 1
     assert result.ticks == TAIL_KILL
 

@@ -99,6 +99,14 @@ def test_a_run_that_cannot_be_taken_back_is_refused_before_it_starts(changes, re
         Supervisor(SCENE, 1000, **{"mode": "lockstep", **changes}, speculate=True)
 
 
+def test_a_run_speculates_by_default_wherever_it_can():
+    assert Supervisor(SCENE, 1000).options.speculate
+    assert not Supervisor(SCENE, 1000, speculate=False).options.speculate
+    assert not Supervisor(SCENE, 1000, trace=True).options.speculate  # refused only when asked for
+    assert not Supervisor(SCENE, 1000, "realtime").options.speculate
+    assert not Supervisor(load_scene("match_rigid"), 1000).options.speculate
+
+
 def test_speculating_needs_a_cloth_net_and_players_whose_state_can_be_kept():
     with pytest.raises(ValueError, match="not a match with a cloth net"):
         Supervisor(load_scene("match_rigid"), 1000, speculate=True)
