@@ -208,6 +208,8 @@ def _print_bench(report: dict, first: dict) -> None:
         split = [f"{who} {info[key]:.2f} s" for who, key in (("net", "handoff_net_s"), ("AI", "handoff_ai_s")) if key in info]
         split_text = f" ({', '.join(split)})" if len(split) == 2 else ""
         cpu = f" (CPU {info['cpu_s']:.2f} s)" if "cpu_s" in info else ""
+        if "switches" in info:
+            cpu += f", switches {info['switches'][0]} slept, {info['switches'][1]} preempted"
         print(f"    {kind:<8} own work {info['busy_s']:.2f} s{cpu}, hand-offs {info['handoff_s']:.2f} s{split_text}{awake_text}")
     working = p["working"]
     print(f"    two or more workers at work {working['two']:.0%} of the wall time, one {working['one']:.0%}, "

@@ -359,8 +359,9 @@ class Supervisor:
                 "max_late_s": float(status[w.index]["max_late_s"]),
                 "busy_s": float(status[w.index]["busy_s"]),
                 "handoff_s": float(status[w.index]["handoff_s"]),
-                # the CPU time of its last incarnation from the run's start (its own work is wall time)
-                **({"cpu_s": w.report["cpu_s"]} if "cpu_s" in w.report else {}),
+                # the CPU time and the context switches (slept, preempted) of its last incarnation
+                # from the run's start (its own work is wall time)
+                **({k: w.report[k] for k in ("cpu_s", "switches") if k in w.report}),
                 **({"gateway": w.report.get("gateway", {})} if w.kind == "gateway" else {}),
                 **({k: w.report[k] for k in ("remote_inputs_refused", "remote_brake_ticks") if k in w.report}),
                 # the physics' AI turns (since its last start), at the control ticks where a player

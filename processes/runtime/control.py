@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import enum
 import os
+import resource
 import signal
 import threading
 import time
@@ -30,6 +31,12 @@ STATUS_DTYPE = np.dtype([
     ("handoff_s", "<f8"),  # wall time spent handing off to other workers and waiting for them
 ])
 
+
+
+def _switches() -> tuple[int, int]:
+    """This process's context switches so far: (voluntary, involuntary)."""
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_nvcsw, usage.ru_nivcsw
 
 class WorkerState(enum.IntEnum):
     NONE = 0
@@ -80,6 +87,7 @@ class Control:
         self._parent = os.getppid()
         self._next_check = 0.0
         self._cpu_start = time.process_time()  # from the run's start on (start())
+        self._switches_start = _switches()
 
     def start(self, report=None) -> float:
         """The start handshake: say ready (with `report`), wait (bounded) for "go", run.
@@ -91,15 +99,19 @@ class Control:
         start_wall = self.wait_for("go", GO_TIMEOUT_S)
         self.set_state(WorkerState.RUNNING)
         self._cpu_start = time.process_time()
+        self._switches_start = _switches()
         return start_wall
 
     def finish(self, busy_s: float, handoff_s: float, report: dict) -> None:
         """Add the worker's own work and its hand-offs to its status row; say done with `report`,
         and with the CPU time this incarnation used since the run started (cpu_s: its own work
-        counts wall time, in which a worker another one took the core from counts too)."""
+        counts wall time, in which a worker another one took the core from counts too) and its
+        context switches since (switches: (voluntary, involuntary), getrusage's: it slept, or
+        the scheduler took its core)."""
         self.row["busy_s"] = float(self.row["busy_s"]) + busy_s
         self.row["handoff_s"] = float(self.row["handoff_s"]) + handoff_s
-        self.send("done", {**report, "cpu_s": time.process_time() - self._cpu_start})
+        switches = tuple(now - then for now, then in zip(_switches(), self._switches_start))
+        self.send("done", {**report, "cpu_s": time.process_time() - self._cpu_start, "switches": switches})
 
     def set_state(self, state: WorkerState) -> None:
         self.row["state"] = state
