@@ -71,7 +71,14 @@ def test_at_the_limit_a_newcomer_takes_the_place_of_a_connection_that_never_conf
     assert r.gateway.stats()["connections"] == 2
     # Newcomers again, while the honest session heartbeats: the other hoarder's connection goes,
     # then the newcomers themselves (in their grace, nothing older to take), never the honest one.
-    late = [RawPeer("127.0.0.1", _port(r.gateway.endpoint)) for _ in range(3)]
+    # A newcomer the gateway refuses may be cut before its greeting is answered (on a busy
+    # machine the gateway can act on the accept first): that is the refusal too.
+    late = []
+    for _ in range(3):
+        try:
+            late.append(RawPeer("127.0.0.1", _port(r.gateway.endpoint)))
+        except ConnectionError:
+            pass
 
     def settled():
         honest.heartbeat_if_due()
