@@ -32,6 +32,7 @@ from engine.play.players import DEFAULT_BUDGET_S
 from processes.network.server.config import GatewayConfig
 from processes.runtime.control import READY_TIMEOUT_S, STARTUP_LIMIT_S, WorkerState, worker_main
 from processes.runtime.faults import FaultPlan
+from processes.runtime.handoff import SPIN_S
 from processes.runtime.shm import Arena
 from processes.runtime.stops import StopSignals
 from processes.workers import (PLAYERS_TIMEOUT_S, RunHandles, RunLayout, RunOptions, build_layout,
@@ -309,8 +310,10 @@ class Supervisor:
         started = time.monotonic()
         end = "shutdown"  # what the workers are told as they stop (the gateway's goodbye)
         try:
+            # Where the computing workers outnumber the cores, a side that polls before it sleeps
+            # holds a core another worker needs: the hand-offs sleep at once.
             self.layout = build_layout(self.compiled, self.kinds, self.ticks, self.trace, self.frame_every, self._ctx,
-                                       self.options.speculate)
+                                       self.options.speculate, 0.0 if _contended(self.kinds) else SPIN_S)
             self.arena = self.layout.arena
             stops.arm()  # a stop signal that came while the segments were being made raises here
             self._workers = [_Worker(kind, i) for i, kind in enumerate(self.kinds)]

@@ -12,8 +12,9 @@ Both sides spin briefly (SPIN_S) before they sleep, and a sleeping worker says s
 word: the hub posts a wake-up only to a sleeper (glibc's sem_post enters the kernel only to
 wake one), so when the other side is at work or answers within the spin nobody enters the
 kernel: no wake-up, and above all no wake-up preemption, where the woken worker takes the CPU
-from the one that woke it. `pingpong bench handoff` measures a hand-off against a plain
-semaphore ping-pong.
+from the one that woke it. Where the computing workers outnumber the cores, a spinning side
+holds a core another worker needs, so such a run's channels do not spin (spin_s 0).
+`pingpong bench handoff` measures a hand-off against a plain semaphore ping-pong.
 """
 from __future__ import annotations
 
@@ -38,16 +39,16 @@ SPIN_S = 100e-6
 NAP_S = 5e-3
 
 
-def _acquire(semaphore, timeout: float) -> bool:
-    """Take the semaphore: spin up to SPIN_S, then sleep up to the rest of `timeout`."""
+def _acquire(semaphore, timeout: float, spin_s: float) -> bool:
+    """Take the semaphore: spin up to spin_s, then sleep up to the rest of `timeout`."""
     if semaphore.acquire(False):
         return True
     clock = time.perf_counter
     start = clock()
-    while clock() - start < SPIN_S:
+    while clock() - start < spin_s:
         if semaphore.acquire(False):
             return True
-    return semaphore.acquire(timeout=max(timeout - SPIN_S, 0.0))
+    return semaphore.acquire(timeout=max(timeout - spin_s, 0.0))
 
 
 class Baton:
@@ -56,17 +57,19 @@ class Baton:
     Args:
         name: for messages. ctx: the multiprocessing context the workers are started from.
         slot: a (1,) TICK_SLOT_DTYPE shared array (processes.runtime.shm.SharedArray.array).
+        spin_s: how long a side polls before it sleeps (SPIN_S; 0: at once).
     """
 
-    def __init__(self, name: str, ctx, slot: np.ndarray):
+    def __init__(self, name: str, ctx, slot: np.ndarray, spin_s: float = SPIN_S):
         self.name = name
+        self.spin_s = spin_s
         self._go = ctx.Semaphore(0)
         self._done = ctx.Semaphore(0)
         self.attach(slot)
 
     def __getstate__(self):
         # The shared slot is re-attached by the worker from the arena; semaphores pickle by handle.
-        return {"name": self.name, "_go": self._go, "_done": self._done, "_words": None}
+        return {"name": self.name, "spin_s": self.spin_s, "_go": self._go, "_done": self._done, "_words": None}
 
     def attach(self, slot: np.ndarray) -> "Baton":
         """Point at the shared (1,) TICK_SLOT_DTYPE slot: words 0 tick, 1 command, 2 tick done,
@@ -96,7 +99,7 @@ class Baton:
         deadline = time.monotonic() + timeout
         while True:
             left = deadline - time.monotonic()
-            if left <= 0 or not _acquire(self._done, left):
+            if left <= 0 or not _acquire(self._done, left, self.spin_s):
                 raise HandoffTimeout(f"{self.name}: worker did not finish tick {tick} within {timeout} s")
             if words[2] == tick:
                 return
@@ -146,7 +149,7 @@ class Baton:
         without a turn (the worker's own test of the shared state a nudge would point it to);
         raises HandoffTimeout after `timeout` s.
 
-        Spins SPIN_S, then says it sleeps and sleeps NAP_S at a time, looking at
+        Spins spin_s, then says it sleeps and sleeps NAP_S at a time, looking at
         pending() between naps: the flag and the hub's shared state cross on no barrier, so a
         nudge may be missed, for a nap at most.
         """
@@ -159,7 +162,7 @@ class Baton:
             if pending is not None and pending():
                 return NO_TURN
             elapsed = clock() - started
-            if elapsed < SPIN_S:
+            if elapsed < self.spin_s:
                 if self._go.acquire(False):
                     return self._turn()
                 continue
@@ -204,9 +207,10 @@ class TurnQueue:
     Args:
         name: for messages. ctx: the multiprocessing context the workers are started from.
         words: a (QUEUE_WORDS,) int64 shared array (processes.runtime.shm.SharedArray.array).
+        spin_s: how long a side polls before it sleeps (SPIN_S; 0: at once).
 
     A side sleeps on the other's semaphore only when the count it waits for has not moved,
-    watching the count for SPIN_S first. The worker says in a shared word that it sleeps, and
+    watching the count for spin_s first. The worker says in a shared word that it sleeps, and
     the hub posts the semaphore only then: a post to a sleeper costs the hub a system call and
     often its core (the woken worker takes it), and a worker at work or spinning sees the count
     move without one. The flag and the count cross on no barrier, so a sleeping worker naps
@@ -216,14 +220,16 @@ class TurnQueue:
     restarted worker, or hub, goes on from them.
     """
 
-    def __init__(self, name: str, ctx, words: np.ndarray):
+    def __init__(self, name: str, ctx, words: np.ndarray, spin_s: float = SPIN_S):
         self.name = name
+        self.spin_s = spin_s
         self._posted = ctx.Semaphore(0)
         self._answered = ctx.Semaphore(0)
         self.attach(words)
 
     def __getstate__(self):
-        return {"name": self.name, "_posted": self._posted, "_answered": self._answered, "_words": None}
+        return {"name": self.name, "spin_s": self.spin_s, "_posted": self._posted, "_answered": self._answered,
+                "_words": None}
 
     def attach(self, words: np.ndarray) -> "TurnQueue":
         """Point at the shared (QUEUE_WORDS,) int64 words: 0 turns posted, 1 answered, 2 command,
@@ -269,7 +275,7 @@ class TurnQueue:
             self._posted.release()
         deadline = time.monotonic() + give_up
         while not ready():
-            if not _acquire(self._answered, timeout):
+            if not _acquire(self._answered, timeout, self.spin_s):
                 on_wait()
                 if time.monotonic() > deadline:
                     raise HandoffTimeout(f"{self.name}: {what} within {give_up} s (answered {words[1]} of "
@@ -310,7 +316,7 @@ class TurnQueue:
         started = clock()
         while words[0] <= after and words[2] != STOP and not pending():
             now = clock()
-            if now - started < SPIN_S:
+            if now - started < self.spin_s:
                 continue
             if now - started > timeout:
                 return False

@@ -45,7 +45,7 @@ from engine.physics.world import NET_RUN_TICKS
 from engine.play.arm import CTL_SIZE
 from processes.network.server.seats import SEAT_DTYPE
 from processes.runtime.control import STATUS_DTYPE
-from processes.runtime.handoff import QUEUE_WORDS, TICK_SLOT_DTYPE, Baton, TurnQueue
+from processes.runtime.handoff import QUEUE_WORDS, SPIN_S, TICK_SLOT_DTYPE, Baton, TurnQueue
 from processes.runtime.locks import HOLDER_DTYPE, LockTable
 from processes.runtime.mailbox import MAILBOX_HEADER
 from processes.runtime.shm import Arena
@@ -254,7 +254,7 @@ class RunLayout:
 
 
 def build_layout(compiled: CompiledScene, kinds: list[str], ticks: int, trace: bool, frame_every: int, ctx,
-                 speculate: bool = False) -> RunLayout:
+                 speculate: bool = False, spin_s: float = SPIN_S) -> RunLayout:
     """Create the run's blocks for the workers `kinds` (processes.workers.workers_for).
 
     Args:
@@ -262,6 +262,7 @@ def build_layout(compiled: CompiledScene, kinds: list[str], ticks: int, trace: b
         trace: keep every tick's snapshot. frame_every: a replay frame every this many ticks, 0: none.
         ctx: the multiprocessing context the workers start from (batons and events belong to it).
         speculate: the blocks of a speculating run (RunOptions.speculate) too.
+        spin_s: how long a side of the run's hand-offs polls before it sleeps (Baton, TurnQueue).
     """
     arena = Arena()
     scene = compiled.scene
@@ -286,13 +287,14 @@ def build_layout(compiled: CompiledScene, kinds: list[str], ticks: int, trace: b
             if "gateway" in kinds:
                 arena.snapshot_block(NET_SHOW, net_show_dtype(n_knots), 1)
             arena.shared_array("net_io", NET_IO_DTYPE, 1)
-            layout.net_baton = Baton("net", ctx, arena.shared_array("net_baton", TICK_SLOT_DTYPE, 1).array)
+            layout.net_baton = Baton("net", ctx, arena.shared_array("net_baton", TICK_SLOT_DTYPE, 1).array, spin_s)
             if speculate:
                 arena.shared_array("net_runs", SPEC_RUN_DTYPE, SPEC_RUNS)
                 arena.shared_array("net_answers", SPEC_ANSWER_DTYPE, SPEC_RUNS).array["run"] = -1
                 arena.shared_array("net_spec", np.int64, SPEC_WORDS).array[SPEC_BACK] = -1
                 arena.shared_array("net_states", net_state_dtype(n_knots), SPEC_RUNS).array["run"] = -1
-                layout.net_queue = TurnQueue("net", ctx, arena.shared_array("net_queue", np.int64, QUEUE_WORDS).array)
+                layout.net_queue = TurnQueue("net", ctx, arena.shared_array("net_queue", np.int64, QUEUE_WORDS).array,
+                                             spin_s)
         if "ai" in kinds:
             # The views and the answers are ordered by the queue's counts (a slot is written before
             # the count that covers it moves, and x86-64 keeps stores in order), so neither needs a
@@ -308,7 +310,7 @@ def build_layout(compiled: CompiledScene, kinds: list[str], ticks: int, trace: b
             arena.shared_array("ai_journal", snapshot, journal)
             arena.shared_array("ai_journal_turns", np.int64, (journal, 3)).array[:, 0] = -1  # (turn, tick, decision)
             arena.snapshot_block("ai_state", AI_STATE_DTYPE, 1)
-            layout.ai_queue = TurnQueue("ai", ctx, arena.shared_array("ai_queue", np.int64, QUEUE_WORDS).array)
+            layout.ai_queue = TurnQueue("ai", ctx, arena.shared_array("ai_queue", np.int64, QUEUE_WORDS).array, spin_s)
         if "gateway" in kinds:
             layout._lock_dir = tempfile.mkdtemp(prefix=f"pingpong-{arena.run_id}-")
             layout.lock_path = str(Path(layout._lock_dir) / "locks")

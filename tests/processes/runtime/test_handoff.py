@@ -6,7 +6,7 @@ import sys
 import numpy as np
 import pytest
 
-from processes.runtime.handoff import NO_TURN, QUEUE_WORDS, TICK_SLOT_DTYPE, Baton, HandoffTimeout, TurnQueue
+from processes.runtime.handoff import NO_TURN, QUEUE_WORDS, SPIN_S, TICK_SLOT_DTYPE, Baton, HandoffTimeout, TurnQueue
 from processes.runtime.shm import Arena
 from tests.waits import DEADLINE_S
 
@@ -77,8 +77,11 @@ def test_a_nudge_posts_only_to_a_sleeping_worker_which_looks_for_its_work_first(
         arena.close()
 
 
-def _answer_turns(layout, queue):
-    """A TurnQueue's worker: answers each turn with ten times its datum, in order, until stopped."""
+def _answer_turns(layout, queue, spin_s):
+    """A TurnQueue's worker: answers each turn with ten times its datum, in order, until stopped;
+    exits with 3 if the queue it was handed polls for another time than spin_s."""
+    if queue.spin_s != spin_s:
+        sys.exit(3)
     arena = Arena.attach(layout)
     queue.attach(arena["words"].array)
     data, answers = arena["data"].array, arena["answers"].array
@@ -92,14 +95,16 @@ def _answer_turns(layout, queue):
     arena.close()
 
 
-def test_turn_queue_answers_every_turn_in_order_and_the_hub_waits_only_for_what_it_needs(ctx, procs, no_leftovers):
+@pytest.mark.parametrize("spin_s", [SPIN_S, 0.0])  # 0: a run whose workers outnumber the cores
+def test_turn_queue_answers_every_turn_in_order_and_the_hub_waits_only_for_what_it_needs(ctx, procs, no_leftovers,
+                                                                                         spin_s):
     arena = Arena()
     try:
         words = arena.shared_array("words", np.int64, QUEUE_WORDS).array
         data = arena.shared_array("data", np.dtype("<i8"), 8).array
         answers = arena.shared_array("answers", np.dtype("<i8"), 8).array
-        queue = TurnQueue("test", ctx, words)
-        worker = ctx.Process(target=_answer_turns, args=(arena.layout(), queue))
+        queue = TurnQueue("test", ctx, words, spin_s)
+        worker = ctx.Process(target=_answer_turns, args=(arena.layout(), queue, spin_s))
         procs.append(worker)
         worker.start()
         for turn in range(1, 201):
