@@ -111,10 +111,11 @@ def _floats(record: np.ndarray, start: int, count: int) -> np.ndarray:
 NO_KEY = (-1, -1, -1, -1)
 
 
-def gate_open(key: tuple, now: float, keys: np.ndarray, dues: np.ndarray, ends: np.ndarray) -> bool:
+def gate_open(key: tuple, now: float, keys, dues, ends) -> bool:
     """Would Players.decide let a seat decide now, from the seats' gates (Players.gates: each
-    seat's key at its last decision and its wakes)? Seat.needs_decision's test, for a caller
-    that holds only the gates (the physics worker, processes.workers.ai_driver)."""
+    seat's key at its last decision and its wakes; arrays, or a list of key tuples and lists of
+    floats)? Seat.needs_decision's test, for a caller that holds only the gates (the physics
+    worker, processes.workers.ai_driver)."""
     for k in range(len(dues)):
         if now >= dues[k] or now > ends[k] or key != tuple(keys[k]):
             return True

@@ -99,8 +99,9 @@ class AIDriver:
             if int(answer["turn"]) != turn:
                 return False  # a restarted AI worker's answer of an earlier incarnation: ask
             n = self.n_ai
-            gates = self.gates = (answer["gate_key"][:n].copy(), answer["gate_due"][:n].copy(),
-                                  answer["gate_end"][:n].copy())
+            # As Python numbers: the gates are asked at every control tick until the next answer.
+            gates = self.gates = ([tuple(row) for row in answer["gate_key"][:n].tolist()],
+                                  answer["gate_due"][:n].tolist(), answer["gate_end"][:n].tolist())
         return not gate_open(decision_key(match.rally_record), now, *gates)
 
     def collect(self, match: Match, tick: int) -> list:

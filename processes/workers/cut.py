@@ -35,7 +35,8 @@ class Cuts:
     def write(self, tick: int, runs: int, arm: np.ndarray, driver_checkpoint) -> None:
         """The cut of the snapshot at `tick` about to be published: `runs` runs posted before it, the
         plans in effect and the driver's checkpoint (None: no AI) there."""
-        data = pickle.dumps((arm, driver_checkpoint), protocol=pickle.HIGHEST_PROTOCOL)
+        # the plans' bytes: pickling an array costs several times more than its few hundred bytes
+        data = pickle.dumps((arm.tobytes(), arm.dtype.str, arm.shape, driver_checkpoint), protocol=pickle.HIGHEST_PROTOCOL)
         if len(data) > CUT_BYTES:
             raise RuntimeError(f"speculation: the cut at tick {tick} takes {len(data)} bytes, above CUT_BYTES = "
                                f"{CUT_BYTES}")
@@ -53,8 +54,8 @@ class Cuts:
         for k in range(CUT_ROWS):
             row = self.rows[k]
             if int(row["tick"]) == tick:
-                arm, driver_checkpoint = pickle.loads(row["data"][:int(row["size"])].tobytes())
+                plans, dtype, shape, driver_checkpoint = pickle.loads(row["data"][:int(row["size"])].tobytes())
                 self.next = 1 - k
-                return int(row["runs"]), arm, driver_checkpoint
+                return int(row["runs"]), np.frombuffer(plans, dtype).reshape(shape), driver_checkpoint
         raise RuntimeError(f"speculation: no cut for the snapshot at tick {tick} (the cuts are at ticks "
                            f"{[int(r) for r in self.rows['tick']]})")

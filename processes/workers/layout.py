@@ -20,7 +20,7 @@ and removes them at the end. The blocks of a run, by name:
 | ai_journal, ai_journal_turns | physics snapshot ring of AI_JOURNAL_TURNS, and each one's (turn, tick, decision): the views of the turns a player decided at, before they are counted answered | ai | a restarted ai |
 | ai_state | AI_STATE_DTYPE (SnapshotBlock): the AIs' pickled state after a decision, after it is counted answered | ai | a restarted ai |
 | net_queue, net_runs, net_answers, net_spec | a speculating run's runs near the net, their answers and its words (SPEC_WORDS) | physics the runs, net the answers | both |
-| net_states | net_state_dtype ring of SPEC_RUNS: the net's state after each run it answered | net | a restarted net |
+| net_states | net_state_dtype ring of NET_STATES: the net's state after each run it answered | net | a restarted net or physics |
 | spec_cut | processes.workers.cut.CUT_DTYPE, two rows: what goes with each snapshot published | physics | a restarted physics |
 | ai_void, ai_spec | a speculating run's turns taken back, and the newest turn no go-back can take back | physics | ai |
 | remote_header, remote_inputs | Mailbox of REMOTE_INPUT_DTYPE (locked) | gateway posts | physics drains |
@@ -99,6 +99,11 @@ NET_SHOW = "net_show"
 # may step without the ball (granted), the number of the physics' go-backs (epoch), and the run
 # whose end a restarted physics sends the net back to (back; -1: none asked).
 SPEC_RUNS = 64
+# The net's states kept after its runs: a restarted physics sends the net back to its state after
+# the last run before the snapshot it resumes from, which is at most SPEC_RUNS // 2 runs before
+# the oldest run not yet confirmed (processes.workers.speculation publishes one at least that
+# often), and the net may have answered up to twice SPEC_RUNS runs past that one.
+NET_STATES = 4 * SPEC_RUNS
 SPEC_RUN_DTYPE = np.dtype([("tick", "<i8"), ("count", "<i8"), ("ball", "<f8", (NET_RUN_TICKS, 2, 3)),
                            ("radius", "<f8"), ("inv_mass", "<f8")])
 SPEC_ANSWER_DTYPE = np.dtype([
@@ -292,7 +297,7 @@ def build_layout(compiled: CompiledScene, kinds: list[str], ticks: int, trace: b
                 arena.shared_array("net_runs", SPEC_RUN_DTYPE, SPEC_RUNS)
                 arena.shared_array("net_answers", SPEC_ANSWER_DTYPE, SPEC_RUNS).array["run"] = -1
                 arena.shared_array("net_spec", np.int64, SPEC_WORDS).array[SPEC_BACK] = -1
-                arena.shared_array("net_states", net_state_dtype(n_knots), SPEC_RUNS).array["run"] = -1
+                arena.shared_array("net_states", net_state_dtype(n_knots), NET_STATES).array["run"] = -1
                 layout.net_queue = TurnQueue("net", ctx, arena.shared_array("net_queue", np.int64, QUEUE_WORDS).array,
                                              spin_s)
         if "ai" in kinds:

@@ -40,7 +40,8 @@ from processes.runtime.handoff import HandoffTimeout
 from processes.runtime.shm import Arena
 from processes.runtime.control import Control
 from processes.runtime.timeline import IDLE, WORK, Timeline
-from processes.workers.layout import NET_BLOCKS, NET_SHOW, SPEC_BACK, SPEC_EPOCH, SPEC_GRANTED, SPEC_RUNS, NetIO
+from processes.workers.layout import (NET_BLOCKS, NET_SHOW, NET_STATES, SPEC_BACK, SPEC_EPOCH, SPEC_GRANTED, SPEC_RUNS,
+                                     NetIO)
 from processes.workers.options import RunOptions
 
 FREE_BEAT_TICKS = 256  # free ticks between two heartbeats: well inside the supervisor's stall timeout
@@ -373,7 +374,7 @@ def _answer_queued_runs(control: Control, arena: Arena, options: RunOptions, sim
                     steps += taken
                     done += 1
                     halted = contact.toi != NO_CONTACT
-                    slot = states[done % SPEC_RUNS]
+                    slot = states[done % NET_STATES]
                     slot["run"] = -1  # torn until its number is written, last
                     _write_state(sim, net_tick, slot["state"])
                     slot["epoch"], slot["touched"], slot["run"] = epoch, halted, done
@@ -404,10 +405,10 @@ def _go_back(sim: NetSim, states: np.ndarray, built: np.ndarray, run: int) -> tu
     if run == 0:
         _load(sim, built[0])
         return 0, False, 0
-    slot = states[run % SPEC_RUNS]
+    slot = states[run % NET_STATES]
     if int(slot["run"]) != run:
         raise RuntimeError(f"net worker: the state after run {run} is no longer kept (its slot holds run "
-                           f"{int(slot['run'])}; net_states keeps {SPEC_RUNS})")
+                           f"{int(slot['run'])}; net_states keeps {NET_STATES})")
     _load(sim, slot["state"])
     return int(slot["state"]["tick"]), bool(slot["touched"]), int(slot["epoch"])
 

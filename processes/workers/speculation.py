@@ -56,8 +56,9 @@ from processes.workers.remote_net import KnownNet
 
 NET_GIVE_UP_S = 60.0  # the longest wait for a run's answer, a restart of the net worker included
 # Ticks between two snapshots (and their cuts) at most while nothing else changes: a restarted
-# physics steps again at most this many ticks; a point decided is published at once.
-SNAPSHOT_EVERY_TICKS = 64
+# physics steps again at most this many ticks; a point decided is published at once, and so is
+# a snapshot SPEC_RUNS // 2 runs after the last (the net keeps its states after NET_STATES runs).
+SNAPSHOT_EVERY_TICKS = 256
 
 
 class SpeculativeNet(KnownNet):
@@ -332,10 +333,12 @@ def run_speculating(control: Control, match, net: SpeculativeNet, driver, out, p
 
     kept = Checkpoints()
     tick = match.current_tick
+    runs = cuts.read(tick)[0] if resumed else 0  # the runs posted before the snapshot
     if resumed:
-        net.go_back(cuts.read(tick)[0], tick)
+        net.go_back(runs, tick)
     point_ticks = [tick] * len(match.referee.points)  # the tick after the call that decided each point
-    published = [0, len(match.referee.points), tick, tick]  # events, points, the tick confirmed, of the snapshot
+    # events, points, the tick confirmed, the tick of the snapshot and the runs posted before it
+    published = [0, len(match.referee.points), tick, tick, runs]
     ai_room = len(driver.views) - 2 * (match.delay // match.ai_every) - 4 if driver is not None else 0
     busy = 0.0
     while True:
@@ -410,12 +413,14 @@ def _publish_confirmed(out, match, kept: Checkpoints, oldest, points_log: np.nda
     points = match.referee.points
     for k in range(published[1], points_to):
         points_log[k] = point_row(points[k], point_ticks[k])
-    snapshot = published[3]
-    if force or points_to != published[1] or tick - snapshot >= SNAPSHOT_EVERY_TICKS:
+    snapshot, snapshot_runs = published[3], published[4]
+    if oldest is None:
+        runs, driver = now
+    if (force or points_to != published[1] or tick - snapshot >= SNAPSHOT_EVERY_TICKS
+            or runs - snapshot_runs >= SPEC_RUNS // 2):
         if oldest is None:
-            runs, driver = now
             arm, driver_cp = match.arm, (driver.checkpoint() if driver is not None else None)
         cuts.write(tick, runs, arm, driver_cp)
         out.publish_snapshot(tick, record)
-        snapshot = tick
-    published[:] = [events_to, points_to, tick, snapshot]
+        snapshot, snapshot_runs = tick, runs
+    published[:] = [events_to, points_to, tick, snapshot, snapshot_runs]
