@@ -42,8 +42,9 @@ def _in_worker_processes(scene, ticks: int, seed: int, speculate: bool | None = 
     multi = result.match_summary(seed)
     start = float(marks["physics"]["t"][0])
     end = max(float(m["t"][-1]) for m in marks.values())
+    beside = timelines.shares_beside(marks, "net", start, end) if "net" in marks else None
     return {"summary": multi, "startup_seconds": result.startup_seconds, "workers": result.workers, "speculate": speculate,
-            "working": timelines.busy_share(marks, start, end), "timeline": marks}
+            "working": timelines.busy_share(marks, start, end), "beside_net": beside, "timeline": marks}
 
 
 def _in_process(scene, ticks: int, seed: int) -> dict:
@@ -83,6 +84,7 @@ def _bench_scene(scene, args: argparse.Namespace, rounds: list[dict], references
                       "realtime_factors": factors,
                       "startup_seconds": median["startup_seconds"], "workers": median["workers"],
                       "working": median["working"], "speculate": median["speculate"],
+                      **({"beside_net": median["beside_net"]} if median["beside_net"] else {}),
                       "us_per_tick": 1e6 * multi["wall_seconds"] / max(multi["ticks"], 1)},
         "over_in_process": {"median": statistics.median(ratios), "rounds": ratios},
         "in_process": {"wall_seconds": reference["wall_seconds"], "realtime_factor": reference["realtime_factor"],
@@ -214,6 +216,11 @@ def _print_bench(report: dict, first: dict) -> None:
     working = p["working"]
     print(f"    two or more workers at work {working['two']:.0%} of the wall time, one {working['one']:.0%}, "
           f"none {working['none']:.0%}")
+    beside = p.get("beside_net")
+    if beside:
+        others = ", ".join(f"{who.replace('ai', 'AI').replace('+', ' and ')} {share:.0%}" for who, share in
+                           sorted(beside.items(), key=lambda item: -item[1]) if who != "net")
+        print(f"    the net at work {beside.get('net', 0.0):.0%} of the wall time; while it was not: {others}")
     share = f", net awake {r['net_awake_share']:.0%} of ticks" if "net_awake_share" in r else ""
     in_rounds = r["realtime_factors"]
     in_median = f", the median of {len(in_rounds)} rounds ({', '.join(f'{x:.1f}' for x in in_rounds)})" \

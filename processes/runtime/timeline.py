@@ -68,24 +68,50 @@ def intervals(marks: np.ndarray, end: float) -> tuple[np.ndarray, np.ndarray, np
     return starts, stops - starts, marks["state"]
 
 
-def busy_share(timelines: dict[str, np.ndarray], start: float, end: float) -> dict[str, float]:
-    """Shares of the wall time from `start` to `end` (s, monotonic) in which no worker, exactly
-    one, and two or more worked (state WORK or THINK): on two cores, the last is the share in
-    which both cores worked for the run."""
+def _working_edges(timelines: dict[str, np.ndarray], start: float, end: float) -> list[tuple[float, int, str]]:
+    """(time, +1 or -1, worker kind) at each start and end of a worker's work (state WORK or
+    THINK) inside `start` .. `end`, in time order."""
     edges = []
-    for marks in timelines.values():
+    for kind, marks in timelines.items():
         starts, lengths, states = intervals(marks, end)
         working = (states == WORK) | (states == THINK)
         for s, n in zip(starts[working], lengths[working]):
             lo, hi = max(s, start), min(s + n, end)
             if hi > lo:
-                edges += [(lo, 1), (hi, -1)]
+                edges += [(lo, 1, kind), (hi, -1, kind)]
     edges.sort()
+    return edges
+
+
+def busy_share(timelines: dict[str, np.ndarray], start: float, end: float) -> dict[str, float]:
+    """Shares of the wall time from `start` to `end` (s, monotonic) in which no worker, exactly
+    one, and two or more worked (state WORK or THINK): on two cores, the last is the share in
+    which both cores worked for the run."""
     shares = [0.0, 0.0, 0.0]
     level, last = 0, start
-    for t, step in edges:
+    for t, step, _ in _working_edges(timelines, start, end):
         shares[min(level, 2)] += t - last
         level, last = level + step, t
     shares[min(level, 2)] += end - last
     total = max(end - start, 1e-12)
     return {"none": shares[0] / total, "one": shares[1] / total, "two": shares[2] / total}
+
+
+def shares_beside(timelines: dict[str, np.ndarray], kind: str, start: float, end: float) -> dict[str, float]:
+    """Shares of the wall time from `start` to `end` by who worked: `kind` (whoever else did too),
+    and while `kind` did not, each set of the others that worked ("physics", "physics+ai", ...)
+    and "none". On a run whose longest chain is `kind`'s work, the wall time is its work plus
+    the others' work alone: what can only get shorter by making either cheaper."""
+    shares: dict[str, float] = {}
+    working: set[str] = set()
+    last = start
+    for t, step, who in _working_edges(timelines, start, end) + [(end, 0, "")]:
+        key = kind if kind in working else "+".join(sorted(working)) or "none"
+        shares[key] = shares.get(key, 0.0) + t - last
+        if step > 0:
+            working.add(who)
+        elif step < 0:
+            working.discard(who)
+        last = t
+    total = max(end - start, 1e-12)
+    return {key: value / total for key, value in shares.items()}

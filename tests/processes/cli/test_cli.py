@@ -155,6 +155,7 @@ def test_bench_match_quick_json(tmp_path):
     assert ratio["rounds"] == [ratio["median"]]
     assert ratio["median"] == pytest.approx(report["processes"]["realtime_factor"] / report["in_process"]["realtime_factor"])
     assert sum(report["processes"]["working"].values()) == pytest.approx(1.0)
+    assert sum(report["processes"]["beside_net"].values()) == pytest.approx(1.0)  # the net's work, the rest by who
     assert report["timeline"]["path"] == str(picture) and picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
