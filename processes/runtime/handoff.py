@@ -298,6 +298,14 @@ class TurnQueue:
                              f"posted {self._words[0]})")
         self._words[0] = turns
 
+    def withdraw(self, turns: int) -> None:
+        """Take back every turn posted after turn `turns`, answered or not: a restarted hub sends
+        its worker back to turn `turns`, and the worker, taking no turn past it from now on,
+        counts its answers back to it itself (answer(turns)); the next post is turn `turns` + 1."""
+        if not 0 <= turns <= self._words[0]:
+            raise ValueError(f"{self.name}: cannot withdraw to turn {turns} (posted {self._words[0]})")
+        self._words[0] = turns
+
     def stop(self) -> None:
         self._words[2] = STOP
         self._posted.release()
@@ -333,4 +341,8 @@ class TurnQueue:
     def answer(self, turn: int) -> None:
         """Turn `turn` is answered (its answer already written)."""
         self._words[1] = turn
+        self._answered.release()
+
+    def wake_hub(self) -> None:
+        """Wake a hub waiting (wait_for) on shared state beside the counts, just changed."""
         self._answered.release()

@@ -111,14 +111,14 @@ SPEC_ANSWER_DTYPE = np.dtype([
     ("sleeping", "<i8"), ("tail_until", "<i8"), ("box", "<f8", (2, 3)), ("bounded", "<i8"), ("bound", "<f8", (2, 3))])
 SPEC_GRANTED, SPEC_EPOCH, SPEC_BACK = 0, 1, 2  # words of net_spec
 SPEC_WORDS = 3
-# A speculating run's AI journal: the decisions since the newest state that no go-back can take
-# back, which may be many turns behind the newest (the physics keeps AI_SPEC_RING turns in flight).
-AI_SPEC_JOURNAL = 256
 # The AI's rings in a speculating run hold the turns of every control tick the physics may still
 # go back over (a turn's answer is collected again after a go-back), and `ai_void` marks the
 # turns a go-back took back (the turn's number in its slot); `ai_spec` holds the newest turn
 # no go-back can take back.
 AI_SPEC_RING = 1024
+# A speculating run's AI journal: the decisions since the newest state that no go-back can take
+# back, which may be as many turns behind the newest as the physics keeps in flight: a ring's worth.
+AI_SPEC_JOURNAL = AI_SPEC_RING + 2 * AI_KEEP_EVERY
 
 
 def net_state_dtype(n_knots: int) -> np.dtype:

@@ -316,10 +316,11 @@ def _answer_queued_runs(control: Control, arena: Arena, options: RunOptions, sim
     run is counted answered. A restarted net worker goes on from its state after the last run
     answered (halted there if that run touched and the physics has not gone back since) and
     steps the grants again; the free ticks between runs are stepped as they were. A restarted
-    physics worker resumes at a snapshot with some runs posted before it (processes.workers.cut)
-    and asks the net back to its state after the last of them (SPEC_BACK): the net goes there,
-    counts that run the last answered, and halts until the physics, having taken back the runs
-    after it, moves the epoch."""
+    physics worker resumes at a snapshot with some runs posted before it (processes.workers.cut),
+    takes back the runs posted after the last of them (TurnQueue.withdraw: no net, restarted or
+    not, takes one of them again) and asks the net back to its state after it (SPEC_BACK): the
+    net goes there, counts that run the last answered, and halts until the physics moves the
+    epoch."""
     queue = options.handles.net_queue.attach(arena["net_queue"].array)
     runs, answers, states = arena["net_runs"].array, arena["net_answers"].array, arena["net_states"].array
     words = memoryview(arena["net_spec"].array.view("<i8")).cast("B").cast("q")
@@ -347,8 +348,9 @@ def _answer_queued_runs(control: Control, arena: Arena, options: RunOptions, sim
             if back >= 0:  # a restarted physics: back to the state after run `back`, halted there
                 net_tick, _, _ = _go_back(sim, states, built, back)
                 done, epoch, halted = back, words[SPEC_EPOCH], True
+                queue.answer(done)  # killed after this, a restarted net goes back again
                 words[SPEC_BACK] = -1
-                queue.answer(done)  # last: the physics waits for the count and the word both
+                queue.wake_hub()  # last: the physics waits for the count and the word both
                 continue
             if halted and words[SPEC_EPOCH] != epoch:
                 epoch, halted = words[SPEC_EPOCH], False  # the physics went back: its new runs follow

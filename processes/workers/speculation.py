@@ -271,12 +271,18 @@ class SpeculativeNet(KnownNet):
         back; waits (bounded, with heartbeats) until the net is there."""
         words, queue = self.words, self.queue
         words[SPEC_GRANTED] = tick
+        queue.withdraw(runs)  # first: from here on no net worker takes a run past it
         words[SPEC_BACK] = runs
         queue.wait_for(lambda: words[SPEC_BACK] < 0 and queue.answered == runs,
                        f"the net did not go back to its state after run {runs}", self.handoff_s, NET_GIVE_UP_S,
                        lambda: self.control.beat(tick))
-        queue.rewind(runs)
         words[SPEC_EPOCH] += 1  # last: the net worker goes on from here
+
+    @property
+    def runs_stepped(self) -> int:
+        """The runs posted whose ticks the physics has stepped: all of them, but for a touched
+        run that a go-back steps again (its answer kept in `known`)."""
+        return self.queue.posted - (1 if self.known else 0)
 
     def stop(self) -> float:
         """The run is over (every run answered): tell the net worker; the wall time waited for it."""
@@ -333,12 +339,13 @@ def run_speculating(control: Control, match, net: SpeculativeNet, driver, out, p
 
     kept = Checkpoints()
     tick = match.current_tick
-    runs = cuts.read(tick)[0] if resumed else 0  # the runs posted before the snapshot
+    runs, _, driver_cp = cuts.read(tick) if resumed else (0, None, None)  # the runs posted before the snapshot
     if resumed:
         net.go_back(runs, tick)
     point_ticks = [tick] * len(match.referee.points)  # the tick after the call that decided each point
-    # events, points, the tick confirmed, the tick of the snapshot and the runs posted before it
-    published = [0, len(match.referee.points), tick, tick, runs]
+    # events, points, the tick confirmed, the tick of the snapshot, the runs posted before it and
+    # the oldest AI turn its cut needs
+    published = [0, len(match.referee.points), tick, tick, runs, _first_turn(driver_cp, driver)]
     ai_room = len(driver.views) - 2 * (match.delay // match.ai_every) - 4 if driver is not None else 0
     busy = 0.0
     while True:
@@ -358,11 +365,12 @@ def run_speculating(control: Control, match, net: SpeculativeNet, driver, out, p
         oldest = kept.confirmed_to(net.in_flight)
         ending = (tick >= n_ticks or match.over) and not net.in_flight
         _publish_confirmed(out, match, kept, oldest, points_log, published, point_ticks, point_row, cuts,
-                           (net.queue.posted, driver), ending)
+                           (net.runs_stepped, driver), ending, ai_room)
         if driver is not None:
             driver.confirm(oldest[3][2] if oldest is not None else driver.queue.posted)
+        # A restart goes back to the cut: the AI turns from its oldest on must stay in the rings.
         if tick >= n_ticks or match.over or net.free < 2 or (
-                driver is not None and oldest is not None and driver.queue.posted - oldest[3][2] > ai_room):
+                driver is not None and net.in_flight and driver.queue.posted - published[5] > ai_room):
             if not net.in_flight:
                 busy += time.perf_counter() - t0
                 break  # the end, every run confirmed
@@ -395,12 +403,22 @@ def run_speculating(control: Control, match, net: SpeculativeNet, driver, out, p
     return busy
 
 
+def _first_turn(driver_cp, driver) -> int:
+    """The oldest AI turn a cut with this AIDriver.checkpoint needs (its turns in flight), or
+    the next one if none; None: no checkpoint (a fresh run), then the driver's next turn."""
+    if driver_cp is None:
+        return driver.queue.posted + 1 if driver is not None else 0
+    pending, _, posted = driver_cp[:3]
+    return pending[0][1] if pending else posted + 1
+
+
 def _publish_confirmed(out, match, kept: Checkpoints, oldest, points_log: np.ndarray, published: list,
-                       point_ticks: list, point_row, cuts: Cuts, now: tuple, force: bool) -> None:
+                       point_ticks: list, point_row, cuts: Cuts, now: tuple, force: bool, ai_room: int) -> None:
     """Publish what every run before it confirms: the events and points up to the oldest
     checkpoint kept (all of them if none), and the state there as the snapshot with its cut,
-    when a point was decided, SNAPSHOT_EVERY_TICKS after the last or `force` (the end).
-    now: (the runs posted, the AIDriver or None), the cut if no checkpoint is kept."""
+    when a point was decided, SNAPSHOT_EVERY_TICKS after the last, SPEC_RUNS // 2 runs after the
+    last, half the AI's room of turns after the oldest turn the last needs, or `force` (the end).
+    now: (the runs stepped, the AIDriver or None), the cut if no checkpoint is kept."""
     if oldest is None:
         events_to, points_to, tick, record = len(kept.events), len(match.referee.points), match.current_tick, None
     else:
@@ -413,14 +431,16 @@ def _publish_confirmed(out, match, kept: Checkpoints, oldest, points_log: np.nda
     points = match.referee.points
     for k in range(published[1], points_to):
         points_log[k] = point_row(points[k], point_ticks[k])
-    snapshot, snapshot_runs = published[3], published[4]
+    snapshot, snapshot_runs, first_turn = published[3], published[4], published[5]
+    driver = now[1]
     if oldest is None:
-        runs, driver = now
+        runs = now[0]
     if (force or points_to != published[1] or tick - snapshot >= SNAPSHOT_EVERY_TICKS
-            or runs - snapshot_runs >= SPEC_RUNS // 2):
+            or runs - snapshot_runs >= SPEC_RUNS // 2
+            or driver is not None and driver.queue.posted - first_turn > ai_room // 2):
         if oldest is None:
             arm, driver_cp = match.arm, (driver.checkpoint() if driver is not None else None)
         cuts.write(tick, runs, arm, driver_cp)
         out.publish_snapshot(tick, record)
-        snapshot, snapshot_runs = tick, runs
-    published[:] = [events_to, points_to, tick, snapshot, snapshot_runs]
+        snapshot, snapshot_runs, first_turn = tick, runs, _first_turn(driver_cp, driver)
+    published[:] = [events_to, points_to, tick, snapshot, snapshot_runs, first_turn]

@@ -151,6 +151,13 @@ def test_turns_taken_back_are_posted_again_and_never_below_the_answered(ctx, no_
             queue.rewind(1)
         assert not queue.wait_work(4, 0.05, lambda: False)  # nothing posted after turn 4, nothing pending
         assert queue.wait_work(4, 0.05, lambda: True)  # work beside the turns ends the wait at once
+        # A restarted hub withdraws answered turns too; the worker counts its answers back itself.
+        queue.withdraw(1)
+        assert (queue.posted, queue.answered) == (1, 2)
+        queue.answer(1)
+        assert queue.post() == 2
+        with pytest.raises(ValueError, match=r"net: cannot withdraw to turn 3 \(posted 2\)"):
+            queue.withdraw(3)
         del queue
     finally:
         arena.close()
