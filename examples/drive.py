@@ -151,6 +151,16 @@ class Drive(Bot):
 
     def _return(self, obs, key):
         """The stroke for the coming ball; None if it will not bounce on this court (let it go)."""
+        found = self._meeting(obs)
+        if found is None:
+            return None
+        row, path = found
+        n, bat_v = self._stroke(row)
+        return self._swing(obs, key, row, n, bat_v, path)
+
+    def _meeting(self, obs):
+        """Where to meet the coming ball: (the row of its predicted path, the path), or None if it
+        will not bounce on this court."""
         ball = obs["ball"]
         path = fly(ball["pos"], ball["vel"], ball["spin"])
         sx = self.end_sign * path[:, 1]
@@ -168,7 +178,11 @@ class Drive(Bot):
                 break
         if not mask.any():
             return None
-        row = path[after][np.flatnonzero(mask)[0]]
+        return path[after][np.flatnonzero(mask)[0]], path
+
+    def _stroke(self, row):
+        """Face normal and bat velocity for the ball at `row` of its path: a drive `depth` inside
+        the other end line, at the fastest pace that clears the net by `net_margin`."""
         p = row[1:4]
         aim = np.array([-self.end_sign * (HALF_L - self.depth), 0.0])
         # The fastest pace whose drag-free arc from p down to aim passes net_margin over the net:
@@ -176,8 +190,7 @@ class Drive(Bot):
         f, dist = abs(p[0]) / abs(p[0] - aim[0]), np.hypot(*(aim - p[:2]))
         rise = NET_TOP + R + self.net_margin - (p[2] + f * (R - p[2]))
         pace = min(self.max_pace, math.sqrt(G * f * (1 - f) * dist**2 / (2 * rise))) if rise > 0 else self.max_pace
-        n, bat_v = stroke(p, row[4:7], row[7:10], aim, pace)
-        return self._swing(obs, key, row, n, bat_v, path)
+        return stroke(p, row[4:7], row[7:10], aim, pace)
 
     def _swing(self, obs, key, row, normal, bat_v, path):
         """One Hermite path from the bat's state to meet the ball at `row` of its path, face `normal`,

@@ -2,6 +2,10 @@
 
     make train                                   # the extra: stable-baselines3, torch's CPU build
     python examples/train_ppo.py --steps 2000000 --envs 2 --out runs/ppo
+    python examples/train_ppo.py --task strike --steps 60000 --envs 2 --out runs/strike
+
+--task strike learns the stroke only, on examples/strike.py's StrikeEnv (one return a step, the
+footwork examples/drive.py's), and its bot is examples/strike.py:StrikeBot.
 
 The environment is the one made for learners (engine/learning/agent_frame.py: the agent's own frame,
 bounded observations, actions in [-1, 1]) with the dense reward (engine/learning/env.py REWARD_TERMS),
@@ -21,8 +25,10 @@ hyper-parameters). At the end it writes into --out:
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import os
+import sys
 import time
 from pathlib import Path
 
@@ -34,41 +40,55 @@ EVAL_EPISODES = 100  # held-out seeds for the summary's return and landed share
 EVAL_SEED = 1_000_000  # held-out seeds start here: training draws its own from --seed
 
 
-def make_env(action_type: str, seed: int, envs: int):
+def _beside(name: str):
+    """The module examples/NAME.py beside this file, imported as a file bot's imports find it."""
+    here = str(Path(__file__).resolve().parent)
+    if here not in sys.path:
+        sys.path.insert(0, here)
+    return importlib.import_module(name)
+
+
+def new_env(task: str, action_type: str, reward: str = "dense"):
+    """One environment of the task: Return-v1 against OPPONENT, or examples/strike.py's StrikeEnv."""
     import gymnasium
+
+    if task == "strike":
+        return _beside("strike").StrikeEnv()
+    # "module:id" imports the registration in each worker process too
+    return gymnasium.make(f"engine.learning.env:{ENV_ID}", opponent=OPPONENT, action_type=action_type, reward=reward)
+
+
+def make_env(task: str, action_type: str, seed: int, envs: int):
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
-    kwargs = {"opponent": OPPONENT, "action_type": action_type, "reward": "dense"}
     vec_cls, vec_kwargs = (SubprocVecEnv, {"start_method": "forkserver"}) if envs > 1 else (DummyVecEnv, None)
-    # "module:id" imports the registration in each worker process too
-    vec = make_vec_env(lambda: gymnasium.make(f"engine.learning.env:{ENV_ID}", **kwargs), n_envs=envs, seed=seed,
-                       vec_env_cls=vec_cls, vec_env_kwargs=vec_kwargs)
+    vec = make_vec_env(lambda: new_env(task, action_type), n_envs=envs, seed=seed, vec_env_cls=vec_cls,
+                       vec_env_kwargs=vec_kwargs)
     return VecNormalize(vec, norm_obs=False, norm_reward=True)
 
 
-def evaluate(model, action_type: str, episodes: int) -> dict:
-    """The deterministic policy on `episodes` held-out seeds of the sparse task: mean return, and
-    the share of episodes whose return bounced on the opponent's court."""
-    import gymnasium
-
-    env = gymnasium.make(f"engine.learning.env:{ENV_ID}", opponent=OPPONENT, action_type=action_type)
+def evaluate(model, task: str, action_type: str, episodes: int) -> dict:
+    """The deterministic policy on `episodes` held-out seeds of the task (Return-v1's sparse
+    reward): mean return, and the share of episodes whose return bounced on the opponent's court."""
+    env = new_env(task, action_type, reward="sparse")
     returns, landed = [], 0
     for k in range(episodes):
         obs, _ = env.reset(seed=EVAL_SEED + k)
-        total, done = 0.0, False
+        total, done, info = 0.0, False, {}
         while not done:
             action, _ = model.predict(obs, deterministic=True)
-            obs, reward, terminated, truncated, _ = env.step(action)
+            obs, reward, terminated, truncated, info = env.step(action)
             total += reward
             done = terminated or truncated
         returns.append(total)
-        landed += total >= 1.0  # RETURN_LANDED: the return bounced on the opponent's court
+        # RETURN_LANDED: the return bounced on the opponent's court (StrikeEnv says so)
+        landed += info["landed"] if task == "strike" else total >= 1.0
     env.close()
     return {"episodes": episodes, "mean_return": float(np.mean(returns)), "landed_share": landed / episodes}
 
 
-def curve_png(points: list[tuple[int, float]], path: Path) -> None:
+def curve_png(points: list[tuple[int, float]], path: Path, task: str = "return") -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -79,15 +99,16 @@ def curve_png(points: list[tuple[int, float]], path: Path) -> None:
         steps, means = zip(*points)
         ax.plot(steps, means, marker=".")
     ax.set_xlabel("environment steps")
-    ax.set_ylabel("mean return, dense (last episodes)")
-    ax.set_title(f"PPO (stable-baselines3): {ENV_ID} against {OPPONENT}", fontsize=9)
+    ax.set_ylabel("mean return (last episodes)")
+    env = "examples/strike.py StrikeEnv" if task == "strike" else ENV_ID
+    ax.set_title(f"PPO (stable-baselines3): {env} against {OPPONENT}", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
 
 
 def train(steps: int, envs: int, out: Path, seed: int = 0, action_type: str = "hold",
-          eval_episodes: int = EVAL_EPISODES, best_of: int = 3) -> dict:
+          eval_episodes: int = EVAL_EPISODES, best_of: int = 3, task: str = "return") -> dict:
     """Train, save, evaluate, play a match (see the module's docstring); the summary."""
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import BaseCallback
@@ -107,26 +128,33 @@ def train(steps: int, envs: int, out: Path, seed: int = 0, action_type: str = "h
     import torch
 
     torch.set_num_threads(1)  # a small MLP: torch's thread pool would only fight the environments for the cores
-    vec = make_env(action_type, seed, envs)
-    n_steps = max(64, min(2048, steps // envs))
+    vec = make_env(task, action_type, seed, envs)
+    # A strike is a one-step episode: shorter rollouts update the policy more often.
+    n_steps = max(64, min(256 if task == "strike" else 2048, steps // envs))
+    # A strike's action has a prior (examples/strike.py maps 0 to a plain drive): explore near it.
+    extra = {"policy_kwargs": {"log_std_init": -0.5}} if task == "strike" else {}
     model = PPO("MlpPolicy", vec, seed=seed, device="cpu", verbose=0, n_steps=n_steps,
-                batch_size=min(256, n_steps * envs))
+                batch_size=min(256 if task != "strike" else 64, n_steps * envs), **extra)
     started = time.perf_counter()
     model.learn(total_timesteps=steps, callback=Curve())
     wall = time.perf_counter() - started
     vec.close()
-    policy = out / "ppo_policy.zip"
+    policy = out / ("strike_policy.zip" if task == "strike" else "ppo_policy.zip")
     model.save(policy)
-    policy.with_suffix(".json").write_text(json.dumps({"action_type": action_type, "env": ENV_ID,
+    policy.with_suffix(".json").write_text(json.dumps({"action_type": action_type, "task": task,
+                                                       "env": "StrikeEnv" if task == "strike" else ENV_ID,
                                                        "opponent": OPPONENT}))
-    curve_png(curve, out / "ppo_curve.png")
-    summary = {"steps": int(model.num_timesteps), "envs": envs, "wall_seconds": wall,
-               "steps_per_second": model.num_timesteps / wall, "held_out": evaluate(model, action_type, eval_episodes)}
+    curve_png(curve, out / "ppo_curve.png", task)
+    summary = {"task": task, "steps": int(model.num_timesteps), "envs": envs, "wall_seconds": wall,
+               "steps_per_second": model.num_timesteps / wall,
+               "held_out": evaluate(model, task, action_type, eval_episodes)}
     from engine.physics.scene import load_scene
     from engine.play.match import match_record
 
-    os.environ["PPO_POLICY"] = str(policy.resolve())  # the bot plays what was just trained
-    bot = f"{Path(__file__).resolve().with_name('ppo_bot.py')}:PPOBot"
+    # the bot plays what was just trained
+    os.environ["STRIKE_POLICY" if task == "strike" else "PPO_POLICY"] = str(policy.resolve())
+    bot = (f"{Path(__file__).resolve().with_name('strike.py')}:StrikeBot" if task == "strike"
+           else f"{Path(__file__).resolve().with_name('ppo_bot.py')}:PPOBot")
     record = match_record(load_scene("match_rigid"), seed, bot, OPPONENT, best_of=best_of)
     summary["match_against_novice"] = {k: record[k] for k in ("winner", "games", "points", "reasons")}
     (out / "ppo_summary.json").write_text(json.dumps(summary, indent=1))
@@ -138,10 +166,14 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=2_000_000, help="environment steps to train for")
     parser.add_argument("--envs", type=int, default=2, help="environments, one process each")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--action-type", choices=["hold", "target", "force"], default="hold")
+    parser.add_argument("--action-type", choices=["hold", "target", "force"], default="hold",
+                        help="Return-v1's action type (--task return)")
+    parser.add_argument("--task", choices=["return", "strike"], default="return",
+                        help="return: Return-v1, the whole arm; strike: the stroke only (examples/strike.py)")
     parser.add_argument("--out", default="runs/ppo", help="directory of the policy, the curve and the summary")
     args = parser.parse_args()
-    print(json.dumps(train(args.steps, args.envs, Path(args.out), args.seed, args.action_type), indent=1))
+    print(json.dumps(train(args.steps, args.envs, Path(args.out), args.seed, args.action_type, task=args.task),
+                     indent=1))
 
 
 if __name__ == "__main__":

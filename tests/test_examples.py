@@ -49,6 +49,50 @@ def test_ppo_trains_saves_and_its_saved_bot_plays_a_match(tmp_path):
     assert match["winner"] in ("a", "b") and sum(match["points"]) >= 11  # a whole game was played
 
 
+def test_ppo_learns_the_stroke_saves_and_its_strike_bot_plays_a_match(tmp_path):
+    """The smoke run of examples/train_ppo.py --task strike (examples/strike.py: the stroke
+    learned, the footwork examples/drive.py's): it trains, writes the policy, and StrikeBot
+    plays a match with it."""
+    spec = importlib.util.spec_from_file_location("train_ppo_example", EXAMPLES / "train_ppo.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    summary = module.train(steps=256, envs=1, out=tmp_path, seed=0, eval_episodes=2, best_of=1, task="strike")
+    assert summary["steps"] >= 256 and summary["held_out"]["episodes"] == 2
+    for name in ("strike_policy.zip", "strike_policy.json", "ppo_curve.png", "ppo_summary.json"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    match = summary["match_against_novice"]
+    assert match["winner"] in ("a", "b") and sum(match["points"]) >= 11  # a whole game was played
+
+
+def test_the_strike_environment_takes_one_stroke_an_episode_and_refuses_bad_ones():
+    import sys
+
+    import numpy as np
+    import pytest
+
+    sys.path.insert(0, str(EXAMPLES))
+    try:
+        from strike import StrikeEnv, stroke_from_action
+    finally:
+        sys.path.remove(str(EXAMPLES))
+    env = StrikeEnv()
+    obs, _ = env.reset(seed=3)
+    assert env.observation_space.contains(obs)
+    with pytest.raises(ValueError, match=r"action: expected 5 finite numbers"):
+        env.step(np.zeros(4))
+    obs, reward, terminated, truncated, info = env.step(np.zeros(5, np.float32))
+    assert terminated and not truncated and isinstance(info["landed"], bool)
+    with pytest.raises(RuntimeError, match="the episode has ended; call reset"):
+        env.step(np.zeros(5))
+    # The action's frame is the agent's: the two ends strike mirror images of each other.
+    a = np.array([0.3, -0.5, 0.8, 0.2, 0.1])
+    normal_a, vel_a = stroke_from_action(a, -1)
+    normal_b, vel_b = stroke_from_action(a, 1)
+    np.testing.assert_allclose(normal_b, normal_a * [-1, -1, 1], atol=1e-15)  # half a turn about z
+    np.testing.assert_allclose(vel_b, vel_a * [-1, -1, 1], atol=1e-15)
+    assert np.linalg.norm(normal_a) == pytest.approx(1.0, abs=1e-12)  # a unit normal by construction
+
+
 def test_the_drive_example_beats_novice_from_either_end():
     """examples/drive.py, the hand-written bot the README offers as the one to read: a seeded
     best-of-3 against novice from each end (the same matches on every run of this code)."""
