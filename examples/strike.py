@@ -185,7 +185,11 @@ class StrikeBot(Drive):
         super().setup(end, scene)
         from stable_baselines3 import PPO
 
-        self.model = PPO.load(Path(os.environ.get(POLICY_ENV) or POLICY_FILE), device="cpu")
+        path = Path(os.environ.get(POLICY_ENV) or POLICY_FILE)
+        if not path.is_file():
+            raise FileNotFoundError(f"StrikeBot: no policy at {path}; train one (python examples/train_ppo.py "
+                                    f"--task strike --out DIR) and set {POLICY_ENV}=DIR/strike_policy.zip")
+        self.model = PPO.load(path, device="cpu")
         self.model.predict(np.zeros(9), deterministic=True)  # torch builds its kernels here, not in a decision
 
     def _stroke(self, row):
