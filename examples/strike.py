@@ -23,8 +23,9 @@ table's own physics, the meeting point at the top of its bounce) and the stroke 
   for returns that miss, smaller than a landing's. info["landed"] says whether it landed.
 - StrikeBot (`pingpong match --a examples/strike.py:StrikeBot --b novice`): Drive with the
   learned stroke in place of Drive's solved one; the service stays Drive's. It plays the policy
-  examples/train_ppo.py --task strike wrote (strike_policy.zip beside this file, or the one the
-  STRIKE_POLICY environment variable names). Needs the `train` extra (`make train`).
+  examples/train_ppo.py --task strike wrote: strike_policy.zip beside this file (trained with
+  --steps 100000 --envs 2, seed 0; its curve strike_curve.png), or the one the STRIKE_POLICY
+  environment variable names. Needs the `train` extra (`make train`).
 """
 from __future__ import annotations
 

@@ -141,9 +141,10 @@ def train(steps: int, envs: int, out: Path, seed: int = 0, action_type: str = "h
     vec.close()
     policy = out / ("strike_policy.zip" if task == "strike" else "ppo_policy.zip")
     model.save(policy)
-    policy.with_suffix(".json").write_text(json.dumps({"action_type": action_type, "task": task,
-                                                       "env": "StrikeEnv" if task == "strike" else ENV_ID,
-                                                       "opponent": OPPONENT}))
+    what = {"task": "strike", "env": "examples/strike.py StrikeEnv"} if task == "strike" else {
+        "task": "return", "env": ENV_ID, "action_type": action_type}  # the action type ppo_bot.py plays
+    policy.with_suffix(".json").write_text(json.dumps({**what, "opponent": OPPONENT, "steps": int(model.num_timesteps),
+                                                       "seed": seed}))
     curve_png(curve, out / "ppo_curve.png", task)
     summary = {"task": task, "steps": int(model.num_timesteps), "envs": envs, "wall_seconds": wall,
                "steps_per_second": model.num_timesteps / wall,

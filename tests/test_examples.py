@@ -64,6 +64,21 @@ def test_ppo_learns_the_stroke_saves_and_its_strike_bot_plays_a_match(tmp_path):
     assert match["winner"] in ("a", "b") and sum(match["points"]) >= 11  # a whole game was played
 
 
+def test_the_shipped_strike_policy_beats_novice(monkeypatch):
+    """examples/strike_policy.zip, the policy StrikeBot plays by default (train_ppo.py --task
+    strike --steps 100000 --envs 2, seed 0): a seeded best-of-3 against novice from each end
+    (the same matches on every run of this code)."""
+    from engine.physics.scene import load_scene
+    from engine.play.match import match_record
+
+    monkeypatch.delenv("STRIKE_POLICY", raising=False)
+    strike, scene = f"{EXAMPLES / 'strike.py'}:StrikeBot", load_scene("match_rigid")
+    as_a = match_record(scene, 200, strike, "novice", best_of=3)
+    as_b = match_record(scene, 201, "novice", strike, best_of=3)  # the other end: the frame mirrored
+    assert (as_a["winner"], as_b["winner"]) == ("a", "b"), (as_a["games"], as_b["games"])
+    assert as_a["bot_errors"] == as_b["bot_errors"] == []
+
+
 def test_the_strike_environment_takes_one_stroke_an_episode_and_refuses_bad_ones():
     import sys
 
