@@ -35,33 +35,29 @@ def test_the_learned_bot_plays_the_parameters_it_is_pointed_at(tmp_path, monkeyp
     assert (bot.policy.line, bot.policy.pace, bot.policy.lift, bot.policy.tilt) == (1.2, 3.0, 0.5, 0.1)
 
 
-def test_ppo_trains_saves_and_its_saved_bot_plays_a_match(tmp_path):
-    """The smoke run of examples/train_ppo.py (the `train` extra, `make train`): a few thousand
-    steps train, the policy and its curve are written, the bot that loads it plays a match."""
+def _smoke_train(out: Path, task: str, steps: int, policy: str) -> None:
+    """examples/train_ppo.py's smoke run of `task`: it trains `steps` steps, writes the policy,
+    its curve and the summary into `out`, and the bot that loads the policy plays a whole game."""
     spec = importlib.util.spec_from_file_location("train_ppo_example", EXAMPLES / "train_ppo.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    summary = module.train(steps=2048, envs=1, out=tmp_path, seed=0, eval_episodes=2, best_of=1)
-    assert summary["steps"] >= 2048 and summary["held_out"]["episodes"] == 2
-    for name in ("ppo_policy.zip", "ppo_policy.json", "ppo_curve.png", "ppo_summary.json"):
-        assert (tmp_path / name).stat().st_size > 0, name
+    summary = module.train(steps=steps, envs=1, out=out, seed=0, eval_episodes=2, best_of=1, task=task)
+    assert summary["steps"] >= steps and summary["held_out"]["episodes"] == 2
+    for name in (f"{policy}.zip", f"{policy}.json", "ppo_curve.png", "ppo_summary.json"):
+        assert (out / name).stat().st_size > 0, name
     match = summary["match_against_novice"]
     assert match["winner"] in ("a", "b") and sum(match["points"]) >= 11  # a whole game was played
+
+
+def test_ppo_trains_saves_and_its_saved_bot_plays_a_match(tmp_path):
+    """The smoke run of examples/train_ppo.py (the `train` extra, `make train`) on Return-v1."""
+    _smoke_train(tmp_path, "return", 2048, "ppo_policy")
 
 
 def test_ppo_learns_the_stroke_saves_and_its_strike_bot_plays_a_match(tmp_path):
     """The smoke run of examples/train_ppo.py --task strike (examples/strike.py: the stroke
-    learned, the footwork examples/drive.py's): it trains, writes the policy, and StrikeBot
-    plays a match with it."""
-    spec = importlib.util.spec_from_file_location("train_ppo_example", EXAMPLES / "train_ppo.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    summary = module.train(steps=256, envs=1, out=tmp_path, seed=0, eval_episodes=2, best_of=1, task="strike")
-    assert summary["steps"] >= 256 and summary["held_out"]["episodes"] == 2
-    for name in ("strike_policy.zip", "strike_policy.json", "ppo_curve.png", "ppo_summary.json"):
-        assert (tmp_path / name).stat().st_size > 0, name
-    match = summary["match_against_novice"]
-    assert match["winner"] in ("a", "b") and sum(match["points"]) >= 11  # a whole game was played
+    learned, the footwork examples/drive.py's); StrikeBot plays the game."""
+    _smoke_train(tmp_path, "strike", 256, "strike_policy")
 
 
 def test_the_shipped_strike_policy_beats_novice(monkeypatch):

@@ -3,7 +3,6 @@ applied before each tick, and the idle arm of each remote bat (RemoteInputs)."""
 from __future__ import annotations
 
 import math
-import time
 from collections import Counter
 
 import numpy as np
