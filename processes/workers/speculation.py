@@ -30,7 +30,7 @@ touches it every tick).
 Restarts: a snapshot is published only where every run before it is confirmed, and beside it
 the cut (processes.workers.cut): the runs posted before it and the AI driver's turns in flight
 there. A restarted physics resumes from the snapshot, takes back the AI turns posted after the
-cut and sends the net back to its state after the cut's last run (SpeculativeNet.go_back); a
+newest one confirmed and sends the net back to its state after the cut's last run (SpeculativeNet.go_back); a
 restarted net goes on from its state after the last run it answered (processes.workers.net),
 a restarted AI from its state kept and the decisions journalled since (processes.workers.ai).
 
@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import time
 from collections import deque
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -291,6 +292,20 @@ class SpeculativeNet(KnownNet):
         return self.waits
 
 
+@dataclass
+class Published:
+    """What the speculating loop has published so far: the events held and the points up to
+    which, the tick confirmed last, and the snapshot's tick, the runs posted before it and the
+    oldest AI turn its cut needs (a restart goes back there)."""
+
+    events: int
+    points: int
+    tick: int
+    snapshot_tick: int
+    snapshot_runs: int
+    first_turn: int
+
+
 class Checkpoints:
     """The speculating loop's way back: a checkpoint before each Match.tick call that posted a run
     (the match's and the AI driver's), dropped once the run is confirmed, and what the physics
@@ -343,9 +358,7 @@ def run_speculating(control: Control, match, net: SpeculativeNet, driver, out, p
     if resumed:
         net.go_back(runs, tick)
     point_ticks = [tick] * len(match.referee.points)  # the tick after the call that decided each point
-    # events, points, the tick confirmed, the tick of the snapshot, the runs posted before it and
-    # the oldest AI turn its cut needs
-    published = [0, len(match.referee.points), tick, tick, runs, _first_turn(driver_cp, driver)]
+    published = Published(0, len(match.referee.points), tick, tick, runs, _first_turn(driver_cp, driver))
     ai_room = len(driver.views) - 2 * (match.delay // match.ai_every) - 4 if driver is not None else 0
     busy = 0.0
     while True:
@@ -370,7 +383,7 @@ def run_speculating(control: Control, match, net: SpeculativeNet, driver, out, p
             driver.confirm(oldest[3][2] if oldest is not None else driver.queue.posted)
         # A restart goes back to the cut: the AI turns from its oldest on must stay in the rings.
         if tick >= n_ticks or match.over or net.free < 2 or (
-                driver is not None and net.in_flight and driver.queue.posted - published[5] > ai_room):
+                driver is not None and net.in_flight and driver.queue.posted - published.first_turn > ai_room):
             if not net.in_flight:
                 busy += time.perf_counter() - t0
                 break  # the end, every run confirmed
@@ -404,15 +417,15 @@ def run_speculating(control: Control, match, net: SpeculativeNet, driver, out, p
 
 
 def _first_turn(driver_cp, driver) -> int:
-    """The oldest AI turn a cut with this AIDriver.checkpoint needs (its turns in flight), or
-    the next one if none; None: no checkpoint (a fresh run), then the driver's next turn."""
+    """The oldest AI turn a cut with this AIDriver.checkpoint needs: its oldest turn in flight,
+    else the next one posted (driver_cp None: a fresh run, the driver's next turn; 0: no AI)."""
     if driver_cp is None:
         return driver.queue.posted + 1 if driver is not None else 0
     pending, _, posted = driver_cp[:3]
     return pending[0][1] if pending else posted + 1
 
 
-def _publish_confirmed(out, match, kept: Checkpoints, oldest, points_log: np.ndarray, published: list,
+def _publish_confirmed(out, match, kept: Checkpoints, oldest, points_log: np.ndarray, published: Published,
                        point_ticks: list, point_row, cuts: Cuts, now: tuple, force: bool, ai_room: int) -> None:
     """Publish what every run before it confirms: the events and points up to the oldest
     checkpoint kept (all of them if none), and the state there as the snapshot with its cut,
@@ -424,23 +437,24 @@ def _publish_confirmed(out, match, kept: Checkpoints, oldest, points_log: np.nda
     else:
         _, tick, match_cp, driver_cp, events_to, _, runs = oldest
         record, points_to, arm = match_cp[0].view(match.state.record.dtype), match_cp[1], match_cp[2]  # Match.checkpoint
-    if tick == published[2] and events_to == published[0] and not (force and tick != published[3]):
+    if (tick == published.tick and events_to == published.events
+            and not (force and tick != published.snapshot_tick)):
         return
-    for _, events in kept.events[published[0]:events_to]:
+    for _, events in kept.events[published.events:events_to]:
         out.publish_events(events, len(events))
     points = match.referee.points
-    for k in range(published[1], points_to):
+    for k in range(published.points, points_to):
         points_log[k] = point_row(points[k], point_ticks[k])
-    snapshot, snapshot_runs, first_turn = published[3], published[4], published[5]
     driver = now[1]
     if oldest is None:
         runs = now[0]
-    if (force or points_to != published[1] or tick - snapshot >= SNAPSHOT_EVERY_TICKS
-            or runs - snapshot_runs >= SPEC_RUNS // 2
-            or driver is not None and driver.queue.posted - first_turn > ai_room // 2):
+    if (force or points_to != published.points or tick - published.snapshot_tick >= SNAPSHOT_EVERY_TICKS
+            or runs - published.snapshot_runs >= SPEC_RUNS // 2
+            or driver is not None and driver.queue.posted - published.first_turn > ai_room // 2):
         if oldest is None:
             arm, driver_cp = match.arm, (driver.checkpoint() if driver is not None else None)
         cuts.write(tick, runs, arm, driver_cp)
         out.publish_snapshot(tick, record)
-        snapshot, snapshot_runs, first_turn = tick, runs, _first_turn(driver_cp, driver)
-    published[:] = [events_to, points_to, tick, snapshot, snapshot_runs, first_turn]
+        published.snapshot_tick, published.snapshot_runs = tick, runs
+        published.first_turn = _first_turn(driver_cp, driver)
+    published.events, published.points, published.tick = events_to, points_to, tick
