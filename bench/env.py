@@ -7,6 +7,9 @@
   --async-tables. Every step of every table counts, autoresets included; the first steps (kernels
   loaded, in each process) are not timed. Each figure's ratio is to the one environment's of the
   same net.
+- batched (Return-v1 against novice, rigid net, `hold` actions at the ready pose in the agent's
+  frame): one version-1 PingPongEnv, then the native vector env at N = --batched, which steps its
+  tables in one numba call (engine.learning.batch); ratios to that one environment.
 - physics share: the share of the one environment's step (the process's CPU time, every thread)
   spent in the physics (engine.physics.world.advance, timed around each call: the numba tick kernel and,
   with the cloth net, the net's kernels): the most that stepping a batch of tables' physics in one
@@ -82,6 +85,36 @@ def single_steps_per_second(seconds: float, net: str) -> dict:
     finally:
         engine.play.match.advance = physics
     return {"steps_per_s": rate, "physics_share": share}
+
+
+READY_V1 = np.array([-0.6, 0.0, 0.0, 0.0, 0.0, 0.0])  # a version-1 hold action: near the agent's ready pose
+
+
+def batched_steps_per_second(tables: list[int], seconds: float) -> dict:
+    """One version-1 environment's steps per second, and the batched vector env's at each N."""
+    from engine.learning.env import PingPongEnv
+    from engine.learning.vector_env import PingPongVectorEnv
+
+    env = PingPongEnv(opponent="novice", version=1)
+    env.reset(seed=0)
+
+    def step():
+        _, _, terminated, truncated, _ = env.step(READY_V1)
+        if terminated or truncated:
+            env.reset()
+
+    single = _timed(step, 1, seconds)
+    out = {"single": single, "batched": {}}
+    for n in tables:
+        vector = PingPongVectorEnv(n, opponent="novice", version=1)
+        vector.reset(seed=0)
+        actions = np.stack([READY_V1] * n)
+        try:
+            rate = _timed(lambda: vector.step(actions), n, seconds)
+        finally:
+            vector.close()
+        out["batched"][str(n)] = {"steps_per_s": rate, "ratio": rate / single}
+    return out
 
 
 def native_steps_per_second(n: int, seconds: float, net: str) -> float:
@@ -162,6 +195,10 @@ def _run(args: argparse.Namespace, progress=None) -> dict:
             "native": {str(n): {"steps_per_s": r, "ratio": r / rate} for n, r in native.items()},
             "async": {str(n): {"steps_per_s": r, "ratio": r / rate} for n, r in asynchronous.items()},
         }
+    batched = _counts(args.batched, "--batched") if not args.quick else [1, 8, 64]
+    if progress is not None:
+        progress(f"batched: one version-1 environment, the batched vector env at {batched}")
+    result["batched"] = batched_steps_per_second(batched, seconds)
     single = {net: result["nets"][net]["single"]["steps_per_s"] for net in NETS}
     result["cloth_cost"] = single["rigid"] / single["cloth"]
     if progress is not None:
@@ -182,6 +219,10 @@ def _report(result: dict) -> None:
         for kind, label in (("native", "native vector env"), ("async", "AsyncVectorEnv")):
             for n, r in row[kind].items():
                 print(f"    {label:<18} N = {n:>3}: {r['steps_per_s']:7.0f} steps/s  {r['ratio']:5.2f}x")
+    b = result["batched"]
+    print(f"  batched (Return-v1, rigid net, hold): one environment {b['single']:.0f} steps/s")
+    for n, r in b["batched"].items():
+        print(f"    {'batched vector env':<18} N = {n:>3}: {r['steps_per_s']:7.0f} steps/s  {r['ratio']:5.2f}x")
     print(f"  the cloth net costs {result['cloth_cost']:.2f}x the rigid net's time per step (one environment)")
     p = result["players"]
     print(f"players per control tick (match_rigid, {p['pro']['ticks']} ticks): "
@@ -196,11 +237,12 @@ def _arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seconds", type=float, default=4.0, help="wall seconds of each steps/s measurement")
     parser.add_argument("--tables", default="1,8,64", help="tables of the native vector env, N[,N...]")
     parser.add_argument("--async-tables", default="1,8,64", help="processes of the AsyncVectorEnv, N[,N...]")
+    parser.add_argument("--batched", default="1,8,64,256", help="tables of the batched vector env, N[,N...]")
     parser.add_argument("--ticks", type=int, default=60_000, help="ticks of each players' match")
 
 
 STUDY = Study(run=_run, report=_report, add_arguments=_arguments,
-              quick="N = 1, 8 native and 2 AsyncVectorEnv, 1 s each, 5000-tick players' matches")
+              quick="N = 1, 8 native, 1, 8, 64 batched and 2 AsyncVectorEnv, 1 s each, 5000-tick players' matches")
 
 if __name__ == "__main__":
     raise SystemExit(run_study(STUDY, None, "python -m bench.env", "env"))

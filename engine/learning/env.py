@@ -56,6 +56,7 @@ The rigid net by default; net="cloth" plays the cloth net in this process (the d
 """
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import gymnasium
@@ -125,6 +126,13 @@ def flatten(observation, out: np.ndarray) -> np.ndarray:
     out[41], out[42], out[43] = observation["phase"], observation["server"], observation["to_strike"]
     out[44], out[45] = observation["shots"], observation["rally"]
     return out
+
+
+def distance(a, b) -> float:
+    """|a - b| of two 3-vectors (m), the squares summed in order: the batched environment's arithmetic
+    (engine.learning.batch), bit for bit (a BLAS norm's fused multiply-adds give other last bits)."""
+    dx, dy, dz = float(a[0]) - float(b[0]), float(a[1]) - float(b[1]), float(a[2]) - float(b[2])
+    return math.sqrt(dx * dx + dy * dy + dz * dz)
 
 
 def action_space(action_type: str, arm: str = "pro") -> spaces.Box:
@@ -402,8 +410,7 @@ class PingPongEnv(gymnasium.Env):
         match = self.match
         key = decision_key(match.rally_record)
         ball = match.state.ball[0]["pos"]
-        return [-APPROACH * float(np.linalg.norm(match.state.bats[end]["pos"] - ball)) if key[2] == end else 0.0
-                for end in (0, 1)]
+        return [-APPROACH * distance(match.state.bats[end]["pos"], ball) if key[2] == end else 0.0 for end in (0, 1)]
 
     def _advance(self, target: int | None = None) -> None:
         """Match.tick to the next control tick (or `target`), keeping the episode's frames and events."""

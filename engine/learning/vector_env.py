@@ -16,12 +16,12 @@ neither terminated nor truncated. reset(options={"reset_mask": mask}) resets onl
 tables. Table k's episodes are those of a single PingPongEnv reset with the same seed, bit for
 bit, as they are those of gymnasium.vector.SyncVectorEnv (tests/engine/test_vector_env.py).
 
-The tables are stepped one after another: each step of a table is one control period of its
-match, whose physics is one numba call (engine.physics.tick.advance_ticks) between the referee's and the
-players' Python work (the opponent's AI, the agent's seat, the referee's judgement of each
-contact). The batch saves Gymnasium's per-environment wrappers and, against AsyncVectorEnv, the
-pipes and the N processes; it does not make the Python work of a table cheaper, which is most of
-a step's time, so one numba call over the batch's physics would not be either.
+Version 1 with the rigid net and `hold` actions (what examples/train_ppo.py trains on) is
+batched (`batched`): every table's step in one numba call (engine.learning.batch), Python only
+where an opponent decides a stroke and where an episode starts. Otherwise (version 0, the cloth
+net, `target` or `force` actions, a second agent, pictures kept) the tables are stepped one after
+another, each one PingPongEnv.step: its physics one numba call between the referee's and the
+players' Python work.
 """
 from __future__ import annotations
 
@@ -29,6 +29,8 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from engine.learning import agent_frame
+from engine.learning.batch import TableBatch
 from engine.learning.env import PingPongEnv
 
 
@@ -62,6 +64,11 @@ class PingPongVectorEnv(VectorEnv):
         self._truncations = np.zeros(self.num_envs, dtype=np.bool_)
         self._autoreset = np.zeros(self.num_envs, dtype=np.bool_)
         self._elapsed = np.zeros(self.num_envs, dtype=np.int64)
+        first = self.envs[0]
+        self.batched = (first.version == 1 and first.net == "rigid" and first.action_type == "hold"
+                        and first.opponent is not None and not first.record)
+        self._batch = TableBatch(self.envs) if self.batched else None
+        self._points = np.zeros(self.num_envs, dtype=np.int64)
 
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
         """Reset the tables (or those of options["reset_mask"]); seed None, an int (table k gets
@@ -86,6 +93,8 @@ class PingPongVectorEnv(VectorEnv):
         for k in np.flatnonzero(mask):
             self._obs[k], info = self.envs[k].reset(seed=seeds[k], options=options or None)
             infos = self._add_info(infos, info, k)
+            if self._batch is not None:
+                self._batch.load(k)
         self._terminations[mask] = self._truncations[mask] = self._autoreset[mask] = False
         self._elapsed[mask] = 0
         return self._obs.copy(), infos
@@ -96,6 +105,8 @@ class PingPongVectorEnv(VectorEnv):
         actions = np.asarray(actions, dtype=np.float64)
         if actions.shape != self.action_space.shape:
             raise ValueError(f"actions: shape {self.action_space.shape} (a row a table), got {actions.shape}")
+        if self._batch is not None:
+            return self._step_batch(actions)
         infos: dict = {}
         for k, env in enumerate(self.envs):
             if self._autoreset[k]:
@@ -109,6 +120,42 @@ class PingPongVectorEnv(VectorEnv):
                 self._truncations[k] = truncated or (self.max_episode_steps is not None
                                                      and self._elapsed[k] >= self.max_episode_steps)
             infos = self._add_info(infos, info, k)
+        self._autoreset[:] = self._terminations | self._truncations
+        return self._obs.copy(), self._rewards.copy(), self._terminations.copy(), self._truncations.copy(), infos
+
+    def _step_batch(self, actions: np.ndarray):
+        """step() of the batched tables: the tables to reset in Python, the others in one numba call."""
+        stepping = ~self._autoreset
+        clipped = np.zeros_like(actions)
+        for k in np.flatnonzero(stepping & ~np.isfinite(actions).all(axis=1)):
+            agent_frame.checked_action(actions[k], "hold")  # raises, naming the entries
+        np.clip(actions, -1.0, 1.0, out=clipped)
+        infos: dict = {}
+        for k in np.flatnonzero(self._autoreset):
+            self._obs[k], info = self.envs[k].reset()
+            self._batch.load(k)
+            self._rewards[k] = 0.0
+            self._terminations[k] = self._truncations[k] = False
+            self._elapsed[k] = 0
+            infos = self._add_info(infos, info, k)
+        if stepping.any():
+            batch = self._batch
+            batch.step(clipped, stepping)
+            self._obs[stepping] = batch.obs[stepping]
+            self._rewards[stepping] = batch.rewards[stepping]
+            self._terminations[stepping] = batch.terminated[stepping]
+            self._elapsed[stepping] += 1
+            truncated = batch.truncated[stepping]
+            if self.max_episode_steps is not None:
+                truncated = truncated | (self._elapsed[stepping] >= self.max_episode_steps)
+            self._truncations[stepping] = truncated
+            self._points[:] = batch.rally["points_total"]
+            infos["points"] = np.where(stepping, self._points, infos.get("points", 0))
+            infos["_points"] = stepping | infos.get("_points", False)
+            errors = infos.get("bot_errors", np.full(self.num_envs, None, dtype=object))
+            for k in np.flatnonzero(stepping):
+                errors[k] = []  # the batch plays only the engine's AI and the checked actions: nothing faults
+            infos["bot_errors"], infos["_bot_errors"] = errors, stepping | infos.get("_bot_errors", False)
         self._autoreset[:] = self._terminations | self._truncations
         return self._obs.copy(), self._rewards.copy(), self._terminations.copy(), self._truncations.copy(), infos
 

@@ -108,7 +108,9 @@ def hold(pos, normal, out: np.ndarray | None = None) -> np.ndarray:
     n = np.asarray(normal, dtype=np.float64)
     action["kind"] = ACTION_TARGET
     action["hold"] = pos
-    action["normal"] = n / math.sqrt(float(n @ n))
+    # The squares summed in order, as numba's batched environment does (engine.learning.batch), not
+    # by a BLAS dot product, whose fused multiply-adds give other last bits.
+    action["normal"] = n / math.sqrt(float(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]))
     action["n_segments"] = 0
     return action
 

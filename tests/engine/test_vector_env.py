@@ -94,3 +94,50 @@ def test_bad_input_is_named():
         vector.step(np.zeros((3, 6)))
     with pytest.raises(ValueError, match="reset_mask"):
         vector.reset(options={"reset_mask": np.zeros(2, bool)})
+
+
+def _single_v1(seed: int, actions: np.ndarray, kwargs: dict):
+    env = PingPongEnv(**kwargs)
+    obs, _ = env.reset(seed=seed)
+    rows, ended = [(obs, 0.0, False, False)], False
+    for action in actions:
+        if ended:
+            obs, _ = env.reset()
+            rows.append((obs, 0.0, False, False))
+            ended = False
+        else:
+            obs, reward, terminated, truncated, _ = env.step(action)
+            rows.append((obs, reward, terminated, truncated))
+            ended = terminated or truncated
+    return rows
+
+
+@pytest.mark.parametrize("kwargs", [
+    {"task": "return", "reward": "sparse"},
+    {"task": "rally", "reward": "dense", "player": 0},
+    {"task": "return", "reward": "dense", "ball_speed": (6.0, 12.0), "ball_spin": (-200.0, 200.0)},
+])
+def test_the_batched_step_is_the_single_environment_bit_for_bit(kwargs):
+    """Version 1, rigid net, hold actions: every table stepped in one compiled call (the opponent's
+    decisions in Python), each equal to a single environment with its seed."""
+    kwargs = {"opponent": "novice", "version": 1, "max_seconds": 1.0, **kwargs}
+    n, steps = 2, 260
+    vector = PingPongVectorEnv(n, **kwargs)
+    assert vector.batched
+    actions = np.random.default_rng(3).uniform(-1.2, 1.2, size=(steps, n, 6))  # beyond [-1, 1]: clipped
+    rows = _vector_rows(vector, 50, actions)
+    assert sum(int(r[2].sum() + r[3].sum()) for r in rows) >= n * 2  # episodes ended and began again
+    for k in range(n):
+        single = _single_v1(50 + k, actions[:, k], kwargs)
+        for got, expected in zip(rows, single, strict=True):
+            assert got[0][k].tobytes() == expected[0].tobytes()
+            assert (float(got[1][k]), bool(got[2][k]), bool(got[3][k])) == expected[1:]
+
+
+def test_the_batched_step_names_a_non_finite_action():
+    vector = PingPongVectorEnv(2, opponent="novice", version=1)
+    vector.reset(seed=0)
+    actions = np.zeros((2, 6))
+    actions[1, 2] = np.nan
+    with pytest.raises(ValueError, match=r"entries \[2\] are not finite"):
+        vector.step(actions)

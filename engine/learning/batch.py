@@ -1,0 +1,417 @@
+"""N tables' environment steps in one numba call: the batched step of engine.learning.vector_env.
+
+A table is one engine.learning.env.PingPongEnv (version 1, the rigid net, `hold` actions). Its
+episode starts as the environment's does (PingPongEnv.reset: the match, a drive's lead-in or the
+ball machine, in Python); then TableBatch.load copies what a step reads and writes into the
+batch's arrays, and from there the batch steps it: each table's control period in one compiled
+call over all the tables (run_tables), doing what PingPongEnv.step does in Python, in the same
+order and arithmetic:
+
+- at each control tick (engine.play.match.Match.tick): the plans decided a decision delay before
+  take effect, the arm law turns the plans in effect into the bats' forces
+  (engine.play.arm.control_bats), the agent's action becomes its plan, and the opponent decides
+  when its gate is open (engine.play.players.gate_open: its decision key changed or its wakes came);
+- the physics to the next control tick, a frame boundary or the first tick that needs the
+  referee (engine.physics.tick.advance_ticks), the referee's judgement of each contact, the ball
+  out of play, the next rally's toss (engine.play.judge);
+- the rewards of PingPongEnv.play_period (sparse and dense), the end of the episode, and the
+  observation in the agent's frame (engine.learning.agent_frame.observe).
+
+The opponent's decision is Python (its BatAI thinks a stroke out): the compiled call stops a
+table whose opponent must decide, the batch calls that table's engine.play.players.Seat on the
+state there, and the next call goes on from it. Between its decisions the opponent's arm law is
+compiled like the rest. A table's episodes are the single environment's bit for bit
+(tests/engine/test_vector_env.py).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from engine.learning import agent_frame
+from engine.learning.env import APPROACH, FRAME_EVERY, NET_CLEAR, RETURN_LANDED, RETURN_STRIKE, PingPongEnv
+from engine.physics.bat import FORCE_AT, TORQUE_AT, face_normal, rotate
+from engine.physics.collision import BAT_ROW, EVENT_ROW, MAX_IMPACTS_PER_TICK, SCRATCH_SHAPE
+from engine.physics.dtypes import RALLY_DTYPE, WORLD_DTYPE
+from engine.physics.integrators import WORK_SHAPE
+from engine.physics.tick import advance_ticks
+from engine.play.arm import (ARM_TARGET, BAT_FLOATS, CTL_HOLD, CTL_KIND, CTL_N_SEGMENTS, CTL_NORMAL, CTL_SEGMENTS,
+                             CTL_SIZE, control_bats)
+from engine.play.judge import NO_POINT, ball_out_of_play, next_rally_and_toss, on_contact, server
+from engine.play.match import _GONE_RADIUS_2, _GONE_Z
+from engine.play.players import NO_KEY, decision_key
+from engine.play.rules import Phase
+
+# A table's progress through a step (TableBatch.status).
+IDLE, START, STEPPING, WAITING, DONE = range(5)
+# Integer bookkeeping of a step in progress (TableBatch.ints' columns), and the floats' (TableBatch.floats).
+# I_LANDED + end: whether end's return landed in the step.
+I_STOP_AT, I_CTL_TICK, I_REQ_TICK, I_DECIDED, I_LANDED, I_SHOTS, I_PHASE, I_STRIKER, I_POINTS, I_WINNER = (
+    0, 1, 2, 3, 4, 6, 7, 8, 9, 10)
+N_INTS = 11
+F_REWARD, F_POTENTIAL, F_BALL_X = 0, 2, 4
+N_FLOATS = 5
+_OVER = int(Phase.OVER)
+_WAITING_SERVE = int(Phase.WAITING_SERVE)
+_BOUNCED = int(Phase.BOUNCED)
+_POS_SCALE, _VEL_SCALE, _SPIN_SCALE = agent_frame.POS_SCALE, agent_frame.VEL_SCALE, agent_frame.SPIN_SCALE
+_ANG_VEL_SCALE, _POINTS_SCALE, _GAMES_SCALE = agent_frame.ANG_VEL_SCALE, agent_frame.POINTS_SCALE, agent_frame.GAMES_SCALE
+_MAX_SHOTS = agent_frame.MAX_SHOTS
+_HOLD_LOW, _HOLD_HIGH = agent_frame.HOLD_LOW, agent_frame.HOLD_HIGH
+
+
+@njit(cache=True)
+def _next_striker(r):
+    """engine.play.rules.next_striker of the record."""
+    phase = r['phase']
+    if phase == _OVER:
+        return -1
+    if phase == _WAITING_SERVE:
+        return r['server']
+    return 1 - r['striker']
+
+
+@njit(cache=True)
+def hold_plans(actions, player, out):
+    """The checked hold actions (N, 6) in [-1, 1] (agent_frame.action_record, then engine.play.bot.hold):
+    out[k] = the hold pose (3, m, world axes) and the unit face normal (3)."""
+    turn = -1.0 if player == 1 else 1.0
+    for k in range(actions.shape[0]):
+        a = actions[k]
+        for i in range(3):
+            sign = 1.0 if i == 2 else turn
+            out[k, i] = (_HOLD_LOW[i] + (a[i] + 1.0) / 2.0 * (_HOLD_HIGH[i] - _HOLD_LOW[i])) * sign
+        n0, n1, n2 = a[3] * turn, a[4] * turn, a[5]
+        if math.sqrt(a[3] * a[3] + a[4] * a[4] + a[5] * a[5]) <= 1e-9:
+            n0, n1, n2 = 1.0 * turn, 0.0 * turn, 0.0
+        norm = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+        out[k, 3], out[k, 4], out[k, 5] = n0 / norm, n1 / norm, n2 / norm
+
+
+@njit(cache=True)
+def _potential(bats, ball, r, end):
+    """PingPongEnv._potentials for `end`: -APPROACH |bat - ball| while it is to strike next, else 0."""
+    if _next_striker(r) != end:
+        return 0.0
+    dx, dy, dz = bats[end, 0] - ball[0], bats[end, 1] - ball[1], bats[end, 2] - ball[2]
+    return -APPROACH * math.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+@njit(cache=True)
+def _observe(ball, bats, r, player, axis, out):
+    """agent_frame.observe of the state, the agent at `player`, into out (48,)."""
+    turn = -1.0 if player == 1 else 1.0
+    j = 0
+    for scale, at in ((_POS_SCALE, 0), (_VEL_SCALE, 3), (_SPIN_SCALE, 6)):
+        out[j] = ball[at] * turn / scale
+        out[j + 1] = ball[at + 1] * turn / scale
+        out[j + 2] = ball[at + 2] * 1.0 / scale
+        j += 3
+    for who in (player, 1 - player):
+        bat = bats[who]
+        for scale, at in ((_POS_SCALE, 0), (_VEL_SCALE, 7)):
+            out[j] = bat[at] * turn / scale
+            out[j + 1] = bat[at + 1] * turn / scale
+            out[j + 2] = bat[at + 2] * 1.0 / scale
+            j += 3
+        face_normal(bat[3:7], axis[0])
+        rotate(bat[3:7], axis[2], axis[1])
+        out[j], out[j + 1], out[j + 2] = axis[0, 0] * turn, axis[0, 1] * turn, axis[0, 2] * 1.0
+        j += 3
+        if who == player:
+            out[j], out[j + 1], out[j + 2] = axis[1, 0] * turn, axis[1, 1] * turn, axis[1, 2] * 1.0
+            out[j + 3] = bat[10] * turn / _ANG_VEL_SCALE
+            out[j + 4] = bat[11] * turn / _ANG_VEL_SCALE
+            out[j + 5] = bat[12] * 1.0 / _ANG_VEL_SCALE
+            j += 6
+    for p in range(_OVER + 1):
+        out[j + p] = 1.0 if r['phase'] == p else 0.0
+    j += _OVER + 1
+    to_strike = _next_striker(r)
+    out[j] = 1.0 if to_strike == player else 0.0
+    out[j + 1] = 1.0 if to_strike == 1 - player else 0.0
+    out[j + 2] = 1.0 if to_strike < 0 else 0.0
+    out[j + 3] = 1.0 if r['server'] == player else 0.0
+    out[j + 4] = r['score'][player] / _POINTS_SCALE
+    out[j + 5] = r['score'][1 - player] / _POINTS_SCALE
+    out[j + 6] = r['games_won'][player] / _GAMES_SCALE
+    out[j + 7] = r['games_won'][1 - player] / _GAMES_SCALE
+    out[j + 8] = min(r['shots'], _MAX_SHOTS) / _MAX_SHOTS
+    for i in range(out.shape[0]):
+        out[i] = min(max(out[i], -1.0), 1.0)
+
+
+@njit(cache=True)
+def _gate_open(r, now, ctl_row, key, due, end):
+    """engine.play.players.Seat.needs_decision of an AI profile's seat."""
+    if ctl_row[CTL_KIND] != ARM_TARGET:
+        return True
+    if (key[0] != r['rally'] or key[1] != r['shots'] or key[2] != _next_striker(r)
+            or key[3] != (1 if r['phase'] == _WAITING_SERVE else 0)):
+        return True
+    return now >= due or now > end
+
+
+@njit(cache=True)
+def run_tables(status, ints, floats, world, ball, bats, rally, bat_motion, bat_tmp, work, scratch, event_rows,
+               ctl, arm, inputs, players, pending, pending_tick, pending_at, plans, opp_key, opp_due, opp_end,
+               steps, rewards, terminated, truncated, obs, errors, axis,
+               player, rally_task, dense, best_of, every, delay, h, max_seconds, max_rally_s, toss_speed,
+               bat_mass, bat_inertia, method, gravity, drag_k, magnus_k, rtol, atol, table, floor_z, net, posts,
+               params, materials):
+    """Step every table whose status is START or STEPPING until its step is DONE or its opponent
+    must decide (WAITING); returns how many wait. The tables' arrays are TableBatch's."""
+    waiting = 0
+    for k in range(status.shape[0]):
+        if status[k] == START or status[k] == STEPPING:
+            status[k] = _run_table(k, status, ints[k], floats[k], world, ball[k], bats[k], rally[k], bat_motion[k],
+                                   bat_tmp[k], work[k], scratch[k], event_rows[k], ctl[k], arm[k], inputs[k], players,
+                                   pending[k], pending_tick[k], pending_at, plans[k], opp_key[k], opp_due, opp_end,
+                                   steps, rewards, terminated, truncated, obs[k], errors, axis, player, rally_task,
+                                   dense, best_of, every, delay, h, max_seconds, max_rally_s, toss_speed, bat_mass,
+                                   bat_inertia, method, gravity, drag_k, magnus_k, rtol, atol, table, floor_z, net,
+                                   posts, params, materials)
+            if status[k] == WAITING:
+                waiting += 1
+    return waiting
+
+
+@njit(cache=True)
+def _run_table(k, status, si, sf, world, ball, bats, r, bat_motion, bat_tmp, work, scratch, event_rows, ctl, arm,
+               inputs, players, pending, pending_tick, pending_at, plan, opp_key, opp_due, opp_end, steps, rewards,
+               terminated, truncated, obs, errors, axis, player, rally_task, dense, best_of, every, delay, h,
+               max_seconds, max_rally_s, toss_speed, bat_mass, bat_inertia, method, gravity, drag_k, magnus_k, rtol,
+               atol, table, floor_z, net, posts, params, materials):
+    """One table's step from where it stands (PingPongEnv.step and play_period); its new status."""
+    w = world[k]
+    opp = 1 - player
+    if status[k] == START:
+        si[I_STOP_AT] = w['tick'] + every
+        si[I_DECIDED] = si[I_LANDED] = si[I_LANDED + 1] = 0
+        si[I_POINTS] = r['points_total']
+        si[I_SHOTS], si[I_PHASE], si[I_STRIKER] = r['shots'], r['phase'], r['striker']
+        sf[F_REWARD] = sf[F_REWARD + 1] = 0.0
+        if dense:
+            sf[F_POTENTIAL] = _potential(bats, ball, r, 0)
+            sf[F_POTENTIAL + 1] = _potential(bats, ball, r, 1)
+        sf[F_BALL_X] = ball[0]
+    landed_now = False
+    while w['tick'] < si[I_STOP_AT] and si[I_DECIDED] == 0:
+        tick = w['tick']
+        if tick % every == 0:
+            if si[I_CTL_TICK] != tick:  # engine.play.match.LocalAI.collect, the arm law, the agent's decision
+                n_pending = pending_at[k, 1]
+                if n_pending > 0 and pending_tick[pending_at[k, 0]] == tick:
+                    arm[:, :] = pending[pending_at[k, 0]]
+                    pending_at[k, 0] = (pending_at[k, 0] + 1) % pending.shape[0]
+                    pending_at[k, 1] = n_pending - 1
+                control_bats(w['time'], bats, arm, players, inputs)
+                si[I_CTL_TICK] = tick
+                row = ctl[player]
+                row[CTL_KIND] = ARM_TARGET
+                for i in range(6):
+                    row[CTL_HOLD + i] = plan[i]
+                row[CTL_N_SEGMENTS] = 0.0
+                row[CTL_SEGMENTS:] = 0.0
+                if _gate_open(r, w['time'], ctl[opp], opp_key, opp_due[k], opp_end[k]):
+                    return WAITING
+            if si[I_REQ_TICK] != tick:  # LocalAI.request: the decisions wait `delay` ticks
+                at = (pending_at[k, 0] + pending_at[k, 1]) % pending.shape[0]
+                pending[at] = ctl
+                pending_tick[at] = tick + delay
+                pending_at[k, 1] += 1
+                si[I_REQ_TICK] = tick
+            for b in range(inputs.shape[0]):  # engine.physics.world._apply_inputs
+                for i in range(3):
+                    bats[b, FORCE_AT + i] = inputs[b, i]
+                    bats[b, TORQUE_AT + i] = inputs[b, 3 + i]
+        n_max = min(si[I_STOP_AT] - tick, FRAME_EVERY - tick % FRAME_EVERY, every - tick % every)
+        deadline = r['rally_started'] + max_rally_s
+        ticks, n, reason, error = advance_ticks(
+            n_max, h, world[k:k + 1], bats, bat_mass, bat_inertia, bat_motion, bat_tmp, ball[0:9], method, gravity,
+            drag_k, magnus_k, rtol, atol, table, floor_z, net, posts, params, materials, work, scratch,
+            w['ball_adapt'], event_rows, _GONE_RADIUS_2, _GONE_Z, deadline, None)
+        if error != 0:
+            errors[k] = error
+            return DONE
+        point = NO_POINT
+        for e in range(n):  # engine.play.match.Match.tick's judgement
+            won, _ = on_contact(r, int(event_rows[e, 1]), event_rows[e, 2], event_rows[e, 3], best_of)
+            if won != NO_POINT:
+                point = won
+        if point == NO_POINT and r['phase'] != _OVER:
+            x, y, z = ball[0], ball[1], ball[2]
+            if x * x + y * y > _GONE_RADIUS_2 or z < _GONE_Z or w['ball_support'] != 0 or w['time'] > deadline:
+                point, _ = ball_out_of_play(r, x, y, best_of)
+        if point != NO_POINT:
+            si[I_WINNER] = point
+            if r['winner'] < 0:
+                next_rally_and_toss(r, ball, w, toss_speed)
+        # PingPongEnv.play_period's rewards
+        striker = r['striker']
+        if r['shots'] > si[I_SHOTS]:
+            sf[F_REWARD + striker] += RETURN_STRIKE
+        if dense:
+            x = ball[0]
+            if r['shots'] > 0 and ((x > 0.0 >= sf[F_BALL_X]) if striker == 0 else (x < 0.0 <= sf[F_BALL_X])):
+                sf[F_REWARD + striker] += NET_CLEAR
+            sf[F_BALL_X] = x
+        if r['points_total'] > si[I_POINTS]:
+            si[I_DECIDED] = 1
+            winner = si[I_WINNER]
+            if (rally_task or dense) and winner >= 0:
+                sf[F_REWARD + winner] += 1.0
+                sf[F_REWARD + 1 - winner] -= 1.0
+        elif r['phase'] == _BOUNCED and not (si[I_PHASE] == _BOUNCED and si[I_STRIKER] == striker):
+            sf[F_REWARD + striker] += RETURN_LANDED
+            si[I_LANDED + striker] = 1
+            if not rally_task and striker == player:
+                landed_now = True
+                break
+        si[I_SHOTS], si[I_PHASE], si[I_STRIKER] = r['shots'], r['phase'], striker
+    if dense and si[I_DECIDED] == 0:
+        for end in range(2):
+            sf[F_REWARD + end] += _potential(bats, ball, r, end) - sf[F_POTENTIAL + end]
+    done = si[I_DECIDED] == 1 or (not rally_task and (landed_now or si[I_LANDED + player] == 1))
+    steps[k] += 1
+    rewards[k] = sf[F_REWARD + player]
+    terminated[k] = done
+    truncated[k] = not done and steps[k] * every * h >= max_seconds
+    _observe(ball, bats, r, player, axis, obs)
+    return DONE
+
+
+class TableBatch:
+    """The arrays of N tables' steps (one row a table) and the calls that step them.
+
+    Args:
+        envs: the tables' PingPongEnv (version 1, rigid net, hold actions, one task, opponent,
+            player, reward and max_seconds), each reset before it is loaded (load).
+    """
+
+    def __init__(self, envs: list[PingPongEnv]):
+        first = envs[0]
+        n = len(envs)
+        self.envs = envs
+        self.status = np.full(n, IDLE, np.int64)
+        self.ints = np.zeros((n, N_INTS), np.int64)
+        self.floats = np.zeros((n, N_FLOATS))
+        self.world = np.zeros(n, WORLD_DTYPE)
+        self.ball = np.zeros((n, 9))
+        self.bats = np.zeros((n, 2, BAT_FLOATS))
+        self.rally = np.zeros(n, RALLY_DTYPE)
+        self.bat_motion = np.zeros((n, 2, BAT_ROW))
+        self.bat_tmp = np.zeros((n, 3, 3))
+        self.work = np.zeros((n,) + WORK_SHAPE)
+        self.scratch = np.zeros((n,) + SCRATCH_SHAPE)
+        self.event_rows = np.zeros((n, MAX_IMPACTS_PER_TICK, EVENT_ROW))
+        self.ctl = np.zeros((n, 2, CTL_SIZE))
+        self.arm = np.zeros((n, 2, CTL_SIZE))
+        self.inputs = np.zeros((n, 2, 6))
+        self.players = np.array([0, 1], np.int64)
+        self.plans = np.zeros((n, 6))
+        self.opp_key = np.zeros((n, 4), np.int64)
+        self.opp_due = np.zeros(n)
+        self.opp_end = np.zeros(n)
+        self.steps = np.zeros(n, np.int64)
+        self.rewards = np.zeros(n)
+        self.terminated = np.zeros(n, np.bool_)
+        self.truncated = np.zeros(n, np.bool_)
+        self.obs = np.zeros((n, len(agent_frame.OBSERVATION_NAMES)))
+        self.errors = np.zeros(n, np.int64)
+        self.axis = np.zeros((3, 3))
+        self.axis[2, 0] = 1.0  # the bat's local x axis, rotated into the world's by _observe
+        self.pending = self.pending_tick = self.pending_at = None  # shaped by the first match loaded
+        self.player, self.opp = first.player, 1 - first.player
+        self.rally_task, self.dense = first.task == "rally", first.reward == "dense"
+        self.max_seconds = first.max_seconds
+        self._scalars = None
+
+    def _shape_from(self, env: PingPongEnv) -> None:
+        """The arrays and numbers that depend on the match: its decision delay and model."""
+        match = env.match
+        n = len(self.envs)
+        slots = match.delay // match.ai_every + 2  # decisions in flight: one a control tick of the delay
+        self.pending = np.zeros((n, slots, 2, CTL_SIZE))
+        self.pending_tick = np.zeros((n, slots), np.int64)
+        self.pending_at = np.zeros((n, 2), np.int64)  # the oldest's slot, how many
+        model = match.model
+        self._scalars = (int(self.player), self.rally_task, self.dense, int(match.scene.match.best_of),
+                         int(match.ai_every), int(match.delay), float(model.dt), float(self.max_seconds),
+                         float(match.scene.match.max_rally_s), float(match.scene.match.toss_speed), model.bat_mass,
+                         model.bat_inertia, model.method, model.gravity, model.drag_k, model.magnus_k,
+                         model.scene.rtol, model.scene.atol, model.table, model.floor_z, model.net, model.posts,
+                         model.ball_params, model.materials)
+
+    def load(self, k: int) -> None:
+        """Table k's match as its env's reset left it, into the batch's rows."""
+        env = self.envs[k]
+        match = env.match
+        if self.pending is None:
+            self._shape_from(env)
+        state = match.state
+        self.world[k] = state.world[0]
+        self.ball[k] = state.ball_flat
+        self.bats[k] = state.bat_flat
+        self.rally[k] = state.record[0]["rally"]
+        self.bat_motion[k] = state.bat_motion
+        self.arm[k] = match.arm
+        self.ctl[k] = match.ais.ctl
+        self.inputs[k] = match.inputs
+        pending = match.ai_driver.pending
+        if len(pending) > self.pending.shape[1]:
+            raise RuntimeError(f"table {k}: {len(pending)} decisions in flight, the batch keeps {self.pending.shape[1]}")
+        self.pending_at[k] = (0, len(pending))
+        for slot, (tick, plans, _) in enumerate(pending):
+            self.pending[k, slot], self.pending_tick[k, slot] = plans, tick
+        self._gate(k)
+        self.ints[k, I_CTL_TICK] = self.ints[k, I_REQ_TICK] = -1
+        self.steps[k] = 0
+        self.errors[k] = 0
+        self.status[k] = IDLE
+
+    def _gate(self, k: int) -> None:
+        """The opponent seat's gate (its key at its last decision, its wakes) into the rows of table k."""
+        seat = self.envs[k].match.ais[self.opp]
+        self.opp_key[k] = NO_KEY if seat.key is None else seat.key
+        self.opp_due[k], self.opp_end[k] = seat.wakes()
+
+    def step(self, actions: np.ndarray, mask: np.ndarray) -> None:
+        """One step of the tables of `mask` with the checked actions (N, 6) in [-1, 1]: rewards,
+        terminated, truncated and obs then hold their results."""
+        hold_plans(actions, self.player, self.plans)
+        self.status[:] = np.where(mask, START, IDLE)
+        while self._run():
+            for k in np.flatnonzero(self.status == WAITING):
+                self._decide(k)
+                self.status[k] = STEPPING
+        if self.errors.any():
+            k = int(np.flatnonzero(self.errors)[0])
+            raise RuntimeError(f"table {k}: the tick kernel failed with code {int(self.errors[k])} at tick "
+                               f"{int(self.world[k]['tick'])}")
+
+    def _run(self) -> int:
+        return run_tables(self.status, self.ints, self.floats, self.world, self.ball, self.bats, self.rally,
+                          self.bat_motion, self.bat_tmp, self.work, self.scratch, self.event_rows, self.ctl, self.arm,
+                          self.inputs, self.players, self.pending, self.pending_tick, self.pending_at, self.plans,
+                          self.opp_key, self.opp_due, self.opp_end, self.steps, self.rewards, self.terminated,
+                          self.truncated, self.obs, self.errors, self.axis, *self._scalars)
+
+    def _decide(self, k: int) -> None:
+        """The opponent of table k decides on the state there (engine.play.players.Seat.decide)."""
+        match = self.envs[k].match
+        seat = match.ais[self.opp]
+        rally = self.rally[k]
+        world = self.world[k]
+        fault = seat.decide(int(world["tick"]), float(world["time"]), self.ball[k], self.bats[k], rally,
+                            decision_key(rally))
+        if fault is not None:
+            raise RuntimeError(f"table {k}: the opponent's decision failed: {fault}")
+        self.ctl[k, self.opp] = match.ais.ctl[self.opp]
+        self._gate(k)
+
+    def points(self, k: int) -> int:
+        """Points decided in table k's match (lets included)."""
+        return int(self.rally[k]["points_total"])
