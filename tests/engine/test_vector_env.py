@@ -16,11 +16,11 @@ def _actions(space, steps: int, seed: int) -> np.ndarray:
     return np.array([space.sample() for _ in range(steps)])
 
 
-def _single_next_step(seed: int, actions: np.ndarray, task: str):
+def _single_next_step(seed: int, actions: np.ndarray, kwargs: dict):
     """One PingPongEnv reset with `seed`, stepped with `actions` under Gymnasium's documented
     NEXT_STEP autoreset: after an ended episode the next step resets (its action ignored) and
     returns the reset's observation, reward 0, neither terminated nor truncated."""
-    env = PingPongEnv(task=task, **KWARGS)
+    env = PingPongEnv(**kwargs)
     obs, _ = env.reset(seed=seed)
     rows, ended = [(obs, 0.0, False, False)], False
     for action in actions:
@@ -55,7 +55,7 @@ def test_each_table_is_the_single_environment_with_its_seed_bit_for_bit(task):
     rows = _vector_rows(vector, 30, actions)  # an int seed: table k gets 30 + k
     assert sum(int(r[3].sum() + r[2].sum()) for r in rows) >= n * 2  # every table ended episodes and went on
     for k in range(n):
-        single = _single_next_step(30 + k, actions[:, k], task)
+        single = _single_next_step(30 + k, actions[:, k], {"task": task, **KWARGS})
         for got, expected in zip(rows, single, strict=True):
             assert got[0][k].tobytes() == expected[0].tobytes()
             assert (float(got[1][k]), bool(got[2][k]), bool(got[3][k])) == expected[1:]
@@ -96,22 +96,6 @@ def test_bad_input_is_named():
         vector.reset(options={"reset_mask": np.zeros(2, bool)})
 
 
-def _single_v1(seed: int, actions: np.ndarray, kwargs: dict):
-    env = PingPongEnv(**kwargs)
-    obs, _ = env.reset(seed=seed)
-    rows, ended = [(obs, 0.0, False, False)], False
-    for action in actions:
-        if ended:
-            obs, _ = env.reset()
-            rows.append((obs, 0.0, False, False))
-            ended = False
-        else:
-            obs, reward, terminated, truncated, _ = env.step(action)
-            rows.append((obs, reward, terminated, truncated))
-            ended = terminated or truncated
-    return rows
-
-
 @pytest.mark.parametrize("kwargs", [
     {"task": "return", "reward": "sparse"},
     {"task": "rally", "reward": "dense", "player": 0},
@@ -128,7 +112,7 @@ def test_the_batched_step_is_the_single_environment_bit_for_bit(kwargs):
     rows = _vector_rows(vector, 50, actions)
     assert sum(int(r[2].sum() + r[3].sum()) for r in rows) >= n * 2  # episodes ended and began again
     for k in range(n):
-        single = _single_v1(50 + k, actions[:, k], kwargs)
+        single = _single_next_step(50 + k, actions[:, k], kwargs)
         for got, expected in zip(rows, single, strict=True):
             assert got[0][k].tobytes() == expected[0].tobytes()
             assert (float(got[1][k]), bool(got[2][k]), bool(got[3][k])) == expected[1:]
