@@ -37,7 +37,7 @@ from engine.physics.collision import BAT_ROW, EVENT_ROW, MAX_IMPACTS_PER_TICK, S
 from engine.physics.dtypes import RALLY_DTYPE, WORLD_DTYPE
 from engine.physics.integrators import WORK_SHAPE
 from engine.physics.tick import advance_ticks
-from engine.play.arm import (ARM_TARGET, BAT_FLOATS, CTL_HOLD, CTL_KIND, CTL_N_SEGMENTS, CTL_NORMAL, CTL_SEGMENTS,
+from engine.play.arm import (ARM_TARGET, BAT_FLOATS, CTL_HOLD, CTL_KIND, CTL_N_SEGMENTS, CTL_SEGMENTS,
                              CTL_SIZE, control_bats)
 from engine.play.judge import NO_POINT, ball_out_of_play, next_rally_and_toss, on_contact, server
 from engine.play.match import _GONE_RADIUS_2, _GONE_Z
