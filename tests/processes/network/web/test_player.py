@@ -41,7 +41,10 @@ def test_a_browser_plays_its_own_seat_and_moves_only_its_own_bat(bridged):
                 browser.send(json.dumps({"key": "up"}))  # the keys `join` uses, towards the net
             browser.send(json.dumps({"aim": [-1.6, 0.3, 0.2]}))  # the pointer's point
             browser.send(json.dumps({"aim": [99.0, 0.0, 0.0]}))  # beyond the wire's range: ignored
-            predicted = _texts(browser, lambda m: "predicted" in m and m["predicted"]["inputs_sent"] > 5)
+            # The session polls the aim between its control ticks: wait for the prediction that shows it
+            # (its y: the keys move the target along x only), not for a count of inputs sent.
+            predicted = _texts(browser, lambda m: "predicted" in m and m["predicted"]["inputs_sent"] > 5
+                               and m["predicted"]["aim"][1] != 0.0)
             assert len(predicted["predicted"]["bat_pos"]) == 3 and predicted["predicted"]["aim"][1] == pytest.approx(0.3)
             deadline = Deadline()
             while not deadline.expired():
