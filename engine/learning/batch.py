@@ -1,27 +1,31 @@
 """N tables' environment steps in one numba call: the batched step of engine.learning.vector_env.
 
 A table is one engine.learning.env.PingPongEnv (version 1, the rigid net, `hold` actions). Its
-episode starts as the environment's does (PingPongEnv.reset: the match, a drive's lead-in or the
-ball machine, in Python); then TableBatch.load copies what a step reads and writes into the
-batch's arrays, and from there the batch steps it: each table's control period in one compiled
-call over all the tables (run_tables), doing what PingPongEnv.step does in Python, in the same
-order and arithmetic:
+episode begins as the environment's does (PingPongEnv.begin_episode: the draws, the match, the
+ball machine's ball, in Python); then TableBatch.load copies what the batch reads and writes
+into its arrays, and from there the batch plays it: a drive's lead-in, then each control period
+of a step, in one compiled call over all the tables (run_tables), doing what PingPongEnv.reset's
+lead-in and PingPongEnv.step do in Python, in the same order and arithmetic:
 
 - at each control tick (engine.play.match.Match.tick): the plans decided a decision delay before
   take effect, the arm law turns the plans in effect into the bats' forces
-  (engine.play.arm.control_bats), the agent's action becomes its plan, and the opponent decides
-  when its gate is open (engine.play.players.gate_open: its decision key changed or its wakes came);
+  (engine.play.arm.control_bats), the agent's action becomes its plan (in a lead-in the stand-in,
+  the opponent's profile, plays the agent's bat), and a seat played by an AI profile decides when
+  its gate is open (engine.play.players.gate_open: its decision key changed or its wakes came);
 - the physics to the next control tick, a frame boundary or the first tick that needs the
   referee (engine.physics.tick.advance_ticks), the referee's judgement of each contact, the ball
   out of play, the next rally's toss (engine.play.judge);
-- the rewards of PingPongEnv.play_period (sparse and dense), the end of the episode, and the
-  observation in the agent's frame (engine.learning.agent_frame.observe).
+- a lead-in ends when the opponent drove (the reset's observation), or, if the match ended
+  first, is played again in the env's next match (PingPongEnv.next_match);
+- a step's rewards (PingPongEnv.play_period's, sparse and dense), the end of the episode, and
+  the observation in the agent's frame (engine.learning.agent_frame.observe).
 
-The opponent's decision is Python (its BatAI thinks a stroke out): the compiled call stops a
-table whose opponent must decide, the batch calls that table's engine.play.players.Seat on the
-state there, and the next call goes on from it. Between its decisions the opponent's arm law is
-compiled like the rest. A table's episodes are the single environment's bit for bit
-(tests/engine/test_vector_env.py).
+An AI profile's decision is Python (its BatAI thinks a stroke out): the compiled call stops a
+table whose seat must decide, the batch calls that table's engine.play.players.Seat on the state
+there, and the next call goes on from it. The stand-in is asked only when its gate is open,
+where the environment asks it at every control tick: BatAI.wakes promises that the decisions in
+between change nothing. Between decisions the arm law is compiled like the rest. A table's
+episodes are the single environment's bit for bit (tests/engine/test_vector_env.py).
 """
 from __future__ import annotations
 
@@ -44,18 +48,22 @@ from engine.play.match import _GONE_RADIUS_2, _GONE_Z
 from engine.play.players import NO_KEY, decision_key
 from engine.play.rules import Phase
 
-# A table's progress through a step (TableBatch.status).
-IDLE, START, STEPPING, WAITING, DONE = range(5)
+# A table's progress through a step or a lead-in (TableBatch.status); LEAD_OVER: the match ended
+# before the lead-in's drive.
+IDLE, START, STEPPING, WAITING, DONE, LEAD_OVER = range(6)
 # Integer bookkeeping of a step in progress (TableBatch.ints' columns), and the floats' (TableBatch.floats).
-# I_LANDED + end: whether end's return landed in the step.
+# I_LANDED + end: whether end's return landed in the step. I_WAIT: the seats that must decide (bit
+# p: seat p). I_LEAD: 1 while the table plays a drive's lead-in.
 I_STOP_AT, I_CTL_TICK, I_REQ_TICK, I_DECIDED, I_LANDED, I_SHOTS, I_PHASE, I_STRIKER, I_POINTS, I_WINNER = (
     0, 1, 2, 3, 4, 6, 7, 8, 9, 10)
-N_INTS = 11
+I_WAIT, I_LEAD = 11, 12
+N_INTS = 13
 F_REWARD, F_POTENTIAL, F_BALL_X = 0, 2, 4
 N_FLOATS = 5
 _OVER = int(Phase.OVER)
 _WAITING_SERVE = int(Phase.WAITING_SERVE)
 _BOUNCED = int(Phase.BOUNCED)
+_STRUCK = int(Phase.STRUCK)
 _POS_SCALE, _VEL_SCALE, _SPIN_SCALE = agent_frame.POS_SCALE, agent_frame.VEL_SCALE, agent_frame.SPIN_SCALE
 _ANG_VEL_SCALE, _POINTS_SCALE, _GAMES_SCALE = agent_frame.ANG_VEL_SCALE, agent_frame.POINTS_SCALE, agent_frame.GAMES_SCALE
 _MAX_SHOTS = agent_frame.MAX_SHOTS
@@ -145,7 +153,8 @@ def _observe(ball, bats, r, player, axis, out):
 
 @njit(cache=True)
 def _gate_open(r, now, ctl_row, key, due, end):
-    """engine.play.players.Seat.needs_decision of an AI profile's seat."""
+    """engine.play.players.Seat.needs_decision of an AI profile's seat: key, due and end are the
+    seat's gate (its decision key at its last decision, its wakes)."""
     if ctl_row[CTL_KIND] != ARM_TARGET:
         return True
     if (key[0] != r['rally'] or key[1] != r['shots'] or key[2] != _next_striker(r)
@@ -155,40 +164,148 @@ def _gate_open(r, now, ctl_row, key, due, end):
 
 
 @njit(cache=True)
+def _opponent_drove(r, opp):
+    """PingPongEnv._opponent_drove: the opponent struck a return the agent must now play."""
+    return r['shots'] >= 2 and r['striker'] == opp and (r['phase'] == _STRUCK or r['phase'] == _BOUNCED)
+
+
+@njit(cache=True)
 def run_tables(status, ints, floats, world, ball, bats, rally, bat_motion, bat_tmp, work, scratch, event_rows,
-               ctl, arm, inputs, players, pending, pending_tick, pending_at, plans, opp_key, opp_due, opp_end,
-               steps, rewards, terminated, truncated, obs, errors, axis,
-               player, rally_task, dense, best_of, every, delay, h, max_seconds, max_rally_s, toss_speed,
-               bat_mass, bat_inertia, method, gravity, drag_k, magnus_k, rtol, atol, table, floor_z, net, posts,
-               params, materials):
-    """Step every table whose status is START or STEPPING until its step is DONE or its opponent
-    must decide (WAITING); returns how many wait. The tables' arrays are TableBatch's."""
+               ctl, arm, inputs, players, pending, pending_tick, pending_at, plans, gate_key, gate_due, gate_end,
+               steps, rewards, terminated, truncated, obs, errors, axis, player, rally_task, dense, best_of, every,
+               delay, max_seconds, max_rally_s, toss_speed, physics):
+    """Go on with every table whose status is START or STEPPING (its step, or its lead-in while
+    ints[k, I_LEAD] is set) until it is DONE, LEAD_OVER or its players must decide (WAITING);
+    returns how many wait. The tables' arrays are TableBatch's; physics: TableBatch's tuple of
+    the model's arrays and numbers that engine.physics.tick.advance_ticks reads."""
     waiting = 0
     for k in range(status.shape[0]):
-        if status[k] == START or status[k] == STEPPING:
-            status[k] = _run_table(k, status, ints[k], floats[k], world, ball[k], bats[k], rally[k], bat_motion[k],
-                                   bat_tmp[k], work[k], scratch[k], event_rows[k], ctl[k], arm[k], inputs[k], players,
-                                   pending[k], pending_tick[k], pending_at, plans[k], opp_key[k], opp_due, opp_end,
-                                   steps, rewards, terminated, truncated, obs[k], errors, axis, player, rally_task,
-                                   dense, best_of, every, delay, h, max_seconds, max_rally_s, toss_speed, bat_mass,
-                                   bat_inertia, method, gravity, drag_k, magnus_k, rtol, atol, table, floor_z, net,
-                                   posts, params, materials)
-            if status[k] == WAITING:
-                waiting += 1
+        if status[k] != START and status[k] != STEPPING:
+            continue
+        table = (world[k:k + 1], ball[k], bats[k], rally[k], bat_motion[k], bat_tmp[k], work[k], scratch[k],
+                 event_rows[k], ctl[k], arm[k], inputs[k], pending[k], pending_tick[k], pending_at[k], gate_key[k],
+                 gate_due[k], gate_end[k])
+        if ints[k, I_LEAD] == 1:
+            status[k] = _lead_table(ints[k], table, players, plans[k], errors[k:k + 1], obs[k], axis, player,
+                                    best_of, every, delay, max_rally_s, toss_speed, physics)
+        else:
+            status[k] = _step_table(status[k], ints[k], floats[k], table, players, plans[k], steps[k:k + 1],
+                                    rewards[k:k + 1], terminated[k:k + 1], truncated[k:k + 1], obs[k], errors[k:k + 1],
+                                    axis, player, rally_task, dense, best_of, every, delay, max_seconds, max_rally_s,
+                                    toss_speed, physics)
+        if status[k] == WAITING:
+            waiting += 1
     return waiting
 
 
 @njit(cache=True)
-def _run_table(k, status, si, sf, world, ball, bats, r, bat_motion, bat_tmp, work, scratch, event_rows, ctl, arm,
-               inputs, players, pending, pending_tick, pending_at, plan, opp_key, opp_due, opp_end, steps, rewards,
-               terminated, truncated, obs, errors, axis, player, rally_task, dense, best_of, every, delay, h,
-               max_seconds, max_rally_s, toss_speed, bat_mass, bat_inertia, method, gravity, drag_k, magnus_k, rtol,
-               atol, table, floor_z, net, posts, params, materials):
-    """One table's step from where it stands (PingPongEnv.step and play_period); its new status."""
-    w = world[k]
+def _control_tick(si, table, players, plan, player, lead, delay):
+    """engine.play.match.Match.tick at a control tick, up to its decisions (LocalAI.collect, the
+    arm law); then the agent's action becomes its plan, unless the stand-in plays its bat in a
+    lead-in; returns the seats whose gate is open (bit p: seat p), who must decide first."""
+    w, ball, bats, r, _, _, _, _, _, ctl, arm, inputs, pending, pending_tick, pending_at, key, due, end = table
+    tick = w[0]['tick']
+    n_pending = pending_at[1]
+    if n_pending > 0 and pending_tick[pending_at[0]] == tick:
+        arm[:, :] = pending[pending_at[0]]
+        pending_at[0] = (pending_at[0] + 1) % pending.shape[0]
+        pending_at[1] = n_pending - 1
+    control_bats(w[0]['time'], bats, arm, players, inputs)
+    si[I_CTL_TICK] = tick
+    wait = 0
+    if lead:
+        if _gate_open(r, w[0]['time'], ctl[player], key[player], due[player], end[player]):
+            wait |= 1 << player
+    else:
+        row = ctl[player]
+        row[CTL_KIND] = ARM_TARGET
+        for i in range(6):
+            row[CTL_HOLD + i] = plan[i]
+        row[CTL_N_SEGMENTS] = 0.0
+        row[CTL_SEGMENTS:] = 0.0
     opp = 1 - player
-    if status[k] == START:
-        si[I_STOP_AT] = w['tick'] + every
+    if _gate_open(r, w[0]['time'], ctl[opp], key[opp], due[opp], end[opp]):
+        wait |= 1 << opp
+    return wait
+
+
+@njit(cache=True)
+def _advance_and_judge(si, table, errors, n_max, best_of, every, delay, max_rally_s, toss_speed, physics):
+    """The rest of Match.tick from where the decisions were taken: their plans wait `delay` ticks
+    (LocalAI.request), the forces are applied, the physics runs up to n_max ticks
+    (engine.physics.tick.advance_ticks), the referee judges the contacts and a ball out of play,
+    the next rally is tossed (engine.play.judge). Returns False on a kernel error (in errors[0])."""
+    w, ball, bats, r, bat_motion, bat_tmp, work, scratch, event_rows, ctl, _, inputs, pending, pending_tick, \
+        pending_at, _, _, _ = table
+    h, bat_mass, bat_inertia, method, gravity, drag_k, magnus_k, rtol, atol, surface, floor_z, net, posts, params, \
+        materials = physics
+    tick = w[0]['tick']
+    if tick % every == 0:
+        if si[I_REQ_TICK] != tick:
+            at = (pending_at[0] + pending_at[1]) % pending.shape[0]
+            pending[at] = ctl
+            pending_tick[at] = tick + delay
+            pending_at[1] += 1
+            si[I_REQ_TICK] = tick
+        for b in range(inputs.shape[0]):  # engine.physics.world._apply_inputs
+            for i in range(3):
+                bats[b, FORCE_AT + i] = inputs[b, i]
+                bats[b, TORQUE_AT + i] = inputs[b, 3 + i]
+    deadline = r['rally_started'] + max_rally_s
+    ticks, n, reason, error = advance_ticks(
+        n_max, h, w, bats, bat_mass, bat_inertia, bat_motion, bat_tmp, ball[0:9], method, gravity, drag_k, magnus_k,
+        rtol, atol, surface, floor_z, net, posts, params, materials, work, scratch, w[0]['ball_adapt'], event_rows,
+        _GONE_RADIUS_2, _GONE_Z, deadline, None)
+    if error != 0:
+        errors[0] = error
+        return False
+    point = NO_POINT
+    for e in range(n):  # engine.play.match.Match.tick's judgement
+        won, _ = on_contact(r, int(event_rows[e, 1]), event_rows[e, 2], event_rows[e, 3], best_of)
+        if won != NO_POINT:
+            point = won
+    if point == NO_POINT and r['phase'] != _OVER:
+        x, y, z = ball[0], ball[1], ball[2]
+        if x * x + y * y > _GONE_RADIUS_2 or z < _GONE_Z or w[0]['ball_support'] != 0 or w[0]['time'] > deadline:
+            point, _ = ball_out_of_play(r, x, y, best_of)
+    if point != NO_POINT:
+        si[I_WINNER] = point
+        if r['winner'] < 0:
+            next_rally_and_toss(r, ball, w[0], toss_speed)
+    return True
+
+
+@njit(cache=True)
+def _lead_table(si, table, players, plan, errors, obs, axis, player, best_of, every, delay, max_rally_s, toss_speed,
+                physics):
+    """A drive's lead-in from where it stands (PingPongEnv._lead_in: the stand-in, the opponent's
+    profile, plays the agent's bat until the opponent drove), then the reset's observation;
+    returns DONE, WAITING, or LEAD_OVER when the match ended first (the episode's next match
+    then leads in anew)."""
+    w, ball, bats, r = table[0], table[1], table[2], table[3]
+    while not _opponent_drove(r, 1 - player):
+        if r['winner'] >= 0:
+            return LEAD_OVER
+        tick = w[0]['tick']
+        if tick % every == 0 and si[I_CTL_TICK] != tick:
+            si[I_WAIT] = _control_tick(si, table, players, plan, player, True, delay)
+            if si[I_WAIT] != 0:
+                return WAITING
+        n_max = min(FRAME_EVERY - tick % FRAME_EVERY, every - tick % every)
+        if not _advance_and_judge(si, table, errors, n_max, best_of, every, delay, max_rally_s, toss_speed, physics):
+            return DONE
+    si[I_LEAD] = 0
+    _observe(ball, bats, r, player, axis, obs)
+    return DONE
+
+
+@njit(cache=True)
+def _step_table(status, si, sf, table, players, plan, steps, rewards, terminated, truncated, obs, errors, axis, player,
+                rally_task, dense, best_of, every, delay, max_seconds, max_rally_s, toss_speed, physics):
+    """One table's step from where it stands (PingPongEnv.step and play_period); its new status."""
+    w, ball, bats, r = table[0], table[1], table[2], table[3]
+    if status == START:
+        si[I_STOP_AT] = w[0]['tick'] + every
         si[I_DECIDED] = si[I_LANDED] = si[I_LANDED + 1] = 0
         si[I_POINTS] = r['points_total']
         si[I_SHOTS], si[I_PHASE], si[I_STRIKER] = r['shots'], r['phase'], r['striker']
@@ -198,57 +315,15 @@ def _run_table(k, status, si, sf, world, ball, bats, r, bat_motion, bat_tmp, wor
             sf[F_POTENTIAL + 1] = _potential(bats, ball, r, 1)
         sf[F_BALL_X] = ball[0]
     landed_now = False
-    while w['tick'] < si[I_STOP_AT] and si[I_DECIDED] == 0:
-        tick = w['tick']
-        if tick % every == 0:
-            if si[I_CTL_TICK] != tick:  # engine.play.match.LocalAI.collect, the arm law, the agent's decision
-                n_pending = pending_at[k, 1]
-                if n_pending > 0 and pending_tick[pending_at[k, 0]] == tick:
-                    arm[:, :] = pending[pending_at[k, 0]]
-                    pending_at[k, 0] = (pending_at[k, 0] + 1) % pending.shape[0]
-                    pending_at[k, 1] = n_pending - 1
-                control_bats(w['time'], bats, arm, players, inputs)
-                si[I_CTL_TICK] = tick
-                row = ctl[player]
-                row[CTL_KIND] = ARM_TARGET
-                for i in range(6):
-                    row[CTL_HOLD + i] = plan[i]
-                row[CTL_N_SEGMENTS] = 0.0
-                row[CTL_SEGMENTS:] = 0.0
-                if _gate_open(r, w['time'], ctl[opp], opp_key, opp_due[k], opp_end[k]):
-                    return WAITING
-            if si[I_REQ_TICK] != tick:  # LocalAI.request: the decisions wait `delay` ticks
-                at = (pending_at[k, 0] + pending_at[k, 1]) % pending.shape[0]
-                pending[at] = ctl
-                pending_tick[at] = tick + delay
-                pending_at[k, 1] += 1
-                si[I_REQ_TICK] = tick
-            for b in range(inputs.shape[0]):  # engine.physics.world._apply_inputs
-                for i in range(3):
-                    bats[b, FORCE_AT + i] = inputs[b, i]
-                    bats[b, TORQUE_AT + i] = inputs[b, 3 + i]
+    while w[0]['tick'] < si[I_STOP_AT] and si[I_DECIDED] == 0:
+        tick = w[0]['tick']
+        if tick % every == 0 and si[I_CTL_TICK] != tick:
+            si[I_WAIT] = _control_tick(si, table, players, plan, player, False, delay)
+            if si[I_WAIT] != 0:
+                return WAITING
         n_max = min(si[I_STOP_AT] - tick, FRAME_EVERY - tick % FRAME_EVERY, every - tick % every)
-        deadline = r['rally_started'] + max_rally_s
-        ticks, n, reason, error = advance_ticks(
-            n_max, h, world[k:k + 1], bats, bat_mass, bat_inertia, bat_motion, bat_tmp, ball[0:9], method, gravity,
-            drag_k, magnus_k, rtol, atol, table, floor_z, net, posts, params, materials, work, scratch,
-            w['ball_adapt'], event_rows, _GONE_RADIUS_2, _GONE_Z, deadline, None)
-        if error != 0:
-            errors[k] = error
+        if not _advance_and_judge(si, table, errors, n_max, best_of, every, delay, max_rally_s, toss_speed, physics):
             return DONE
-        point = NO_POINT
-        for e in range(n):  # engine.play.match.Match.tick's judgement
-            won, _ = on_contact(r, int(event_rows[e, 1]), event_rows[e, 2], event_rows[e, 3], best_of)
-            if won != NO_POINT:
-                point = won
-        if point == NO_POINT and r['phase'] != _OVER:
-            x, y, z = ball[0], ball[1], ball[2]
-            if x * x + y * y > _GONE_RADIUS_2 or z < _GONE_Z or w['ball_support'] != 0 or w['time'] > deadline:
-                point, _ = ball_out_of_play(r, x, y, best_of)
-        if point != NO_POINT:
-            si[I_WINNER] = point
-            if r['winner'] < 0:
-                next_rally_and_toss(r, ball, w, toss_speed)
         # PingPongEnv.play_period's rewards
         striker = r['striker']
         if r['shots'] > si[I_SHOTS]:
@@ -275,10 +350,10 @@ def _run_table(k, status, si, sf, world, ball, bats, r, bat_motion, bat_tmp, wor
         for end in range(2):
             sf[F_REWARD + end] += _potential(bats, ball, r, end) - sf[F_POTENTIAL + end]
     done = si[I_DECIDED] == 1 or (not rally_task and (landed_now or si[I_LANDED + player] == 1))
-    steps[k] += 1
-    rewards[k] = sf[F_REWARD + player]
-    terminated[k] = done
-    truncated[k] = not done and steps[k] * every * h >= max_seconds
+    steps[0] += 1
+    rewards[0] = sf[F_REWARD + player]
+    terminated[0] = done
+    truncated[0] = not done and steps[0] * every * physics[0] >= max_seconds
     _observe(ball, bats, r, player, axis, obs)
     return DONE
 
@@ -288,7 +363,8 @@ class TableBatch:
 
     Args:
         envs: the tables' PingPongEnv (version 1, rigid net, hold actions, one task, opponent,
-            player, reward and max_seconds), each reset before it is loaded (load).
+            player, reward and max_seconds); a table is loaded (load) after its env began an
+            episode (PingPongEnv.begin_episode).
     """
 
     def __init__(self, envs: list[PingPongEnv]):
@@ -312,9 +388,10 @@ class TableBatch:
         self.inputs = np.zeros((n, 2, 6))
         self.players = np.array([0, 1], np.int64)
         self.plans = np.zeros((n, 6))
-        self.opp_key = np.zeros((n, 4), np.int64)
-        self.opp_due = np.zeros(n)
-        self.opp_end = np.zeros(n)
+        # each seat's decision gate (engine.play.players.Players.gates): its key at its last decision, its wakes
+        self.gate_key = np.zeros((n, 2, 4), np.int64)
+        self.gate_due = np.zeros((n, 2))
+        self.gate_end = np.zeros((n, 2))
         self.steps = np.zeros(n, np.int64)
         self.rewards = np.zeros(n)
         self.terminated = np.zeros(n, np.bool_)
@@ -338,15 +415,16 @@ class TableBatch:
         self.pending_tick = np.zeros((n, slots), np.int64)
         self.pending_at = np.zeros((n, 2), np.int64)  # the oldest's slot, how many
         model = match.model
+        physics = (float(model.dt), model.bat_mass, model.bat_inertia, model.method, model.gravity, model.drag_k,
+                   model.magnus_k, model.scene.rtol, model.scene.atol, model.table, model.floor_z, model.net,
+                   model.posts, model.ball_params, model.materials)
         self._scalars = (int(self.player), self.rally_task, self.dense, int(match.scene.match.best_of),
-                         int(match.ai_every), int(match.delay), float(model.dt), float(self.max_seconds),
-                         float(match.scene.match.max_rally_s), float(match.scene.match.toss_speed), model.bat_mass,
-                         model.bat_inertia, model.method, model.gravity, model.drag_k, model.magnus_k,
-                         model.scene.rtol, model.scene.atol, model.table, model.floor_z, model.net, model.posts,
-                         model.ball_params, model.materials)
+                         int(match.ai_every), int(match.delay), float(self.max_seconds),
+                         float(match.scene.match.max_rally_s), float(match.scene.match.toss_speed), physics)
 
-    def load(self, k: int) -> None:
-        """Table k's match as its env's reset left it, into the batch's rows."""
+    def load(self, k: int, lead_in: bool) -> None:
+        """Table k's match as its env left it (PingPongEnv.begin_episode or next_match) into the
+        batch's rows; lead_in: its drive's lead-in is still to be played (lead_in())."""
         env = self.envs[k]
         match = env.match
         if self.pending is None:
@@ -366,27 +444,54 @@ class TableBatch:
         self.pending_at[k] = (0, len(pending))
         for slot, (tick, plans, _) in enumerate(pending):
             self.pending[k, slot], self.pending_tick[k, slot] = plans, tick
-        self._gate(k)
+        for player in (0, 1):
+            self._gate(k, player)
         self.ints[k, I_CTL_TICK] = self.ints[k, I_REQ_TICK] = -1
+        self.ints[k, I_LEAD] = int(lead_in)
         self.steps[k] = 0
         self.errors[k] = 0
         self.status[k] = IDLE
 
-    def _gate(self, k: int) -> None:
-        """The opponent seat's gate (its key at its last decision, its wakes) into the rows of table k."""
-        seat = self.envs[k].match.ais[self.opp]
-        self.opp_key[k] = NO_KEY if seat.key is None else seat.key
-        self.opp_due[k], self.opp_end[k] = seat.wakes()
+    def _gate(self, k: int, player: int) -> None:
+        """Seat `player`'s gate into table k's rows: its key at its last decision and its wakes
+        (the agent's seat: its stand-in's while one plays it)."""
+        seat = self.envs[k].match.ais[player]
+        self.gate_key[k, player] = NO_KEY if seat.key is None else seat.key
+        stand_in = seat.bot.stand_in if player == self.player else None
+        self.gate_due[k, player], self.gate_end[k, player] = seat.wakes() if stand_in is None else stand_in.wakes()
 
-    def step(self, actions: np.ndarray, mask: np.ndarray) -> None:
-        """One step of the tables of `mask` with the checked actions (N, 6) in [-1, 1]: rewards,
-        terminated, truncated and obs then hold their results."""
+    def lead_in(self, mask: np.ndarray) -> None:
+        """Play the lead-in of the loaded tables of `mask` whose load said so (PingPongEnv.reset's
+        lead-in, each in the match its env made next when one ended first); obs then holds every
+        such table's reset observation, and their envs' episode_info is the episode's."""
+        leading = mask & (self.ints[:, I_LEAD] == 1)
+        if leading.any():
+            self._play(np.where(leading, START, IDLE))
+
+    def step(self, actions: np.ndarray, mask: np.ndarray, lead: np.ndarray | None = None) -> None:
+        """One step of the tables of `mask` with the checked actions (N, 6) in [-1, 1], and the
+        lead-ins of the tables of `lead` (loaded with lead_in): rewards, terminated, truncated
+        and obs then hold the steps' results, obs the lead-ins' reset observations."""
         hold_plans(actions, self.player, self.plans)
-        self.status[:] = np.where(mask, START, IDLE)
-        while self._run():
+        start = mask if lead is None else mask | (lead & (self.ints[:, I_LEAD] == 1))
+        self._play(np.where(start, START, IDLE))
+
+    def _play(self, status: np.ndarray) -> None:
+        """Run the tables from `status` to their end: the players' decisions where they wait, the
+        next match where a lead-in's match ended."""
+        self.status[:] = status
+        while True:
+            waiting = self._run()
+            over = np.flatnonzero(self.status == LEAD_OVER)
+            if not waiting and not len(over):
+                break
             for k in np.flatnonzero(self.status == WAITING):
                 self._decide(k)
                 self.status[k] = STEPPING
+            for k in over:
+                self.envs[k].next_match()
+                self.load(k, True)
+                self.status[k] = START
         if self.errors.any():
             k = int(np.flatnonzero(self.errors)[0])
             raise RuntimeError(f"table {k}: the tick kernel failed with code {int(self.errors[k])} at tick "
@@ -396,21 +501,25 @@ class TableBatch:
         return run_tables(self.status, self.ints, self.floats, self.world, self.ball, self.bats, self.rally,
                           self.bat_motion, self.bat_tmp, self.work, self.scratch, self.event_rows, self.ctl, self.arm,
                           self.inputs, self.players, self.pending, self.pending_tick, self.pending_at, self.plans,
-                          self.opp_key, self.opp_due, self.opp_end, self.steps, self.rewards, self.terminated,
+                          self.gate_key, self.gate_due, self.gate_end, self.steps, self.rewards, self.terminated,
                           self.truncated, self.obs, self.errors, self.axis, *self._scalars)
 
     def _decide(self, k: int) -> None:
-        """The opponent of table k decides on the state there (engine.play.players.Seat.decide)."""
+        """The seats of table k that must decide do, in seat order, on the state there
+        (engine.play.players.Players.decide)."""
         match = self.envs[k].match
-        seat = match.ais[self.opp]
         rally = self.rally[k]
         world = self.world[k]
-        fault = seat.decide(int(world["tick"]), float(world["time"]), self.ball[k], self.bats[k], rally,
-                            decision_key(rally))
-        if fault is not None:
-            raise RuntimeError(f"table {k}: the opponent's decision failed: {fault}")
-        self.ctl[k, self.opp] = match.ais.ctl[self.opp]
-        self._gate(k)
+        key = decision_key(rally)
+        for player in (0, 1):
+            if not self.ints[k, I_WAIT] >> player & 1:
+                continue
+            fault = match.ais[player].decide(int(world["tick"]), float(world["time"]), self.ball[k], self.bats[k],
+                                             rally, key)
+            if fault is not None:
+                raise RuntimeError(f"table {k}: the decision of seat {player} failed: {fault}")
+            self.ctl[k, player] = match.ais.ctl[player]
+            self._gate(k, player)
 
     def points(self, k: int) -> int:
         """Points decided in table k's match (lets included)."""

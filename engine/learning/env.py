@@ -237,24 +237,52 @@ class PingPongEnv(gymnasium.Env):
 
     # --- episodes ---------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        lead_in = self.begin_episode(seed)
+        while lead_in and not self._lead_in():  # a lead-in whose game ended first: the next match
+            self.next_match()
+        self.end_lead_in()
+        return self.observation(), self.episode_info()
+
+    def begin_episode(self, seed: int | None = None) -> bool:
+        """reset() up to a drive's lead-in: the episode's draws and its first match; whether the
+        lead-in is to be played (the stand-in then plays the agent's bat until the opponent drove:
+        _lead_in, or the batch's engine.learning.batch). A lead-in whose game ends before the
+        opponent returned once is played anew in the next match (next_match)."""
         super().reset(seed=seed)
-        if self.machine is not None:
-            self._new_match(int(self.np_random.integers(0, 2**31 - 1)), False, self.player)
-            shot = self._machine_ball()
-            self.steps = 0
-            self._ended = False
-            return self.observation(), {"drive": False, "machine": shot, "match_seed": self.seed_of_match,
-                                        "server": self.match.scene.match.first_server}
-        drive = self.task == "return" and bool(self.np_random.integers(0, 2))
-        server = int(self.np_random.integers(0, 2)) if self.opponent is None else None  # two agents: drawn
-        while True:  # a drive's lead-in whose game ends before the opponent returned once is played anew
-            self._new_match(int(self.np_random.integers(0, 2**31 - 1)), drive, server)
-            if not drive or self._lead_in():
-                break
         self.steps = 0
         self._ended = False
-        return self.observation(), {"drive": drive, "match_seed": self.seed_of_match,
-                                 "server": self.match.scene.match.first_server}
+        self._shot = None
+        if self.machine is not None:
+            self._drive, self._server = False, self.player
+            self.next_match()
+            self._shot = self._machine_ball()
+            return False
+        self._drive = self.task == "return" and bool(self.np_random.integers(0, 2))
+        self._server = int(self.np_random.integers(0, 2)) if self.opponent is None else None  # two agents: drawn
+        self.next_match()
+        return self._drive
+
+    def next_match(self) -> None:
+        """The episode's next match from its next seed; for a drive, the opponent's profile (a
+        ProfileBot seeded from the match) stands in at the agent's bat for the lead-in."""
+        self._new_match(int(self.np_random.integers(0, 2**31 - 1)), self._drive, self._server)
+        if self._drive:
+            stand_in = ProfileBot(self.match.model, self.player, SKILLS[self.opponent], self.opponent,
+                                  seed=self.seed_of_match * 1000 + 7, control_every=self.every)
+            agent = self.agent
+            stand_in.player, stand_in.end_sign, stand_in.normal = agent.player, agent.end_sign, agent.normal
+            agent.stand_in = stand_in
+
+    def end_lead_in(self) -> None:
+        """The agent takes its bat back from the stand-in (the lead-in is over)."""
+        self.agent.stand_in = None
+
+    def episode_info(self) -> dict:
+        """The info reset() returns: a drive or not, the ball machine's ball, the match's seed and first server."""
+        info = {"drive": self._drive, "match_seed": self.seed_of_match, "server": self.match.scene.match.first_server}
+        if self._shot is not None:
+            info["machine"] = self._shot
+        return info
 
     def _machine_ball(self) -> dict:
         """The ball machine's ball as the opponent's return in the air (the agent served): drawn
@@ -302,18 +330,12 @@ class PingPongEnv(gymnasium.Env):
             self._warm = True
 
     def _lead_in(self) -> bool:
-        """The opponent's profile plays the agent's end until the opponent drives the ball back;
-        whether it did before the match ended."""
-        match = self.match
-        stand_in = ProfileBot(match.model, self.player, SKILLS[self.opponent], self.opponent,
-                              seed=self.seed_of_match * 1000 + 7, control_every=self.every)
-        stand_in.player, stand_in.end_sign, stand_in.normal = self.agent.player, self.agent.end_sign, self.agent.normal
-        self.agent.stand_in = stand_in
+        """The stand-in plays the agent's end until the opponent drives the ball back; whether it
+        did before the match ended."""
         while not self._opponent_drove():
-            if match.over:
+            if self.match.over:
                 return False
             self._advance()
-        self.agent.stand_in = None
         return True
 
     def _opponent_drove(self) -> bool:

@@ -17,8 +17,9 @@ tables. Table k's episodes are those of a single PingPongEnv reset with the same
 bit, as they are those of gymnasium.vector.SyncVectorEnv (tests/engine/test_vector_env.py).
 
 Version 1 with the rigid net and `hold` actions (what examples/train_ppo.py trains on) is
-batched (`batched`): every table's step in one numba call (engine.learning.batch), Python only
-where an opponent decides a stroke and where an episode starts. Otherwise (version 0, the cloth
+batched (`batched`): every table's step, and a drive's lead-in at its reset, in one numba call
+(engine.learning.batch), Python only where an AI profile decides a stroke and where an episode
+begins (its match is made). Otherwise (version 0, the cloth
 net, `target` or `force` actions, a second agent, pictures kept) the tables are stepped one after
 another, each one PingPongEnv.step: its physics one numba call between the referee's and the
 players' Python work.
@@ -90,11 +91,14 @@ class PingPongVectorEnv(VectorEnv):
             raise ValueError(f"options['reset_mask']: a numpy bool array of shape ({self.num_envs},) with at least "
                              f"one True, got {mask!r}")
         infos: dict = {}
-        for k in np.flatnonzero(mask):
-            self._obs[k], info = self.envs[k].reset(seed=seeds[k], options=options or None)
-            infos = self._add_info(infos, info, k)
-            if self._batch is not None:
-                self._batch.load(k)
+        if self._batch is None:
+            for k in np.flatnonzero(mask):
+                self._obs[k], info = self.envs[k].reset(seed=seeds[k], options=options or None)
+                infos = self._add_info(infos, info, k)
+        else:
+            self._begin_episodes(mask, seeds)
+            self._batch.lead_in(mask)
+            infos = self._end_lead_ins(mask, infos)
         self._terminations[mask] = self._truncations[mask] = self._autoreset[mask] = False
         self._elapsed[mask] = 0
         return self._obs.copy(), infos
@@ -130,17 +134,15 @@ class PingPongVectorEnv(VectorEnv):
         for k in np.flatnonzero(stepping & ~np.isfinite(actions).all(axis=1)):
             agent_frame.checked_action(actions[k], "hold")  # raises, naming the entries
         np.clip(actions, -1.0, 1.0, out=clipped)
-        infos: dict = {}
-        for k in np.flatnonzero(self._autoreset):
-            self._obs[k], info = self.envs[k].reset()
-            self._batch.load(k)
-            self._rewards[k] = 0.0
-            self._terminations[k] = self._truncations[k] = False
-            self._elapsed[k] = 0
-            infos = self._add_info(infos, info, k)
+        resetting = self._autoreset.copy()
+        self._begin_episodes(resetting, [None] * self.num_envs)
+        batch = self._batch
+        batch.step(clipped, stepping, resetting)
+        infos = self._end_lead_ins(resetting, {})
+        self._rewards[resetting] = 0.0
+        self._terminations[resetting] = self._truncations[resetting] = False
+        self._elapsed[resetting] = 0
         if stepping.any():
-            batch = self._batch
-            batch.step(clipped, stepping)
             self._obs[stepping] = batch.obs[stepping]
             self._rewards[stepping] = batch.rewards[stepping]
             self._terminations[stepping] = batch.terminated[stepping]
@@ -158,6 +160,25 @@ class PingPongVectorEnv(VectorEnv):
             infos["bot_errors"], infos["_bot_errors"] = errors, stepping | infos.get("_bot_errors", False)
         self._autoreset[:] = self._terminations | self._truncations
         return self._obs.copy(), self._rewards.copy(), self._terminations.copy(), self._truncations.copy(), infos
+
+    def _begin_episodes(self, mask: np.ndarray, seeds: list) -> None:
+        """PingPongEnv.begin_episode of the batched tables of `mask`, each loaded into the batch;
+        their lead-ins are the batch's to play (TableBatch.lead_in, or step's `lead`)."""
+        for k in np.flatnonzero(mask):
+            self._batch.load(k, self.envs[k].begin_episode(seeds[k]))
+
+    def _end_lead_ins(self, mask: np.ndarray, infos: dict) -> dict:
+        """After the batch played the lead-ins of `mask`'s tables: their reset observations (the
+        batch's after a lead-in, else the env's) and infos."""
+        for k in np.flatnonzero(mask):
+            env = self.envs[k]
+            if env.episode_info()["drive"]:
+                self._obs[k] = self._batch.obs[k]
+            else:
+                self._obs[k] = env.observation()
+            env.end_lead_in()
+            infos = self._add_info(infos, env.episode_info(), k)
+        return infos
 
     def render(self):
         """Each table's picture (PingPongEnv.render), a tuple; None without render_mode "rgb_array"."""

@@ -6,6 +6,7 @@ import pytest
 
 import engine.learning.env  # noqa: F401 - registers the ids and their vector entry point
 from engine.learning.env import PingPongEnv
+from engine.physics.dtypes import physics_snapshot_dtype
 from engine.learning.vector_env import PingPongVectorEnv
 
 KWARGS = {"opponent": "novice", "max_seconds": 0.12}  # 12 control periods an episode: several autoresets
@@ -116,6 +117,46 @@ def test_the_batched_step_is_the_single_environment_bit_for_bit(kwargs):
         for got, expected in zip(rows, single, strict=True):
             assert got[0][k].tobytes() == expected[0].tobytes()
             assert (float(got[1][k]), bool(got[2][k]), bool(got[3][k])) == expected[1:]
+
+
+def test_a_batched_lead_in_whose_match_ended_first_leads_in_anew_as_the_single_environment(monkeypatch):
+    """A drive's lead-in whose match is over before the opponent drove is played again in the
+    episode's next match (its next seed), in the batch as in PingPongEnv.reset."""
+    begin, next_match = PingPongEnv.begin_episode, PingPongEnv.next_match
+    episodes, matches = [], []
+
+    def begin_ended_first(env, seed=None):
+        env.end_first = True
+        episodes.append(seed)
+        return begin(env, seed)
+
+    def next_match_ended_first(env):
+        next_match(env)
+        matches.append(env.seed_of_match)
+        if env.end_first and env.agent.stand_in is not None:  # a drive's first match: the opponent won it
+            env.end_first = False
+            record = np.zeros(1, physics_snapshot_dtype(len(env.match.scene.bats)))
+            env.match.save(record)
+            record[0]["rally"]["winner"] = 1 - env.player
+            env.match.restore(record[0], [])
+
+    monkeypatch.setattr(PingPongEnv, "begin_episode", begin_ended_first)
+    monkeypatch.setattr(PingPongEnv, "next_match", next_match_ended_first)
+    kwargs = {"opponent": "novice", "version": 1, "max_seconds": 0.3}
+    n, steps = 2, 60
+    vector = PingPongVectorEnv(n, **kwargs)
+    actions = np.random.default_rng(5).uniform(-1.0, 1.0, size=(steps, n, 6))
+    rows = _vector_rows(vector, 70, actions)
+    batched = (len(episodes), sorted(matches))
+    assert batched[1] and len(matches) - len(episodes) >= 2  # lead-ins played anew: the path this test is for
+    episodes.clear()
+    matches.clear()
+    for k in range(n):
+        single = _single_next_step(70 + k, actions[:, k], kwargs)
+        for got, expected in zip(rows, single, strict=True):
+            assert got[0][k].tobytes() == expected[0].tobytes()
+            assert (float(got[1][k]), bool(got[2][k]), bool(got[3][k])) == expected[1:]
+    assert (len(episodes), sorted(matches)) == batched
 
 
 def test_the_batched_step_names_a_non_finite_action():
