@@ -67,7 +67,7 @@ from engine.learning import agent_frame, ball_machine
 from engine.play.bot import Bot, force, hold, new_action, target
 from engine.physics.dtypes import CONTACT_DTYPE, OBSERVATION_DTYPE, POINT_DTYPE, physics_snapshot_dtype
 from engine.physics.scene import load_scene, scene_toml
-from engine.physics.compiled import compile_scene
+from engine.physics.compiled import CompiledScene, compile_scene
 from engine.physics.world import new_events
 from engine.play.ai import SKILLS
 from engine.play.ai.profile_bot import ProfileBot
@@ -232,6 +232,7 @@ class PingPongEnv(gymnasium.Env):
         self._obs = np.zeros(self.observation_space.shape)
         self._ended = False
         self.match: Match | None = None
+        self._compiled: dict[int, CompiledScene] = {}  # _new_match's scenes, by first server
         self.seed_of_match = 0
         self._warm = False
 
@@ -309,14 +310,17 @@ class PingPongEnv(gymnasium.Env):
     def _new_match(self, seed: int, drive: bool, server: int | None = None) -> None:
         """A best-of-1 match of the agent against the opponent, its first server the opponent (or,
         for a drive, the agent's end; or `server`)."""
-        agent_spec = f"{__name__}:Agent"
-        ends = [agent_spec if end in self.ends else self.opponent for end in (0, 1)]
-        scene = match_scene(self.base, *ends, best_of=1)
         if server is None:
             server = self.player if drive else 1 - self.player
-        scene = replace(scene, match=replace(scene.match, first_server="ab"[server]))
+        compiled = self._compiled.get(server)
+        if compiled is None:  # one compiled scene a first server: the model is read, never written, by a match
+            agent_spec = f"{__name__}:Agent"
+            ends = [agent_spec if end in self.ends else self.opponent for end in (0, 1)]
+            scene = match_scene(self.base, *ends, best_of=1)
+            scene = replace(scene, match=replace(scene.match, first_server="ab"[server]))
+            compiled = self._compiled[server] = compile_scene(scene)
         self.seed_of_match = seed
-        self.match = Match(scene, seed=seed)
+        self.match = Match(compiled, seed=seed)
         self.every = self.match.compiled.control_period
         self.seats = {end: self.match.ais[end] for end in self.ends}
         self.seat = self.seats[self.player]
