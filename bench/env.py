@@ -9,7 +9,11 @@
   same net.
 - batched (Return-v1 against novice, rigid net, `hold` actions at the ready pose in the agent's
   frame): one version-1 PingPongEnv, then the native vector env at N = --batched, which steps its
-  tables in one numba call (engine.learning.batch); ratios to that one environment.
+  tables in one numba call (engine.learning.batch); ratios to that one environment. Each N's wall
+  time is split into the compiled call (engine.learning.batch.TableBatch.seconds), the AI
+  profiles' decisions (Python: BatAI thinking a stroke out) and the rest (episodes' starts, the
+  vector env's own work); "the compiled call alone" is the ratio the batch would reach if all
+  its Python took no time: how far the physics' arithmetic leaves the goal.
 - physics share: the share of the one environment's step (the process's CPU time, every thread)
   spent in the physics (engine.physics.world.advance, timed around each call: the numba tick kernel and,
   with the cloth net, the net's kernels): the most that stepping a batch of tables' physics in one
@@ -109,11 +113,25 @@ def batched_steps_per_second(tables: list[int], seconds: float) -> dict:
         vector = PingPongVectorEnv(n, opponent="novice", version=1)
         vector.reset(seed=0)
         actions = np.stack([READY_V1] * n)
+        batch = vector.batch
+        spent = {}
+
+        def timed_step():
+            if not spent:  # the warm-up is over: count from here
+                spent.update(batch.seconds, started=time.perf_counter())
+            vector.step(actions)
+
         try:
-            rate = _timed(lambda: vector.step(actions), n, seconds)
+            rate = _timed(timed_step, n, seconds)
         finally:
             vector.close()
-        out["batched"][str(n)] = {"steps_per_s": rate, "ratio": rate / single}
+        wall = time.perf_counter() - spent["started"]
+        compiled = batch.seconds["compiled"] - spent["compiled"]
+        out["batched"][str(n)] = {
+            "steps_per_s": rate, "ratio": rate / single,
+            "compiled_share": compiled / wall,
+            "decisions_share": (batch.seconds["decisions"] - spent["decisions"]) / wall,
+            "compiled_alone_ratio": rate * wall / compiled / single}
     return out
 
 
@@ -222,7 +240,9 @@ def _report(result: dict) -> None:
     b = result["batched"]
     print(f"  batched (Return-v1, rigid net, hold): one environment {b['single']:.0f} steps/s")
     for n, r in b["batched"].items():
-        print(f"    {'batched vector env':<18} N = {n:>3}: {r['steps_per_s']:7.0f} steps/s  {r['ratio']:5.2f}x")
+        print(f"    {'batched vector env':<18} N = {n:>3}: {r['steps_per_s']:7.0f} steps/s  {r['ratio']:5.2f}x  "
+              f"(compiled call {r['compiled_share']:.0%}, AI profiles' decisions {r['decisions_share']:.0%}, "
+              f"the rest episode starts; the compiled call alone: {r['compiled_alone_ratio']:.1f}x)")
     print(f"  the cloth net costs {result['cloth_cost']:.2f}x the rigid net's time per step (one environment)")
     p = result["players"]
     print(f"players per control tick (match_rigid, {p['pro']['ticks']} ticks): "

@@ -6,7 +6,8 @@ cache would spend its wait for the server's first line on compiling. `make test`
 so the suite's tests load the kernels from the cache instead. It runs what the tests run: a
 match in worker processes on each bundled match scene (the physics, net and AI workers
 compile what they run, numba.config.CACHE_DIR is the same for every process of this checkout),
-a served match's workers, a bot's client, and the in-process match. Prints what each step took.
+a served match's workers, a bot's client, the in-process match, and the batched vector
+environment (its step is one kernel that two test files run). Prints what each step took.
 """
 from __future__ import annotations
 
@@ -27,6 +28,13 @@ for name in ("match_rigid", "match"):
     Match(load_scene(name), 0).play(max_ticks=2)
 _warm_up("pro")
 """
+BATCHED = """\
+import numpy as np
+from engine.learning.vector_env import PingPongVectorEnv
+vector = PingPongVectorEnv(1, opponent="novice", version=1)
+vector.reset(seed=0)
+vector.step(np.zeros((1, 6)))
+"""
 # Stages one after the other, the steps of a stage side by side. The first compiles nearly every
 # kernel (its physics, net and AI workers side by side, on both cores); the others then load
 # those from the cache and compile only their own few, so they do not compile the same twice.
@@ -34,7 +42,8 @@ STAGES = (
     (("match workers", ["-m", "processes", "match", "--scene", "match", "--ticks", "2", "--json"]),),
     (("in-process match and bot", ["-c", IN_PROCESS]),
      ("match_rigid workers", ["-m", "processes", "match", "--scene", "match_rigid", "--ticks", "2", "--json"]),
-     ("served match", ["-m", "processes", "serve", "--players", "0", "--ticks", "2", "--json"])),
+     ("served match", ["-m", "processes", "serve", "--players", "0", "--ticks", "2", "--json"]),
+     ("batched vector env", ["-c", BATCHED])),
 )
 
 

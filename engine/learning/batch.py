@@ -30,6 +30,7 @@ episodes are the single environment's bit for bit (tests/engine/test_vector_env.
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 from numba import njit
@@ -405,6 +406,8 @@ class TableBatch:
         self.rally_task, self.dense = first.task == "rally", first.reward == "dense"
         self.max_seconds = first.max_seconds
         self._scalars = None
+        # wall seconds in the compiled call and in the AI profiles' decisions (bench.env reports them)
+        self.seconds = {"compiled": 0.0, "decisions": 0.0}
 
     def _shape_from(self, env: PingPongEnv) -> None:
         """The arrays and numbers that depend on the match: its decision delay and model."""
@@ -480,14 +483,19 @@ class TableBatch:
         """Run the tables from `status` to their end: the players' decisions where they wait, the
         next match where a lead-in's match ended."""
         self.status[:] = status
+        seconds = self.seconds
         while True:
+            started = time.perf_counter()
             waiting = self._run()
+            decided = time.perf_counter()
+            seconds["compiled"] += decided - started
             over = np.flatnonzero(self.status == LEAD_OVER)
             if not waiting and not len(over):
                 break
             for k in np.flatnonzero(self.status == WAITING):
                 self._decide(k)
                 self.status[k] = STEPPING
+            seconds["decisions"] += time.perf_counter() - decided
             for k in over:
                 self.envs[k].next_match()
                 self.load(k, True)

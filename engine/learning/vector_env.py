@@ -17,10 +17,10 @@ tables. Table k's episodes are those of a single PingPongEnv reset with the same
 bit, as they are those of gymnasium.vector.SyncVectorEnv (tests/engine/test_vector_env.py).
 
 Version 1 with the rigid net and `hold` actions (what examples/train_ppo.py trains on) is
-batched (`batched`): every table's step, and a drive's lead-in at its reset, in one numba call
-(engine.learning.batch), Python only where an AI profile decides a stroke and where an episode
-begins (its match is made). Otherwise (version 0, the cloth
-net, `target` or `force` actions, a second agent, pictures kept) the tables are stepped one after
+batched (`batched`; `batch` is its engine.learning.batch.TableBatch): every table's step, and a
+drive's lead-in at its reset, in one numba call, Python only where an AI profile decides a
+stroke and where an episode begins (its match is made). Otherwise (version 0, the cloth net,
+`target` or `force` actions, a second agent, pictures kept) the tables are stepped one after
 another, each one PingPongEnv.step: its physics one numba call between the referee's and the
 players' Python work.
 """
@@ -68,7 +68,7 @@ class PingPongVectorEnv(VectorEnv):
         first = self.envs[0]
         self.batched = (first.version == 1 and first.net == "rigid" and first.action_type == "hold"
                         and first.opponent is not None and not first.record)
-        self._batch = TableBatch(self.envs) if self.batched else None
+        self.batch = TableBatch(self.envs) if self.batched else None
         self._points = np.zeros(self.num_envs, dtype=np.int64)
 
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
@@ -91,13 +91,13 @@ class PingPongVectorEnv(VectorEnv):
             raise ValueError(f"options['reset_mask']: a numpy bool array of shape ({self.num_envs},) with at least "
                              f"one True, got {mask!r}")
         infos: dict = {}
-        if self._batch is None:
+        if self.batch is None:
             for k in np.flatnonzero(mask):
                 self._obs[k], info = self.envs[k].reset(seed=seeds[k], options=options or None)
                 infos = self._add_info(infos, info, k)
         else:
             self._begin_episodes(mask, seeds)
-            self._batch.lead_in(mask)
+            self.batch.lead_in(mask)
             infos = self._end_lead_ins(mask, infos)
         self._terminations[mask] = self._truncations[mask] = self._autoreset[mask] = False
         self._elapsed[mask] = 0
@@ -109,7 +109,7 @@ class PingPongVectorEnv(VectorEnv):
         actions = np.asarray(actions, dtype=np.float64)
         if actions.shape != self.action_space.shape:
             raise ValueError(f"actions: shape {self.action_space.shape} (a row a table), got {actions.shape}")
-        if self._batch is not None:
+        if self.batch is not None:
             return self._step_batch(actions)
         infos: dict = {}
         for k, env in enumerate(self.envs):
@@ -136,7 +136,7 @@ class PingPongVectorEnv(VectorEnv):
         np.clip(actions, -1.0, 1.0, out=clipped)
         resetting = self._autoreset.copy()
         self._begin_episodes(resetting, [None] * self.num_envs)
-        batch = self._batch
+        batch = self.batch
         batch.step(clipped, stepping, resetting)
         infos = self._end_lead_ins(resetting, {})
         self._rewards[resetting] = 0.0
@@ -165,7 +165,7 @@ class PingPongVectorEnv(VectorEnv):
         """PingPongEnv.begin_episode of the batched tables of `mask`, each loaded into the batch;
         their lead-ins are the batch's to play (TableBatch.lead_in, or step's `lead`)."""
         for k in np.flatnonzero(mask):
-            self._batch.load(k, self.envs[k].begin_episode(seeds[k]))
+            self.batch.load(k, self.envs[k].begin_episode(seeds[k]))
 
     def _end_lead_ins(self, mask: np.ndarray, infos: dict) -> dict:
         """After the batch played the lead-ins of `mask`'s tables: their reset observations (the
@@ -173,7 +173,7 @@ class PingPongVectorEnv(VectorEnv):
         for k in np.flatnonzero(mask):
             env = self.envs[k]
             if env.episode_info()["drive"]:
-                self._obs[k] = self._batch.obs[k]
+                self._obs[k] = self.batch.obs[k]
             else:
                 self._obs[k] = env.observation()
             env.end_lead_in()
