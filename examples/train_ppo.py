@@ -1,7 +1,7 @@
 """Train a bot with PPO (stable-baselines3) on pingpong/Return-v1, then let it play novice.
 
     make train                                   # the extra: stable-baselines3, torch's CPU build
-    python examples/train_ppo.py --steps 2000000 --envs 2 --out runs/ppo
+    python examples/train_ppo.py --steps 2000000 --out runs/ppo
     python examples/train_ppo.py --task strike --steps 60000 --envs 2 --out runs/strike
 
 --task strike learns the stroke only, on examples/strike.py's StrikeEnv (one return a step, the
@@ -9,10 +9,13 @@ footwork examples/drive.py's), and its bot is examples/strike.py:StrikeBot.
 
 The environment is the one made for learners (engine/learning/agent_frame.py: the agent's own frame,
 bounded observations, actions in [-1, 1]) with the dense reward (engine/learning/env.py REWARD_TERMS),
-against `novice`, one environment per process (stable-baselines3's SubprocVecEnv, forkserver:
-numba's threads make fork() unsafe); rewards normalised by VecNormalize (observations are
-bounded already). PPO's defaults otherwise (Schulman et al. 2017; stable-baselines3's
-hyper-parameters). At the end it writes into --out:
+against `novice`: with `hold` actions (the default) --envs tables of the batched vector env in
+this process (engine/learning/vector_env.py, every table's step in one numba call) behind
+stable-baselines3's VecEnv API (tables_vec_env); otherwise, and for --task strike, one
+environment per process (stable-baselines3's SubprocVecEnv, forkserver: numba's threads make
+fork() unsafe). Rewards normalised by VecNormalize (observations are bounded already). A rollout
+is about 4096 steps whatever --envs; PPO's defaults otherwise (Schulman et al. 2017;
+stable-baselines3's hyper-parameters). At the end it writes into --out:
 
 - ppo_policy.zip and ppo_policy.json (the policy, and the action type examples/ppo_bot.py plays);
 - ppo_curve.png, the mean return of the finished episodes along the steps;
@@ -38,6 +41,7 @@ ENV_ID = "pingpong/Return-v1"
 OPPONENT = "novice"
 EVAL_EPISODES = 100  # held-out seeds for the summary's return and landed share
 EVAL_SEED = 1_000_000  # held-out seeds start here: training draws its own from --seed
+TABLES = 16  # Return-v1's default environments: tables of the batched vector env, stepped together
 
 
 def _beside(name: str):
@@ -58,10 +62,74 @@ def new_env(task: str, action_type: str, reward: str = "dense"):
     return gymnasium.make(f"engine.learning.env:{ENV_ID}", opponent=OPPONENT, action_type=action_type, reward=reward)
 
 
+def batched(task: str, action_type: str) -> bool:
+    """Whether the task's environments are the batched vector env's tables (Return-v1, hold)."""
+    return task == "return" and action_type == "hold"
+
+
+def tables_vec_env(tables: int, seed: int):
+    """Return-v1 (hold, dense reward, against OPPONENT) as `tables` tables of the batched vector env
+    (engine/learning/vector_env.py: every table's step in one numba call) behind stable-baselines3's
+    VecEnv API, which resets an ended episode's table in the step that ended it (the last
+    observation in the info's "terminal_observation") where Gymnasium's vector env resets it at
+    the next step."""
+    import gymnasium
+    from stable_baselines3.common.vec_env import VecEnv
+
+    from engine.learning.vector_env import PingPongVectorEnv  # registers the ids
+
+    class TablesVecEnv(VecEnv):
+        def __init__(self):
+            self.vector = PingPongVectorEnv(tables, opponent=OPPONENT, reward="dense", version=1,
+                                            max_episode_steps=gymnasium.spec(ENV_ID).max_episode_steps)
+            super().__init__(tables, self.vector.single_observation_space, self.vector.single_action_space)
+            self.seed(seed)
+
+        def reset(self):
+            seeds = None if all(s is None for s in self._seeds) else self._seeds
+            obs, _ = self.vector.reset(seed=seeds)
+            self._reset_seeds()
+            return obs
+
+        def step_async(self, actions):
+            self.actions = actions
+
+        def step_wait(self):
+            obs, rewards, terminated, truncated, _ = self.vector.step(self.actions)
+            dones = terminated | truncated
+            infos = [{"TimeLimit.truncated": bool(truncated[k] and not terminated[k])} for k in range(tables)]
+            if dones.any():
+                for k in np.flatnonzero(dones):
+                    infos[k]["terminal_observation"] = obs[k].copy()
+                fresh, _ = self.vector.reset(options={"reset_mask": dones})
+                obs[dones] = fresh[dones]
+            return obs, rewards.astype(np.float32), dones, infos
+
+        def close(self):
+            self.vector.close()
+
+        def get_attr(self, attr_name, indices=None):
+            return [getattr(self.vector.envs[k], attr_name) for k in self._get_indices(indices)]
+
+        def set_attr(self, attr_name, value, indices=None):
+            for k in self._get_indices(indices):
+                setattr(self.vector.envs[k], attr_name, value)
+
+        def env_method(self, method_name, *args, indices=None, **kwargs):
+            return [getattr(self.vector.envs[k], method_name)(*args, **kwargs) for k in self._get_indices(indices)]
+
+        def env_is_wrapped(self, wrapper_class, indices=None):
+            return [False for _ in self._get_indices(indices)]
+
+    return TablesVecEnv()
+
+
 def make_env(task: str, action_type: str, seed: int, envs: int):
     from stable_baselines3.common.env_util import make_vec_env
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor, VecNormalize
 
+    if batched(task, action_type):
+        return VecNormalize(VecMonitor(tables_vec_env(envs, seed)), norm_obs=False, norm_reward=True)
     vec_cls, vec_kwargs = (SubprocVecEnv, {"start_method": "forkserver"}) if envs > 1 else (DummyVecEnv, None)
     vec = make_vec_env(lambda: new_env(task, action_type), n_envs=envs, seed=seed, vec_env_cls=vec_cls,
                        vec_env_kwargs=vec_kwargs)
@@ -129,8 +197,9 @@ def train(steps: int, envs: int, out: Path, seed: int = 0, action_type: str = "h
 
     torch.set_num_threads(1)  # a small MLP: torch's thread pool would only fight the environments for the cores
     vec = make_env(task, action_type, seed, envs)
-    # A strike is a one-step episode: shorter rollouts update the policy more often.
-    n_steps = max(64, min(256 if task == "strike" else 2048, steps // envs))
+    # A rollout of about 4096 steps whatever the number of environments; a strike is a one-step
+    # episode: shorter rollouts update the policy more often.
+    n_steps = max(64, min((512 if task == "strike" else 4096) // envs, steps // envs))
     # A strike's action has a prior (examples/strike.py maps 0 to a plain drive): explore near it.
     extra = {"policy_kwargs": {"log_std_init": -0.5}} if task == "strike" else {}
     model = PPO("MlpPolicy", vec, seed=seed, device="cpu", verbose=0, n_steps=n_steps,
@@ -165,7 +234,9 @@ def train(steps: int, envs: int, out: Path, seed: int = 0, action_type: str = "h
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=2_000_000, help="environment steps to train for")
-    parser.add_argument("--envs", type=int, default=2, help="environments, one process each")
+    parser.add_argument("--envs", type=int, default=None,
+                        help="environments: tables of the batched vector env in this process for Return-v1 with "
+                             f"hold actions (default {TABLES}), else one process each (default 2)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--action-type", choices=["hold", "target", "force"], default="hold",
                         help="Return-v1's action type (--task return)")
@@ -173,7 +244,10 @@ def main() -> None:
                         help="return: Return-v1, the whole arm; strike: the stroke only (examples/strike.py)")
     parser.add_argument("--out", default="runs/ppo", help="directory of the policy, the curve and the summary")
     args = parser.parse_args()
-    print(json.dumps(train(args.steps, args.envs, Path(args.out), args.seed, args.action_type, task=args.task),
+    envs = args.envs or (TABLES if batched(args.task, args.action_type) else 2)
+    if envs < 1:
+        parser.error(f"--envs {envs}: give a positive number of environments")
+    print(json.dumps(train(args.steps, envs, Path(args.out), args.seed, args.action_type, task=args.task),
                      indent=1))
 
 

@@ -2,6 +2,8 @@
 import importlib.util
 from pathlib import Path
 
+import numpy as np
+
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
 
@@ -35,13 +37,44 @@ def test_the_learned_bot_plays_the_parameters_it_is_pointed_at(tmp_path, monkeyp
     assert (bot.policy.line, bot.policy.pace, bot.policy.lift, bot.policy.tilt) == (1.2, 3.0, 0.5, 0.1)
 
 
-def _smoke_train(out: Path, task: str, steps: int, policy: str) -> None:
-    """examples/train_ppo.py's smoke run of `task`: it trains `steps` steps, writes the policy,
-    its curve and the summary into `out`, and the bot that loads the policy plays a whole game."""
+def _train_ppo():
     spec = importlib.util.spec_from_file_location("train_ppo_example", EXAMPLES / "train_ppo.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    summary = module.train(steps=steps, envs=1, out=out, seed=0, eval_episodes=2, best_of=1, task=task)
+    return module
+
+
+def test_ppos_batched_tables_are_stable_baselines3s_vec_env_of_single_environments():
+    """train_ppo.py's tables of the batched vector env behind stable-baselines3's VecEnv API give,
+    bit for bit, what its DummyVecEnv of single Return-v1 environments seeded alike gives: the
+    same observations, rewards and dones, an ended episode's table reset in the step that ended
+    it, the last observation in its info."""
+    import gymnasium
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    train_ppo = _train_ppo()
+    n, steps = 2, 600
+    ours = train_ppo.tables_vec_env(n, seed=11)
+    theirs = DummyVecEnv([lambda: gymnasium.make(train_ppo.ENV_ID, opponent="novice", reward="dense")] * n)
+    theirs.seed(11)
+    assert ours.reset().tobytes() == theirs.reset().tobytes()
+    actions = np.random.default_rng(2).uniform(-1.0, 1.0, size=(steps, n, 6))
+    ended = 0
+    for action in actions:
+        got, expected = ours.step(action), theirs.step(action)
+        for a, b in zip(got[:3], expected[:3], strict=True):
+            assert np.asarray(a).tobytes() == np.asarray(b).tobytes()
+        for k in np.flatnonzero(got[2]):
+            assert got[3][k]["terminal_observation"].tobytes() == expected[3][k]["terminal_observation"].tobytes()
+            assert got[3][k]["TimeLimit.truncated"] == expected[3][k]["TimeLimit.truncated"]
+            ended += 1
+    assert ended >= 2  # episodes ended and their tables went on
+
+
+def _smoke_train(out: Path, task: str, steps: int, policy: str) -> None:
+    """examples/train_ppo.py's smoke run of `task`: it trains `steps` steps, writes the policy,
+    its curve and the summary into `out`, and the bot that loads the policy plays a whole game."""
+    summary = _train_ppo().train(steps=steps, envs=1, out=out, seed=0, eval_episodes=2, best_of=1, task=task)
     assert summary["steps"] >= steps and summary["held_out"]["episodes"] == 2
     for name in (f"{policy}.zip", f"{policy}.json", "ppo_curve.png", "ppo_summary.json"):
         assert (out / name).stat().st_size > 0, name
