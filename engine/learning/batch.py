@@ -183,6 +183,7 @@ def run_tables(status, ints, floats, world, ball, bats, rally, bat_motion, bat_t
     for k in range(status.shape[0]):
         if status[k] != START and status[k] != STEPPING:
             continue
+        # table k's rows, in the order _control_tick and _advance_and_judge unpack them
         table = (world[k:k + 1], ball[k], bats[k], rally[k], bat_motion[k], bat_tmp[k], work[k], scratch[k],
                  event_rows[k], ctl[k], arm[k], inputs[k], pending[k], pending_tick[k], pending_at[k], gate_key[k],
                  gate_due[k], gate_end[k])
