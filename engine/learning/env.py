@@ -68,7 +68,7 @@ from engine.play.bot import Bot, force, hold, new_action, target
 from engine.physics.dtypes import CONTACT_DTYPE, OBSERVATION_DTYPE, POINT_DTYPE, physics_snapshot_dtype
 from engine.physics.scene import load_scene, scene_toml
 from engine.physics.compiled import CompiledScene, compile_scene
-from engine.physics.world import new_events
+from engine.physics.world import new_events, step
 from engine.play.ai import SKILLS
 from engine.play.ai.profile_bot import ProfileBot
 from engine.play.match import Match, match_scene, point_row
@@ -76,6 +76,7 @@ from engine.play.players import decision_key
 from engine.play.rules import Phase
 from engine.tools import render
 from engine.tools import replay as replay_file
+from net_kernel.sim import compile_kernels
 
 RETURN_STRIKE = 0.2  # reward for striking the ball
 RETURN_LANDED = 1.0  # reward for a return that bounces on the opponent's court
@@ -329,8 +330,12 @@ class PingPongEnv(gymnasium.Env):
         self.frames: list = []
         self.events: list = []
         self._keep_frame()
-        if not self._warm:  # load (or compile) the AI's kernels before the first decision, not inside it
-            self.match.ais.warm_up()
+        if not self._warm:  # load (or compile) every kernel an episode calls now, not in the middle of one
+            match = self.match
+            step(match.model, match.state, None, match.events, dt=0.0)  # the tick kernels, as Match.play does
+            if match.compiled.topology is not None:
+                compile_kernels(match.compiled.topology, match.model.dt)  # the cloth net's, on a throwaway net
+            match.ais.warm_up()
             self._warm = True
 
     def _lead_in(self) -> bool:

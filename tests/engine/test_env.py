@@ -1,6 +1,9 @@
 """The Gymnasium environments: the checker, seeded episodes bit for bit, rewards from the referee,
 the replay's picture and file, vector environments."""
+import json
 import multiprocessing
+import subprocess
+import sys
 
 import gymnasium
 import numpy as np
@@ -12,6 +15,7 @@ from engine.learning.env import OBSERVATION_NAMES, RETURN_LANDED, RETURN_STRIKE,
 from engine.play.ai import SKILLS
 from engine.play.ai.profile_bot import ProfileBot
 from engine.tools.replay import read
+from tests.waits import DEADLINE_S
 
 
 @pytest.mark.parametrize("env_id", ["pingpong/Return-v0", "pingpong/Rally-v0", "pingpong/Return-v1",
@@ -163,3 +167,44 @@ def test_the_ball_machine_feeds_the_agents_court_within_its_ranges():
         gymnasium.make("pingpong/Return-v1", ball_speed=(9.0, 3.0))
     with pytest.raises(ValueError, match="curriculum of the return task"):
         gymnasium.make("pingpong/Rally-v1", ball_spin=(0.0, 10.0))
+
+
+# In a fresh interpreter, so no earlier test has loaded a kernel the environment's warm-up forgot:
+# every numba dispatcher's signatures after the first reset, then after episodes with random
+# actions in which the ball meets the cloth net.
+_NO_COMPILE_SCRIPT = r"""
+import json, sys
+import numpy as np
+from numba.core.registry import CPUDispatcher
+from engine.learning.env import PingPongEnv
+
+def signatures():
+    return {f"{name}.{attr}": sorted(map(str, d.signatures)) for name, module in list(sys.modules.items())
+            if name.startswith(("engine", "net_kernel")) for attr, d in vars(module).items()
+            if isinstance(d, CPUDispatcher)}
+
+env = PingPongEnv(opponent="novice", version=1, net="cloth")
+env.reset(seed=0)
+before = signatures()
+rng = np.random.default_rng(1)
+net_woke = False
+for _ in range(40):
+    done = False
+    while not done:
+        _, _, terminated, truncated, _ = env.step(rng.uniform(-1.0, 1.0, 6))
+        net_woke = net_woke or not env.match.state.net_sim.sleeping
+        done = terminated or truncated
+    env.reset()
+print(json.dumps({"before": before, "after": signatures(), "net_woke": net_woke}))
+"""
+
+
+def test_a_cloth_environment_loads_every_kernel_at_its_first_reset():
+    """No kernel is compiled (or loaded from numba's cache) in the middle of an episode: on a cold
+    cache that would stall a step for as long as compiling takes."""
+    out = subprocess.run([sys.executable, "-c", _NO_COMPILE_SCRIPT], capture_output=True, text=True,
+                         timeout=DEADLINE_S, check=True, stdin=subprocess.DEVNULL)
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    assert result["net_woke"]  # the ball met the net: its contact kernels ran
+    new = {name: sorted(set(sigs) - set(result["before"].get(name, []))) for name, sigs in result["after"].items()}
+    assert not any(new.values()), {name: sigs for name, sigs in new.items() if sigs}
