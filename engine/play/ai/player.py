@@ -120,7 +120,7 @@ class BatAI:
     # under 1 mm; a flat shot's 1 mm of height is ~1 cm along x, so an aim this far outside the
     # court's margin is not tried: none of its strokes would pass _lands_well.
     AIM_SLACK_M = 0.05
-    PREDICT_CHUNK = 32  # ticks of prediction in one think_step
+    PREDICT_CHUNK = 32  # ticks of prediction in one think_step (not eager)
     KP = 30.0**2  # (rad/s)^2: position loop natural frequency 30 rad/s, critically damped
     KD = 2 * 30.0
     K_ANGLE = 40.0**2
@@ -310,9 +310,12 @@ class BatAI:
         reset_memo(memo)
         self._adapt[:] = 0.0
         rule = STOP_SERVE_STRIKE if serve else STOP_RETURN_STRIKE
+        # Eager, the flight is predicted in one call: predict_span's pieces give the same bits
+        # however long they are, and each call costs its dispatch.
+        chunk = n_max if self.eager else self.PREDICT_CHUNK
         k = 0
         while True:
-            k, err, hit = predict_span(h, k, k + self.PREDICT_CHUNK, n_max, 3, rule, end_sign, first_row, m.method,
+            k, err, hit = predict_span(h, k, k + chunk, n_max, 3, rule, end_sign, first_row, m.method,
                                        m.gravity, m.drag_k, m.magnus_k, m.scene.rtol, m.scene.atol, m.table,
                                        m.floor_z, m.net, m.posts, m.ball_params, m.materials, self._work,
                                        self._scratch, self._adapt, self._tick_events, traj, self._events,
