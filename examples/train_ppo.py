@@ -244,7 +244,7 @@ def main() -> None:
                         help="return: Return-v1, the whole arm; strike: the stroke only (examples/strike.py)")
     parser.add_argument("--out", default="runs/ppo", help="directory of the policy, the curve and the summary")
     args = parser.parse_args()
-    envs = args.envs or (TABLES if batched(args.task, args.action_type) else 2)
+    envs = args.envs if args.envs is not None else (TABLES if batched(args.task, args.action_type) else 2)
     if envs < 1:
         parser.error(f"--envs {envs}: give a positive number of environments")
     print(json.dumps(train(args.steps, envs, Path(args.out), args.seed, args.action_type, task=args.task),
