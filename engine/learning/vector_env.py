@@ -172,12 +172,10 @@ class PingPongVectorEnv(VectorEnv):
         batch's after a lead-in, else the env's) and infos."""
         for k in np.flatnonzero(mask):
             env = self.envs[k]
-            if env.episode_info()["drive"]:
-                self._obs[k] = self.batch.obs[k]
-            else:
-                self._obs[k] = env.observation()
+            info = env.episode_info()
+            self._obs[k] = self.batch.obs[k] if info["drive"] else env.observation()
             env.end_lead_in()
-            infos = self._add_info(infos, env.episode_info(), k)
+            infos = self._add_info(infos, info, k)
         return infos
 
     def render(self):
