@@ -71,7 +71,7 @@ _MAX_SHOTS = agent_frame.MAX_SHOTS
 _HOLD_LOW, _HOLD_HIGH = agent_frame.HOLD_LOW, agent_frame.HOLD_HIGH
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _next_striker(r):
     """engine.play.rules.next_striker of the record."""
     phase = r['phase']
@@ -82,7 +82,7 @@ def _next_striker(r):
     return 1 - r['striker']
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def hold_plans(actions, player, out):
     """The checked hold actions (N, 6) in [-1, 1] (agent_frame.action_record, then engine.play.bot.hold):
     out[k] = the hold pose (3, m, world axes) and the unit face normal (3)."""
@@ -99,7 +99,7 @@ def hold_plans(actions, player, out):
         out[k, 3], out[k, 4], out[k, 5] = n0 / norm, n1 / norm, n2 / norm
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _potential(bats, ball, r, end):
     """PingPongEnv._potentials for `end`: -APPROACH |bat - ball| while it is to strike next, else 0."""
     if _next_striker(r) != end:
@@ -108,7 +108,7 @@ def _potential(bats, ball, r, end):
     return -APPROACH * math.sqrt(dx * dx + dy * dy + dz * dz)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _observe(ball, bats, r, player, axis, out):
     """agent_frame.observe of the state, the agent at `player`, into out (48,)."""
     turn = -1.0 if player == 1 else 1.0
@@ -152,7 +152,16 @@ def _observe(ball, bats, r, player, axis, out):
         out[i] = min(max(out[i], -1.0), 1.0)
 
 
-@njit(cache=True)
+@njit(inline="always")
+def _copy_plans(src, dst):
+    """dst[:, :] = src, element by element: an array assignment may copy through a temporary,
+    which a kernel compiled without the runtime (_nrt=False) cannot allocate."""
+    for p in range(src.shape[0]):
+        for i in range(src.shape[1]):
+            dst[p, i] = src[p, i]
+
+
+@njit(cache=True, _nrt=False)
 def _gate_open(r, now, ctl_row, key, due, end):
     """engine.play.players.Seat.needs_decision of an AI profile's seat: key, due and end are the
     seat's gate (its decision key at its last decision, its wakes)."""
@@ -164,13 +173,13 @@ def _gate_open(r, now, ctl_row, key, due, end):
     return now >= due or now > end
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _opponent_drove(r, opp):
     """PingPongEnv._opponent_drove: the opponent struck a return the agent must now play."""
     return r['shots'] >= 2 and r['striker'] == opp and (r['phase'] == _STRUCK or r['phase'] == _BOUNCED)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def run_tables(status, ints, floats, world, ball, bats, rally, bat_motion, bat_tmp, work, scratch, event_rows,
                ctl, arm, inputs, players, pending, pending_tick, pending_at, plans, gate_key, gate_due, gate_end,
                steps, rewards, terminated, truncated, obs, errors, axis, player, rally_task, dense, best_of, every,
@@ -200,7 +209,7 @@ def run_tables(status, ints, floats, world, ball, bats, rally, bat_motion, bat_t
     return waiting
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _control_tick(si, table, players, plan, player, lead, delay):
     """engine.play.match.Match.tick at a control tick, up to its decisions (LocalAI.collect, the
     arm law); then the agent's action becomes its plan, unless the stand-in plays its bat in a
@@ -209,7 +218,7 @@ def _control_tick(si, table, players, plan, player, lead, delay):
     tick = w[0]['tick']
     n_pending = pending_at[1]
     if n_pending > 0 and pending_tick[pending_at[0]] == tick:
-        arm[:, :] = pending[pending_at[0]]
+        _copy_plans(pending[pending_at[0]], arm)
         pending_at[0] = (pending_at[0] + 1) % pending.shape[0]
         pending_at[1] = n_pending - 1
     control_bats(w[0]['time'], bats, arm, players, inputs)
@@ -231,7 +240,7 @@ def _control_tick(si, table, players, plan, player, lead, delay):
     return wait
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _advance_and_judge(si, table, errors, n_max, best_of, every, delay, max_rally_s, toss_speed, physics):
     """The rest of Match.tick from where the decisions were taken: their plans wait `delay` ticks
     (LocalAI.request), the forces are applied, the physics runs up to n_max ticks
@@ -245,7 +254,7 @@ def _advance_and_judge(si, table, errors, n_max, best_of, every, delay, max_rall
     if tick % every == 0:
         if si[I_REQ_TICK] != tick:
             at = (pending_at[0] + pending_at[1]) % pending.shape[0]
-            pending[at] = ctl
+            _copy_plans(ctl, pending[at])
             pending_tick[at] = tick + delay
             pending_at[1] += 1
             si[I_REQ_TICK] = tick
@@ -277,7 +286,7 @@ def _advance_and_judge(si, table, errors, n_max, best_of, every, delay, max_rall
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _lead_table(si, table, players, plan, errors, obs, axis, player, best_of, every, delay, max_rally_s, toss_speed,
                 physics):
     """A drive's lead-in from where it stands (PingPongEnv._lead_in: the stand-in, the opponent's
@@ -301,7 +310,7 @@ def _lead_table(si, table, players, plan, errors, obs, axis, player, best_of, ev
     return DONE
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _step_table(status, si, sf, table, players, plan, steps, rewards, terminated, truncated, obs, errors, axis, player,
                 rally_task, dense, best_of, every, delay, max_seconds, max_rally_s, toss_speed, physics):
     """One table's step from where it stands (PingPongEnv.step and play_period); its new status."""

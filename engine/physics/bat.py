@@ -64,7 +64,7 @@ def disc_inertia(mass: float, radius: float) -> np.ndarray:
     return np.array([0.25 * mass * radius**2, 0.25 * mass * radius**2, 0.5 * mass * radius**2])
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", cache=True, _nrt=False)
 def rotate(q, v, out):
     """out = q v q*, for a unit quaternion q = (w, x, y, z); out may alias v."""
     w, x, y, z = q[0], q[1], q[2], q[3]
@@ -78,7 +78,7 @@ def rotate(q, v, out):
     out[0], out[1], out[2] = ox, oy, oz
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", cache=True, _nrt=False)
 def face_normal(q, out):
     """The bat's face normal in the world: its local z axis rotated by q."""
     w, x, y, z = q[0], q[1], q[2], q[3]
@@ -87,7 +87,7 @@ def face_normal(q, out):
     out[2] = 1.0 - 2.0 * (x * x + y * y)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def bat_step(bats, h, mass, inertia, motion, tmp):
     """Advance every bat by h and record its motion over the tick for collision detection.
 
@@ -157,7 +157,7 @@ def bat_step(bats, h, mass, inertia, motion, tmp):
         face_normal(q, motion[b, BAT_AXIS1:BAT_AXIS1 + 3])
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", cache=True, _nrt=False)
 def _at_most(bat, at, limit):
     """Scale the 3-vector bat[at:at + 3] down to norm `limit` if it is longer (the arm's limit).
 
@@ -175,7 +175,7 @@ def _at_most(bat, at, limit):
         bat[at], bat[at + 1], bat[at + 2] = x / norm * limit, y / norm * limit, z / norm * limit
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", cache=True, _nrt=False)
 def _in_hall(bat, i, low, high):
     """Keep the bat's centre inside the hall along axis i: a wall stops it (no bounce)."""
     p = bat[POS_AT + i]
@@ -189,7 +189,7 @@ def _in_hall(bat, i, low, high):
             bat[VEL_AT + i] = 0.0
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", cache=True, _nrt=False)
 def _rotate_conj(q, v, out):
     """out = q* v q: a world vector in the bat frame."""
     w, x, y, z = q[0], -q[1], -q[2], -q[3]

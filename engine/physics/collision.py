@@ -43,12 +43,12 @@ ERR_IMPACTS = -2
 ERR_NONFINITE = -3
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", cache=True, _nrt=False)
 def _bit(body):
     return 1 << body
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _gap(p, frac, table, floor_z, net, posts, bats, params, skip, normal, tmp):
     """Smallest gap (m) between the ball at p and any body not in the skip mask, and its body.
 
@@ -81,7 +81,7 @@ def _gap(p, frac, table, floor_z, net, posts, bats, params, skip, normal, tmp):
     return best, body
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", cache=True, _nrt=False)
 def _closer(gap, candidate, n, best, body, normal):
     """Keep the smaller gap: (gap, candidate) with its normal n, or the best so far."""
     if gap < best:
@@ -90,7 +90,7 @@ def _closer(gap, candidate, n, best, body, normal):
     return best, body
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", cache=True, _nrt=False)
 def _bat_pose(row, frac, centre, axis):
     """Bat centre and face normal at a fraction of the tick: linear position, normalised lerp of the axis."""
     norm = 0.0
@@ -103,12 +103,12 @@ def _bat_pose(row, frac, centre, axis):
         axis[i] /= norm
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", cache=True, _nrt=False)
 def _norm3(v):
     return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _speed_bound(cur, t_left, h, gravity, drag_k, magnus_k, bats, params, acc):
     """Upper bound (m/s) on how fast any gap can shrink over the remaining t_left."""
     ball_accel(cur[3:6], cur[6:9], gravity, drag_k, magnus_k, acc)
@@ -131,7 +131,7 @@ def _speed_bound(cur, t_left, h, gravity, drag_k, magnus_k, bats, params, acc):
     return v_max
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _advance_state(cur, tau, support, surface_z, method, gravity, drag_k, magnus_k, rtol, atol,
                    params, friction, work, adapt, out):
     """The ball's state tau after cur: in flight by the integrator, on a support by the constraint."""
@@ -142,7 +142,7 @@ def _advance_state(cur, tau, support, surface_z, method, gravity, drag_k, magnus
     return advance(cur, tau, method, gravity, drag_k, magnus_k, rtol, atol, work, adapt, out)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _body_point_velocity(body, p, normal, frac, h, bats, params, centre, axis, out):
     """Velocity of the body's surface point under the ball, m/s (zero for static bodies)."""
     out[0] = 0.0
@@ -162,7 +162,7 @@ def _body_point_velocity(body, p, normal, frac, h, bats, params, centre, axis, o
         out[2] = (row[BAT_POS1 + 2] - row[BAT_POS0 + 2]) / h + w[0] * ly - w[1] * lx
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def ball_tick(y, h, support, flight, geometry, bats, params, materials, work, scratch, adapt, events):
     """Advance the ball by one tick h, applying every impact inside it.
 
@@ -322,7 +322,7 @@ def ball_tick(y, h, support, flight, geometry, bats, params, materials, work, sc
     return n_events, support
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _project_out(cur, h, table, floor_z, net, posts, bats, params, normal, body_vel, tmp):
     """Position correction at the end of a tick (Box2D's non-penetration projection).
 
@@ -346,7 +346,7 @@ def _project_out(cur, h, table, floor_z, net, posts, bats, params, normal, body_
                 cur[i] = saved[i]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _project_once(cur, h, table, floor_z, net, posts, bats, params, mask, normal, body_vel, tmp):
     """Project the ball out of the deepest body not in `mask`; True if it moved."""
     g, body = _gap(cur[0:3], 1.0, table, floor_z, net, posts, bats, params, mask, normal, tmp)
@@ -367,7 +367,7 @@ def _project_once(cur, h, table, floor_z, net, posts, bats, params, mask, normal
     return True
 
 
-@njit(cache=True)  # not inlined: its None tests must see table and floor_z as arguments (ball_tick)
+@njit(cache=True, _nrt=False)  # not inlined: its None tests must see table and floor_z as arguments (ball_tick)
 def _surface_z(body, table, floor_z):
     """Height of the horizontal surface a resting ball lies on, m."""
     if body == _FLOOR and floor_z is not None:
@@ -377,7 +377,7 @@ def _surface_z(body, table, floor_z):
     return 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _off_table(cur, table):
     """The ball's centre beyond the table top's edges in x or y (False without a table)."""
     if table is None:
@@ -385,14 +385,14 @@ def _off_table(cur, table):
     return abs(cur[0] - table[0]) > table[3] or abs(cur[1] - table[1]) > table[4]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _lift_check(cur, gravity, drag_k, magnus_k, acc):
     """Vertical acceleration of the ball from the flight forces, m/s^2 (> 0 lifts it off)."""
     ball_accel(cur[3:6], cur[6:9], gravity, drag_k, magnus_k, acc)
     return acc[2]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _bisect(cur, tau_lo, g_lo, body_lo, tau_hi, t_done, h, support, surface_z, method, gravity, drag_k, magnus_k,
             rtol, atol, table, floor_z, net, posts, bats, params, friction, mask, work, adapt, trial,
             normal, tmp):

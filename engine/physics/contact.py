@@ -13,7 +13,7 @@ from numba import njit
 from engine.physics.forces import ball_accel
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", cache=True, _nrt=False)
 def impact(vel, spin, normal, body_vel, radius, mass, inertia, restitution, friction, out_vel, out_spin):
     """Velocity and spin after one impact.
 
@@ -67,7 +67,7 @@ def impact(vel, spin, normal, body_vel, radius, mass, inertia, restitution, fric
     return -v_n
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def supported_advance(y, h, surface_z, gravity, drag_k, magnus_k, radius, mass, inertia, friction, work, out):
     """Advance a ball resting or rolling on a horizontal surface by h.
 

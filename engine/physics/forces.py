@@ -25,7 +25,7 @@ def magnus_factor(magnus_coefficient: float, air_density: float = equipment.AIR_
     return 0.5 * air_density * area * radius * magnus_coefficient / mass
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", cache=True, _nrt=False)
 def ball_accel(vel, spin, gravity, drag_k, magnus_k, out):
     """Acceleration of the ball in flight.
 

@@ -44,7 +44,7 @@ POST_BOXES = np.array(
 )
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", cache=True, _nrt=False)
 def box_sdf(p, box, normal):
     """Signed distance from p (3,) to an axis-aligned box (6,): centre, half extents; m."""
     qx = abs(p[0] - box[0]) - box[3]
@@ -71,7 +71,7 @@ def box_sdf(p, box, normal):
     return qz
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", cache=True, _nrt=False)
 def disc_sdf(p, centre, axis, radius, half_thickness, normal):
     """Signed distance from p to a disc of given radius and half thickness with a rounded rim, m.
 

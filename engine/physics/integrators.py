@@ -47,7 +47,7 @@ _B1, _B3, _B4, _B5, _B6 = 35 / 384, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84
 _E1, _E3, _E4, _E5, _E6, _E7 = 71 / 57600, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", cache=True, _nrt=False)
 def _deriv(y, gravity, drag_k, magnus_k, out):
     """dy/dt of the flat ball state: (vel, accel, 0)."""
     out[0] = y[3]
@@ -59,7 +59,7 @@ def _deriv(y, gravity, drag_k, magnus_k, out):
     out[8] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _dopri5(y, h, gravity, drag_k, magnus_k, rtol, atol, work, adapt, out):
     """Adaptive Dormand-Prince 5(4) over [0, h], local extrapolation, ends exactly at h."""
     k1, k2, k3, k4, k5, k6, k7, trial, cur = work[0], work[1], work[2], work[3], work[4], work[5], work[6], work[7], work[8]
@@ -120,7 +120,7 @@ def _dopri5(y, h, gravity, drag_k, magnus_k, rtol, atol, work, adapt, out):
     return n_sub
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def advance(y, h, method, gravity, drag_k, magnus_k, rtol, atol, work, adapt, out):
     """Advance the ball in flight by h.
 

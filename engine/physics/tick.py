@@ -27,7 +27,7 @@ ERR_BATS_BEFORE = -10
 ERR_BATS_AFTER = -11
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _all_finite(a):
     for x in a.flat:
         if x - x != 0.0:  # inf - inf and nan - nan are nan
@@ -35,7 +35,7 @@ def _all_finite(a):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def advance_ticks(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_tmp, ball_flat, method,
                   gravity, drag_k, magnus_k, rtol, atol, table, floor_z, net, posts, params, materials, work,
                   scratch, adapt, event_rows, gone_r2, gone_z, deadline, watch):
@@ -113,7 +113,7 @@ def _inside(box, ball_flat):
             and box[2] <= ball_flat[2] <= box[5])
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _advance(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_tmp, ball_flat, method, gravity, drag_k,
              magnus_k, rtol, atol, table, floor_z, net, posts, params, materials, work, scratch, adapt, event_rows,
              gone_r2, gone_z, deadline, watch):
@@ -135,7 +135,7 @@ def _advance(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_t
     return n_max, 0, STOP_LIMIT, 0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def advance_run(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_tmp, ball_flat, method, gravity,
                 drag_k, magnus_k, rtol, atol, table, floor_z, net, posts, params, materials, work, scratch, adapt,
                 event_rows, gone_r2, gone_z, deadline, reach, record, run_ball, run_records):

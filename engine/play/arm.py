@@ -107,7 +107,7 @@ def bat_control(now, bat, ctl, out):
             out[3 + i] *= max_torque / norm
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def control_bats(now, bats, ctl, players, out):
     """Every controlled bat's force and torque now, from its current state and its ctl row, in one
     call: bat_control for ARM_TARGET, the row's raw force for ARM_FORCE, _brake for ARM_BRAKE.
@@ -139,7 +139,7 @@ BRAKE_PER_S = 60.0  # 1/s, engine.play.ai.BatAI.KD
 BRAKE_MAX_N = 50.0  # N, the novice arm's max_force_n
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", _nrt=False)
 def _brake(mass, vel, out):
     """brake_force inside control_bats: the same law, from the bat's velocity at the control tick."""
     norm = 0.0

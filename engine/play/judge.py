@@ -35,7 +35,7 @@ _TABLE, _FLOOR, _NET, _POST, _BAT_A, _BAT_B = (int(b) for b in (Body.TABLE, Body
     Reason.OBSTRUCTION, Reason.LET))
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def server(r):
     """Who serves the rally (rule 2.13: two each, one each from 10-10): Referee.server."""
     played = r['score'][0] + r['score'][1]
@@ -44,12 +44,12 @@ def server(r):
     return first if turns % 2 == 0 else 1 - first
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _court_of(x):
     return 0 if x < 0 else 1
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _award(r, winner, reason, best_of):
     """Referee._award: the point to `winner`, the game or the match ended, the ends changed at 5."""
     score = r['score']
@@ -74,14 +74,14 @@ def _award(r, winner, reason, best_of):
     return winner, reason
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _out_reason(r, x, y):
     if _court_of(x) == r['striker']:
         return _R_NET
     return _OUT_LONG if abs(x) > _HALF_LENGTH else _OUT_SIDE
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def ball_out_of_play(r, x, y, best_of):
     """Referee.ball_out_of_play: the ball hit the floor, left the area or came to rest."""
     phase = r['phase']
@@ -97,7 +97,7 @@ def ball_out_of_play(r, x, y, best_of):
     return _award(r, 1 - striker, _out_reason(r, x, y), best_of)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _strike(r, player, x, y, best_of):
     phase = r['phase']
     if phase == _WAITING_SERVE:
@@ -116,7 +116,7 @@ def _strike(r, player, x, y, best_of):
     return _award(r, player, _out_reason(r, x, y), best_of)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _bounce(r, x, y, best_of):
     court = _court_of(x)
     striker = r['striker']
@@ -145,7 +145,7 @@ def _bounce(r, x, y, best_of):
     return _award(r, striker, _DOUBLE_BOUNCE, best_of)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def on_contact(r, body, x, y, best_of):
     """Referee.on_contact: judge one contact of the ball with `body` (Body id) at (x, y) m."""
     if r['phase'] == _OVER or r['winner'] >= 0:
@@ -162,7 +162,7 @@ def on_contact(r, body, x, y, best_of):
     return NO_POINT, 0
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def next_rally_and_toss(r, ball, world, toss_speed):
     """Referee.next_rally, then engine.play.match.Match.toss: the server tosses the ball from 10 cm
     behind its end line straight up. ball: (9,) the ball's flat state; world: its WORLD_DTYPE record."""

@@ -21,7 +21,7 @@ NO_CONTACT = -1.0  # collide_ball's return when the ball touched no knot
 # moving sphere against a sphere").
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", cache=True, _nrt=False)
 def _sweep(x, v, j, p0, p1, p2, b0, b1, b2, reach, t0, t1):
     """Earliest t in [t0, t1] (s, from the tick's start) with |x_j(t) - p(t)| = reach and closing, else inf."""
     d0 = x[j, 0] + v[j, 0] * t0 - p0
@@ -58,7 +58,7 @@ NEAR_SLACK = 1.5  # touch distances kept between the cull's sphere and the ball'
 _ALL_KNOTS = np.zeros(0, dtype=np.int64)  # the full sweep's "list": never read (n_near = -1)
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def _gather_near(knot_pos, knot_vel, p0, p1, p2, near_radius, dt, near):
     """Indices (increasing) of the knots that can come within near_radius of (p0, p1, p2) over dt into near; their count."""
     count = 0
@@ -72,7 +72,7 @@ def _gather_near(knot_pos, knot_vel, p0, p1, p2, near_radius, dt, near):
     return count
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def _ball_within(q0, q1, q2, s0, s1, s2, limit):
     """|q - s| <= limit (m): the ball's point q is within the cull's guarantee around its start s."""
     e0 = q0 - s0
@@ -81,7 +81,7 @@ def _ball_within(q0, q1, q2, s0, s1, s2, limit):
     return e0 * e0 + e1 * e1 + e2 * e2 <= limit * limit
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def _collide(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_radius, ball_inv_mass, knot_radius,
              restitution, dt, max_hits, out_impulse, out_ball_pos, near, n_near, limit):
     """collide_ball's contract over the first n_near knots listed in `near` (_gather_near), or every knot
@@ -240,7 +240,7 @@ def _collide(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_radius,
     return first
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def collide_ball(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_radius, ball_inv_mass, knot_radius,
                  restitution, dt, max_hits, out_impulse, out_ball_pos):
     """Swept-sphere contact of the ball with the knots over one tick; impulses both ways.
@@ -286,7 +286,7 @@ def collide_ball(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_rad
                     restitution, dt, max_hits, out_impulse, out_ball_pos, _ALL_KNOTS, -1, 0.0)
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def collide_ball_near(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, ball_radius, ball_inv_mass, knot_radius,
                       restitution, dt, max_hits, out_impulse, out_ball_pos, near):
     """collide_ball over only the knots the ball can reach in dt: the same contacts and the same bits.
@@ -314,7 +314,7 @@ def collide_ball_near(knot_pos, knot_vel, knot_inv_mass, ball_pos, ball_vel, bal
                     restitution, dt, max_hits, out_impulse, out_ball_pos, near, n_near, near_radius - NEAR_SLACK * touch)
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy", _nrt=False)
 def step_grid_ball(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, grid_work, ball, ball_radius,
                    ball_inv_mass, knot_radius, restitution, max_hits, near, out_impulse):
     """A tick of a grid net with the ball near: n_steps times collide_ball_near over h, then one step_grid step.
@@ -340,7 +340,7 @@ def step_grid_ball(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_s
                           ball, ball_radius, ball_inv_mass, knot_radius, restitution, max_hits, near, out_impulse)
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy", _nrt=False)
 def step_grid32_ball(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, net32, ball, ball_radius,
                      ball_inv_mass, knot_radius, restitution, max_hits, near, out_impulse):
     """step_grid_ball with the float32 grid step (kernels.grid32.step_grid32_serial) between the contact sweeps.
@@ -376,7 +376,8 @@ def _ball_substeps(step, knot_state, knot_inv_mass, grid_params, gravity, drag, 
             for c in range(3):
                 out_impulse[c] += hit_impulse[c]
                 bv[c] += hit_impulse[c] * ball_inv_mass
-        bp[:] = ball[2]
+        for c in range(3):
+            bp[c] = ball[2, c]
         step(knot_state, knot_inv_mass, grid_params, gravity, drag, h, 1, grid_work)
     return toi
 
@@ -386,7 +387,7 @@ def _ball_substeps(step, knot_state, knot_inv_mass, grid_params, gravity, drag, 
 TICK_BALL_ROWS = 6
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy", _nrt=False)
 def step_grid_tick(knot_state, knot_inv_mass, grid_params, gravity, drag, dt, substeps, grid_work, ball, ball_radius,
                    ball_inv_mass, knot_radius, restitution, max_hits, near, travel, speed_max, quiet_ticks,
                    sleep_speed, reach, box, out_impulse, out_offset):
@@ -424,7 +425,7 @@ def step_grid_tick(knot_state, knot_inv_mass, grid_params, gravity, drag, dt, su
                  sleep_speed, reach, box, out_impulse, out_offset)
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy", _nrt=False)
 def step_grid32_tick(knot_state, knot_inv_mass, grid_params, gravity, drag, dt, substeps, net32, ball, ball_radius,
                      ball_inv_mass, knot_radius, restitution, max_hits, near, travel, speed_max, quiet_ticks,
                      sleep_speed, reach, box, out_impulse, out_offset):

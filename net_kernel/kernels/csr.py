@@ -108,7 +108,7 @@ def step_knots(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_sprin
         out_pos[i, 2] = z
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy", _nrt=False)
 def step_knots_serial(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_spring, spring_ij, spring_rest,
                       spring_k, spring_c, gravity, drag, h, spring_work, out_pos, out_vel):
     """step_knots on one thread, bit-for-bit equal to it (same passes, same order).
@@ -176,7 +176,7 @@ def step_knots_serial(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, ad
         out_pos[i, 2] = z
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def knot_speed_max(knot_pos, knot_vel):
     """m/s, the largest knot speed; inf if any knot position or velocity is not finite.
 

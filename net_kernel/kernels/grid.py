@@ -199,7 +199,7 @@ def _chunks(x, v, w, t, params, rows, cols, r0, r1, top, gravity, drag, h):
         _knots(x, v, w, t, cols, c0 * cols, c1 * cols, gravity, drag, h)
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy", _nrt=False)
 def _grid_edge(knot_state, knot_inv_mass, params, grid_work, r0):
     """step_grid's first phase for a row block from row r0 > 0: the band below it, evaluated before
     any block moves a knot (it reads row r0 - 1, which the block below steps)."""
@@ -207,7 +207,7 @@ def _grid_edge(knot_state, knot_inv_mass, params, grid_work, r0):
     _bands(x, v, grid_work[0], params, knot_state.shape[2], knot_state.shape[3], r0 - 1, r0)
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy", _nrt=False)
 def _grid_block(knot_state, knot_inv_mass, params, grid_work, gravity, drag, h, r0, r1):
     """step_grid's second phase for the row block r0 .. r1 - 1: its rows in chunks, the band above
     its top row being the next block's edge (none above the net's top row)."""
@@ -246,7 +246,7 @@ def step_grid(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps,
                         (b + 1) * rows // blocks)
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy", _nrt=False)
 def step_grid_serial(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, grid_work):
     """step_grid on one thread, chunk by chunk (CHUNK_ROWS; same bits). Args as step_grid (its blocks unused)."""
     x, v, w = _flat(knot_state, knot_inv_mass)
@@ -256,7 +256,7 @@ def step_grid_serial(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n
         _chunks(x, v, w, t, grid_params, rows, cols, 0, rows, rows - 1, gravity, drag, h)
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def grid_knots(knot_state, knot_pos, knot_vel):
     """A grid net's state as knots: knot_pos, knot_vel (n_knots, 3) m, m/s, written from knot_state
     (2, 3, rows, cols); knot (r, c) is knot r * cols + c. A plain copy (numpy's copy of the
@@ -274,7 +274,7 @@ def grid_knots(knot_state, knot_pos, knot_vel):
 FREE_AWAKE, FREE_ASLEEP, FREE_NOT_FINITE, FREE_OUT_OF_REACH = 0, 1, 2, 3
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy", _nrt=False)
 def step_grid_free(knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks, sleep_speed,
                    sleep_ticks, quiet_ticks, reach, box):
     """Up to `ticks` ticks of a grid net with no ball, each as NetSim.step takes one, on one thread.

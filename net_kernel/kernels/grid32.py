@@ -244,22 +244,22 @@ def _knots_body(net32, r0, r1):
 # parallel kernel; the serial kernel inlines the same bodies into one function per variant
 # (_serial_*). The exact variant is IEEE in both; with FMA the same expressions are fused alike
 # (tests/net_kernel/test_grid32.py steps both variants serially and in parallel, bit for bit).
-@njit(cache=True, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy", _nrt=False)
 def _springs_exact(net32, cols, r0, r1):
     _springs_body(net32, cols, r0, r1)
 
 
-@njit(cache=True, fastmath=_FMA_FLAGS, error_model="numpy")
+@njit(cache=True, fastmath=_FMA_FLAGS, error_model="numpy", _nrt=False)
 def _springs_fma(net32, cols, r0, r1):
     _springs_body(net32, cols, r0, r1)
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy", _nrt=False)
 def _knots_exact(net32, r0, r1):
     _knots_body(net32, r0, r1)
 
 
-@njit(cache=True, fastmath=_FMA_FLAGS, error_model="numpy")
+@njit(cache=True, fastmath=_FMA_FLAGS, error_model="numpy", _nrt=False)
 def _knots_fma(net32, r0, r1):
     _knots_body(net32, r0, r1)
 
@@ -279,12 +279,12 @@ def _serial_body(net32, cols, n_steps):
             _knots(o, v, t, factors, floor, width, b * rows // blocks, (b + 1) * rows // blocks)
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy", _nrt=False)
 def _serial_exact(net32, cols, n_steps):
     _serial_body(net32, cols, n_steps)
 
 
-@njit(cache=True, fastmath=_FMA_FLAGS, error_model="numpy")
+@njit(cache=True, fastmath=_FMA_FLAGS, error_model="numpy", _nrt=False)
 def _serial_fma(net32, cols, n_steps):
     _serial_body(net32, cols, n_steps)
 
@@ -305,7 +305,7 @@ def _knots32(net32, r0, r1):
         _knots_exact(net32, r0, r1)
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy", _nrt=False)
 def _enter32(knot_state, grid_params, gravity, drag, h, net32):
     """The float64 state into net32's float32 offsets and velocities; the per-knot factors for (h, drag, gravity)
     (kept while those stay the same: the same bits as making them anew) and the class constants."""
@@ -336,7 +336,7 @@ def _enter32(knot_state, grid_params, gravity, drag, h, net32):
         classes[kind, _KREST] = np.float32(grid_params[kind, 0]) * np.float32(grid_params[kind, 2])
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy", _nrt=False)
 def _leave32(knot_state, knot_inv_mass, net32):
     """net32's float32 state back into the float64 state, free knots only (a fixed knot keeps its bits)."""
     ref, state = net32[_REF], net32[_STATE]
@@ -366,7 +366,7 @@ def _parallel_steps(net32, cols, n_steps):
             _knots32(net32, b * rows // blocks, (b + 1) * rows // blocks)
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy", _nrt=False)
 def step_grid32(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, net32):
     """n_steps of step_grid's model in float32 on offsets from the built grid, row blocks in parallel.
 
@@ -385,7 +385,7 @@ def step_grid32(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_step
         _leave32(knot_state, knot_inv_mass, net32)
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy", _nrt=False)
 def step_grid32_serial(knot_state, knot_inv_mass, grid_params, gravity, drag, h, n_steps, net32):
     """step_grid32 on one thread (the same blocks and phases in turn, same bits). Args as step_grid32."""
     if n_steps > 0:
@@ -397,7 +397,7 @@ def step_grid32_serial(knot_state, knot_inv_mass, grid_params, gravity, drag, h,
         _leave32(knot_state, knot_inv_mass, net32)
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy", _nrt=False)
 def step_grid32_free(knot_state, knot_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks, sleep_speed,
                      sleep_ticks, quiet_ticks, reach, box):
     """step_grid_free with step_grid32_serial's steps (grid_work: grid32_work's tuple): the same bits as as many

@@ -21,7 +21,7 @@ SPRING_WORK_COLS = 7
 KNOT_WORK_ROWS = 4  # dv, residual r, search direction p, A p
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", cache=True, _nrt=False)
 def _block_apply(spring_work, s, p0, p1, p2):
     """(B_s p): B_s = a I + b n n^T, the spring's share of A."""
     n0 = spring_work[s, 0]
@@ -32,7 +32,7 @@ def _block_apply(spring_work, s, p0, p1, p2):
     return a * p0 + b * n0, a * p1 + b * n1, a * p2 + b * n2
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def _spring_prepare(knot_pos, knot_vel, spring_ij, spring_rest, spring_k, spring_c, h, spring_work):
     """Per spring: direction, A's block coefficients and the axial force."""
     for s in range(spring_ij.shape[0]):
@@ -58,7 +58,7 @@ def _spring_prepare(knot_pos, knot_vel, spring_ij, spring_rest, spring_k, spring
         spring_work[s, 6] = k * (length - spring_rest[s]) + spring_c[s] * rate
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def _apply_system(knot_inv_mass, adj_start, adj_knot, adj_spring, spring_work, drag, h, p, out):
     """out = A p, gathered per knot; fixed knots' rows are the identity (their dv stays 0)."""
     for i in range(p.shape[0]):
@@ -90,7 +90,7 @@ def _apply_system(knot_inv_mass, adj_start, adj_knot, adj_spring, spring_work, d
         out[i, 2] = o2
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def _implicit_rhs(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_spring, spring_ij, spring_work,
                   gravity, drag, h, out):
     """out = h (f0 - drag m v0 - m g z) - h^2 sum_s H_s (v0_i - v0_j), zero for fixed knots."""
@@ -132,7 +132,7 @@ def _implicit_rhs(knot_pos, knot_vel, knot_inv_mass, adj_start, adj_knot, adj_sp
         out[i, 2] = r2
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def _dot(a, b):
     """Serial dot product of two (n, 3) arrays: a fixed summation order, so fixed bits."""
     total = 0.0
@@ -141,7 +141,7 @@ def _dot(a, b):
     return total
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def _axpy(alpha, x, y):
     """y += alpha x, elementwise."""
     for i in range(x.shape[0]):
@@ -150,7 +150,7 @@ def _axpy(alpha, x, y):
         y[i, 2] += alpha * x[i, 2]
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def _xpby(x, beta, y):
     """y = x + beta y, elementwise."""
     for i in range(x.shape[0]):

@@ -20,7 +20,7 @@ from net_kernel.kernels.grid import FREE_AWAKE, step_grid_free
 from net_kernel.kernels.grid32 import step_grid32_free
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def potential_energy(knot_pos, knot_mass, knot_inv_mass, spring_ij, spring_rest, spring_k, gravity):
     """J: sum of 0.5 k (|L| - L_rest)^2 over the springs plus m g z over the free knots.
 
@@ -40,7 +40,7 @@ def potential_energy(knot_pos, knot_mass, knot_inv_mass, spring_ij, spring_rest,
     return e
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def motion_energy(knot_pos, knot_vel, knot_mass, knot_inv_mass, spring_ij, spring_rest, spring_k, gravity,
                   rest_energy, limit):
     """J: kinetic energy plus potential energy above `rest_energy`, the energy of the net's motion.
@@ -59,7 +59,7 @@ def motion_energy(knot_pos, knot_vel, knot_mass, knot_inv_mass, spring_ij, sprin
                                       gravity) - rest_energy
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def _gather(knot_pos, knot_vel, rest_pos, free, dofs):
     """The free knots' displacement and velocity into dofs (4, 2 n_free): rows u_x, v_x (first
     n_free columns), u_yz, v_yz ((y, z) of each free knot in turn)."""
@@ -72,7 +72,7 @@ def _gather(knot_pos, knot_vel, rest_pos, free, dofs):
             dofs[3, 2 * a + axis] = knot_vel[j, 1 + axis]
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def modal_coefficients(knot_pos, knot_vel, rest_pos, free, out_proj, out_e, in_proj, in_inverse, out_c, in_w, q, p,
                        in_scratch, dofs):
     """The modal coefficients of a state: out_c (n_out,) complex and in_w (2K,) complex, written.
@@ -110,7 +110,7 @@ def modal_coefficients(knot_pos, knot_vel, rest_pos, free, out_proj, out_e, in_p
         in_w[r] = acc
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def modal_detuning(out_detune, out_c, out_shift):
     """Each out-of-plane mode's angle correction a tick at the switch, into out_shift (n_out,) rad:
     out_detune (n_out, n_out) (NetModes) times |c|^2 of the coefficients out_c, row by row."""
@@ -122,7 +122,7 @@ def modal_detuning(out_detune, out_c, out_shift):
         out_shift[m] = acc
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def _detuned_phase(ticks, log_r, shift):
     """(phi, delta now): the correction's angle summed over `ticks` ticks, and its rate at that tick (rad)."""
     if log_r == 0.0:
@@ -130,7 +130,7 @@ def _detuned_phase(ticks, log_r, shift):
     return shift * (math.expm1(2.0 * ticks * log_r) / math.expm1(2.0 * log_r)), shift * math.exp(2.0 * ticks * log_r)
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def _powers(ticks, out_c, out_e, out_log_r, out_theta, out_shift, out_rate, in_w, in_log_r, in_theta, q, p, xi):
     """Modal state after `ticks` ticks: q, p (n_out,) float and xi (2, 2K) float (real, imaginary), written."""
     for m in range(out_c.shape[0]):
@@ -149,7 +149,7 @@ def _powers(ticks, out_c, out_e, out_log_r, out_theta, out_shift, out_rate, in_w
         xi[1, m] = z.imag
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def modal_state(ticks, rest_pos, free, out_shape, out_c, out_e, out_log_r, out_theta, out_shift, out_rate, in_pos,
                 in_vel, in_w, in_log_r, in_theta, q, p, xi, dofs, knot_pos, knot_vel):
     """The linear state `ticks` ticks after the coefficients' state, into knot_pos and knot_vel.
@@ -187,7 +187,7 @@ def modal_state(ticks, rest_pos, free, out_shape, out_c, out_e, out_log_r, out_t
             knot_vel[j, 1 + axis] += dofs[3, 2 * a + axis]
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def modal_bounds(out_shape_abs, out_c, out_e, out_shift, out_rate, in_pos_abs, in_vel_abs, in_w, disp, speed):
     """Per axis and free knot, bounds on the tail's displacement (disp) and velocity (speed) at
     the coefficients' tick, (3, n_free) m and m/s, written: sums of |shape| |coefficient| over
@@ -213,7 +213,7 @@ def modal_bounds(out_shape_abs, out_c, out_e, out_shift, out_rate, in_pos_abs, i
                 speed[1 + axis, a] += in_vel_abs[m, 2 * a + axis] * w
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def quiet_from(sleep_speed, max_ticks, out_log_r, in_log_r, speed):
     """The first tick n >= 1 (after the coefficients' state) from which no knot of the tail can be
     as fast as sleep_speed again, by the bounds (speed: modal_bounds' (3, n_free) m/s, decaying
@@ -244,7 +244,7 @@ def quiet_from(sleep_speed, max_ticks, out_log_r, in_log_r, speed):
     return hi
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, _nrt=False)
 def _loud(speed, decay_out, decay_in, limit2):
     """Can any knot be as fast as sqrt(limit2) m/s, its bounds decayed by these factors?"""
     for a in range(speed.shape[1]):
@@ -281,7 +281,7 @@ def _free_tail(free, knot_state, grid_inv_mass, grid_params, gravity, drag, h, s
     return taken, quiet_ticks, FREE_AWAKE
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy", _nrt=False)
 def step_grid_free_tail(knot_state, grid_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks,
                         sleep_speed, sleep_ticks, quiet_ticks, reach, box, knot_mass, knot_inv_mass, spring_ij,
                         spring_rest, spring_k, rest_energy, tail_energy):
@@ -299,7 +299,7 @@ def step_grid_free_tail(knot_state, grid_inv_mass, grid_params, gravity, drag, h
                       spring_rest, spring_k, rest_energy, tail_energy)
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy", _nrt=False)
 def step_grid32_free_tail(knot_state, grid_inv_mass, grid_params, gravity, drag, h, substeps, grid_work, ticks,
                           sleep_speed, sleep_ticks, quiet_ticks, reach, box, knot_mass, knot_inv_mass, spring_ij,
                           spring_rest, spring_k, rest_energy, tail_energy):

@@ -14,7 +14,7 @@ from numba import njit
 from net_kernel.kernels.table import TABLE_Z
 
 
-@njit(cache=True, fastmath=False, error_model="numpy")
+@njit(cache=True, fastmath=False, error_model="numpy", _nrt=False)
 def step_knots_scatter(knot_pos, knot_vel, knot_inv_mass, spring_ij, spring_rest, spring_k, spring_c, gravity, drag, h,
                        knot_force, out_pos, out_vel):
     """One semi-implicit Euler step of every knot by a per-spring scatter of forces, one thread.

@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
 from engine.physics.collision import P_INERTIA, P_MASS, P_RADIUS
@@ -11,7 +10,7 @@ from engine.physics.contact import impact
 from engine.physics.integrators import advance
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _crossing(p, v, spin, x_plane, h, max_steps, method, gravity, drag_k, magnus_k, rtol, atol, work, adapt,
               cur, nxt, out):
     """Fly the ball from (p, v, spin) through everything until x crosses x_plane; `out` is the state
@@ -31,7 +30,7 @@ def _crossing(p, v, spin, x_plane, h, max_steps, method, gravity, drag_k, magnus
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def shoot(p, spin, target_x, target_y, pace, radius, h, max_steps, method, gravity, drag_k, magnus_k, rtol,
           atol, work, adapt, scratch, v):
     """Launch velocity from p whose free flight reaches (target_x, target_y) at table height.
@@ -65,7 +64,7 @@ def shoot(p, spin, target_x, target_y, pace, radius, h, max_steps, method, gravi
         ry, rz = out[1] - target_y, out[2] - radius
         if math.sqrt(ry * ry + rz * rz) < 1e-3:
             return True
-        jac = np.empty((2, 2))
+        jac_00 = jac_01 = jac_10 = jac_11 = 0.0  # the Jacobian's rows: d(ry), d(rz); columns: v_y, v_z
         for j in range(2):
             for i in range(3):
                 trial[i] = v[i]
@@ -73,19 +72,23 @@ def shoot(p, spin, target_x, target_y, pace, radius, h, max_steps, method, gravi
             if not _crossing(p, trial, spin, target_x, h, max_steps, method, gravity, drag_k, magnus_k, rtol,
                              atol, work, adapt, cur, nxt, out):
                 return False
-            jac[0, j] = (out[1] - target_y - ry) / 1e-4
-            jac[1, j] = (out[2] - radius - rz) / 1e-4
-        det = jac[0, 0] * jac[1, 1] - jac[0, 1] * jac[1, 0]
+            d_ry = (out[1] - target_y - ry) / 1e-4
+            d_rz = (out[2] - radius - rz) / 1e-4
+            if j == 0:
+                jac_00, jac_10 = d_ry, d_rz
+            else:
+                jac_01, jac_11 = d_ry, d_rz
+        det = jac_00 * jac_11 - jac_01 * jac_10
         if det == 0.0:
             return False
-        step_y = (-ry * jac[1, 1] + rz * jac[0, 1]) / det
-        step_z = (-rz * jac[0, 0] + ry * jac[1, 0]) / det
+        step_y = (-ry * jac_11 + rz * jac_01) / det
+        step_z = (-rz * jac_00 + ry * jac_10) / det
         v[1] += min(max(step_y, -3.0), 3.0)
         v[2] += min(max(step_z, -3.0), 3.0)
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def stroke(v_in, spin_in, v_out, radius, mass, inertia, restitution, friction, normal, bat_vel, got_v, got_w):
     """Bat face normal and velocity whose impact (engine.physics.contact.impact) turns (v_in, spin_in) into v_out.
 
@@ -114,7 +117,7 @@ def stroke(v_in, spin_in, v_out, radius, mass, inertia, restitution, friction, n
         w0, w1, w2 = w0 + e0, w1 + e1, w2 + e2
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def shot_and_stroke(p, v_in, spin_in, target_x, target_y, pace, params, restitution, friction, h, max_steps,
                     method, gravity, drag_k, magnus_k, rtol, atol, work, adapt, scratch, spin_out, shot, normal,
                     bat_vel, got_v):

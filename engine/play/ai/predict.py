@@ -31,7 +31,7 @@ _TABLE, _FLOOR = int(Body.TABLE), int(Body.FLOOR)
 _W_BOUNCE, _W_FLOOR, _W_CANDIDATE, _W_LATER = 0, 1, 2, 3  # predict_flight's bookkeeping of a return
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _strike_row(traj, k, stop_rule, watch):
     """Whether row k of a prediction (one with a successor) decides the strike.
 
@@ -58,7 +58,7 @@ def _strike_row(traj, k, stop_rule, watch):
     return _UNDECIDED
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _strike_end(traj, n, stop_rule, watch):
     """The strike once the prediction has ended at row n (the last row, without a successor)."""
     if stop_rule != STOP_RETURN_STRIKE or watch[_W_BOUNCE] < 0 or watch[_W_CANDIDATE] < 0:
@@ -71,7 +71,7 @@ def _strike_end(traj, n, stop_rule, watch):
 _FAST_MARGIN = 2e-3  # m: predict_span steps a tick as free flight only this far from every body (CONTACT_TOL is 1 um)
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _static_gap(p, radius, table, floor_z, net, posts, normal):
     """Smallest gap (m) between the ball at p and the table, floor, net and posts (as
     engine.physics.collision's, without bats). normal: (3,) scratch."""
@@ -113,9 +113,19 @@ def predict_span(h, k0, k_stop, n_max, max_events, stop_rule, end_sign, first_ro
         (rows done, error code of ball_tick or 0, strike tick or NO_STRIKE once decided, or PAUSED
         at k_stop before n_max).
     """
+    return _span(h, k0, k_stop, n_max, max_events, stop_rule, end_sign, first_row, method, gravity, drag_k, magnus_k,
+                 rtol, atol, table, floor_z, net, posts, params, materials, work, scratch, adapt, tick_events, traj,
+                 events, event_ticks, memo, np.empty(3))
+
+
+@njit(cache=True, _nrt=False)
+def _span(h, k0, k_stop, n_max, max_events, stop_rule, end_sign, first_row, method, gravity, drag_k, magnus_k, rtol,
+          atol, table, floor_z, net, posts, params, materials, work, scratch, adapt, tick_events, traj, events,
+          event_ticks, memo, acc):
+    """predict_span's steps, acc: (3,) scratch (allocated by predict_span: this kernel, compiled
+    without numba's runtime, allocates nothing)."""
     watch = memo[_M_WATCH:_M_WATCH + 4]
     strike_rule = stop_rule == STOP_SERVE_STRIKE or stop_rule == STOP_RETURN_STRIKE
-    acc = np.empty(3)
     room = _static_gap(traj[k0], params[P_RADIUS], table, floor_z, net, posts, acc)
     for k in range(k0, min(k_stop, n_max)):
         if strike_rule and k >= first_row:
@@ -208,7 +218,7 @@ def predict_flight(y0, h, n_max, max_events, stop_rule, end_sign, method, gravit
     return n, memo[_M_EVENTS], err, strike, memo[_M_SUPPORT]
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def free_flight_marks(p, v, spin, radius, h, max_steps, method, gravity, drag_k, magnus_k, rtol, atol, work, adapt,
                       cur, nxt, out, low_z=-math.inf):
     """Where a free flight (no table, net or floor) passes the net's plane and comes down to table height.
