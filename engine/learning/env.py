@@ -237,6 +237,13 @@ class PingPongEnv(gymnasium.Env):
         self.seed_of_match = 0
         self._warm = False
 
+    def share_scenes(self, other: "PingPongEnv") -> None:
+        """Use other's compiled match scenes (one a first server), built once for both: other
+        has the same net, opponent, player and agent (the vector env's tables do)."""
+        if (other.net, other.opponent, other.player, other.ends) != (self.net, self.opponent, self.player, self.ends):
+            raise ValueError("share_scenes: the other environment plays another scene, opponent or end")
+        self._compiled = other._compiled
+
     # --- episodes ---------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         lead_in = self.begin_episode(seed)

@@ -52,6 +52,8 @@ class PingPongVectorEnv(VectorEnv):
         self.num_envs = int(num_envs)
         self.envs = [PingPongEnv(**kwargs) for _ in range(self.num_envs)]
         first = self.envs[0]
+        for env in self.envs[1:]:
+            env.share_scenes(first)  # one compiled scene a first server for all the tables
         self.render_mode = first.render_mode
         self.metadata = {**PingPongEnv.metadata, "autoreset_mode": AutoresetMode.NEXT_STEP}
         self.single_observation_space = first.observation_space

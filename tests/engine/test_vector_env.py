@@ -166,3 +166,12 @@ def test_the_batched_step_names_a_non_finite_action():
     actions[1, 2] = np.nan
     with pytest.raises(ValueError, match=r"entries \[2\] are not finite"):
         vector.step(actions)
+
+
+def test_tables_share_their_compiled_scenes_and_refuse_another_scene():
+    vector = PingPongVectorEnv(3, opponent="novice", version=1)
+    vector.reset(seed=0)
+    first, *others = vector.envs
+    assert all(env._compiled is first._compiled for env in others)
+    with pytest.raises(ValueError, match="another scene, opponent or end"):
+        PingPongEnv(opponent="pro", version=1).share_scenes(first)
