@@ -6,7 +6,10 @@ a segment); once they are built it raises (SIGTERM: SystemExit(143), SIGINT: Key
 so the owner's `finally` stops the workers and removes the segments; while that cleanup runs,
 later signals are counted and ignored, so a second Ctrl-C or `kill` cannot cut it short (which
 left segments for Python's resource tracker, BufferError tracebacks from views still open, and
-a gateway killed before it wrote its last counters). A signal that was ignored when the handlers
+a gateway killed before it wrote its last counters). After a stop signal was raised, restore()
+leaves both signals ignored instead of putting the old handlers back: the owner still has its
+last words to say (`pingpong serve` prints its end line), and the default action of a SIGTERM
+arriving between the run's end and those words killed the server without them. A signal that was ignored when the handlers
 were installed (a shell's background job ignores SIGINT) stays ignored.
 """
 from __future__ import annotations
@@ -26,6 +29,7 @@ class StopSignals:
         self._previous: dict[int, object] = {}
         self._mode = "hold"
         self.held: int | None = None  # the first signal received while held
+        self.raised = False  # whether a stop signal was raised: the process is stopping on it
         self.ignored = 0  # signals received while shielded
 
     def install(self) -> StopSignals:
@@ -42,6 +46,7 @@ class StopSignals:
         """From now on a stop signal raises; one held so far raises now."""
         self._mode = "raise"
         if self.held is not None:
+            self.raised = True
             _raise_for(self.held)
 
     def shield(self) -> None:
@@ -49,14 +54,15 @@ class StopSignals:
         self._mode = "ignore"
 
     def restore(self) -> None:
-        """The handlers as they were before install()."""
+        """The handlers as they were before install(); ignored, after a stop signal was raised."""
         for signum, previous in self._previous.items():
-            signal.signal(signum, previous)
+            signal.signal(signum, signal.SIG_IGN if self.raised else previous)
         self._previous.clear()
 
     def _handle(self, signum, frame) -> None:
         if self._mode == "raise":
             self._mode = "ignore"  # one request: the next one finds the stop under way
+            self.raised = True
             _raise_for(signum)
         elif self._mode == "hold":
             if self.held is None:

@@ -13,9 +13,12 @@ from processes.runtime.stops import StopSignals
 
 @pytest.fixture
 def stops():
+    before = {signum: signal.getsignal(signum) for signum in (signal.SIGTERM, signal.SIGINT)}
     stops = StopSignals().install()
     yield stops
     stops.restore()
+    for signum, handler in before.items():  # a raised stop leaves them ignored (restore's docstring)
+        signal.signal(signum, handler)
 
 
 def test_a_signal_while_building_is_held_and_raised_once_armed(stops):
@@ -58,3 +61,20 @@ def test_an_ignored_sigint_stays_ignored():
         assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+def test_after_a_raised_stop_the_signals_stay_ignored_for_the_owners_last_words():
+    before = {signum: signal.getsignal(signum) for signum in (signal.SIGTERM, signal.SIGINT)}
+    stops = StopSignals().install()
+    try:
+        stops.arm()
+        with pytest.raises(SystemExit):
+            os.kill(os.getpid(), signal.SIGTERM)
+        stops.shield()
+        stops.restore()
+        for signum in (signal.SIGTERM, signal.SIGINT):
+            assert signal.getsignal(signum) == signal.SIG_IGN
+        os.kill(os.getpid(), signal.SIGTERM)  # ignored: this process goes on to say what it must
+    finally:
+        for signum, handler in before.items():
+            signal.signal(signum, handler)
