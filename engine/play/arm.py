@@ -6,7 +6,6 @@ import math
 import numpy as np
 from numba import njit
 
-from engine.physics.bat import face_normal
 from engine.physics.dtypes import ACTION_DTYPE, ARM_SEGMENTS, BAT_DTYPE
 
 # One segment of a planned path, a cubic Hermite curve of the bat centre (engine.play.ai.Segment), as
@@ -32,7 +31,7 @@ MAX_SEGMENTS = ARM_SEGMENTS  # backswing, swing, follow-through
 CTL_SIZE = CTL_SEGMENTS + MAX_SEGMENTS * SEG_WIDTH
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def bat_control(now, bat, ctl, out):
     """Force and torque on a bat tracking a planned path, by PD control with feed-forward.
 
@@ -52,49 +51,50 @@ def bat_control(now, bat, ctl, out):
     max_force, max_torque, max_speed = ctl[CTL_MAX_FORCE], ctl[CTL_MAX_TORQUE], ctl[CTL_MAX_SPEED]
     hold_pos, normal_ref = ctl[CTL_HOLD:CTL_HOLD + 3], ctl[CTL_NORMAL:CTL_NORMAL + 3]
     n_segments = int(ctl[CTL_N_SEGMENTS])
-    p_ref = np.empty(3)
-    v_ref = np.zeros(3)
-    a_ref = np.zeros(3)
     k = 0
     while k < n_segments and now > ctl[CTL_SEGMENTS + k * SEG_WIDTH + SEG_T1]:
         k += 1
-    if k < n_segments:
-        seg = ctl[CTL_SEGMENTS + k * SEG_WIDTH:CTL_SEGMENTS + (k + 1) * SEG_WIDTH]
+    on_path = k < n_segments
+    seg = ctl[CTL_SEGMENTS + k * SEG_WIDTH:CTL_SEGMENTS + (k + 1) * SEG_WIDTH]
+    T = h00 = h10 = h01 = h11 = d00 = d10 = d01 = d11 = a00 = a10 = a01 = a11 = 0.0
+    inside = False
+    if on_path:
         T = seg[SEG_T1] - seg[SEG_T0]
         s = min(max((now - seg[SEG_T0]) / T, 0.0), 1.0)
         h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
         d00, d10, d01, d11 = 6 * s**2 - 6 * s, 3 * s**2 - 4 * s + 1, -6 * s**2 + 6 * s, 3 * s**2 - 2 * s
         a00, a10, a01, a11 = 12 * s - 6, 6 * s - 4, -12 * s + 6, 6 * s - 2
         inside = 0.0 < s < 1.0
-        for i in range(3):
-            p0, p1 = seg[SEG_P0 + i], seg[SEG_P1 + i]
-            m0, m1 = seg[SEG_V0 + i] * T, seg[SEG_V1 + i] * T
-            p_ref[i] = h00 * p0 + h10 * m0 + h01 * p1 + h11 * m1
-            v_ref[i] = (d00 * p0 + d10 * m0 + d01 * p1 + d11 * m1) / T
-            a_ref[i] = (a00 * p0 + a10 * m0 + a01 * p1 + a11 * m1) / (T * T) if inside else 0.0
-    else:
-        for i in range(3):
-            p_ref[i] = hold_pos[i]
     speed = math.sqrt(vel[0] ** 2 + vel[1] ** 2 + vel[2] ** 2)
     norm = 0.0
     for i in range(3):
+        # the reference position, velocity and acceleration along axis i: the segment's cubic
+        # Hermite curve, or the hold pose at rest (scalars: this kernel allocates nothing)
+        p_ref, v_ref, a_ref = hold_pos[i], 0.0, 0.0
+        if on_path:
+            p0, p1 = seg[SEG_P0 + i], seg[SEG_P1 + i]
+            m0, m1 = seg[SEG_V0 + i] * T, seg[SEG_V1 + i] * T
+            p_ref = h00 * p0 + h10 * m0 + h01 * p1 + h11 * m1
+            v_ref = (d00 * p0 + d10 * m0 + d01 * p1 + d11 * m1) / T
+            a_ref = (a00 * p0 + a10 * m0 + a01 * p1 + a11 * m1) / (T * T) if inside else 0.0
         if speed > max_speed:  # the arm cannot go faster: brake
             out[i] = -mass * kd * vel[i]
         else:
-            out[i] = mass * (a_ref[i] + kp * (p_ref[i] - pos[i]) + kd * (v_ref[i] - vel[i]))
+            out[i] = mass * (a_ref + kp * (p_ref - pos[i]) + kd * (v_ref - vel[i]))
         norm += out[i] * out[i]
     norm = math.sqrt(norm)
     if norm > max_force:
         for i in range(3):
             out[i] *= max_force / norm
-    # Face: rotate the current normal onto normal_ref about their common perpendicular.
-    n = np.empty(3)
-    face_normal(quat, n)
-    ax = n[1] * normal_ref[2] - n[2] * normal_ref[1]
-    ay = n[2] * normal_ref[0] - n[0] * normal_ref[2]
-    az = n[0] * normal_ref[1] - n[1] * normal_ref[0]
+    # Face: rotate the current normal (face_normal's, as scalars) onto normal_ref about their
+    # common perpendicular.
+    w, x, y, z = quat[0], quat[1], quat[2], quat[3]
+    n0, n1, n2 = 2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y)
+    ax = n1 * normal_ref[2] - n2 * normal_ref[1]
+    ay = n2 * normal_ref[0] - n0 * normal_ref[2]
+    az = n0 * normal_ref[1] - n1 * normal_ref[0]
     sin_a = math.sqrt(ax * ax + ay * ay + az * az)
-    cos_a = n[0] * normal_ref[0] + n[1] * normal_ref[1] + n[2] * normal_ref[2]
+    cos_a = n0 * normal_ref[0] + n1 * normal_ref[1] + n2 * normal_ref[2]
     scale = math.atan2(sin_a, cos_a) / sin_a if sin_a > 1e-12 else 0.0
     rot = (ax * scale, ay * scale, az * scale)
     norm = 0.0
