@@ -401,7 +401,8 @@ def make_players(scene, model, seed: int, control_every: int, delay: int, eager:
         end_sign = -1 if player == 0 else 1
         bot.player, bot.end_sign, bot.latency = player, end_sign, delay * model.dt
         bot.normal = np.array([-end_sign, 0.0, 0.0])
-        bot.rng = np.random.default_rng(seed * 1000 + player)
+        # seeded alike: a profile's is its BatAI's, the same generator (a profile draws only through its BatAI)
+        bot.rng = bot.ai.rng if isinstance(bot, ProfileBot) else np.random.default_rng(seed * 1000 + player)
         try:
             bot.setup(player, scene)
         except Exception as exc:
