@@ -8,9 +8,9 @@ later signals are counted and ignored, so a second Ctrl-C or `kill` cannot cut i
 left segments for Python's resource tracker, BufferError tracebacks from views still open, and
 a gateway killed before it wrote its last counters). After a stop signal was raised, restore()
 leaves both signals ignored instead of putting the old handlers back: the owner still has its
-last words to say (`pingpong serve` prints its end line), and the default action of a SIGTERM
-arriving between the run's end and those words killed the server without them. A signal that was ignored when the handlers
-were installed (a shell's background job ignores SIGINT) stays ignored.
+last words to say (`pingpong serve` prints its end line), which SIGTERM's default action would
+cut short. A signal that was ignored when the handlers were installed (a shell's background job
+ignores SIGINT) stays ignored.
 """
 from __future__ import annotations
 
