@@ -51,9 +51,15 @@ class Rig:
 
     def step(self, serve=False):
         self.gateway.poll(2)
-        if serve:  # a snapshot per step: a feed subscriber that is still connecting misses the first ones
-            self.clock.now += 1.0 / self.gateway.config.snapshot_hz
-        self.gateway.service(self.record if serve else None)
+        if serve:
+            self.publish()
+        else:
+            self.gateway.service(None)
+
+    def publish(self):
+        """A snapshot of the record on the feed (a subscriber that is still connecting misses the first ones)."""
+        self.clock.now += 1.0 / self.gateway.config.snapshot_hz
+        self.gateway.service(self.record)
 
     def until(self, client, predicate, serve=False):
         """Pump gateway and client until the client gets a message satisfying predicate (within the deadline)."""

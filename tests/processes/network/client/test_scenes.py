@@ -14,7 +14,12 @@ from tests.waits import DEADLINE_S, Deadline
 
 
 def _fetch(r, client, cache_dir, serve=False):
-    """served_scene(client) on a thread of its own while this one pumps the gateway; its Scene (or error)."""
+    """served_scene(client) on a thread of its own while this one pumps the gateway; its Scene (or
+    error). serve: snapshots go out, the first before the request is answered (a player's snapshots
+    and the scene's parts share its session's socket, in order: the client meets one while it waits)."""
+    sent, deadline = r.gateway.counts["snapshots_sent"], Deadline()
+    while serve and r.gateway.counts["snapshots_sent"] == sent and not deadline.expired():
+        r.publish()
     out = {}
 
     def run():
