@@ -21,9 +21,10 @@ from engine.physics.scene import load_scene
 from engine.play.match import Match
 
 PACKAGES = ("engine", "net_kernel")
-HOT = {  # kernels a tick or a batched step runs: they must stay without the runtime
+HOT = {  # kernels a tick, a batched step or a stroke's search runs: they must stay without the runtime
     "engine.physics.tick.advance_ticks", "engine.physics.collision.ball_tick", "engine.physics.bat.bat_step",
     "engine.physics.integrators.advance", "engine.learning.batch.run_tables", "engine.play.arm.control_bats",
+    "engine.play.ai.search.search_strokes",
 }
 
 

@@ -170,18 +170,23 @@ def check_action(action, max_force: float, max_torque: float) -> tuple[str, str]
         return None
     if kind != ACTION_TARGET:
         return "malformed", f"kind {kind}: must be {ACTION_TARGET} (arm target) or {ACTION_FORCE} (force)"
-    n_segments = int(action["n_segments"])
+    return target_problem(floats[A_HOLD:A_SEGMENTS], floats[A_SEGMENTS:], int(action["n_segments"]))
+
+
+def target_problem(pose: np.ndarray, segments: np.ndarray, n_segments: int) -> tuple[str, str] | None:
+    """check_action's verdict on an arm target: pose (6,) the hold position and face normal,
+    segments the path's rows (14 floats each, t0 and t1 first), n_segments of them used."""
     if not 0 <= n_segments <= ARM_SEGMENTS:
         return "malformed", f"n_segments {n_segments}: must be in 0 .. {ARM_SEGMENTS}"
-    used = floats[A_HOLD:A_SEGMENTS + n_segments * 14]
-    if not np.isfinite(used).all():
-        return "non_finite", f"arm target with NaN or infinity: hold, normal, segments {used.tolist()}"
-    normal = floats[A_NORMAL:A_NORMAL + 3]
+    used = segments[:n_segments * 14]
+    if not (np.isfinite(pose).all() and np.isfinite(used).all()):
+        return "non_finite", f"arm target with NaN or infinity: hold, normal, segments {pose.tolist() + used.tolist()}"
+    normal = pose[3:6]
     norm = math.sqrt(float(normal @ normal))
     if abs(norm - 1.0) > NORMAL_TOLERANCE:
         return "malformed", f"face normal {normal.tolist()} has length {norm:.9g}, must be unit"
     for k in range(n_segments):
-        t0, t1 = floats[A_SEGMENTS + 14 * k], floats[A_SEGMENTS + 14 * k + 1]
+        t0, t1 = segments[14 * k], segments[14 * k + 1]
         if not t1 > t0:
             return "malformed", f"segment {k} runs from t0 = {t0!r} to t1 = {t1!r} s: it must end after it starts"
     return None

@@ -22,7 +22,7 @@ import numpy as np
 from engine.physics.dtypes import BAT_DTYPE, OBSERVATION_DTYPE
 from engine.physics.scene import is_bot_spec
 from engine.play.bot import (A_FORCE, A_HOLD, A_SEGMENTS, ACTION_FLOATS, ACTION_FORCE, Bot, bot_name, check_action,
-                             load_bot, new_observation)
+                             load_bot, new_observation, target_problem)
 from engine.play.ai import SKILLS, BatAI
 from engine.play.ai.profile_bot import ProfileBot
 from engine.play.arm import (ARM_BRAKE, ARM_FORCE, ARM_TARGET, BAT_FLOATS, CTL_D_ANGLE, CTL_FORCE, CTL_HOLD,
@@ -209,7 +209,11 @@ class Seat:
         return self.view
 
     def decide(self, tick: int, now: float, ball_flat, floats: np.ndarray, rally, key) -> tuple | None:
-        """Show the state (observe), take the answer: the fault (player, fault, detail) or None."""
+        """Show the state (observe), take the answer: the fault (player, fault, detail) or None.
+        An AI profile's BatAI reads the state itself (ProfileBot.act's doubles, without the
+        observation's record in between) and its arm target is checked as a bot's action is."""
+        if self.profile:
+            return self._decide_profile(now, ball_flat, floats, key)
         self.observe(tick, now, ball_flat, floats, rally, key)
         me = self.player
         self.key = key
@@ -239,6 +243,39 @@ class Seat:
             fault, detail = problem
         self.faults += 1
         self.ctl[CTL_KIND] = ARM_BRAKE  # the idle arm's brake until the next good decision
+        return me, fault, detail
+
+    def _decide_profile(self, now: float, ball_flat, floats: np.ndarray, key) -> tuple | None:
+        """decide() of an AI profile: ProfileBot.act and _take without the observation and the
+        action records, the same doubles into the same ctl row."""
+        me = self.player
+        self.key = key
+        self.decisions += 1
+        ai = self.bot.ai
+        started = time.thread_time()
+        try:
+            _DECIDING[0] = (self, time.monotonic())
+            ai.decide(now, ball_flat, floats[me], (key[0], key[1]), key[2] == me, key[3] == 1, self.bot.end_sign)
+            fault = None
+        except Exception as exc:  # noqa: BLE001 - as a bot's: reported, never fatal
+            where = traceback.extract_tb(exc.__traceback__)[-1]
+            fault, detail = "raised", f"{type(exc).__name__}: {exc} ({where.filename}:{where.lineno})"
+        finally:
+            _DECIDING[0] = None
+        self.act_seconds += time.thread_time() - started
+        if fault is None:
+            src, ctl = ai._ctl, self.ctl
+            n_segments = int(src[CTL_N_SEGMENTS])
+            problem = target_problem(src[CTL_HOLD:CTL_HOLD + 6], src[CTL_SEGMENTS:], n_segments)
+            if problem is None:
+                ctl[CTL_KIND] = ARM_TARGET
+                ctl[CTL_HOLD:CTL_HOLD + 6] = src[CTL_HOLD:CTL_HOLD + 6]  # hold, then normal
+                ctl[CTL_N_SEGMENTS] = n_segments
+                ctl[CTL_SEGMENTS:] = src[CTL_SEGMENTS:]
+                return None
+            fault, detail = problem
+        self.faults += 1
+        self.ctl[CTL_KIND] = ARM_BRAKE
         return me, fault, detail
 
     def state(self) -> dict:

@@ -9,7 +9,10 @@ from engine.physics.geometry import Body
 from engine.physics.integrators import ADAPT_SIZE, WORK_SHAPE
 from engine.physics.scene import load_scene
 from engine.physics.world import build_model
-from engine.play.ai import NO_STRIKE, SKILLS, STOP_EVENTS, STOP_RETURN_STRIKE, STOP_SERVE_STRIKE, BatAI, strike_index
+from engine.physics.equipment import NET_HEIGHT
+from engine.play.ai import (HALF_LENGTH, HALF_WIDTH, NO_STRIKE, SKILLS, STOP_EVENTS, STOP_RETURN_STRIKE,
+                            STOP_SERVE_STRIKE, BatAI, strike_index)
+from engine.play.ai.search import lands_well
 from engine.play.match import LocalAI, Match, make_ais
 
 SCENE = load_scene("match_rigid")
@@ -103,10 +106,41 @@ def test_control_takes_a_record_a_0d_array_or_a_float_row_and_refuses_other_layo
         ai.control(1.0, ball, np.zeros(18), (0, 0), False, False, 1)
 
 
+def _on_court(pos, sign, margin):
+    return np.sign(pos[0]) == sign and abs(pos[0]) < HALF_LENGTH - margin and abs(pos[1]) < HALF_WIDTH - margin
+
+
+def _judge_path(ai, traj, events, end_sign, serve):
+    """Whether a whole predicted path lands well, in numpy: the reference of engine.play.ai.search."""
+    x = traj[:, 0]
+    crossing = np.flatnonzero(np.sign(x[:-1]) != np.sign(x[1:]))
+    clearance = -np.inf
+    if len(crossing):
+        k = crossing[0]
+        f = x[k] / (x[k] - x[k + 1])
+        clearance = traj[k, 2] + f * (traj[k + 1, 2] - traj[k, 2]) - ai.radius - NET_HEIGHT
+    if not events or events[0][1] != Body.TABLE:
+        return False
+    margin = ai.COURT_MARGIN_M
+    if not serve:
+        return _on_court(events[0][2], -end_sign, margin) and clearance > ai.NET_MARGIN_M
+    if len(events) < 2 or events[1][1] != Body.TABLE:
+        return False
+    return (_on_court(events[0][2], end_sign, margin) and _on_court(events[1][2], -end_sign, margin)
+            and clearance > ai.SERVICE_NET_MARGIN_M)
+
+
 def test_lands_well_agrees_with_judging_the_predicted_path(ai):
-    """Where the free flight is sure, _lands_well answers without predicting: the same answers."""
+    """Where the free flight is sure, lands_well answers without predicting: the same answers as
+    judging the whole predicted path."""
     rng = np.random.default_rng(11)
     answers = {("return", True): 0, ("return", False): 0, ("service", True): 0, ("service", False): 0}
+
+    def compiled(p, v, spin, serve):
+        good, err = lands_well(p, v, spin, 1, serve, ai._limits, ai._model_args, ai._search_scratch)
+        assert err == 0
+        return good
+
     for _ in range(80):
         p = np.array([rng.uniform(1.3, 2.0), rng.uniform(-0.5, 0.5), rng.uniform(0.05, 0.4)])
         spin = rng.uniform(-150.0, 150.0, 3)
@@ -116,8 +150,8 @@ def test_lands_well_agrees_with_judging_the_predicted_path(ai):
             continue
         v += rng.normal(0.0, 0.3, 3)  # some into the net, some near every limit
         traj, events = ai._path(p, v, spin, max_events=1)
-        want = ai._judge_path(traj, events, 1, False)
-        assert ai._lands_well(p, v, spin, 1, False) == want
+        want = _judge_path(ai, traj, events, 1, False)
+        assert compiled(p, v, spin, False) == want
         answers[("return", want)] += 1
     for _ in range(80):
         p = np.array([rng.uniform(1.4, 1.6), rng.uniform(-0.3, 0.3), rng.uniform(0.08, 0.28)])
@@ -127,8 +161,8 @@ def test_lands_well_agrees_with_judging_the_predicted_path(ai):
             continue
         v += rng.normal(0.0, 0.2, 3)
         traj, events = ai._path(p, v, spin, max_events=2)
-        want = ai._judge_path(traj, events, 1, True)
-        assert ai._lands_well(p, v, spin, 1, True) == want
+        want = _judge_path(ai, traj, events, 1, True)
+        assert compiled(p, v, spin, True) == want
         answers[("service", want)] += 1
     assert min(answers.values()) >= 5, answers  # both answers of both kinds were exercised
 

@@ -11,6 +11,8 @@ from engine.play.bot import ACTION_FORCE, BotError, check_action, force, hold, l
 from engine.physics.dtypes import BAT_DTYPE, BAT_STATE_DTYPE, OBSERVATION_DTYPE
 from engine.physics.scene import SceneError, load_scene
 from engine.play.ai.profile_bot import ProfileBot
+from engine.play.arm import ARM_BRAKE, ARM_TARGET, CTL_NORMAL
+from engine.play.players import decision_key
 from engine.play.match import Match, match_record, match_scene
 from engine.play.rules import Reason
 from tests import bots
@@ -33,6 +35,36 @@ def test_a_bat_state_is_the_first_fields_of_a_bat_record():
 def test_the_engines_ai_plays_through_the_bot_api():
     match = _match("pro", "novice")
     assert all(isinstance(seat.bot, ProfileBot) for seat in match.ais.values())
+
+
+def test_an_ai_profiles_arm_target_is_checked_as_a_bots_action_is():
+    """A profile's seat hands BatAI the state itself, not an observation; what it plans is still
+    checked, and a plan that is not a valid arm target, or a decision that raises, is a fault."""
+    match = _match("pro", "novice")
+    seat = match.ais[0]
+    state, rally = match.state, match.state.record[0]["rally"]
+    floats = match.ais.bat_floats(state.bats)
+    ai, decide = seat.bot.ai, seat.bot.ai.decide
+
+    def bent(*args):
+        decide(*args)
+        ai._ctl[CTL_NORMAL:CTL_NORMAL + 3] = (2.0, 0.0, 0.0)
+
+    ai.decide = bent
+    fault = seat.decide(0, 0.0, state.ball_flat, floats, rally, decision_key(rally))
+    assert fault[:2] == (0, "malformed") and "must be unit" in fault[2]
+    assert seat.kind == ARM_BRAKE and seat.faults == 1
+
+    def broken(*args):
+        raise RuntimeError("prediction failed")
+
+    ai.decide = broken
+    fault = seat.decide(0, 0.0, state.ball_flat, floats, rally, decision_key(rally))
+    assert fault[:2] == (0, "raised") and "RuntimeError: prediction failed" in fault[2]
+    ai.decide = decide
+    ai._ctl[CTL_NORMAL:CTL_NORMAL + 3] = (1.0, 0.0, 0.0)  # A's ready pose, as BatAI tracks it
+    assert seat.decide(0, 0.0, state.ball_flat, floats, rally, decision_key(rally)) is None
+    assert seat.kind == ARM_TARGET and seat.decisions == 3
 
 
 def test_a_bot_decides_at_every_control_tick_and_sees_a_copy_of_the_state():

@@ -12,10 +12,10 @@ from engine.physics.collision import ERR_SUBSTEPS, EVENT_ROW, E_BODY, E_POS, E_T
 from engine.physics.dtypes import BAT_DTYPE
 from engine.physics.geometry import Body
 from engine.physics.integrators import ADAPT_SIZE, WORK_SHAPE
-from engine.play.ai.aim import shoot, shot_and_stroke, stroke
-from engine.play.ai.predict import (HALF_LENGTH, HALF_WIDTH, MEMO_SIZE, NO_STRIKE, PAUSED, STOP_CONTACT, STOP_EVENTS,
-                                    STOP_RETURN_STRIKE, STOP_SERVE_STRIKE, free_flight_marks, predict_flight,
-                                    predict_span, reset_memo)
+from engine.play.ai.aim import shoot, stroke
+from engine.play.ai.predict import (HALF_LENGTH, MEMO_SIZE, NO_STRIKE, PAUSED, STOP_EVENTS, STOP_RETURN_STRIKE,
+                                    STOP_SERVE_STRIKE, predict_flight, predict_span, reset_memo)
+from engine.play.ai.search import NOT_FOUND, search_strokes
 from engine.play.ai.skill import Skill
 from engine.play.arm import (BAT_FLOATS, BAT_POS, BAT_VEL, CTL_D_ANGLE, CTL_HOLD, CTL_INERTIA, CTL_K_ANGLE, CTL_KD,
                              CTL_KP, CTL_MASS, CTL_MAX_FORCE, CTL_MAX_SPEED, CTL_MAX_TORQUE, CTL_N_SEGMENTS, CTL_NORMAL,
@@ -23,12 +23,6 @@ from engine.play.arm import (BAT_FLOATS, BAT_POS, BAT_VEL, CTL_D_ANGLE, CTL_HOLD
                              SEG_WIDTH, bat_control)
 
 _FLOAT64 = np.dtype(np.float64)
-_PASS, _MISS, _UNSURE = 1, 0, -1  # BatAI._free_flight_verdict
-
-
-def _on_court(pos, sign: int, margin: float) -> bool:
-    """(x, y) on the court of end `sign`, at least `margin` m inside its end and side lines."""
-    return np.sign(pos[0]) == sign and abs(pos[0]) < HALF_LENGTH - margin and abs(pos[1]) < HALF_WIDTH - margin
 
 
 @dataclass
@@ -170,6 +164,17 @@ class BatAI:
         self._thinking_from = None
         self._thought = None
         self._memo = np.zeros(MEMO_SIZE, np.int64)
+        # engine.play.ai.search's arguments: the scene, the judgement's limits, the shot solver's, the scratch
+        self._model_args = (float(model.dt), model.method, model.gravity, model.drag_k, model.magnus_k,
+                            model.scene.rtol, model.scene.atol, model.table, model.floor_z, model.net, model.posts,
+                            model.ball_params, model.materials)
+        self._limits = (self.radius, self.COURT_MARGIN_M, self.NET_MARGIN_M, self.SERVICE_NET_MARGIN_M,
+                        self.FREE_FLIGHT_TOLERANCE_M, int(round(2.0 / model.dt)), model.table is not None)
+        restitution, friction = (float(x) for x in model.materials[Body.BAT_A + player])
+        self._shooting = (restitution, friction, self.SHOOTING_DT, int(2.0 / self.SHOOTING_DT))
+        self._search_scratch = (self._work, self._scratch, self._adapt, self._tick_events, self._traj, self._events,
+                                self._event_ticks, self._memo, np.empty(3), self._free_work, self._free_adapt,
+                                self._free_scratch, self._shoot_scratch)
         # Not eager: the strokes still being thought out when due, and the time their turns spent
         # finishing them (wall clock, so apart from the deterministic stats).
         self.late_thoughts = 0
@@ -182,12 +187,10 @@ class BatAI:
         v_out = self.solve_shot(np.array([1.6, 0.0, 0.2]), np.zeros(3), (-0.8, 0.0), 8.0, 1)
         self.solve_stroke(np.array([5.0, 0.0, 1.0]), np.zeros(3), v_out)
         m = self.model
-        restitution, friction = (float(x) for x in m.materials[Body.BAT_A + self.player])
-        shot_and_stroke(np.array([1.6, 0.0, 0.2]), np.array([-5.0, 0.0, 1.0]), np.zeros(3), -0.8, 0.0, 8.0,
-                        m.ball_params, restitution, friction, self.SHOOTING_DT, int(2.0 / self.SHOOTING_DT), m.method,
-                        m.gravity, m.drag_k, m.magnus_k, m.scene.rtol, m.scene.atol, self._work, self._adapt,
-                        self._shoot_scratch, np.zeros(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3))
-        self._free_flight_verdict(np.array([1.6, 0.0, 0.2, *v_out, 0.0, 0.0, 0.0]), -1, self.NET_MARGIN_M, 10)
+        ball = np.array([1.6, 0.0, 0.2]), np.array([-5.0, 0.0, 1.0]), np.zeros(3)
+        search_strokes(*ball, np.array([[-0.8, 0.0]]), np.array([8.0]), 0, 1, False, 1,
+                       self.COURT_MARGIN_M - self.AIM_SLACK_M, self._limits, self._shooting, self._model_args,
+                       self._search_scratch, *(np.empty(3) for _ in range(5)))
         memo = reset_memo(np.zeros(MEMO_SIZE, np.int64))  # _think's pieces of prediction (from the ball above)
         predict_span(m.dt, 0, 1, 2, 3, STOP_RETURN_STRIKE, 1, 0, m.method, m.gravity, m.drag_k, m.magnus_k,
                      m.scene.rtol, m.scene.atol, m.table, m.floor_z, m.net, m.posts, m.ball_params, m.materials,
@@ -239,17 +242,6 @@ class BatAI:
         return [(int(self._event_ticks[i]), int(self._events[i, E_BODY]), self._events[i, E_POS:E_POS + 3].copy(),
                  float(self._events[i, E_TIME])) for i in range(n_ev)]
 
-    def _net_clearance(self, traj: np.ndarray, end_sign: int) -> float:
-        """Height of the ball's bottom above the net's top where it crosses x = 0 (m, -inf if it never does)."""
-        x = traj[:, 0]
-        crossing = np.flatnonzero(np.sign(x[:-1]) != np.sign(x[1:]))
-        if len(crossing) == 0:
-            return -math.inf
-        k = crossing[0]
-        f = x[k] / (x[k] - x[k + 1])
-        z = traj[k, 2] + f * (traj[k + 1, 2] - traj[k, 2])
-        return z - self.radius - equipment.NET_HEIGHT
-
     def solve_shot(self, p: np.ndarray, spin: np.ndarray, target: tuple[float, float], pace: float,
                    end_sign: int, first_on_own_court: bool = False) -> np.ndarray | None:
         """Outgoing velocity from p whose flight reaches `target` (x, y) at table height, or None.
@@ -290,8 +282,9 @@ class BatAI:
     # --- planning -----------------------------------------------------------------------
     def _think(self, now: float, ball_flat: np.ndarray, end_sign: int, serve: bool, start_time: float, first_row: int):
         """The stroke to play, thought out in steps (a generator: each next() does one piece, none
-        much longer than PREDICT_CHUNK ticks of prediction or one shot solution); the answer is
-        left in self._thought: (p, normal, bat_vel, t_hit, target), or None to let the ball go.
+        much longer than PREDICT_CHUNK ticks of prediction or one candidate stroke's solution and
+        judgement; eager, the candidates are searched in one call); the answer is left in
+        self._thought: (p, normal, bat_vel, t_hit, target), or None to let the ball go.
 
         The ball's path is predicted from its state `now`; the stroke is chosen as if from row
         first_row of that path on (at start_time, the time of that row): the strike is looked
@@ -342,40 +335,25 @@ class BatAI:
         # The chosen aim first, then safer aims, all off by the aim noise; if none of those can be
         # played, the safe aims exactly (a player plays safe rather than not at all). The face
         # angle noise below applies to whichever stroke is played.
-        solution = None
         tries = [(aim, noise) for aim in [target] + fallbacks] + [(aim, (0.0, 0.0)) for aim in fallbacks]
-        court = end_sign if serve else -end_sign  # where the aim is (a service's: its first bounce)
-        restitution, friction = (float(x) for x in m.materials[Body.BAT_A + self.player])
-        shoot_steps, got_v = int(2.0 / self.SHOOTING_DT), np.empty(3)
-        for aim, off in tries:
-            noisy = (aim[0] + off[0], aim[1] + off[1])
-            if not _on_court(noisy, court, self.COURT_MARGIN_M - self.AIM_SLACK_M):
-                continue  # aimed off the court: at no pace does it land in (see AIM_SLACK_M)
-            for pace in paces:
-                spin_out, shot, normal, bat_vel = np.zeros(3), np.empty(3), np.empty(3), np.empty(3)
-                solved = True
-                for _ in range(2):  # the stroke's spin changes the flight: solve again with it
-                    yield
-                    solved = shot_and_stroke(p, v_in, spin_in, float(noisy[0]), float(noisy[1]), float(pace),
-                                             m.ball_params, restitution, friction, self.SHOOTING_DT, shoot_steps,
-                                             m.method, m.gravity, m.drag_k, m.magnus_k, m.scene.rtol, m.scene.atol,
-                                             self._work, self._adapt, self._shoot_scratch, spin_out, shot, normal,
-                                             bat_vel, got_v)
-                    if not solved:
-                        break
-                if not solved:
-                    continue
-                yield
-                if self._lands_well(p, shot, spin_out, end_sign, serve):
-                    solution = (normal, bat_vel)
-                    target = aim
-                    break
-            if solution is not None:
-                break
-        if solution is None:
+        aims = np.array([(aim[0] + off[0], aim[1] + off[1]) for aim, off in tries])
+        n_candidates = len(tries) * len(paces)
+        chunk = n_candidates if self.eager else 1
+        spin_out, shot, normal, bat_vel, got_v = (np.empty(3) for _ in range(5))
+        found, c = NOT_FOUND, 0
+        while found == NOT_FOUND and c < n_candidates:
+            yield
+            found, c, err = search_strokes(p, v_in, spin_in, aims, np.array(paces, dtype=np.float64), c,
+                                           min(c + chunk, n_candidates), serve, end_sign,
+                                           self.COURT_MARGIN_M - self.AIM_SLACK_M, self._limits, self._shooting,
+                                           self._model_args, self._search_scratch, spin_out, shot, normal, bat_vel,
+                                           got_v)
+            if err == ERR_SUBSTEPS:
+                raise RuntimeError("prediction failed: the integrator's substep limit was hit")
+        if found == NOT_FOUND:
             self.stats["no_solution"] += 1
             return
-        normal, bat_vel = solution
+        target = tries[found // len(paces)][0]
         normal = self._jitter(normal, self.skill.face_noise_rad)
         speed = np.linalg.norm(bat_vel)
         if speed > self.skill.max_speed:
@@ -396,81 +374,6 @@ class BatAI:
         segments.append(Segment(t_hit - swing, t_hit, back, np.zeros(3), centre, bat_vel))
         segments.append(Segment(t_hit, t_hit + 0.08, centre, bat_vel, centre + bat_vel * 0.04, np.zeros(3)))
         return Plan(segments, normal, t_hit, target)
-
-    def _lands_well(self, p, v_out, spin_out, end_sign, serve) -> bool:
-        """The real path clears the net and bounces where it must (own court first for a service):
-        _judge_path on the path predicted at the engine's tick, or, where that is sure, the same
-        answer from the free flight to the next contact (see _free_flight_verdict)."""
-        if serve:
-            return self._service_lands_well(p, v_out, spin_out, end_sign)
-        y0 = np.concatenate([p, v_out, spin_out])
-        verdict = self._free_flight_verdict(y0, -end_sign, self.NET_MARGIN_M, int(round(2.0 / self.model.dt)))
-        if verdict != _UNSURE:
-            return verdict == _PASS
-        traj, events = self._path(p, v_out, spin_out, max_events=1)  # a return is judged on its first contact
-        return self._judge_path(traj, events, end_sign, False)
-
-    def _judge_path(self, traj: np.ndarray, events: list, end_sign: int, serve: bool) -> bool:
-        """_lands_well on a predicted path (the first contact of a return, the first two of a service)."""
-        if not events or events[0][1] != Body.TABLE:
-            return False
-        margin = self.COURT_MARGIN_M
-        if not serve:
-            return (_on_court(events[0][2], -end_sign, margin)
-                    and self._net_clearance(traj, end_sign) > self.NET_MARGIN_M)
-        if len(events) < 2 or events[1][1] != Body.TABLE:
-            return False
-        return (_on_court(events[0][2], end_sign, margin) and _on_court(events[1][2], -end_sign, margin)
-                and self._net_clearance(traj, end_sign) > self.SERVICE_NET_MARGIN_M)
-
-    def _service_lands_well(self, p: np.ndarray, v: np.ndarray, spin: np.ndarray, end_sign: int) -> bool:
-        """_lands_well of a service: its path predicted to the tick of its first contact, which
-        must be a bounce on the server's court; from there it flies free to the next contact, so
-        _free_flight_verdict judges the rest, or the prediction goes on (exactly as if it had
-        not stopped) to that contact when the free flight is too near a limit to tell."""
-        h = self.model.dt
-        n_max = int(round(2.0 / h))
-        n, n_ev, _, support = self._predict(np.concatenate([p, v, spin]), h, n_max, 2, STOP_CONTACT, 0)
-        if not (n_ev == 1 and support == 0 and int(self._events[0, E_BODY]) == Body.TABLE
-                and _on_court(self._events[0, E_POS:E_POS + 2], end_sign, self.COURT_MARGIN_M)):
-            # Not a bounce on the server's court (or two contacts in one tick, or the ball at
-            # rest): the path so far is all the judge needs.
-            return self._judge_path(self._traj[: n + 1], self._event_list(n_ev), end_sign, True)
-        verdict = self._free_flight_verdict(self._traj[n], -end_sign, self.SERVICE_NET_MARGIN_M, n_max - n)
-        if verdict != _UNSURE:
-            return verdict == _PASS
-        n, n_ev, _, _ = self._predict(None, h, n_max, 2, STOP_EVENTS, 0, resume=(n, n_ev))
-        return self._judge_path(self._traj[: n + 1], self._event_list(n_ev), end_sign, True)
-
-    def _free_flight_verdict(self, y: np.ndarray, court_sign: int, clearance: float, max_ticks: int) -> int:
-        """_PASS, _MISS or _UNSURE: whether a ball in flight at y, over the striker's court, passes
-        the net with the clearance and bounces next on the court of court_sign within max_ticks,
-        told from its free flight (no table, net or floor) at the engine's tick. Up to its next contact that is
-        the real path (the two differ only where a tick is split at a contact, by the
-        integrator's error), so a verdict more than the tolerances from every limit is the one
-        the predicted path gets. _PASS also needs the ball above table height from the start
-        (it then touches nothing before it comes down through table height, over the court, past
-        a net and posts it clears) and a table to bounce on. Own scratch: a prediction in self._traj may go on after it."""
-        m = self.model
-        self._free_adapt[:] = 0.0
-        out = self._free_scratch[2, 0:3]
-        margin, tolerance = self.COURT_MARGIN_M, self.FREE_FLIGHT_TOLERANCE_M
-        # A pass of the net's plane this far below the clearance is a _MISS wherever the ball comes
-        # down: the flight stops there (1 nm more, so round-off cannot make it a pass below).
-        low_z = self.radius + equipment.NET_HEIGHT + clearance - tolerance - 1e-9
-        free_flight_marks(y[0:3], y[3:6], y[6:9], self.radius, m.dt, max_ticks, m.method,
-                          m.gravity, m.drag_k, m.magnus_k, m.scene.rtol, m.scene.atol, self._free_work,
-                          self._free_adapt, self._free_scratch[0], self._free_scratch[1], out, low_z)
-        above_net = out[0] - self.radius - equipment.NET_HEIGHT - clearance
-        if above_net < -tolerance:
-            return _MISS
-        if math.isnan(out[1]) or y[2] <= self.radius:
-            return _UNSURE
-        if not _on_court(out[1:3], court_sign, margin - tolerance):
-            return _MISS
-        if above_net > tolerance and _on_court(out[1:3], court_sign, margin + tolerance) and m.table is not None:
-            return _PASS
-        return _UNSURE
 
     def _jitter(self, normal: np.ndarray, sd: float) -> np.ndarray:
         tilted = normal + self.rng.normal(0.0, sd, 3)
