@@ -234,6 +234,10 @@ class PingPongEnv(gymnasium.Env):
         self._ended = False
         self.match: Match | None = None
         self._compiled: dict[int, CompiledScene] = {}  # _new_match's scenes, by first server
+        # The matches and lead-in stand-ins of earlier episodes, by first server: the next one of
+        # that server renews one (Match.renew, ProfileBot.renew) instead of making it anew.
+        self._matches: dict[int, Match] = {}
+        self._stand_ins: dict[int, ProfileBot] = {}
         self.seed_of_match = 0
         self._warm = False
 
@@ -274,10 +278,15 @@ class PingPongEnv(gymnasium.Env):
     def next_match(self) -> None:
         """The episode's next match from its next seed; for a drive, the opponent's profile (a
         ProfileBot seeded from the match) stands in at the agent's bat for the lead-in."""
-        self._new_match(int(self.np_random.integers(0, 2**31 - 1)), self._drive, self._server)
+        server = self._new_match(int(self.np_random.integers(0, 2**31 - 1)), self._drive, self._server)
         if self._drive:
-            stand_in = ProfileBot(self.match.model, self.player, SKILLS[self.opponent], self.opponent,
-                                  seed=self.seed_of_match * 1000 + 7, control_every=self.every)
+            seed = self.seed_of_match * 1000 + 7
+            stand_in = self._stand_ins.get(server)
+            if stand_in is None:
+                stand_in = self._stand_ins[server] = ProfileBot(self.match.model, self.player, SKILLS[self.opponent],
+                                                                self.opponent, seed=seed, control_every=self.every)
+            else:
+                stand_in.renew(seed)
             agent = self.agent
             stand_in.player, stand_in.end_sign, stand_in.normal = agent.player, agent.end_sign, agent.normal
             agent.stand_in = stand_in
@@ -315,9 +324,9 @@ class PingPongEnv(gymnasium.Env):
         return {"speed": float(np.hypot(*vel[:2])), "spin": float(spin_vec @ np.array([-vel[1], vel[0], 0.0]))
                 / float(np.hypot(*vel[:2]))}
 
-    def _new_match(self, seed: int, drive: bool, server: int | None = None) -> None:
+    def _new_match(self, seed: int, drive: bool, server: int | None = None) -> int:
         """A best-of-1 match of the agent against the opponent, its first server the opponent (or,
-        for a drive, the agent's end; or `server`)."""
+        for a drive, the agent's end; or `server`); returns that server."""
         if server is None:
             server = self.player if drive else 1 - self.player
         compiled = self._compiled.get(server)
@@ -328,7 +337,11 @@ class PingPongEnv(gymnasium.Env):
             scene = replace(scene, match=replace(scene.match, first_server="ab"[server]))
             compiled = self._compiled[server] = compile_scene(scene)
         self.seed_of_match = seed
-        self.match = Match(compiled, seed=seed)
+        self.match = self._matches.get(server)
+        if self.match is None:
+            self.match = self._matches[server] = Match(compiled, seed=seed)
+        else:
+            self.match.renew(seed)
         self.every = self.match.compiled.control_period
         self.seats = {end: self.match.ais[end] for end in self.ends}
         self.seat = self.seats[self.player]
@@ -344,6 +357,7 @@ class PingPongEnv(gymnasium.Env):
                 compile_kernels(match.compiled.topology, match.model.dt)  # the cloth net's, on a throwaway net
             match.ais.warm_up()
             self._warm = True
+        return server
 
     def _lead_in(self) -> bool:
         """The stand-in plays the agent's end until the opponent drives the ball back; whether it

@@ -217,26 +217,44 @@ class Match:
             raise ValueError(f"{scene.source}: scene {scene.name!r} has no referee; a match needs the effect 'referee'")
         self.compiled = run
         self.scene = scene
-        self.seed = seed
         self.model = run.model
-        self.state = run.initial_state()
-        self.events = new_events()
-        spec = scene.match
-        self.referee = Referee(best_of=spec.best_of, first_server="ab".index(spec.first_server))
         if on_bot_error not in ON_BOT_ERROR:
             raise ValueError(f"on_bot_error: must be one of {', '.join(ON_BOT_ERROR)}, got {on_bot_error!r}")
         self.on_bot_error = on_bot_error
-        self.bot_errors: list[dict] = []
-        self.stopped: BotError | None = None
         self.has_ai = any(bat.skill is not None for bat in scene.bats)
         self.ais = make_ais(run, seed, budget_s=budget_s) if ai_driver is None else {}
         self.ai_driver: PlayerDriver = ai_driver or LocalAI(self.ais)
         self.ai_bats = [i for i, bat in enumerate(scene.bats) if bat.skill is not None]
         self._ai_players = np.array(self.ai_bats, np.int64)
-        self.inputs = np.zeros((len(scene.bats), 6))  # held by the bats until the next control tick
-        self.arm = idle_arms(self.model, self.ai_bats)  # the AI bats' plans in effect (engine.play.arm's ctl rows)
         self.ai_every = run.control_period
         self.delay = run.decision_delay
+        self._max_rally_s = scene.match.max_rally_s
+        self._begin(seed)
+
+    def renew(self, seed: int) -> None:
+        """The match of this seed from its first toss, as Match(self.compiled, seed) begins it:
+        its players renewed (engine.play.players.Players.renew: an AI profile keeps its arrays),
+        a new state. For a match whose players are in this process (LocalAI): an environment's
+        next episode (engine.learning.env)."""
+        if not isinstance(self.ai_driver, LocalAI):
+            raise ValueError("Match.renew: the players are not in this process (a driver other than LocalAI); "
+                             "make a new Match")
+        self.ais.renew(seed)
+        self.ai_driver = LocalAI(self.ais)
+        self._begin(seed)
+
+    def _begin(self, seed: int) -> None:
+        """The state, the referee and the bookkeeping of a match at its first toss."""
+        run, scene = self.compiled, self.scene
+        self.seed = seed
+        self.state = run.initial_state()
+        self.events = new_events()
+        spec = scene.match
+        self.referee = Referee(best_of=spec.best_of, first_server="ab".index(spec.first_server))
+        self.bot_errors: list[dict] = []
+        self.stopped: BotError | None = None
+        self.inputs = np.zeros((len(scene.bats), 6))  # held by the bats until the next control tick
+        self.arm = idle_arms(self.model, self.ai_bats)  # the AI bats' plans in effect (engine.play.arm's ctl rows)
         self._bat_floats = self.state.bats.view(np.float64).reshape(len(scene.bats), BAT_FLOATS)
         # Per call of tick(), which runs once a control period or more often: its Python is part
         # of every chunk the physics worker steps, so its constants and views are made here once.
@@ -244,7 +262,6 @@ class Match:
         # tick (int64 word 0), time (float64 word 1), ball_support (int32 word 4).
         world_bytes = memoryview(self.state.world.view(np.uint8)).cast("B")
         self._world_q, self._world_d, self._world_i = world_bytes.cast("q"), world_bytes.cast("d"), world_bytes.cast("i")
-        self._max_rally_s = scene.match.max_rally_s
         self.rally_record = self.state.record[0]["rally"]  # a view: the players read the referee's state here
         self.rally = 0
         self.rally_started = 0.0

@@ -142,33 +142,45 @@ class Seat:
     """
 
     def __init__(self, bot: Bot, name: str, player: int, scene, mass: float, inertia: float, ctl: np.ndarray,
-                 budget_s: float | None, interrupt: bool):
+                 budget_s: float | None, interrupt: bool, spec: str | None = None):
         if bot.arm not in SKILLS:
             raise ValueError(f"bot {name}: arm {bot.arm!r} must be one of the profiles {', '.join(SKILLS)}")
-        self.bot, self.name, self.player = bot, name, player
+        self.bot, self.name, self.player, self.spec = bot, name, player, spec
         self.profile = isinstance(bot, ProfileBot)
         arm = SKILLS[bot.arm]
         self.max_force, self.max_torque = arm.max_force_n, arm.max_torque_nm
         self.mass = mass
         self.ctl = ctl
-        ctl[[CTL_MASS, CTL_INERTIA, CTL_KP, CTL_KD, CTL_K_ANGLE, CTL_D_ANGLE]] = (
+        self.ctl_start = np.zeros(CTL_SIZE)  # the row before the first decision: the arm's constants, the bat's pose
+        start = self.ctl_start
+        start[[CTL_MASS, CTL_INERTIA, CTL_KP, CTL_KD, CTL_K_ANGLE, CTL_D_ANGLE]] = (
             mass, inertia, BatAI.KP, BatAI.KD, BatAI.K_ANGLE, BatAI.D_ANGLE)
-        ctl[[CTL_MAX_FORCE, CTL_MAX_TORQUE, CTL_MAX_SPEED]] = arm.max_force_n, arm.max_torque_nm, arm.max_speed
+        start[[CTL_MAX_FORCE, CTL_MAX_TORQUE, CTL_MAX_SPEED]] = arm.max_force_n, arm.max_torque_nm, arm.max_speed
         end_sign = -1 if player == 0 else 1
-        ctl[CTL_HOLD:CTL_HOLD + 3] = scene.bats[player].pos
-        ctl[CTL_NORMAL:CTL_NORMAL + 3] = (-end_sign, 0.0, 0.0)
+        start[CTL_HOLD:CTL_HOLD + 3] = scene.bats[player].pos
+        start[CTL_NORMAL:CTL_NORMAL + 3] = (-end_sign, 0.0, 0.0)
+        start[CTL_KIND] = ARM_TARGET
         self.budget_s = None if self.profile else (bot.budget_s if bot.budget_s is not None else budget_s)
         self.interrupt = interrupt and self.budget_s is not None and math.isfinite(self.budget_s)
         self.hang_s = max(HANG_MIN_S, HANG_FACTOR * self.budget_s) if self.interrupt else None
-        ctl[CTL_KIND] = ARM_TARGET
         self.obs = new_observation()
         self.view = self.obs.view()
         self.view.flags.writeable = False  # the bot's: it reads, never writes, what the seat shows
         self.obs_floats = _floats(self.obs, _OBS_FLOATS_AT, 36)
+        self._start()
+
+    def _start(self) -> None:
+        """The seat before its first decision."""
+        self.ctl[:] = self.ctl_start
         self.key = None  # the decision key of the last decision
         self.decisions = 0
         self.faults = 0
         self.act_seconds = 0.0  # CPU time of the bot's decisions
+
+    def renew(self, seed: int) -> None:
+        """An AI profile's seat as make_players makes it for a match of this seed (ProfileBot.renew)."""
+        self.bot.renew(seed * 1000 + self.player)
+        self._start()
 
     @property
     def kind(self) -> int:
@@ -311,8 +323,9 @@ class Players(dict):
     """{player: Seat} of a match's AI-driven bats; their arm targets are the rows of one ctl
     array, played for all of them in one numba call (engine.play.arm.control_bats)."""
 
-    def __init__(self, seats: dict[int, Seat], ctl: np.ndarray):
+    def __init__(self, seats: dict[int, Seat], ctl: np.ndarray, maker: SeatMaker | None = None):
         super().__init__(seats)
+        self.maker = maker
         self.players = np.array(list(seats), dtype=np.int64)
         self.ctl = ctl
         self._bats = None  # the bats array last seen, and its float64 view
@@ -370,6 +383,19 @@ class Players(dict):
             keys[k] = NO_KEY if seat.key is None else seat.key
             dues[k], ends[k] = seat.wakes()
 
+    def renew(self, seed: int) -> None:
+        """Become the Players that make_players makes for a match of this seed, keeping what can be
+        kept: an AI profile's seat is renewed (Seat.renew), a bot's seat is made anew (a bot's
+        own objects are its own)."""
+        if self.maker is None:
+            raise ValueError("Players.renew: these players were not made by make_players")
+        for k, (player, seat) in enumerate(list(self.items())):
+            if seat.profile:
+                seat.renew(seed)
+            else:
+                self[player] = self.maker.seat(seat.spec, player, self.ctl[k], seed)
+        self.decided = False
+
     def state(self) -> dict:
         """Every seat's state() and the arm targets, picklable: the same scene's Players that loads
         it (load_state) decides on as this one would, a bot's own objects aside."""
@@ -421,8 +447,22 @@ def make_players(scene, model, seed: int, control_every: int, delay: int, eager:
     ctl = np.zeros((len(chosen), CTL_SIZE))
     if interrupt is None:
         interrupt = can_interrupt()
-    seats = {}
-    for k, (player, spec) in enumerate(chosen):
+    maker = SeatMaker(scene, model, control_every, delay, eager, budget_s, interrupt)
+    return Players({player: maker.seat(spec, player, ctl[k], seed) for k, (player, spec) in enumerate(chosen)}, ctl,
+                   maker)
+
+
+class SeatMaker:
+    """make_players's seats of one scene: Seat(spec, player, its ctl row, match seed)."""
+
+    def __init__(self, scene, model, control_every: int, delay: int, eager: bool, budget_s: float | None,
+                 interrupt: bool):
+        self.scene, self.model = scene, model
+        self.control_every, self.delay, self.eager = control_every, delay, eager
+        self.budget_s, self.interrupt = budget_s, interrupt
+
+    def seat(self, spec: str, player: int, ctl: np.ndarray, seed: int) -> Seat:
+        scene, model = self.scene, self.model
         if is_bot_spec(spec):
             name = bot_name(spec)
             try:
@@ -434,9 +474,9 @@ def make_players(scene, model, seed: int, control_every: int, delay: int, eager:
         else:
             name = spec
             bot = ProfileBot(model, player, SKILLS[spec], spec, seed=seed * 1000 + player,
-                             control_every=control_every, delay=delay, eager=eager)
+                             control_every=self.control_every, delay=self.delay, eager=self.eager)
         end_sign = -1 if player == 0 else 1
-        bot.player, bot.end_sign, bot.latency = player, end_sign, delay * model.dt
+        bot.player, bot.end_sign, bot.latency = player, end_sign, self.delay * model.dt
         bot.normal = np.array([-end_sign, 0.0, 0.0])
         # seeded alike: a profile's is its BatAI's, the same generator (a profile draws only through its BatAI)
         bot.rng = bot.ai.rng if isinstance(bot, ProfileBot) else np.random.default_rng(seed * 1000 + player)
@@ -444,6 +484,5 @@ def make_players(scene, model, seed: int, control_every: int, delay: int, eager:
             bot.setup(player, scene)
         except Exception as exc:
             raise ValueError(f"bot {name}: setup() raised {type(exc).__name__}: {exc}") from exc
-        seats[player] = Seat(bot, name, player, scene, float(model.bat_mass[player]), float(model.bat_inertia[player][0]),
-                             ctl[k], budget_s, interrupt)
-    return Players(seats, ctl)
+        return Seat(bot, name, player, scene, float(model.bat_mass[player]), float(model.bat_inertia[player][0]),
+                    ctl, self.budget_s, self.interrupt, spec)

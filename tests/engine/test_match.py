@@ -1,10 +1,12 @@
 """The in-process match: seeded and reproducible, judged, with the summary fields users read."""
+import pickle
 from dataclasses import replace
 
 import pytest
 
 from engine.physics.scene import SceneError, load_scene, parse_scene
-from engine.play.match import Match
+from engine.play.match import Match, match_scene
+from tests import bots
 
 SCENE = load_scene("match_rigid")
 
@@ -66,3 +68,26 @@ def test_advancing_in_chunks_gives_the_same_match_as_tick_by_tick():
     assert chunked.state.record.tobytes() == by_tick.state.record.tobytes()
     assert [(p.winner, p.reason, p.shots) for p in chunked.referee.points] == \
            [(p.winner, p.reason, p.shots) for p in by_tick.referee.points]
+
+
+@pytest.mark.parametrize("players", [("pro", "novice"), (bots.spec("Spy"), "novice")])
+def test_a_renewed_match_is_the_new_match_of_its_seed_bit_for_bit(players):
+    """Match.renew (what an environment's next episode does) keeps the profiles' arrays and
+    nothing else: the match it begins is Match(compiled, seed)'s."""
+    renewed = Match(match_scene(SCENE, *players), seed=3)
+    renewed.play(max_ticks=6_000)
+    renewed.renew(8)
+    fresh = Match(renewed.compiled, seed=8)
+    for match in (renewed, fresh):
+        match.play(max_ticks=9_000)
+    assert renewed.state.record.tobytes() == fresh.state.record.tobytes()
+    assert [(p.winner, p.reason, p.shots) for p in renewed.referee.points] == \
+           [(p.winner, p.reason, p.shots) for p in fresh.referee.points]
+
+    def decided(match):  # what the players decided on, less the CPU and wall seconds they took
+        return pickle.dumps({player: ({**seat.bot.ai.state(), "late_thinking_s": 0.0} if seat.profile else
+                                      (seat.key, seat.decisions, seat.faults, len(seat.bot.seen)))
+                             for player, seat in match.ais.items()})
+
+    assert decided(renewed) == decided(fresh)
+    assert (renewed.ais.ctl == fresh.ais.ctl).all() and renewed.bot_errors == fresh.bot_errors == []

@@ -125,13 +125,12 @@ class BatAI:
         self.model = model
         self.player = player
         self.skill = skill
-        self.rng = np.random.default_rng(seed)
         self.mass = float(model.bat_mass[player])
         self.inertia = model.bat_inertia[player].copy()
         self.radius = float(model.ball_params[0])
         self.bat_half_thickness = equipment.BAT_HALF_THICKNESS
         n_max = int(round(2.5 / model.dt))
-        self._traj = np.zeros((n_max + 1, 9))
+        self._traj = np.empty((n_max + 1, 9))  # rows are written before they are read
         self._events = np.zeros((8, EVENT_ROW))
         self._event_ticks = np.zeros(8, np.int64)
         self._work = np.zeros(WORK_SHAPE)
@@ -141,29 +140,17 @@ class BatAI:
         self._shoot_scratch = np.zeros((4, 9))
         self._free_work, self._free_adapt = np.zeros(WORK_SHAPE), np.zeros(ADAPT_SIZE)
         self._free_scratch = np.zeros((3, 9))
-        self.plan: Plan | None = None
-        self._plan_end = -math.inf  # s, end of the plan's last segment
+        self._memo = np.zeros(MEMO_SIZE, np.int64)
         self._ready = {sign: self._make_ready(sign) for sign in (-1, 1)}
-        self._ctl = np.zeros(CTL_SIZE)  # what bat_control tracks; _track writes it when the plan or end changes
-        self._ctl[[CTL_MASS, CTL_INERTIA, CTL_KP, CTL_KD, CTL_K_ANGLE, CTL_D_ANGLE]] = (
+        self._ctl_start = np.zeros(CTL_SIZE)  # _ctl before the first plan: the arm's constants
+        self._ctl_start[[CTL_MASS, CTL_INERTIA, CTL_KP, CTL_KD, CTL_K_ANGLE, CTL_D_ANGLE]] = (
             self.mass, self.inertia[0], self.KP, self.KD, self.K_ANGLE, self.D_ANGLE)
-        self._ctl[[CTL_MAX_FORCE, CTL_MAX_TORQUE, CTL_MAX_SPEED]] = skill.max_force_n, skill.max_torque_nm, skill.max_speed
-        self._tracking = (None, 0)  # (plan, end_sign) that self._ctl holds
-        self.turn_key = None
-        self.turn_seen_at = 0.0
-        self.planned_key = None
+        self._ctl_start[[CTL_MAX_FORCE, CTL_MAX_TORQUE, CTL_MAX_SPEED]] = (skill.max_force_n, skill.max_torque_nm,
+                                                                           skill.max_speed)
+        self._ctl = np.empty(CTL_SIZE)  # what bat_control tracks; _track writes it when the plan or end changes
         self.control_every = control_every
         self.delay = delay
         self.eager = eager
-        self._thinking = None  # the generator of _think for _thinking_key, decided at _thinking_due
-        self._thinking_key = None
-        self._thinking_due = math.inf
-        self._thinking_start = math.inf  # s: when the stroke decided at _thinking_due starts (its plan takes effect)
-        self._thinking_left = False
-        self._thinking_args = None  # _think's arguments, and _thought_state() when it was made (state())
-        self._thinking_from = None
-        self._thought = None
-        self._memo = np.zeros(MEMO_SIZE, np.int64)
         # engine.play.ai.search's arguments: the scene, the judgement's limits, the shot solver's, the scratch
         self._model_args = (float(model.dt), model.method, model.gravity, model.drag_k, model.magnus_k,
                             model.scene.rtol, model.scene.atol, model.table, model.floor_z, model.net, model.posts,
@@ -175,6 +162,27 @@ class BatAI:
         self._search_scratch = (self._work, self._scratch, self._adapt, self._tick_events, self._traj, self._events,
                                 self._event_ticks, self._memo, np.empty(3), self._free_work, self._free_adapt,
                                 self._free_scratch, self._shoot_scratch)
+        self.renew(seed)
+
+    def renew(self, seed: int) -> None:
+        """Become the BatAI that BatAI(model, player, skill, seed, ...) makes, keeping this one's
+        arrays: a new match's player (engine.play.players.Players.renew)."""
+        self.rng = np.random.default_rng(seed)
+        self.plan: Plan | None = None
+        self._plan_end = -math.inf  # s, end of the plan's last segment
+        self._ctl[:] = self._ctl_start
+        self._tracking = (None, 0)  # (plan, end_sign) that self._ctl holds
+        self.turn_key = None
+        self.turn_seen_at = 0.0
+        self.planned_key = None
+        self._thinking = None  # the generator of _think for _thinking_key, decided at _thinking_due
+        self._thinking_key = None
+        self._thinking_due = math.inf
+        self._thinking_start = math.inf  # s: when the stroke decided at _thinking_due starts (its plan takes effect)
+        self._thinking_left = False
+        self._thinking_args = None  # _think's arguments, and _thought_state() when it was made (state())
+        self._thinking_from = None
+        self._thought = None
         # Not eager: the strokes still being thought out when due, and the time their turns spent
         # finishing them (wall clock, so apart from the deterministic stats).
         self.late_thoughts = 0

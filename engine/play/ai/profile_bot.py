@@ -37,6 +37,11 @@ class ProfileBot(Bot):
         self._action["kind"] = ACTION_TARGET
         self._action_floats = self._action.reshape(1).view(np.uint8)[:ACTION_FLOATS * 8].view(np.float64)
 
+    def renew(self, seed: int) -> None:
+        """Become the ProfileBot made with this seed (BatAI.renew): a new match's player."""
+        self.ai.renew(seed)
+        self.rng = self.ai.rng  # a profile draws only through its BatAI
+
     def _views(self, observation) -> None:
         """Float64 views of the observation's ball (9,) and own bat (13,), as BatAI reads them."""
         raw = observation.reshape(1).view(np.uint8)
