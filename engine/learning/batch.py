@@ -46,7 +46,7 @@ from engine.play.arm import (ARM_TARGET, BAT_FLOATS, CTL_HOLD, CTL_KIND, CTL_N_S
                              CTL_SIZE, control_bats)
 from engine.play.judge import NO_POINT, ball_out_of_play, next_rally_and_toss, on_contact, server
 from engine.play.match import _GONE_RADIUS_2, _GONE_Z
-from engine.play.players import NO_KEY, decision_key
+from engine.play.players import NO_KEY
 from engine.play.rules import Phase
 
 # A table's progress through a step or a lead-in (TableBatch.status); LEAD_OVER: the match ended
@@ -57,8 +57,8 @@ IDLE, START, STEPPING, WAITING, DONE, LEAD_OVER = range(6)
 # p: seat p). I_LEAD: 1 while the table plays a drive's lead-in.
 I_STOP_AT, I_CTL_TICK, I_REQ_TICK, I_DECIDED, I_LANDED, I_SHOTS, I_PHASE, I_STRIKER, I_POINTS, I_WINNER = (
     0, 1, 2, 3, 4, 6, 7, 8, 9, 10)
-I_WAIT, I_LEAD = 11, 12
-N_INTS = 13
+I_WAIT, I_LEAD, I_KEY = 11, 12, 13  # I_KEY: the decision key (engine.play.players.decision_key) there, 4 ints
+N_INTS = 17
 F_REWARD, F_POTENTIAL, F_BALL_X = 0, 2, 4
 N_FLOATS = 5
 _OVER = int(Phase.OVER)
@@ -237,6 +237,9 @@ def _control_tick(si, table, players, plan, player, lead, delay):
     opp = 1 - player
     if _gate_open(r, w[0]['time'], ctl[opp], key[opp], due[opp], end[opp]):
         wait |= 1 << opp
+    if wait != 0:
+        si[I_KEY], si[I_KEY + 1], si[I_KEY + 2] = r['rally'], r['shots'], _next_striker(r)
+        si[I_KEY + 3] = 1 if r['phase'] == _WAITING_SERVE else 0
     return wait
 
 
@@ -524,19 +527,19 @@ class TableBatch:
 
     def _decide(self, k: int) -> None:
         """The seats of table k that must decide do, in seat order, on the state there
-        (engine.play.players.Players.decide)."""
-        match = self.envs[k].match
-        rally = self.rally[k]
-        world = self.world[k]
-        key = decision_key(rally)
+        (engine.play.players.Players.decide; the compiled call left the control tick and the
+        decision key in the table's ints)."""
+        seats = self.envs[k].match.ais
+        ints = self.ints[k].tolist()
+        tick, wait, key = ints[I_CTL_TICK], ints[I_WAIT], tuple(ints[I_KEY:I_KEY + 4])
+        now, ball, bats, rally = float(self.world[k]["time"]), self.ball[k], self.bats[k], self.rally[k]
         for player in (0, 1):
-            if not self.ints[k, I_WAIT] >> player & 1:
+            if not wait >> player & 1:
                 continue
-            fault = match.ais[player].decide(int(world["tick"]), float(world["time"]), self.ball[k], self.bats[k],
-                                             rally, key)
+            fault = seats[player].decide(tick, now, ball, bats, rally, key)
             if fault is not None:
                 raise RuntimeError(f"table {k}: the decision of seat {player} failed: {fault}")
-            self.ctl[k, player] = match.ais.ctl[player]
+            self.ctl[k, player] = seats.ctl[player]
             self._gate(k, player)
 
     def points(self, k: int) -> int:

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from engine.physics.scene import Scene, scene_digest, scene_toml
-from engine.physics.world import Model, State, build_model, initial_state
+from engine.physics.world import Model, State, build_model, initial_record, initial_state
 from net_kernel import NetSim, NetTopology, build_topology
 
 
@@ -32,6 +32,8 @@ class CompiledScene:
         control_period: ticks between the players' control ticks; decision_delay: ticks from a
             decision to the control tick its plan takes effect (both None without a match).
         digest: engine.physics.scene.scene_digest, what a served match's welcome carries.
+        start: the record and the bats' motion rows at tick 0 (initial_record), copied by
+            initial_state.
     """
 
     scene: Scene
@@ -40,6 +42,7 @@ class CompiledScene:
     control_period: int | None
     decision_delay: int | None
     digest: str
+    start: tuple = field(repr=False, compare=False)  # engine.physics.world.initial_record(scene)
 
     @property
     def dt(self) -> float:
@@ -62,7 +65,7 @@ class CompiledScene:
 
     def initial_state(self) -> State:
         """engine.physics.world.initial_state, its cloth net built from this topology."""
-        return initial_state(self.scene, self.topology)
+        return initial_state(self.scene, self.topology, self.start)
 
 
 def compile_scene(scene: Scene | CompiledScene) -> CompiledScene:
@@ -76,4 +79,5 @@ def compile_scene(scene: Scene | CompiledScene) -> CompiledScene:
         period = duration_ticks(1.0 / scene.match.ai_hz, scene.dt)
         delay = period * max(1, round(scene.match.decision_latency / (period * scene.dt)))
     return CompiledScene(scene=scene, model=model, topology=build_topology(scene.cloth) if cloth else None,
-                         control_period=period, decision_delay=delay, digest=scene_digest(scene))
+                         control_period=period, decision_delay=delay, digest=scene_digest(scene),
+                         start=initial_record(scene))

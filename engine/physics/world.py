@@ -229,10 +229,9 @@ class State:
     run_bytes: np.ndarray | None = None  # (NET_RUN_TICKS, record's bytes) uint8 view of run_records
 
 
-def initial_state(scene: Scene, topology: NetTopology | None = None) -> State:
-    """State at tick 0 from the scene's initial conditions; its cloth net (a NetSim, if the scene
-    steps one) from `topology`, built from scene.cloth if None
-    (engine.physics.compiled.CompiledScene.initial_state passes the run's)."""
+def initial_record(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+    """initial_state's physics record (a physics_snapshot_dtype array of one) and the bats'
+    motion rows (n_bats, BAT_ROW), from the scene's initial conditions."""
     record = np.zeros(1, physics_snapshot_dtype(len(scene.bats)))
     ball = record["ball"]
     ball["pos"][0] = scene.ball.pos
@@ -246,6 +245,17 @@ def initial_state(scene: Scene, topology: NetTopology | None = None) -> State:
     for i, spec in enumerate(scene.bats):
         motion[i, BAT_RADIUS] = spec.radius
         motion[i, BAT_HALF_THICKNESS] = spec.half_thickness
+    return record, motion
+
+
+def initial_state(scene: Scene, topology: NetTopology | None = None,
+                  start: tuple[np.ndarray, np.ndarray] | None = None) -> State:
+    """State at tick 0 from the scene's initial conditions (start: initial_record(scene), made
+    once, copied here); its cloth net (a NetSim, if the scene steps one) from `topology`, built
+    from scene.cloth if None (engine.physics.compiled.CompiledScene.initial_state passes the run's)."""
+    record, motion = initial_record(scene) if start is None else (start[0].copy(), start[1].copy())
+    ball = record["ball"]
+    bats = record["bats"][0]
     world = record["world"]
     net_sim = None
     if scene.cloth is not None and "net" in scene.effects:

@@ -18,16 +18,18 @@ import time
 import traceback
 
 import numpy as np
+from numba import njit
 
 from engine.physics.dtypes import BAT_DTYPE, OBSERVATION_DTYPE
 from engine.physics.scene import is_bot_spec
-from engine.play.bot import (A_FORCE, A_HOLD, A_SEGMENTS, ACTION_FLOATS, ACTION_FORCE, Bot, bot_name, check_action,
-                             load_bot, new_observation, target_problem)
+from engine.play.bot import (A_FORCE, A_HOLD, A_SEGMENTS, ACTION_FLOATS, ACTION_FORCE, NORMAL_TOLERANCE, Bot, bot_name,
+                             check_action, load_bot, new_observation, target_problem)
 from engine.play.ai import SKILLS, BatAI
 from engine.play.ai.profile_bot import ProfileBot
 from engine.play.arm import (ARM_BRAKE, ARM_FORCE, ARM_TARGET, BAT_FLOATS, CTL_D_ANGLE, CTL_FORCE, CTL_HOLD,
                              CTL_INERTIA, CTL_K_ANGLE, CTL_KD, CTL_KIND, CTL_KP, CTL_MASS, CTL_MAX_FORCE, CTL_MAX_SPEED,
-                             CTL_MAX_TORQUE, CTL_N_SEGMENTS, CTL_NORMAL, CTL_SEGMENTS, CTL_SIZE, control_bats)
+                             CTL_MAX_TORQUE, CTL_N_SEGMENTS, CTL_NORMAL, CTL_SEGMENTS, CTL_SIZE, MAX_SEGMENTS, SEG_T0,
+                             SEG_T1, SEG_WIDTH, control_bats)
 from engine.play.rules import Phase, next_striker
 
 DEFAULT_BUDGET_S = 0.02  # CPU seconds a bot's decision may take, unless the bot or the match says otherwise
@@ -105,6 +107,37 @@ def can_interrupt() -> bool:
 def _floats(record: np.ndarray, start: int, count: int) -> np.ndarray:
     """A float64 view of `count` words of a 0-d structured array from byte `start`."""
     return record.reshape(1).view(np.uint8)[start:start + count * 8].view(np.float64)
+
+
+@njit(cache=True, _nrt=False)
+def _take_target(src, dst, checked=True):
+    """dst's arm target (ctl rows) becomes src's, as Seat._take takes an action's, if check_action
+    would pass it with room to spare (its face normal's length within half NORMAL_TOLERANCE of 1),
+    or without the check if not `checked`; whether it did."""
+    if checked:
+        n = src[CTL_N_SEGMENTS]
+        if not 0.0 <= n <= MAX_SEGMENTS:
+            return False
+        for i in range(CTL_HOLD, CTL_HOLD + 6):
+            if not math.isfinite(src[i]):
+                return False
+        for i in range(CTL_SEGMENTS, CTL_SEGMENTS + int(n) * SEG_WIDTH):
+            if not math.isfinite(src[i]):
+                return False
+        n0, n1, n2 = src[CTL_NORMAL], src[CTL_NORMAL + 1], src[CTL_NORMAL + 2]
+        if abs(math.sqrt(n0 * n0 + n1 * n1 + n2 * n2) - 1.0) > NORMAL_TOLERANCE / 2:
+            return False
+        for k in range(int(n)):
+            at = CTL_SEGMENTS + k * SEG_WIDTH
+            if not src[at + SEG_T1] > src[at + SEG_T0]:
+                return False
+    dst[CTL_KIND] = ARM_TARGET
+    for i in range(CTL_HOLD, CTL_HOLD + 6):  # hold, then normal
+        dst[i] = src[i]
+    dst[CTL_N_SEGMENTS] = int(src[CTL_N_SEGMENTS])
+    for i in range(CTL_SEGMENTS, dst.shape[0]):
+        dst[i] = src[i]
+    return True
 
 
 # A seat's decision gate (Players.gates, gate_open) when it has not decided yet: no key equals it.
@@ -276,14 +309,16 @@ class Seat:
             _DECIDING[0] = None
         self.act_seconds += time.thread_time() - started
         if fault is None:
-            src, ctl = ai._ctl, self.ctl
-            n_segments = int(src[CTL_N_SEGMENTS])
-            problem = target_problem(src[CTL_HOLD:CTL_HOLD + 6], src[CTL_SEGMENTS:], n_segments)
+            src = ai._ctl
+            if _take_target(src, self.ctl):
+                return None
+            n_segments = src[CTL_N_SEGMENTS]  # the rare target near a limit, or wrong: as check_action says
+            if not math.isfinite(n_segments):
+                problem = "malformed", f"n_segments {n_segments}: must be in 0 .. {MAX_SEGMENTS}"
+            else:
+                problem = target_problem(src[CTL_HOLD:CTL_HOLD + 6], src[CTL_SEGMENTS:], int(n_segments))
             if problem is None:
-                ctl[CTL_KIND] = ARM_TARGET
-                ctl[CTL_HOLD:CTL_HOLD + 6] = src[CTL_HOLD:CTL_HOLD + 6]  # hold, then normal
-                ctl[CTL_N_SEGMENTS] = n_segments
-                ctl[CTL_SEGMENTS:] = src[CTL_SEGMENTS:]
+                _take_target(src, self.ctl, False)
                 return None
             fault, detail = problem
         self.faults += 1

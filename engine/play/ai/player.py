@@ -6,6 +6,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from engine.physics import equipment
 from engine.physics.collision import ERR_SUBSTEPS, EVENT_ROW, E_BODY, E_POS, E_TIME, MAX_IMPACTS_PER_TICK, SCRATCH_SHAPE
@@ -23,6 +24,23 @@ from engine.play.arm import (BAT_FLOATS, BAT_POS, BAT_VEL, CTL_D_ANGLE, CTL_HOLD
                              SEG_WIDTH, bat_control)
 
 _FLOAT64 = np.dtype(np.float64)
+
+
+@njit(cache=True, _nrt=False)
+def stroke_times(now, h, every, due, delay):
+    """When a stroke whose turn is due at `due` (s) starts: the first control tick (every `every`
+    ticks of h s from now) at or after due that is at least `delay` ticks away; its time, its row
+    (ticks from now) and the time it is decided (`delay` ticks before), each in the world clock's
+    own arithmetic (a tick's h added at a time)."""
+    start_time, first_row = now, 0
+    while not (start_time >= due and first_row >= delay):
+        for _ in range(every):
+            start_time = start_time + h
+        first_row += every
+    decide_at = now
+    for _ in range(first_row - delay):
+        decide_at = decide_at + h
+    return start_time, first_row, decide_at
 
 
 @dataclass
@@ -465,15 +483,8 @@ class BatAI:
         self.finish_thinking()  # one still unfinished: its random draws come first
         self.planned_key = rally_key
         due = self.turn_seen_at + (0.0 if serve else self.skill.reaction_s)
-        h, every = self.model.dt, self.control_every
-        start_time, first_row = now, 0
-        while not (start_time >= due and first_row >= self.delay):  # in the world clock's own arithmetic
-            for _ in range(every):
-                start_time = start_time + h
-            first_row += every
-        decide_at = now
-        for _ in range(first_row - self.delay):
-            decide_at = decide_at + h
+        start_time, first_row, decide_at = stroke_times(now, float(self.model.dt), self.control_every, due,
+                                                        self.delay)
         self._thinking_args = (now, np.array(ball_flat, dtype=np.float64), end_sign, serve, start_time, first_row)
         self._thinking_from = self._thought_state()
         self._thinking = self._think(*self._thinking_args)
