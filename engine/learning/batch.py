@@ -174,6 +174,12 @@ def _gate_open(r, now, ctl_row, key, due, end):
 
 
 @njit(cache=True, _nrt=False)
+def observe_table(k, ball, bats, rally, player, axis, obs):
+    """_observe of table k's state into obs[k]."""
+    _observe(ball[k], bats[k], rally[k], player, axis, obs[k])
+
+
+@njit(cache=True, _nrt=False)
 def _opponent_drove(r, opp):
     """PingPongEnv._opponent_drove: the opponent struck a return the agent must now play."""
     return r['shots'] >= 2 and r['striker'] == opp and (r['phase'] == _STRUCK or r['phase'] == _BOUNCED)
@@ -541,6 +547,11 @@ class TableBatch:
                 raise RuntimeError(f"table {k}: the decision of seat {player} failed: {fault}")
             self.ctl[k, player] = seats.ctl[player]
             self._gate(k, player)
+
+    def observe(self, k: int) -> np.ndarray:
+        """Table k's observation of the state loaded or reached (agent_frame.observe, compiled), in obs[k]."""
+        observe_table(k, self.ball, self.bats, self.rally, self.player, self.axis, self.obs)
+        return self.obs[k]
 
     def points(self, k: int) -> int:
         """Points decided in table k's match (lets included)."""

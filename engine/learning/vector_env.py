@@ -171,11 +171,11 @@ class PingPongVectorEnv(VectorEnv):
 
     def _end_lead_ins(self, mask: np.ndarray, infos: dict) -> dict:
         """After the batch played the lead-ins of `mask`'s tables: their reset observations (the
-        batch's after a lead-in, else the env's) and infos."""
+        batch's, after a lead-in or of the state loaded) and infos."""
         for k in np.flatnonzero(mask):
             env = self.envs[k]
             info = env.episode_info()
-            self._obs[k] = self.batch.obs[k] if info["drive"] else env.observation()
+            self._obs[k] = self.batch.obs[k] if info["drive"] else self.batch.observe(k)
             env.end_lead_in()
             infos = self._add_info(infos, info, k)
         return infos
