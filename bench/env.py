@@ -8,8 +8,10 @@
   loaded, in each process) are not timed. Each figure's ratio is to the one environment's of the
   same net.
 - batched (Return-v1 against novice, rigid net, `hold` actions at the ready pose in the agent's
-  frame): one version-1 PingPongEnv, then the native vector env at N = --batched, which steps its
-  tables in one numba call (engine.learning.batch); ratios to that one environment. Each N's wall
+  frame): one version-1 PingPongEnv and the native vector env at N = --batched, which steps its
+  tables in one numba call (engine.learning.batch), measured in turns (the one environment, then
+  each N, ROUNDS times: a drifting machine moves them alike); medians, and the ratios to that one
+  environment as the median of the turns' ratios with their range. Each N's wall
   time is split into the compiled call (engine.learning.batch.TableBatch.seconds), the AI
   profiles' decisions (Python: BatAI thinking a stroke out) and the rest (episodes' starts, the
   vector env's own work); "the compiled call alone" is the ratio the batch would reach if all
@@ -94,8 +96,16 @@ def single_steps_per_second(seconds: float, net: str) -> dict:
 READY_V1 = np.array([-0.6, 0.0, 0.0, 0.0, 0.0, 0.0])  # a version-1 hold action: near the agent's ready pose
 
 
-def batched_steps_per_second(tables: list[int], seconds: float) -> dict:
-    """One version-1 environment's steps per second, and the batched vector env's at each N."""
+ROUNDS = 3  # the batched study's turns: one environment, then each N, again and again
+
+
+def batched_steps_per_second(tables: list[int], seconds: float, rounds: int = ROUNDS) -> dict:
+    """One version-1 environment's steps per second, and the batched vector env's at each N.
+
+    Measured in `rounds` turns of seconds / rounds each (the one environment, then each N), so
+    that a machine whose speed drifts during the study moves the figures alike: a figure is the
+    median of its turns, a ratio the median of the turns' ratios, with their least and greatest.
+    """
     from engine.learning.env import PingPongEnv
     from engine.learning.vector_env import PingPongVectorEnv
 
@@ -107,32 +117,48 @@ def batched_steps_per_second(tables: list[int], seconds: float) -> dict:
         if terminated or truncated:
             env.reset()
 
-    single = _timed(step, 1, seconds)
-    out = {"single": single, "batched": {}}
-    for n in tables:
-        vector = PingPongVectorEnv(n, opponent="novice", version=1)
-        vector.reset(seed=0)
-        actions = np.stack([READY_V1] * n)
-        batch = vector.batch
-        spent = {}
-
-        def timed_step():
-            if not spent:  # the warm-up is over: count from here
-                spent.update(batch.seconds, started=time.perf_counter())
-            vector.step(actions)
-
-        try:
-            rate = _timed(timed_step, n, seconds)
-        finally:
+    vectors = {n: PingPongVectorEnv(n, opponent="novice", version=1) for n in tables}
+    try:
+        for vector in vectors.values():
+            vector.reset(seed=0)
+        singles, turns = [], {n: [] for n in tables}
+        for _ in range(rounds):
+            singles.append(_timed(step, 1, seconds / rounds))
+            for n, vector in vectors.items():
+                turns[n].append(_batched_turn(vector, n, seconds / rounds, singles[-1]))
+    finally:
+        for vector in vectors.values():
             vector.close()
-        wall = time.perf_counter() - spent["started"]
-        compiled = batch.seconds["compiled"] - spent["compiled"]
+    out = {"single": float(np.median(singles)), "rounds": rounds, "batched": {}}
+    for n, rows in turns.items():
+        ratios = [row["ratio"] for row in rows]
+        wall = sum(row["wall"] for row in rows)
+        compiled = sum(row["compiled"] for row in rows)
         out["batched"][str(n)] = {
-            "steps_per_s": rate, "ratio": rate / single,
+            "steps_per_s": float(np.median([row["steps_per_s"] for row in rows])),
+            "ratio": float(np.median(ratios)), "ratio_range": [min(ratios), max(ratios)],
             "compiled_share": compiled / wall,
-            "decisions_share": (batch.seconds["decisions"] - spent["decisions"]) / wall,
-            "compiled_alone_ratio": rate * wall / compiled / single}
+            "decisions_share": sum(row["decisions"] for row in rows) / wall,
+            "compiled_alone_ratio": float(np.median([row["ratio"] * row["wall"] / row["compiled"] for row in rows]))}
     return out
+
+
+def _batched_turn(vector, n: int, seconds: float, single: float) -> dict:
+    """One turn of the batched vector env of n tables: its steps/s, their ratio to `single`, and
+    the wall, compiled and decisions seconds of the timed steps."""
+    actions = np.stack([READY_V1] * n)
+    batch = vector.batch
+    spent = {}
+
+    def timed_step():
+        if not spent:  # the warm-up is over: count from here
+            spent.update(batch.seconds, started=time.perf_counter())
+        vector.step(actions)
+
+    rate = _timed(timed_step, n, seconds)
+    return {"steps_per_s": rate, "ratio": rate / single, "wall": time.perf_counter() - spent["started"],
+            "compiled": batch.seconds["compiled"] - spent["compiled"],
+            "decisions": batch.seconds["decisions"] - spent["decisions"]}
 
 
 def native_steps_per_second(n: int, seconds: float, net: str) -> float:
@@ -238,11 +264,13 @@ def _report(result: dict) -> None:
             for n, r in row[kind].items():
                 print(f"    {label:<18} N = {n:>3}: {r['steps_per_s']:7.0f} steps/s  {r['ratio']:5.2f}x")
     b = result["batched"]
-    print(f"  batched (Return-v1, rigid net, hold): one environment {b['single']:.0f} steps/s")
+    print(f"  batched (Return-v1, rigid net, hold; medians of {b['rounds']} turns each, ratios' range in "
+          f"brackets): one environment {b['single']:.0f} steps/s")
     for n, r in b["batched"].items():
-        print(f"    {'batched vector env':<18} N = {n:>3}: {r['steps_per_s']:7.0f} steps/s  {r['ratio']:5.2f}x  "
-              f"(compiled call {r['compiled_share']:.0%}, AI profiles' decisions {r['decisions_share']:.0%}; "
-              f"the compiled call alone: {r['compiled_alone_ratio']:.1f}x)")
+        low, high = r["ratio_range"]
+        print(f"    {'batched vector env':<18} N = {n:>3}: {r['steps_per_s']:7.0f} steps/s  {r['ratio']:5.2f}x "
+              f"[{low:.2f}-{high:.2f}]  (compiled call {r['compiled_share']:.0%}, AI profiles' decisions "
+              f"{r['decisions_share']:.0%}; the compiled call alone: {r['compiled_alone_ratio']:.1f}x)")
     print(f"  the cloth net costs {result['cloth_cost']:.2f}x the rigid net's time per step (one environment)")
     p = result["players"]
     print(f"players per control tick (match_rigid, {p['pro']['ticks']} ticks): "
