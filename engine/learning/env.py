@@ -70,6 +70,7 @@ from engine.physics.scene import load_scene, scene_toml
 from engine.physics.compiled import CompiledScene, compile_scene
 from engine.physics.world import new_events, step
 from engine.play.ai import SKILLS
+from engine.play.ai.player import think_scratch
 from engine.play.ai.profile_bot import ProfileBot
 from engine.play.match import Match, match_scene, point_row
 from engine.play.players import decision_key
@@ -238,15 +239,29 @@ class PingPongEnv(gymnasium.Env):
         # that server renews one (Match.renew, ProfileBot.renew) instead of making it anew.
         self._matches: dict[int, Match] = {}
         self._stand_ins: dict[int, ProfileBot] = {}
+        self._think_scratch: tuple | None = None  # the AI profiles' arrays, when shared (share_scenes)
         self.seed_of_match = 0
         self._warm = False
 
     def share_scenes(self, other: "PingPongEnv") -> None:
-        """Use other's compiled match scenes (one a first server), built once for both: other
-        has the same net, opponent, player and agent (the vector env's tables do)."""
+        """Use other's compiled match scenes (one a first server), built once for both, and the
+        arrays its AI profiles think in (BatAI.use_scratch: they think a stroke out at once, and
+        environments stepped in one thread never at the same time): other has the same net,
+        opponent, player and agent (the vector env's tables do)."""
         if (other.net, other.opponent, other.player, other.ends) != (self.net, self.opponent, self.player, self.ends):
             raise ValueError("share_scenes: the other environment plays another scene, opponent or end")
         self._compiled = other._compiled
+        if other._think_scratch is None:
+            other._think_with(think_scratch(other.base.dt))
+        self._think_with(other._think_scratch)
+
+    def _think_with(self, scratch: tuple) -> None:
+        """The AI profiles of this environment's matches and stand-ins think in `scratch`."""
+        self._think_scratch = scratch
+        for match in self._matches.values():
+            match.ais.use_scratch(scratch)
+        for stand_in in self._stand_ins.values():
+            stand_in.ai.use_scratch(scratch)
 
     # --- episodes ---------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -285,6 +300,8 @@ class PingPongEnv(gymnasium.Env):
             if stand_in is None:
                 stand_in = self._stand_ins[server] = ProfileBot(self.match.model, self.player, SKILLS[self.opponent],
                                                                 self.opponent, seed=seed, control_every=self.every)
+                if self._think_scratch is not None:
+                    stand_in.ai.use_scratch(self._think_scratch)
             else:
                 stand_in.renew(seed)
             agent = self.agent
@@ -340,6 +357,8 @@ class PingPongEnv(gymnasium.Env):
         self.match = self._matches.get(server)
         if self.match is None:
             self.match = self._matches[server] = Match(compiled, seed=seed)
+            if self._think_scratch is not None:
+                self.match.ais.use_scratch(self._think_scratch)
         else:
             self.match.renew(seed)
         self.every = self.match.compiled.control_period

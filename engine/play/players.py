@@ -431,6 +431,11 @@ class Players(dict):
                 self[player] = self.maker.seat(seat.spec, player, self.ctl[k], seed)
         self.decided = False
 
+    def use_scratch(self, scratch: tuple) -> None:
+        """The AI profiles think in `scratch` (BatAI.use_scratch)."""
+        for ai in self.thinkers:
+            ai.use_scratch(scratch)
+
     def state(self) -> dict:
         """Every seat's state() and the arm targets, picklable: the same scene's Players that loads
         it (load_state) decides on as this one would, a bot's own objects aside."""

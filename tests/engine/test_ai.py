@@ -1,4 +1,6 @@
 """The bat AI: its inverse problems against the engine's forward model, and play at top skill."""
+import pickle
+
 import numpy as np
 import pytest
 
@@ -12,6 +14,7 @@ from engine.physics.world import build_model
 from engine.physics.equipment import NET_HEIGHT
 from engine.play.ai import (HALF_LENGTH, HALF_WIDTH, NO_STRIKE, SKILLS, STOP_EVENTS, STOP_RETURN_STRIKE,
                             STOP_SERVE_STRIKE, BatAI, strike_index)
+from engine.play.ai.player import think_scratch
 from engine.play.ai.search import lands_well
 from engine.play.match import LocalAI, Match, make_ais
 
@@ -212,3 +215,32 @@ def test_strokes_thought_out_in_steps_are_the_strokes_thought_out_at_once():
         assert eager.state.record.tobytes() == spread.state.record.tobytes()
     late = sum(ai.late_thoughts for ai in spread.ai_driver.ais.thinkers)
     assert late > 0 and len(eager.referee.points) >= 2  # some strokes were finished when due
+
+
+def test_eager_ais_may_share_the_arrays_they_think_in_and_the_others_may_not(ai):
+    """Two BatAIs thinking in one set of arrays (a vector environment's tables) think the strokes
+    each thinks alone; one that spreads its thinking keeps its own, and a path of another tick is refused."""
+    model = ai.model
+    shared = think_scratch(model.dt)
+
+    def strokes(share):
+        players = [BatAI(model, 1, SKILLS["pro"], seed=s) for s in (4, 5)]
+        if share:
+            for player in players:
+                player.use_scratch(shared)
+        out = []
+        for y0 in _incoming_balls(6, seed=13):
+            for player in players:  # in turns, as the tables' decisions come
+                player.planned_key = None
+                player._start_thinking(0.0, y0, (0, 1), 1, False)
+                out.append(pickle.dumps(player._thought))
+        return out
+
+    alone = strokes(False)
+    assert strokes(True) == alone
+    assert sum(thought != pickle.dumps(None) for thought in alone) >= 4  # strokes were thought out, not let go
+    spreading = BatAI(model, 1, SKILLS["pro"], seed=1, eager=False)
+    with pytest.raises(ValueError, match="eager=False"):
+        spreading.use_scratch(shared)
+    with pytest.raises(ValueError, match="think_scratch"):
+        BatAI(model, 1, SKILLS["pro"], seed=1).use_scratch(think_scratch(model.dt / 2))

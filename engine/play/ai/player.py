@@ -26,6 +26,17 @@ from engine.play.arm import (BAT_FLOATS, BAT_POS, BAT_VEL, CTL_D_ANGLE, CTL_HOLD
 _FLOAT64 = np.dtype(np.float64)
 
 
+def think_scratch(dt: float) -> tuple:
+    """The arrays a BatAI thinks in (BatAI.use_scratch), in engine.play.ai.search's order: the
+    integrator's and the ball tick's work, the path (2.5 s of the model's ticks; its rows are
+    written before they are read), its events, the prediction's memo, the free flights' and the
+    shot solver's. dt: the model's tick, s."""
+    n_max = int(round(2.5 / dt))
+    return (np.zeros(WORK_SHAPE), np.zeros(SCRATCH_SHAPE), np.zeros(ADAPT_SIZE), np.zeros((MAX_IMPACTS_PER_TICK, EVENT_ROW)),
+            np.empty((n_max + 1, 9)), np.zeros((8, EVENT_ROW)), np.zeros(8, np.int64), np.zeros(MEMO_SIZE, np.int64),
+            np.empty(3), np.zeros(WORK_SHAPE), np.zeros(ADAPT_SIZE), np.zeros((3, 9)), np.zeros((4, 9)))
+
+
 @njit(cache=True, _nrt=False)
 def stroke_times(now, h, every, due, delay):
     """When a stroke whose turn is due at `due` (s) starts: the first control tick (every `every`
@@ -147,18 +158,7 @@ class BatAI:
         self.inertia = model.bat_inertia[player].copy()
         self.radius = float(model.ball_params[0])
         self.bat_half_thickness = equipment.BAT_HALF_THICKNESS
-        n_max = int(round(2.5 / model.dt))
-        self._traj = np.empty((n_max + 1, 9))  # rows are written before they are read
-        self._events = np.zeros((8, EVENT_ROW))
-        self._event_ticks = np.zeros(8, np.int64)
-        self._work = np.zeros(WORK_SHAPE)
-        self._scratch = np.zeros(SCRATCH_SHAPE)
-        self._adapt = np.zeros(ADAPT_SIZE)
-        self._tick_events = np.zeros((MAX_IMPACTS_PER_TICK, EVENT_ROW))
-        self._shoot_scratch = np.zeros((4, 9))
-        self._free_work, self._free_adapt = np.zeros(WORK_SHAPE), np.zeros(ADAPT_SIZE)
-        self._free_scratch = np.zeros((3, 9))
-        self._memo = np.zeros(MEMO_SIZE, np.int64)
+        self.use_scratch(think_scratch(model.dt))
         self._ready = {sign: self._make_ready(sign) for sign in (-1, 1)}
         self._ctl_start = np.zeros(CTL_SIZE)  # _ctl before the first plan: the arm's constants
         self._ctl_start[[CTL_MASS, CTL_INERTIA, CTL_KP, CTL_KD, CTL_K_ANGLE, CTL_D_ANGLE]] = (
@@ -169,7 +169,7 @@ class BatAI:
         self.control_every = control_every
         self.delay = delay
         self.eager = eager
-        # engine.play.ai.search's arguments: the scene, the judgement's limits, the shot solver's, the scratch
+        # engine.play.ai.search's arguments: the scene, the judgement's limits, the shot solver's
         self._model_args = (float(model.dt), model.method, model.gravity, model.drag_k, model.magnus_k,
                             model.scene.rtol, model.scene.atol, model.table, model.floor_z, model.net, model.posts,
                             model.ball_params, model.materials)
@@ -177,10 +177,23 @@ class BatAI:
                         self.FREE_FLIGHT_TOLERANCE_M, int(round(2.0 / model.dt)), model.table is not None)
         restitution, friction = (float(x) for x in model.materials[Body.BAT_A + player])
         self._shooting = (restitution, friction, self.SHOOTING_DT, int(2.0 / self.SHOOTING_DT))
-        self._search_scratch = (self._work, self._scratch, self._adapt, self._tick_events, self._traj, self._events,
-                                self._event_ticks, self._memo, np.empty(3), self._free_work, self._free_adapt,
-                                self._free_scratch, self._shoot_scratch)
         self.renew(seed)
+
+    def use_scratch(self, scratch: tuple) -> None:
+        """Think in these arrays (think_scratch's, of this model): its own, or, for BatAIs that
+        think a stroke out at once (eager) in one thread and so never at the same time, the ones
+        they share (a vector environment's tables: one set of arrays stays in the CPU's caches
+        where each BatAI's own would come from memory)."""
+        if hasattr(self, "scratch") and not self.eager:
+            raise ValueError("BatAI.use_scratch: a BatAI that spreads its thinking (eager=False) keeps its own "
+                             "arrays: its stroke may be half thought out")
+        rows = int(round(2.5 / self.model.dt)) + 1
+        if len(scratch) != 13 or scratch[4].shape != (rows, 9):
+            raise ValueError(f"BatAI.use_scratch: think_scratch({self.model.dt}) of this model's tick, please "
+                             f"(a path of {rows} rows)")
+        (self._work, self._scratch, self._adapt, self._tick_events, self._traj, self._events, self._event_ticks,
+         self._memo, _, self._free_work, self._free_adapt, self._free_scratch, self._shoot_scratch) = scratch
+        self.scratch = self._search_scratch = scratch
 
     def renew(self, seed: int) -> None:
         """Become the BatAI that BatAI(model, player, skill, seed, ...) makes, keeping this one's
