@@ -59,6 +59,10 @@ I_STOP_AT, I_CTL_TICK, I_REQ_TICK, I_DECIDED, I_LANDED, I_SHOTS, I_PHASE, I_STRI
     0, 1, 2, 3, 4, 6, 7, 8, 9, 10)
 I_WAIT, I_LEAD, I_KEY = 11, 12, 13  # I_KEY: the decision key (engine.play.players.decision_key) there, 4 ints
 N_INTS = 17
+# The opponent's BatAI as the compiled call sees it (TableBatch.opp_ai's columns): its turn_key and
+# planned_key (rally, shots; -1 for none), whether its plan is tracked, the decisions taken here.
+OPP_TURN, OPP_PLANNED, OPP_TRACKED, OPP_TAKEN = 0, 2, 4, 5
+OPP_AI_SIZE = 6
 F_REWARD, F_POTENTIAL, F_BALL_X = 0, 2, 4
 N_FLOATS = 5
 _OVER = int(Phase.OVER)
@@ -180,6 +184,28 @@ def observe_table(k, ball, bats, rally, player, axis, obs):
 
 
 @njit(cache=True, _nrt=False)
+def _turn_only(r, now, ctl_row, key, due, end, opp, ai, seen):
+    """Whether the opponent's decision, its gate open, would only see the ball change hands
+    (BatAI.decide: its turn_key and turn_seen_at, nothing else; Seat.decide: its key), and if so
+    take it here: ai (OPP_AI_SIZE ints) mirrors its BatAI (engine.learning.batch.TableBatch._mirror),
+    seen[0] its turn_seen_at; TableBatch._sync hands what was taken here to the Python objects."""
+    if ai[OPP_TRACKED] != 1 or ctl_row[CTL_KIND] != ARM_TARGET or now >= due or now > end:
+        return False
+    striker = _next_striker(r)
+    serve = 1 if r['phase'] == _WAITING_SERVE else 0
+    if key[0] == r['rally'] and key[1] == r['shots'] and key[2] == striker and key[3] == serve:
+        return False  # the gate opened on its wakes, not on the key
+    if striker == opp and (ai[OPP_PLANNED] != r['rally'] or ai[OPP_PLANNED + 1] != r['shots']):
+        return False  # its turn, a stroke to think out: Python
+    if ai[OPP_TURN] != r['rally'] or ai[OPP_TURN + 1] != r['shots']:
+        ai[OPP_TURN], ai[OPP_TURN + 1] = r['rally'], r['shots']
+        seen[0] = now
+    key[0], key[1], key[2], key[3] = r['rally'], r['shots'], striker, serve
+    ai[OPP_TAKEN] += 1
+    return True
+
+
+@njit(cache=True, _nrt=False)
 def _opponent_drove(r, opp):
     """PingPongEnv._opponent_drove: the opponent struck a return the agent must now play."""
     return r['shots'] >= 2 and r['striker'] == opp and (r['phase'] == _STRUCK or r['phase'] == _BOUNCED)
@@ -187,7 +213,8 @@ def _opponent_drove(r, opp):
 
 @njit(cache=True, _nrt=False)
 def run_tables(status, ints, floats, world, ball, bats, rally, bat_motion, bat_tmp, work, scratch, event_rows,
-               ctl, arm, inputs, players, pending, pending_tick, pending_at, plans, gate_key, gate_due, gate_end,
+               ctl, arm, inputs, players, pending, pending_tick, pending_at, plans, gate_key, gate_due, gate_end, opp_ai,
+               opp_seen,
                steps, rewards, terminated, truncated, obs, errors, axis, player, rally_task, dense, best_of, every,
                delay, max_seconds, max_rally_s, toss_speed, physics):
     """Go on with every table whose status is START or STEPPING (its step, or its lead-in while
@@ -201,7 +228,7 @@ def run_tables(status, ints, floats, world, ball, bats, rally, bat_motion, bat_t
         # table k's rows, in the order _control_tick and _advance_and_judge unpack them
         table = (world[k:k + 1], ball[k], bats[k], rally[k], bat_motion[k], bat_tmp[k], work[k], scratch[k],
                  event_rows[k], ctl[k], arm[k], inputs[k], pending[k], pending_tick[k], pending_at[k], gate_key[k],
-                 gate_due[k], gate_end[k])
+                 gate_due[k], gate_end[k], opp_ai[k], opp_seen[k:k + 1])
         if ints[k, I_LEAD] == 1:
             status[k] = _lead_table(ints[k], table, players, plans[k], errors[k:k + 1], obs[k], axis, player,
                                     best_of, every, delay, max_rally_s, toss_speed, physics)
@@ -220,7 +247,8 @@ def _control_tick(si, table, players, plan, player, lead, delay):
     """engine.play.match.Match.tick at a control tick, up to its decisions (LocalAI.collect, the
     arm law); then the agent's action becomes its plan, unless the stand-in plays its bat in a
     lead-in; returns the seats whose gate is open (bit p: seat p), who must decide first."""
-    w, ball, bats, r, _, _, _, _, _, ctl, arm, inputs, pending, pending_tick, pending_at, key, due, end = table
+    w, ball, bats, r, _, _, _, _, _, ctl, arm, inputs, pending, pending_tick, pending_at, key, due, end, opp_ai, \
+        opp_seen = table
     tick = w[0]['tick']
     n_pending = pending_at[1]
     if n_pending > 0 and pending_tick[pending_at[0]] == tick:
@@ -241,7 +269,8 @@ def _control_tick(si, table, players, plan, player, lead, delay):
         row[CTL_N_SEGMENTS] = 0.0
         row[CTL_SEGMENTS:] = 0.0
     opp = 1 - player
-    if _gate_open(r, w[0]['time'], ctl[opp], key[opp], due[opp], end[opp]):
+    if _gate_open(r, w[0]['time'], ctl[opp], key[opp], due[opp], end[opp]) and not _turn_only(
+            r, w[0]['time'], ctl[opp], key[opp], due[opp], end[opp], opp, opp_ai, opp_seen):
         wait |= 1 << opp
     if wait != 0:
         si[I_KEY], si[I_KEY + 1], si[I_KEY + 2] = r['rally'], r['shots'], _next_striker(r)
@@ -256,7 +285,7 @@ def _advance_and_judge(si, table, errors, n_max, best_of, every, delay, max_rall
     (engine.physics.tick.advance_ticks), the referee judges the contacts and a ball out of play,
     the next rally is tossed (engine.play.judge). Returns False on a kernel error (in errors[0])."""
     w, ball, bats, r, bat_motion, bat_tmp, work, scratch, event_rows, ctl, _, inputs, pending, pending_tick, \
-        pending_at, _, _, _ = table
+        pending_at, _, _, _, _, _ = table
     h, bat_mass, bat_inertia, method, gravity, drag_k, magnus_k, rtol, atol, surface, floor_z, net, posts, params, \
         materials = physics
     tick = w[0]['tick']
@@ -412,6 +441,8 @@ class TableBatch:
         self.gate_key = np.zeros((n, 2, 4), np.int64)
         self.gate_due = np.zeros((n, 2))
         self.gate_end = np.zeros((n, 2))
+        self.opp_ai = np.zeros((n, OPP_AI_SIZE), np.int64)  # the opponent's BatAI, mirrored (_mirror)
+        self.opp_seen = np.zeros(n)  # its turn_seen_at, s
         self.steps = np.zeros(n, np.int64)
         self.rewards = np.zeros(n)
         self.terminated = np.zeros(n, np.bool_)
@@ -468,6 +499,7 @@ class TableBatch:
             self.pending[k, slot], self.pending_tick[k, slot] = plans, tick
         for player in (0, 1):
             self._gate(k, player)
+        self._mirror(k)
         self.ints[k, I_CTL_TICK] = self.ints[k, I_REQ_TICK] = -1
         self.ints[k, I_LEAD] = int(lead_in)
         self.steps[k] = 0
@@ -481,6 +513,31 @@ class TableBatch:
         self.gate_key[k, player] = NO_KEY if seat.key is None else seat.key
         stand_in = seat.bot.stand_in if player == self.player else None
         self.gate_due[k, player], self.gate_end[k, player] = seat.wakes() if stand_in is None else stand_in.wakes()
+
+    def _mirror(self, k: int) -> None:
+        """The opponent's BatAI into table k's opp_ai and opp_seen, which the compiled call reads to
+        take its decisions that only see the ball change hands (_turn_only), and writes."""
+        seat = self.envs[k].match.ais[self.opp]
+        ai, row = seat.bot.ai, self.opp_ai[k]
+        row[OPP_TURN:OPP_TURN + 2] = (-1, -1) if ai.turn_key is None else ai.turn_key
+        row[OPP_PLANNED:OPP_PLANNED + 2] = (-1, -1) if ai.planned_key is None else ai.planned_key
+        row[OPP_TRACKED] = ai.plan is ai._tracking[0] and seat.bot.end_sign == ai._tracking[1]
+        row[OPP_TAKEN] = 0
+        self.opp_seen[k] = ai.turn_seen_at
+
+    def _sync(self, k: int) -> None:
+        """Hand the opponent's decisions the compiled call took (_turn_only) to its Seat and BatAI."""
+        taken = int(self.opp_ai[k, OPP_TAKEN])
+        if taken == 0:
+            return
+        seat = self.envs[k].match.ais[self.opp]
+        ai = seat.bot.ai
+        rally, shots = self.opp_ai[k, OPP_TURN:OPP_TURN + 2].tolist()
+        if rally >= 0:
+            ai.turn_key, ai.turn_seen_at = (rally, shots), float(self.opp_seen[k])
+        seat.key = tuple(self.gate_key[k, self.opp].tolist())
+        seat.decisions += taken
+        self.opp_ai[k, OPP_TAKEN] = 0
 
     def lead_in(self, mask: np.ndarray) -> None:
         """Play the lead-in of the loaded tables of `mask` whose load said so (PingPongEnv.reset's
@@ -528,7 +585,8 @@ class TableBatch:
         return run_tables(self.status, self.ints, self.floats, self.world, self.ball, self.bats, self.rally,
                           self.bat_motion, self.bat_tmp, self.work, self.scratch, self.event_rows, self.ctl, self.arm,
                           self.inputs, self.players, self.pending, self.pending_tick, self.pending_at, self.plans,
-                          self.gate_key, self.gate_due, self.gate_end, self.steps, self.rewards, self.terminated,
+                          self.gate_key, self.gate_due, self.gate_end, self.opp_ai, self.opp_seen, self.steps,
+                          self.rewards, self.terminated,
                           self.truncated, self.obs, self.errors, self.axis, *self._scalars)
 
     def _decide(self, k: int) -> None:
@@ -542,11 +600,15 @@ class TableBatch:
         for player in (0, 1):
             if not wait >> player & 1:
                 continue
+            if player == self.opp:
+                self._sync(k)
             fault = seats[player].decide(tick, now, ball, bats, rally, key)
             if fault is not None:
                 raise RuntimeError(f"table {k}: the decision of seat {player} failed: {fault}")
             self.ctl[k, player] = seats.ctl[player]
             self._gate(k, player)
+            if player == self.opp:
+                self._mirror(k)
 
     def observe(self, k: int) -> np.ndarray:
         """Table k's observation of the state loaded or reached (agent_frame.observe, compiled), in obs[k]."""
