@@ -60,9 +60,13 @@ I_STOP_AT, I_CTL_TICK, I_REQ_TICK, I_DECIDED, I_LANDED, I_SHOTS, I_PHASE, I_STRI
 I_WAIT, I_LEAD, I_KEY = 11, 12, 13  # I_KEY: the decision key (engine.play.players.decision_key) there, 4 ints
 N_INTS = 17
 # The opponent's BatAI as the compiled call sees it (TableBatch.opp_ai's columns): its turn_key and
-# planned_key (rally, shots; -1 for none), whether its plan is tracked, the decisions taken here.
-OPP_TURN, OPP_PLANNED, OPP_TRACKED, OPP_TAKEN = 0, 2, 4, 5
-OPP_AI_SIZE = 6
+# planned_key (rally, shots; -1 for none), whether its plan is tracked, the decisions taken here,
+# whether its plan ran out there; TableBatch.opp_floats': its turn_seen_at (s), its ready pose
+# (hold m, face normal).
+OPP_TURN, OPP_PLANNED, OPP_TRACKED, OPP_TAKEN, OPP_EXPIRED = 0, 2, 4, 5, 6
+OPP_AI_SIZE = 7
+OPP_SEEN, OPP_READY = 0, 1
+OPP_FLOATS = 7
 F_REWARD, F_POTENTIAL, F_BALL_X = 0, 2, 4
 N_FLOATS = 5
 _OVER = int(Phase.OVER)
@@ -184,22 +188,27 @@ def observe_table(k, ball, bats, rally, player, axis, obs):
 
 
 @njit(cache=True, _nrt=False)
-def _turn_only(r, now, ctl_row, key, due, end, opp, ai, seen):
-    """Whether the opponent's decision, its gate open, would only see the ball change hands
-    (BatAI.decide: its turn_key and turn_seen_at, nothing else; Seat.decide: its key), and if so
-    take it here: ai (OPP_AI_SIZE ints) mirrors its BatAI (engine.learning.batch.TableBatch._mirror),
-    seen[0] its turn_seen_at; TableBatch._sync hands what was taken here to the Python objects."""
-    if ai[OPP_TRACKED] != 1 or ctl_row[CTL_KIND] != ARM_TARGET or now >= due or now > end:
+def _quiet_decision(r, now, ctl_row, key, due, end, opp, ai, floats):
+    """Whether the opponent's decision, its gate open, needs no Python: the ball changed hands
+    without a stroke for it to think out (BatAI.decide: turn_key and turn_seen_at), and/or its
+    plan ran out with no stroke due (its arm back to the ready pose); if so it is taken here, into
+    its ctl row and gate. ai (OPP_AI_SIZE ints) and floats (OPP_FLOATS) mirror its BatAI
+    (TableBatch._mirror); TableBatch._sync hands what was taken here to the Python objects."""
+    if ai[OPP_TRACKED] != 1 or ctl_row[CTL_KIND] != ARM_TARGET or now >= due[0]:
         return False
     striker = _next_striker(r)
     serve = 1 if r['phase'] == _WAITING_SERVE else 0
-    if key[0] == r['rally'] and key[1] == r['shots'] and key[2] == striker and key[3] == serve:
-        return False  # the gate opened on its wakes, not on the key
     if striker == opp and (ai[OPP_PLANNED] != r['rally'] or ai[OPP_PLANNED + 1] != r['shots']):
         return False  # its turn, a stroke to think out: Python
     if ai[OPP_TURN] != r['rally'] or ai[OPP_TURN + 1] != r['shots']:
         ai[OPP_TURN], ai[OPP_TURN + 1] = r['rally'], r['shots']
-        seen[0] = now
+        floats[OPP_SEEN] = now
+    if now > end[0]:  # BatAI._track(None, end_sign): the ready pose, no segments
+        for i in range(6):
+            ctl_row[CTL_HOLD + i] = floats[OPP_READY + i]
+        ctl_row[CTL_N_SEGMENTS] = 0.0
+        end[0] = math.inf
+        ai[OPP_EXPIRED] = 1
     key[0], key[1], key[2], key[3] = r['rally'], r['shots'], striker, serve
     ai[OPP_TAKEN] += 1
     return True
@@ -214,7 +223,7 @@ def _opponent_drove(r, opp):
 @njit(cache=True, _nrt=False)
 def run_tables(status, ints, floats, world, ball, bats, rally, bat_motion, bat_tmp, work, scratch, event_rows,
                ctl, arm, inputs, players, pending, pending_tick, pending_at, plans, gate_key, gate_due, gate_end, opp_ai,
-               opp_seen,
+               opp_floats,
                steps, rewards, terminated, truncated, obs, errors, axis, player, rally_task, dense, best_of, every,
                delay, max_seconds, max_rally_s, toss_speed, physics):
     """Go on with every table whose status is START or STEPPING (its step, or its lead-in while
@@ -228,7 +237,7 @@ def run_tables(status, ints, floats, world, ball, bats, rally, bat_motion, bat_t
         # table k's rows, in the order _control_tick and _advance_and_judge unpack them
         table = (world[k:k + 1], ball[k], bats[k], rally[k], bat_motion[k], bat_tmp[k], work[k], scratch[k],
                  event_rows[k], ctl[k], arm[k], inputs[k], pending[k], pending_tick[k], pending_at[k], gate_key[k],
-                 gate_due[k], gate_end[k], opp_ai[k], opp_seen[k:k + 1])
+                 gate_due[k], gate_end[k], opp_ai[k], opp_floats[k])
         if ints[k, I_LEAD] == 1:
             status[k] = _lead_table(ints[k], table, players, plans[k], errors[k:k + 1], obs[k], axis, player,
                                     best_of, every, delay, max_rally_s, toss_speed, physics)
@@ -248,7 +257,7 @@ def _control_tick(si, table, players, plan, player, lead, delay):
     arm law); then the agent's action becomes its plan, unless the stand-in plays its bat in a
     lead-in; returns the seats whose gate is open (bit p: seat p), who must decide first."""
     w, ball, bats, r, _, _, _, _, _, ctl, arm, inputs, pending, pending_tick, pending_at, key, due, end, opp_ai, \
-        opp_seen = table
+        opp_floats = table
     tick = w[0]['tick']
     n_pending = pending_at[1]
     if n_pending > 0 and pending_tick[pending_at[0]] == tick:
@@ -269,8 +278,8 @@ def _control_tick(si, table, players, plan, player, lead, delay):
         row[CTL_N_SEGMENTS] = 0.0
         row[CTL_SEGMENTS:] = 0.0
     opp = 1 - player
-    if _gate_open(r, w[0]['time'], ctl[opp], key[opp], due[opp], end[opp]) and not _turn_only(
-            r, w[0]['time'], ctl[opp], key[opp], due[opp], end[opp], opp, opp_ai, opp_seen):
+    if _gate_open(r, w[0]['time'], ctl[opp], key[opp], due[opp], end[opp]) and not _quiet_decision(
+            r, w[0]['time'], ctl[opp], key[opp], due[opp:opp + 1], end[opp:opp + 1], opp, opp_ai, opp_floats):
         wait |= 1 << opp
     if wait != 0:
         si[I_KEY], si[I_KEY + 1], si[I_KEY + 2] = r['rally'], r['shots'], _next_striker(r)
@@ -442,7 +451,7 @@ class TableBatch:
         self.gate_due = np.zeros((n, 2))
         self.gate_end = np.zeros((n, 2))
         self.opp_ai = np.zeros((n, OPP_AI_SIZE), np.int64)  # the opponent's BatAI, mirrored (_mirror)
-        self.opp_seen = np.zeros(n)  # its turn_seen_at, s
+        self.opp_floats = np.zeros((n, OPP_FLOATS))
         self.steps = np.zeros(n, np.int64)
         self.rewards = np.zeros(n)
         self.terminated = np.zeros(n, np.bool_)
@@ -515,18 +524,21 @@ class TableBatch:
         self.gate_due[k, player], self.gate_end[k, player] = seat.wakes() if stand_in is None else stand_in.wakes()
 
     def _mirror(self, k: int) -> None:
-        """The opponent's BatAI into table k's opp_ai and opp_seen, which the compiled call reads to
-        take its decisions that only see the ball change hands (_turn_only), and writes."""
+        """The opponent's BatAI into table k's opp_ai and opp_floats, which the compiled call reads to
+        take the decisions that need no Python (_quiet_decision), and writes."""
         seat = self.envs[k].match.ais[self.opp]
         ai, row = seat.bot.ai, self.opp_ai[k]
         row[OPP_TURN:OPP_TURN + 2] = (-1, -1) if ai.turn_key is None else ai.turn_key
         row[OPP_PLANNED:OPP_PLANNED + 2] = (-1, -1) if ai.planned_key is None else ai.planned_key
         row[OPP_TRACKED] = ai.plan is ai._tracking[0] and seat.bot.end_sign == ai._tracking[1]
-        row[OPP_TAKEN] = 0
-        self.opp_seen[k] = ai.turn_seen_at
+        row[OPP_TAKEN] = row[OPP_EXPIRED] = 0
+        floats = self.opp_floats[k]
+        floats[OPP_SEEN] = ai.turn_seen_at
+        pos, normal = ai.ready_pose(seat.bot.end_sign)
+        floats[OPP_READY:OPP_READY + 3], floats[OPP_READY + 3:OPP_READY + 6] = pos, normal
 
     def _sync(self, k: int) -> None:
-        """Hand the opponent's decisions the compiled call took (_turn_only) to its Seat and BatAI."""
+        """Hand the opponent's decisions the compiled call took (_quiet_decision) to its Seat and BatAI."""
         taken = int(self.opp_ai[k, OPP_TAKEN])
         if taken == 0:
             return
@@ -534,10 +546,14 @@ class TableBatch:
         ai = seat.bot.ai
         rally, shots = self.opp_ai[k, OPP_TURN:OPP_TURN + 2].tolist()
         if rally >= 0:
-            ai.turn_key, ai.turn_seen_at = (rally, shots), float(self.opp_seen[k])
+            ai.turn_key, ai.turn_seen_at = (rally, shots), float(self.opp_floats[k, OPP_SEEN])
+        if self.opp_ai[k, OPP_EXPIRED]:
+            ai.plan = None
+            ai._track(None, seat.bot.end_sign)
+            seat.ctl[:] = self.ctl[k, self.opp]
         seat.key = tuple(self.gate_key[k, self.opp].tolist())
         seat.decisions += taken
-        self.opp_ai[k, OPP_TAKEN] = 0
+        self.opp_ai[k, OPP_TAKEN] = self.opp_ai[k, OPP_EXPIRED] = 0
 
     def lead_in(self, mask: np.ndarray) -> None:
         """Play the lead-in of the loaded tables of `mask` whose load said so (PingPongEnv.reset's
@@ -585,7 +601,7 @@ class TableBatch:
         return run_tables(self.status, self.ints, self.floats, self.world, self.ball, self.bats, self.rally,
                           self.bat_motion, self.bat_tmp, self.work, self.scratch, self.event_rows, self.ctl, self.arm,
                           self.inputs, self.players, self.pending, self.pending_tick, self.pending_at, self.plans,
-                          self.gate_key, self.gate_due, self.gate_end, self.opp_ai, self.opp_seen, self.steps,
+                          self.gate_key, self.gate_due, self.gate_end, self.opp_ai, self.opp_floats, self.steps,
                           self.rewards, self.terminated,
                           self.truncated, self.obs, self.errors, self.axis, *self._scalars)
 

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 import engine.learning.env  # noqa: F401 - registers the ids and their vector entry point
+from engine.learning.batch import OPP_TAKEN
 from engine.learning.env import PingPongEnv
 from engine.physics.dtypes import physics_snapshot_dtype
 from engine.learning.vector_env import PingPongVectorEnv
@@ -175,3 +176,29 @@ def test_tables_share_their_compiled_scenes_and_refuse_another_scene():
     assert all(env._compiled is first._compiled for env in others)
     with pytest.raises(ValueError, match="another scene, opponent or end"):
         PingPongEnv(opponent="pro", version=1).share_scenes(first)
+
+
+def test_the_opponents_quiet_decisions_are_taken_compiled_and_handed_back_to_its_ai():
+    """The decisions of the opponent that need no Python (the ball changed hands, its plan ran
+    out: engine.learning.batch._quiet_decision) are taken in the compiled call; handed back
+    (TableBatch._sync), its seat and BatAI are those of a single environment's at the same step."""
+    kwargs = {"opponent": "novice", "version": 1}
+    vector = PingPongVectorEnv(2, **kwargs)
+    vector.reset(seed=5)
+    single = PingPongEnv(**kwargs)
+    single.reset(seed=5)
+    action = np.zeros(6)
+    batch, opp, taken = vector.batch, 1 - single.player, 0
+    for _ in range(400):
+        taken += int(batch.opp_ai[0, OPP_TAKEN])
+        batch._sync(0)
+        mine, theirs = vector.envs[0].match.ais[opp], single.match.ais[opp]
+        assert (mine.key, mine.decisions) == (theirs.key, theirs.decisions)
+        assert (mine.bot.ai.turn_key, mine.bot.ai.turn_seen_at, mine.bot.ai.plan is None) == \
+               (theirs.bot.ai.turn_key, theirs.bot.ai.turn_seen_at, theirs.bot.ai.plan is None)
+        assert mine.ctl.tobytes() == theirs.ctl.tobytes()
+        _, _, terminated, truncated, _ = single.step(action)
+        vector.step(np.stack([action, action]))
+        if terminated or truncated:
+            break
+    assert taken > 0  # some were taken in the compiled call (counted until handed back)
