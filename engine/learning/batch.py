@@ -22,10 +22,13 @@ lead-in and PingPongEnv.step do in Python, in the same order and arithmetic:
 
 An AI profile's decision is Python (its BatAI thinks a stroke out): the compiled call stops a
 table whose seat must decide, the batch calls that table's engine.play.players.Seat on the state
-there, and the next call goes on from it. The stand-in is asked only when its gate is open,
-where the environment asks it at every control tick: BatAI.wakes promises that the decisions in
-between change nothing. Between decisions the arm law is compiled like the rest. A table's
-episodes are the single environment's bit for bit (tests/engine/test_vector_env.py).
+there, and the next call goes on from it. The opponent's decisions that need no Python (the
+ball changed hands without a stroke for it to think out, its plan ran out) are taken in the
+compiled call on a mirror of its BatAI (_quiet_decision) and handed back before its next Python
+decision (TableBatch._sync). The stand-in is asked only when its gate is open, where the
+environment asks it at every control tick: BatAI.wakes promises that the decisions in between
+change nothing. Between decisions the arm law is compiled like the rest. A table's episodes are
+the single environment's bit for bit (tests/engine/test_vector_env.py).
 """
 from __future__ import annotations
 
