@@ -178,10 +178,17 @@ def _gate_open(r, now, ctl_row, key, due, end):
     seat's gate (its decision key at its last decision, its wakes)."""
     if ctl_row[CTL_KIND] != ARM_TARGET:
         return True
-    if (key[0] != r['rally'] or key[1] != r['shots'] or key[2] != _next_striker(r)
-            or key[3] != (1 if r['phase'] == _WAITING_SERVE else 0)):
+    rally, shots, striker, serve = _decision_key(r)
+    if key[0] != rally or key[1] != shots or key[2] != striker or key[3] != serve:
         return True
     return now >= due or now > end
+
+
+@njit(cache=True, _nrt=False)
+def _decision_key(r):
+    """engine.play.players.decision_key of the record: (rally, shots, the player to strike next,
+    whether that strike is a service)."""
+    return r['rally'], r['shots'], _next_striker(r), 1 if r['phase'] == _WAITING_SERVE else 0
 
 
 @njit(cache=True, _nrt=False)
@@ -199,12 +206,11 @@ def _quiet_decision(r, now, ctl_row, key, due, end, opp, ai, floats):
     (TableBatch._mirror); TableBatch._sync hands what was taken here to the Python objects."""
     if ai[OPP_TRACKED] != 1 or ctl_row[CTL_KIND] != ARM_TARGET or now >= due[0]:
         return False
-    striker = _next_striker(r)
-    serve = 1 if r['phase'] == _WAITING_SERVE else 0
-    if striker == opp and (ai[OPP_PLANNED] != r['rally'] or ai[OPP_PLANNED + 1] != r['shots']):
+    rally, shots, striker, serve = _decision_key(r)
+    if striker == opp and (ai[OPP_PLANNED] != rally or ai[OPP_PLANNED + 1] != shots):
         return False  # its turn, a stroke to think out: Python
-    if ai[OPP_TURN] != r['rally'] or ai[OPP_TURN + 1] != r['shots']:
-        ai[OPP_TURN], ai[OPP_TURN + 1] = r['rally'], r['shots']
+    if ai[OPP_TURN] != rally or ai[OPP_TURN + 1] != shots:
+        ai[OPP_TURN], ai[OPP_TURN + 1] = rally, shots
         floats[OPP_SEEN] = now
     if now > end[0]:  # BatAI._track(None, end_sign): the ready pose, no segments
         for i in range(6):
@@ -212,7 +218,7 @@ def _quiet_decision(r, now, ctl_row, key, due, end, opp, ai, floats):
         ctl_row[CTL_N_SEGMENTS] = 0.0
         end[0] = math.inf
         ai[OPP_EXPIRED] = 1
-    key[0], key[1], key[2], key[3] = r['rally'], r['shots'], striker, serve
+    key[0], key[1], key[2], key[3] = rally, shots, striker, serve
     ai[OPP_TAKEN] += 1
     return True
 
@@ -285,8 +291,7 @@ def _control_tick(si, table, players, plan, player, lead, delay):
             r, w[0]['time'], ctl[opp], key[opp], due[opp:opp + 1], end[opp:opp + 1], opp, opp_ai, opp_floats):
         wait |= 1 << opp
     if wait != 0:
-        si[I_KEY], si[I_KEY + 1], si[I_KEY + 2] = r['rally'], r['shots'], _next_striker(r)
-        si[I_KEY + 3] = 1 if r['phase'] == _WAITING_SERVE else 0
+        si[I_KEY], si[I_KEY + 1], si[I_KEY + 2], si[I_KEY + 3] = _decision_key(r)
     return wait
 
 

@@ -81,6 +81,12 @@ class HangAlarm:
             signal.setitimer(signal.ITIMER_REAL, max(delay - (time.monotonic() - self._started), 1e-6), interval)
 
 
+def _raised(exc: Exception) -> tuple[str, str]:
+    """The fault of a decision that raised exc: ("raised", what and where)."""
+    where = traceback.extract_tb(exc.__traceback__)[-1]
+    return "raised", f"{type(exc).__name__}: {exc} ({where.filename}:{where.lineno})"
+
+
 _DECIDING: list = [None]  # the decision in progress in this process: (seat, time.monotonic() at its start)
 
 
@@ -260,7 +266,6 @@ class Seat:
         if self.profile:
             return self._decide_profile(now, ball_flat, floats, key)
         self.observe(tick, now, ball_flat, floats, rally, key)
-        me = self.player
         self.key = key
         self.decisions += 1
         fault = detail = None
@@ -272,8 +277,7 @@ class Seat:
         except _Overrun:
             fault, detail = "overran", f"act() had not returned after {self.hang_s:g} s: interrupted"
         except Exception as exc:  # noqa: BLE001 - whatever a bot raises is its fault, reported, never fatal
-            where = traceback.extract_tb(exc.__traceback__)[-1]
-            fault, detail = "raised", f"{type(exc).__name__}: {exc} ({where.filename}:{where.lineno})"
+            fault, detail = _raised(exc)
         finally:
             _DECIDING[0] = None
         used = time.thread_time() - started
@@ -286,9 +290,13 @@ class Seat:
                 self._take(action)
                 return None
             fault, detail = problem
+        return self._fault(fault, detail)
+
+    def _fault(self, fault: str, detail: str) -> tuple:
+        """A decision that went wrong: counted, the idle arm's brake until the next good one."""
         self.faults += 1
-        self.ctl[CTL_KIND] = ARM_BRAKE  # the idle arm's brake until the next good decision
-        return me, fault, detail
+        self.ctl[CTL_KIND] = ARM_BRAKE
+        return self.player, fault, detail
 
     def _decide_profile(self, now: float, ball_flat, floats: np.ndarray, key) -> tuple | None:
         """decide() of an AI profile: ProfileBot.act and _take without the observation and the
@@ -303,8 +311,7 @@ class Seat:
             ai.decide(now, ball_flat, floats[me], (key[0], key[1]), key[2] == me, key[3] == 1, self.bot.end_sign)
             fault = None
         except Exception as exc:  # noqa: BLE001 - as a bot's: reported, never fatal
-            where = traceback.extract_tb(exc.__traceback__)[-1]
-            fault, detail = "raised", f"{type(exc).__name__}: {exc} ({where.filename}:{where.lineno})"
+            fault, detail = _raised(exc)
         finally:
             _DECIDING[0] = None
         self.act_seconds += time.thread_time() - started
@@ -321,9 +328,7 @@ class Seat:
                 _take_target(src, self.ctl, False)
                 return None
             fault, detail = problem
-        self.faults += 1
-        self.ctl[CTL_KIND] = ARM_BRAKE
-        return me, fault, detail
+        return self._fault(fault, detail)
 
     def state(self) -> dict:
         """What the seat decides on, as plain data (load_state): its own counts, and an AI profile's
