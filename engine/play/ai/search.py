@@ -9,9 +9,9 @@ an aim before the next aim, and stops at the first candidate whose stroke lands 
   return on the opponent's court; a service on the server's court, then the opponent's), told
   from the free flight to the next contact where that is sure (free_flight_verdict), else from
   the path predicted at the engine's tick (the prediction predict_flight makes).
-The arithmetic is that of the Python it replaced, operation for operation (the same strokes,
-bit for bit: tests/engine/test_ai.py). Compiled without numba's runtime: it allocates nothing,
-the caller's scratch is its memory.
+The arithmetic is that of the Python it replaced, operation for operation; tests/engine/test_ai.py
+checks the judgement against a numpy reference on the whole predicted path. Compiled without
+numba's runtime: it allocates nothing, the caller's scratch is its memory.
 """
 from __future__ import annotations
 
