@@ -7,15 +7,15 @@
   --async-tables. Every step of every table counts, autoresets included; the first steps (kernels
   loaded, in each process) are not timed. Each figure's ratio is to the one environment's of the
   same net.
-- batched (Return-v1 against novice, rigid net, `hold` actions at the ready pose in the agent's
-  frame): one version-1 PingPongEnv and the native vector env at N = --batched, which steps its
-  tables in one numba call (engine.learning.batch), measured in turns (the one environment, then
-  each N, ROUNDS times: a drifting machine moves them alike); medians, and the ratios to that one
-  environment as the median of the turns' ratios with their range. Each N's wall
-  time is split into the compiled call (engine.learning.batch.TableBatch.seconds), the AI
-  profiles' decisions (Python: BatAI thinking a stroke out) and the rest (episodes' starts, the
-  vector env's own work); "the compiled call alone" is the ratio the batch would reach if all
-  its Python took no time: how far the physics' arithmetic leaves the goal.
+- batched (Return-v1 against novice, `hold` actions at the ready pose in the agent's frame), rigid
+  net and cloth net: one version-1 PingPongEnv and the native vector env at N = --batched, which
+  steps its tables in one numba call (engine.learning.batch), measured in turns (the one
+  environment, then each N, ROUNDS times: a drifting machine moves them alike); medians, and the
+  ratios to that one environment as the median of the turns' ratios with their range. Each N's
+  wall time is split into the compiled call (engine.learning.batch.TableBatch.seconds), the AI
+  profiles' decisions (Python: BatAI thinking a stroke out), the cloth net's ticks near the ball
+  (its NetSim's kernels and their Python) and the rest (episodes' starts, the vector env's own
+  work); "the compiled call alone" is the ratio the batch would reach if all else took no time.
 - physics share: the share of the one environment's step (the process's CPU time, every thread)
   spent in the physics (engine.physics.world.advance, timed around each call: the numba tick kernel and,
   with the cloth net, the net's kernels): the most that stepping a batch of tables' physics in one
@@ -99,8 +99,9 @@ READY_V1 = np.array([-0.6, 0.0, 0.0, 0.0, 0.0, 0.0])  # a version-1 hold action:
 ROUNDS = 3  # the batched study's turns: one environment, then each N, again and again
 
 
-def batched_steps_per_second(tables: list[int], seconds: float, rounds: int = ROUNDS) -> dict:
-    """One version-1 environment's steps per second, and the batched vector env's at each N.
+def batched_steps_per_second(tables: list[int], seconds: float, rounds: int = ROUNDS, net: str = "rigid") -> dict:
+    """One version-1 environment's steps per second, and the batched vector env's at each N, with
+    the `net` net.
 
     Measured in `rounds` turns of seconds / rounds each (the one environment, then each N), so
     that a machine whose speed drifts during the study moves the figures alike: a figure is the
@@ -109,7 +110,7 @@ def batched_steps_per_second(tables: list[int], seconds: float, rounds: int = RO
     from engine.learning.env import PingPongEnv
     from engine.learning.vector_env import PingPongVectorEnv
 
-    env = PingPongEnv(opponent="novice", version=1)
+    env = PingPongEnv(opponent="novice", version=1, net=net)
     env.reset(seed=0)
 
     def step():
@@ -117,7 +118,7 @@ def batched_steps_per_second(tables: list[int], seconds: float, rounds: int = RO
         if terminated or truncated:
             env.reset()
 
-    vectors = {n: PingPongVectorEnv(n, opponent="novice", version=1) for n in tables}
+    vectors = {n: PingPongVectorEnv(n, opponent="novice", version=1, net=net) for n in tables}
     try:
         for vector in vectors.values():
             vector.reset(seed=0)
@@ -139,13 +140,14 @@ def batched_steps_per_second(tables: list[int], seconds: float, rounds: int = RO
             "ratio": float(np.median(ratios)), "ratio_range": [min(ratios), max(ratios)],
             "compiled_share": compiled / wall,
             "decisions_share": sum(row["decisions"] for row in rows) / wall,
+            "net_share": sum(row["net"] for row in rows) / wall,
             "compiled_alone_ratio": float(np.median([row["ratio"] * row["wall"] / row["compiled"] for row in rows]))}
     return out
 
 
 def _batched_turn(vector, n: int, seconds: float, single: float) -> dict:
     """One turn of the batched vector env of n tables: its steps/s, their ratio to `single`, and
-    the wall, compiled and decisions seconds of the timed steps."""
+    the wall, compiled, decisions and net seconds of the timed steps."""
     actions = np.stack([READY_V1] * n)
     batch = vector.batch
     spent = {}
@@ -158,7 +160,7 @@ def _batched_turn(vector, n: int, seconds: float, single: float) -> dict:
     rate = _timed(timed_step, n, seconds)
     return {"steps_per_s": rate, "ratio": rate / single, "wall": time.perf_counter() - spent["started"],
             "compiled": batch.seconds["compiled"] - spent["compiled"],
-            "decisions": batch.seconds["decisions"] - spent["decisions"]}
+            "decisions": batch.seconds["decisions"] - spent["decisions"], "net": batch.seconds["net"] - spent["net"]}
 
 
 def native_steps_per_second(n: int, seconds: float, net: str) -> float:
@@ -228,9 +230,11 @@ def _run(args: argparse.Namespace, progress=None) -> dict:
         load_before = float(f.read().split()[0])
     result: dict = {"seconds": seconds, "nets": {}}
     batched = _counts(args.batched, "--batched") if not args.quick else [1, 8, 64]
-    if progress is not None:  # first, before any AsyncVectorEnv's processes have run
-        progress(f"batched: one version-1 environment, the batched vector env at {batched}")
-    result["batched"] = batched_steps_per_second(batched, seconds)
+    result["batched"] = {}
+    for net in NETS:  # first, before any AsyncVectorEnv's processes have run
+        if progress is not None:
+            progress(f"batched, {net} net: one version-1 environment, the batched vector env at {batched}")
+        result["batched"][net] = batched_steps_per_second(batched, seconds, net=net)
     for net in NETS:
         if progress is not None:
             progress(f"{net} net: one environment, native vector env at {tables}, AsyncVectorEnv at {async_tables}")
@@ -263,14 +267,15 @@ def _report(result: dict) -> None:
         for kind, label in (("native", "native vector env"), ("async", "AsyncVectorEnv")):
             for n, r in row[kind].items():
                 print(f"    {label:<18} N = {n:>3}: {r['steps_per_s']:7.0f} steps/s  {r['ratio']:5.2f}x")
-    b = result["batched"]
-    print(f"  batched (Return-v1, rigid net, hold; medians of {b['rounds']} turns each, ratios' range in "
-          f"brackets): one environment {b['single']:.0f} steps/s")
-    for n, r in b["batched"].items():
-        low, high = r["ratio_range"]
-        print(f"    {'batched vector env':<18} N = {n:>3}: {r['steps_per_s']:7.0f} steps/s  {r['ratio']:5.2f}x "
-              f"[{low:.2f}-{high:.2f}]  (compiled call {r['compiled_share']:.0%}, AI profiles' decisions "
-              f"{r['decisions_share']:.0%}; the compiled call alone: {r['compiled_alone_ratio']:.1f}x)")
+    for net, b in result["batched"].items():
+        print(f"  batched (Return-v1, {net} net, hold; medians of {b['rounds']} turns each, ratios' range in "
+              f"brackets): one environment {b['single']:.0f} steps/s")
+        for n, r in b["batched"].items():
+            low, high = r["ratio_range"]
+            cloth = f", the cloth net's ticks near the ball {r['net_share']:.0%}" if net == "cloth" else ""
+            print(f"    {'batched vector env':<18} N = {n:>3}: {r['steps_per_s']:7.0f} steps/s  {r['ratio']:5.2f}x "
+                  f"[{low:.2f}-{high:.2f}]  (compiled call {r['compiled_share']:.0%}, AI profiles' decisions "
+                  f"{r['decisions_share']:.0%}{cloth}; the compiled call alone: {r['compiled_alone_ratio']:.1f}x)")
     print(f"  the cloth net costs {result['cloth_cost']:.2f}x the rigid net's time per step (one environment)")
     p = result["players"]
     print(f"players per control tick (match_rigid, {p['pro']['ticks']} ticks): "

@@ -7,7 +7,7 @@ so the suite's tests load the kernels from the cache instead. It runs what the t
 match in worker processes on each bundled match scene (the physics, net and AI workers
 compile what they run, numba.config.CACHE_DIR is the same for every process of this checkout),
 a served match's workers, a bot's client, the in-process match, and the batched vector
-environment (its step is one kernel that two test files run). Prints what each step took.
+environment with each net (its step is one kernel that two test files run). Prints what each step took.
 """
 from __future__ import annotations
 
@@ -31,9 +31,10 @@ _warm_up("pro")
 BATCHED = """\
 import numpy as np
 from engine.learning.vector_env import PingPongVectorEnv
-vector = PingPongVectorEnv(1, opponent="novice", version=1)
-vector.reset(seed=0)
-vector.step(np.zeros((1, 6)))
+for net in ("rigid", "cloth"):
+    vector = PingPongVectorEnv(1, opponent="novice", version=1, net=net)
+    vector.reset(seed=0)
+    vector.step(np.zeros((1, 6)))
 """
 # Stages one after the other, the steps of a stage side by side. The first compiles nearly every
 # kernel (its physics, net and AI workers side by side, on both cores); the others then load

@@ -29,6 +29,8 @@ import math
 import numpy as np
 from gymnasium import spaces
 
+from numba import njit
+
 from engine.physics.bat import face_normal, rotate
 from engine.play.bot import force, hold, target
 from engine.play.match import OUT_OF_PLAY_DISTANCE
@@ -46,6 +48,7 @@ HOLD_HIGH = np.array([-0.2, 1.5, 1.0])
 TARGET_SPEED = 20.0  # m/s, the velocity entries' scale
 TARGET_MAX_S = 1.0  # s, the latest a target pose can be asked for
 
+_OVER, _WAITING_SERVE = int(Phase.OVER), int(Phase.WAITING_SERVE)
 _TURN = np.array([-1.0, -1.0, 1.0])  # half a turn about z, as a per-axis sign
 _X_AXIS = np.array([1.0, 0.0, 0.0])
 
@@ -137,3 +140,77 @@ def action_record(a: np.ndarray, action_type: str, player: int, max_force: float
         target(view, pos, normal, vel=a[6:9] * TARGET_SPEED * turn,
                at=float(view["time"]) + (a[9] + 1.0) / 2.0 * TARGET_MAX_S, out=out)
     return out
+
+
+@njit(cache=True, _nrt=False)
+def next_striker(r):
+    """engine.play.rules.next_striker of the rally record (RALLY_DTYPE), compiled."""
+    phase = r['phase']
+    if phase == _OVER:
+        return -1
+    if phase == _WAITING_SERVE:
+        return r['server']
+    return 1 - r['striker']
+
+
+@njit(cache=True, _nrt=False)
+def hold_plans(actions, player, out):
+    """The checked hold actions (N, 6) in [-1, 1] as action_record and engine.play.bot.hold make them, compiled:
+    out[k] = the hold pose (3, m, world axes) and the unit face normal (3)."""
+    turn = -1.0 if player == 1 else 1.0
+    for k in range(actions.shape[0]):
+        a = actions[k]
+        for i in range(3):
+            sign = 1.0 if i == 2 else turn
+            out[k, i] = (HOLD_LOW[i] + (a[i] + 1.0) / 2.0 * (HOLD_HIGH[i] - HOLD_LOW[i])) * sign
+        n0, n1, n2 = a[3] * turn, a[4] * turn, a[5]
+        if math.sqrt(a[3] * a[3] + a[4] * a[4] + a[5] * a[5]) <= 1e-9:
+            n0, n1, n2 = 1.0 * turn, 0.0 * turn, 0.0
+        norm = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+        out[k, 3], out[k, 4], out[k, 5] = n0 / norm, n1 / norm, n2 / norm
+
+
+@njit(cache=True, _nrt=False)
+def observe_state(ball, bats, r, player, axis, out):
+    """observe of the state, compiled: ball (9,) and bats (2, BAT_FLOATS) flat, the rally record r,
+    the agent at `player`, into out (len(OBSERVATION_NAMES),); axis: (3, 3) scratch whose row 2 is
+    the bat's local x axis (1, 0, 0)."""
+    turn = -1.0 if player == 1 else 1.0
+    j = 0
+    for scale, at in ((POS_SCALE, 0), (VEL_SCALE, 3), (SPIN_SCALE, 6)):
+        out[j] = ball[at] * turn / scale
+        out[j + 1] = ball[at + 1] * turn / scale
+        out[j + 2] = ball[at + 2] * 1.0 / scale
+        j += 3
+    for who in (player, 1 - player):
+        bat = bats[who]
+        for scale, at in ((POS_SCALE, 0), (VEL_SCALE, 7)):
+            out[j] = bat[at] * turn / scale
+            out[j + 1] = bat[at + 1] * turn / scale
+            out[j + 2] = bat[at + 2] * 1.0 / scale
+            j += 3
+        face_normal(bat[3:7], axis[0])
+        rotate(bat[3:7], axis[2], axis[1])
+        out[j], out[j + 1], out[j + 2] = axis[0, 0] * turn, axis[0, 1] * turn, axis[0, 2] * 1.0
+        j += 3
+        if who == player:
+            out[j], out[j + 1], out[j + 2] = axis[1, 0] * turn, axis[1, 1] * turn, axis[1, 2] * 1.0
+            out[j + 3] = bat[10] * turn / ANG_VEL_SCALE
+            out[j + 4] = bat[11] * turn / ANG_VEL_SCALE
+            out[j + 5] = bat[12] * 1.0 / ANG_VEL_SCALE
+            j += 6
+    for p in range(_OVER + 1):
+        out[j + p] = 1.0 if r['phase'] == p else 0.0
+    j += _OVER + 1
+    to_strike = next_striker(r)
+    out[j] = 1.0 if to_strike == player else 0.0
+    out[j + 1] = 1.0 if to_strike == 1 - player else 0.0
+    out[j + 2] = 1.0 if to_strike < 0 else 0.0
+    out[j + 3] = 1.0 if r['server'] == player else 0.0
+    out[j + 4] = r['score'][player] / POINTS_SCALE
+    out[j + 5] = r['score'][1 - player] / POINTS_SCALE
+    out[j + 6] = r['games_won'][player] / GAMES_SCALE
+    out[j + 7] = r['games_won'][1 - player] / GAMES_SCALE
+    out[j + 8] = min(r['shots'], MAX_SHOTS) / MAX_SHOTS
+    for i in range(out.shape[0]):
+        out[i] = min(max(out[i], -1.0), 1.0)

@@ -1,6 +1,6 @@
 """N tables' environment steps in one numba call: the batched step of engine.learning.vector_env.
 
-A table is one engine.learning.env.PingPongEnv (version 1, the rigid net, `hold` actions). Its
+A table is one engine.learning.env.PingPongEnv (version 1, `hold` actions, either net). Its
 episode begins as the environment's does (PingPongEnv.begin_episode: the draws, the match, the
 ball machine's ball, in Python); then TableBatch.load copies what the batch reads and writes
 into its arrays, and from there the batch plays it: a drive's lead-in, then each control period
@@ -14,7 +14,8 @@ lead-in and PingPongEnv.step do in Python, in the same order and arithmetic:
   its gate is open (engine.play.players.gate_open: its decision key changed or its wakes came);
 - the physics to the next control tick, a frame boundary or the first tick that needs the
   referee (engine.physics.tick.advance_ticks), the referee's judgement of each contact, the ball
-  out of play, the next rally's toss (engine.play.judge);
+  out of play, the next rally's toss (engine.play.judge); with the cloth net, the ball's ticks
+  out of the net's reach (below);
 - a lead-in ends when the opponent drove (the reset's observation), or, if the match ended
   first, is played again in the env's next match (PingPongEnv.next_match);
 - a step's rewards (PingPongEnv.play_period's, sparse and dense), the end of the episode, and
@@ -27,8 +28,16 @@ ball changed hands without a stroke for it to think out, its plan ran out) are t
 compiled call on a mirror of its BatAI (_quiet_decision) and handed back before its next Python
 decision (TableBatch._sync). The stand-in is asked only when its gate is open, where the
 environment asks it at every control tick: BatAI.wakes promises that the decisions in between
-change nothing. Between decisions the arm law is compiled like the rest. A table's episodes are
-the single environment's bit for bit (tests/engine/test_vector_env.py).
+change nothing. Between decisions the arm law is compiled like the rest.
+
+The cloth net (engine.physics.world._advance_with_cloth): out of its reach (model.cloth_reach)
+the ball's ticks are the compiled call's, and the net, which cannot touch the ball there, owes
+them (TableBatch.net_owed); when the ball comes within reach the compiled call stops the table
+and TableBatch._step_net, in Python, steps its NetSim over the ticks it owes (one free run) and
+then the ticks Match.tick would step from there, with the engine's own code, on the table's
+state. A net never met again in the episode is never stepped: its episode's outcome does not
+depend on it. A table's episodes are the single environment's bit for bit, and so is the net
+the ball meets (tests/engine/test_vector_env.py).
 """
 from __future__ import annotations
 
@@ -39,29 +48,36 @@ import numpy as np
 from numba import njit
 
 from engine.learning import agent_frame
+from engine.learning.agent_frame import hold_plans, next_striker, observe_state
 from engine.learning.env import APPROACH, FRAME_EVERY, NET_CLEAR, RETURN_LANDED, RETURN_STRIKE, PingPongEnv
-from engine.physics.bat import FORCE_AT, TORQUE_AT, face_normal, rotate
+from engine.physics.bat import FORCE_AT, TORQUE_AT
 from engine.physics.collision import BAT_ROW, EVENT_ROW, MAX_IMPACTS_PER_TICK, SCRATCH_SHAPE
 from engine.physics.dtypes import RALLY_DTYPE, WORLD_DTYPE
 from engine.physics.integrators import WORK_SHAPE
-from engine.physics.tick import advance_ticks
+from engine.physics.tick import STOP_WATCH, advance_ticks, ball_inside
+from engine.physics.world import advance
 from engine.play.arm import (ARM_TARGET, BAT_FLOATS, CTL_HOLD, CTL_KIND, CTL_N_SEGMENTS, CTL_SEGMENTS,
                              CTL_SIZE, control_bats)
-from engine.play.judge import NO_POINT, ball_out_of_play, next_rally_and_toss, on_contact, server
-from engine.play.match import _GONE_RADIUS_2, _GONE_Z
+from engine.play.judge import NO_POINT, ball_out_of_play, next_rally_and_toss, on_contact
+from engine.play.match import _GONE_RADIUS_2, _GONE_Z, OUT_OF_PLAY_DISTANCE
 from engine.play.players import NO_KEY
 from engine.play.rules import Phase
 
 # A table's progress through a step or a lead-in (TableBatch.status); LEAD_OVER: the match ended
-# before the lead-in's drive.
-IDLE, START, STEPPING, WAITING, DONE, LEAD_OVER = range(6)
+# before the lead-in's drive; NET: its ticks near the cloth net are Python's (TableBatch._step_net).
+IDLE, START, STEPPING, WAITING, DONE, LEAD_OVER, NET = range(7)
 # Integer bookkeeping of a step in progress (TableBatch.ints' columns), and the floats' (TableBatch.floats).
 # I_LANDED + end: whether end's return landed in the step. I_WAIT: the seats that must decide (bit
 # p: seat p). I_LEAD: 1 while the table plays a drive's lead-in.
 I_STOP_AT, I_CTL_TICK, I_REQ_TICK, I_DECIDED, I_LANDED, I_SHOTS, I_PHASE, I_STRIKER, I_POINTS, I_WINNER = (
     0, 1, 2, 3, 4, 6, 7, 8, 9, 10)
 I_WAIT, I_LEAD, I_KEY = 11, 12, 13  # I_KEY: the decision key (engine.play.players.decision_key) there, 4 ints
-N_INTS = 17
+# I_EVENTS: the contacts of the ticks just advanced (in event_rows); I_NET_TICKS: the ticks the cloth
+# net's Python is to advance; I_NET: 1 once it did (the compiled call then judges them).
+I_EVENTS, I_NET_TICKS, I_NET = 17, 18, 19
+N_INTS = 20
+# _advance's outcomes
+ADVANCED, FAILED, NEAR_NET = 0, 1, 2
 # The opponent's BatAI as the compiled call sees it (TableBatch.opp_ai's columns): its turn_key and
 # planned_key (rally, shots; -1 for none), whether its plan is tracked, the decisions taken here,
 # whether its plan ran out there; TableBatch.opp_floats': its turn_seen_at (s), its ready pose
@@ -76,91 +92,15 @@ _OVER = int(Phase.OVER)
 _WAITING_SERVE = int(Phase.WAITING_SERVE)
 _BOUNCED = int(Phase.BOUNCED)
 _STRUCK = int(Phase.STRUCK)
-_POS_SCALE, _VEL_SCALE, _SPIN_SCALE = agent_frame.POS_SCALE, agent_frame.VEL_SCALE, agent_frame.SPIN_SCALE
-_ANG_VEL_SCALE, _POINTS_SCALE, _GAMES_SCALE = agent_frame.ANG_VEL_SCALE, agent_frame.POINTS_SCALE, agent_frame.GAMES_SCALE
-_MAX_SHOTS = agent_frame.MAX_SHOTS
-_HOLD_LOW, _HOLD_HIGH = agent_frame.HOLD_LOW, agent_frame.HOLD_HIGH
-
-
-@njit(cache=True, _nrt=False)
-def _next_striker(r):
-    """engine.play.rules.next_striker of the record."""
-    phase = r['phase']
-    if phase == _OVER:
-        return -1
-    if phase == _WAITING_SERVE:
-        return r['server']
-    return 1 - r['striker']
-
-
-@njit(cache=True, _nrt=False)
-def hold_plans(actions, player, out):
-    """The checked hold actions (N, 6) in [-1, 1] (agent_frame.action_record, then engine.play.bot.hold):
-    out[k] = the hold pose (3, m, world axes) and the unit face normal (3)."""
-    turn = -1.0 if player == 1 else 1.0
-    for k in range(actions.shape[0]):
-        a = actions[k]
-        for i in range(3):
-            sign = 1.0 if i == 2 else turn
-            out[k, i] = (_HOLD_LOW[i] + (a[i] + 1.0) / 2.0 * (_HOLD_HIGH[i] - _HOLD_LOW[i])) * sign
-        n0, n1, n2 = a[3] * turn, a[4] * turn, a[5]
-        if math.sqrt(a[3] * a[3] + a[4] * a[4] + a[5] * a[5]) <= 1e-9:
-            n0, n1, n2 = 1.0 * turn, 0.0 * turn, 0.0
-        norm = math.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-        out[k, 3], out[k, 4], out[k, 5] = n0 / norm, n1 / norm, n2 / norm
 
 
 @njit(cache=True, _nrt=False)
 def _potential(bats, ball, r, end):
     """PingPongEnv._potentials for `end`: -APPROACH |bat - ball| while it is to strike next, else 0."""
-    if _next_striker(r) != end:
+    if next_striker(r) != end:
         return 0.0
     dx, dy, dz = bats[end, 0] - ball[0], bats[end, 1] - ball[1], bats[end, 2] - ball[2]
     return -APPROACH * math.sqrt(dx * dx + dy * dy + dz * dz)
-
-
-@njit(cache=True, _nrt=False)
-def _observe(ball, bats, r, player, axis, out):
-    """agent_frame.observe of the state, the agent at `player`, into out (48,)."""
-    turn = -1.0 if player == 1 else 1.0
-    j = 0
-    for scale, at in ((_POS_SCALE, 0), (_VEL_SCALE, 3), (_SPIN_SCALE, 6)):
-        out[j] = ball[at] * turn / scale
-        out[j + 1] = ball[at + 1] * turn / scale
-        out[j + 2] = ball[at + 2] * 1.0 / scale
-        j += 3
-    for who in (player, 1 - player):
-        bat = bats[who]
-        for scale, at in ((_POS_SCALE, 0), (_VEL_SCALE, 7)):
-            out[j] = bat[at] * turn / scale
-            out[j + 1] = bat[at + 1] * turn / scale
-            out[j + 2] = bat[at + 2] * 1.0 / scale
-            j += 3
-        face_normal(bat[3:7], axis[0])
-        rotate(bat[3:7], axis[2], axis[1])
-        out[j], out[j + 1], out[j + 2] = axis[0, 0] * turn, axis[0, 1] * turn, axis[0, 2] * 1.0
-        j += 3
-        if who == player:
-            out[j], out[j + 1], out[j + 2] = axis[1, 0] * turn, axis[1, 1] * turn, axis[1, 2] * 1.0
-            out[j + 3] = bat[10] * turn / _ANG_VEL_SCALE
-            out[j + 4] = bat[11] * turn / _ANG_VEL_SCALE
-            out[j + 5] = bat[12] * 1.0 / _ANG_VEL_SCALE
-            j += 6
-    for p in range(_OVER + 1):
-        out[j + p] = 1.0 if r['phase'] == p else 0.0
-    j += _OVER + 1
-    to_strike = _next_striker(r)
-    out[j] = 1.0 if to_strike == player else 0.0
-    out[j + 1] = 1.0 if to_strike == 1 - player else 0.0
-    out[j + 2] = 1.0 if to_strike < 0 else 0.0
-    out[j + 3] = 1.0 if r['server'] == player else 0.0
-    out[j + 4] = r['score'][player] / _POINTS_SCALE
-    out[j + 5] = r['score'][1 - player] / _POINTS_SCALE
-    out[j + 6] = r['games_won'][player] / _GAMES_SCALE
-    out[j + 7] = r['games_won'][1 - player] / _GAMES_SCALE
-    out[j + 8] = min(r['shots'], _MAX_SHOTS) / _MAX_SHOTS
-    for i in range(out.shape[0]):
-        out[i] = min(max(out[i], -1.0), 1.0)
 
 
 @njit(inline="always")
@@ -188,13 +128,13 @@ def _gate_open(r, now, ctl_row, key, due, end):
 def _decision_key(r):
     """engine.play.players.decision_key of the record: (rally, shots, the player to strike next,
     whether that strike is a service)."""
-    return r['rally'], r['shots'], _next_striker(r), 1 if r['phase'] == _WAITING_SERVE else 0
+    return r['rally'], r['shots'], next_striker(r), 1 if r['phase'] == _WAITING_SERVE else 0
 
 
 @njit(cache=True, _nrt=False)
 def observe_table(k, ball, bats, rally, player, axis, obs):
     """_observe of table k's state into obs[k]."""
-    _observe(ball[k], bats[k], rally[k], player, axis, obs[k])
+    observe_state(ball[k], bats[k], rally[k], player, axis, obs[k])
 
 
 @njit(cache=True, _nrt=False)
@@ -232,30 +172,31 @@ def _opponent_drove(r, opp):
 @njit(cache=True, _nrt=False)
 def run_tables(status, ints, floats, world, ball, bats, rally, bat_motion, bat_tmp, work, scratch, event_rows,
                ctl, arm, inputs, players, pending, pending_tick, pending_at, plans, gate_key, gate_due, gate_end, opp_ai,
-               opp_floats,
+               opp_floats, net_owed,
                steps, rewards, terminated, truncated, obs, errors, axis, player, rally_task, dense, best_of, every,
-               delay, max_seconds, max_rally_s, toss_speed, physics):
+               delay, max_seconds, max_rally_s, toss_speed, reach, physics):
     """Go on with every table whose status is START or STEPPING (its step, or its lead-in while
-    ints[k, I_LEAD] is set) until it is DONE, LEAD_OVER or its players must decide (WAITING);
-    returns how many wait. The tables' arrays are TableBatch's; physics: TableBatch's tuple of
-    the model's arrays and numbers that engine.physics.tick.advance_ticks reads."""
+    ints[k, I_LEAD] is set) until it is DONE, LEAD_OVER, its players must decide (WAITING) or its
+    ball is near the cloth net (NET); returns how many wait for Python. The tables' arrays are
+    TableBatch's; reach: the cloth net's model.cloth_reach, None for the rigid net; physics:
+    TableBatch's tuple of the model's arrays and numbers that engine.physics.tick.advance_ticks reads."""
     waiting = 0
     for k in range(status.shape[0]):
         if status[k] != START and status[k] != STEPPING:
             continue
-        # table k's rows, in the order _control_tick and _advance_and_judge unpack them
+        # table k's rows, in the order _control_tick and _advance unpack them
         table = (world[k:k + 1], ball[k], bats[k], rally[k], bat_motion[k], bat_tmp[k], work[k], scratch[k],
                  event_rows[k], ctl[k], arm[k], inputs[k], pending[k], pending_tick[k], pending_at[k], gate_key[k],
                  gate_due[k], gate_end[k], opp_ai[k], opp_floats[k])
         if ints[k, I_LEAD] == 1:
-            status[k] = _lead_table(ints[k], table, players, plans[k], errors[k:k + 1], obs[k], axis, player,
+            status[k] = _lead_table(ints[k], table, reach, net_owed[k:k + 1], players, plans[k], errors[k:k + 1], obs[k], axis, player,
                                     best_of, every, delay, max_rally_s, toss_speed, physics)
         else:
-            status[k] = _step_table(status[k], ints[k], floats[k], table, players, plans[k], steps[k:k + 1],
+            status[k] = _step_table(status[k], ints[k], floats[k], table, reach, net_owed[k:k + 1], players, plans[k], steps[k:k + 1],
                                     rewards[k:k + 1], terminated[k:k + 1], truncated[k:k + 1], obs[k], errors[k:k + 1],
                                     axis, player, rally_task, dense, best_of, every, delay, max_seconds, max_rally_s,
                                     toss_speed, physics)
-        if status[k] == WAITING:
+        if status[k] == WAITING or status[k] == NET:
             waiting += 1
     return waiting
 
@@ -296,15 +237,21 @@ def _control_tick(si, table, players, plan, player, lead, delay):
 
 
 @njit(cache=True, _nrt=False)
-def _advance_and_judge(si, table, errors, n_max, best_of, every, delay, max_rally_s, toss_speed, physics):
-    """The rest of Match.tick from where the decisions were taken: their plans wait `delay` ticks
-    (LocalAI.request), the forces are applied, the physics runs up to n_max ticks
-    (engine.physics.tick.advance_ticks), the referee judges the contacts and a ball out of play,
-    the next rally is tossed (engine.play.judge). Returns False on a kernel error (in errors[0])."""
+def _advance(si, table, reach, owed, errors, n_max, every, delay, max_rally_s, physics):
+    """The rest of Match.tick from where the decisions were taken, up to the referee: their plans
+    wait `delay` ticks (LocalAI.request), the forces are applied, the physics runs up to n_max
+    ticks (engine.physics.tick.advance_ticks); their contacts are left in event_rows (si[I_EVENTS]).
+
+    With a cloth net (reach: its model.cloth_reach; owed: the ticks its NetSim owes), the ticks out of its
+    reach are the ones engine.physics.world._advance_with_cloth steps in one kernel call, here;
+    the net, which cannot touch the ball there, owes them (TableBatch._step_net steps them when
+    the ball next comes near; an episode that ends first never needs them). Returns ADVANCED,
+    FAILED on a kernel error (in errors[0]), or NEAR_NET when the ball is in the net's reach with
+    ticks to go (si[I_NET_TICKS] of them, Python's: TableBatch._step_net)."""
     w, ball, bats, r, bat_motion, bat_tmp, work, scratch, event_rows, ctl, _, inputs, pending, pending_tick, \
         pending_at, _, _, _, _, _ = table
-    h, bat_mass, bat_inertia, method, gravity, drag_k, magnus_k, rtol, atol, surface, floor_z, net, posts, params, \
-        materials = physics
+    h, bat_mass, bat_inertia, method, gravity, drag_k, magnus_k, rtol, atol, surface, floor_z, rigid_net, posts, \
+        params, materials = physics
     tick = w[0]['tick']
     if tick % every == 0:
         if si[I_REQ_TICK] != tick:
@@ -317,57 +264,82 @@ def _advance_and_judge(si, table, errors, n_max, best_of, every, delay, max_rall
             for i in range(3):
                 bats[b, FORCE_AT + i] = inputs[b, i]
                 bats[b, TORQUE_AT + i] = inputs[b, 3 + i]
-    deadline = r['rally_started'] + max_rally_s
+    if reach is not None and ball_inside(reach, ball):
+        si[I_NET_TICKS] = n_max
+        return NEAR_NET
     ticks, n, reason, error = advance_ticks(
         n_max, h, w, bats, bat_mass, bat_inertia, bat_motion, bat_tmp, ball[0:9], method, gravity, drag_k, magnus_k,
-        rtol, atol, surface, floor_z, net, posts, params, materials, work, scratch, w[0]['ball_adapt'], event_rows,
-        _GONE_RADIUS_2, _GONE_Z, deadline, None)
+        rtol, atol, surface, floor_z, rigid_net, posts, params, materials, work, scratch, w[0]['ball_adapt'],
+        event_rows, _GONE_RADIUS_2, _GONE_Z, r['rally_started'] + max_rally_s, reach)
     if error != 0:
         errors[0] = error
-        return False
+        return FAILED
+    if reach is not None:
+        owed[0] += ticks
+        if reason == STOP_WATCH and ticks < n_max:
+            si[I_NET_TICKS] = n_max - ticks
+            return NEAR_NET
+    si[I_EVENTS] = n
+    return ADVANCED
+
+
+@njit(cache=True, _nrt=False)
+def _judge(si, table, best_of, max_rally_s, toss_speed):
+    """Match.tick's referee after the ticks advanced: each contact judged, a ball out of play, the
+    next rally tossed (engine.play.judge)."""
+    w, ball, r, event_rows = table[0], table[1], table[3], table[8]
     point = NO_POINT
-    for e in range(n):  # engine.play.match.Match.tick's judgement
+    for e in range(si[I_EVENTS]):
         won, _ = on_contact(r, int(event_rows[e, 1]), event_rows[e, 2], event_rows[e, 3], best_of)
         if won != NO_POINT:
             point = won
     if point == NO_POINT and r['phase'] != _OVER:
         x, y, z = ball[0], ball[1], ball[2]
-        if x * x + y * y > _GONE_RADIUS_2 or z < _GONE_Z or w[0]['ball_support'] != 0 or w[0]['time'] > deadline:
+        if x * x + y * y > _GONE_RADIUS_2 or z < _GONE_Z or w[0]['ball_support'] != 0 or \
+                w[0]['time'] > r['rally_started'] + max_rally_s:
             point, _ = ball_out_of_play(r, x, y, best_of)
     if point != NO_POINT:
         si[I_WINNER] = point
         if r['winner'] < 0:
             next_rally_and_toss(r, ball, w[0], toss_speed)
-    return True
 
 
 @njit(cache=True, _nrt=False)
-def _lead_table(si, table, players, plan, errors, obs, axis, player, best_of, every, delay, max_rally_s, toss_speed,
-                physics):
+def _lead_table(si, table, reach, owed, players, plan, errors, obs, axis, player, best_of, every, delay, max_rally_s,
+                toss_speed, physics):
     """A drive's lead-in from where it stands (PingPongEnv._lead_in: the stand-in, the opponent's
     profile, plays the agent's bat until the opponent drove), then the reset's observation;
-    returns DONE, WAITING, or LEAD_OVER when the match ended first (the episode's next match
+    returns DONE, WAITING, NET, or LEAD_OVER when the match ended first (the episode's next match
     then leads in anew)."""
     w, ball, bats, r = table[0], table[1], table[2], table[3]
-    while not _opponent_drove(r, 1 - player):
-        if r['winner'] >= 0:
-            return LEAD_OVER
-        tick = w[0]['tick']
-        if tick % every == 0 and si[I_CTL_TICK] != tick:
-            si[I_WAIT] = _control_tick(si, table, players, plan, player, True, delay)
-            if si[I_WAIT] != 0:
-                return WAITING
-        n_max = min(FRAME_EVERY - tick % FRAME_EVERY, every - tick % every)
-        if not _advance_and_judge(si, table, errors, n_max, best_of, every, delay, max_rally_s, toss_speed, physics):
-            return DONE
+    while True:
+        if si[I_NET] == 1:  # the ticks near the net, advanced in Python: judged from here on
+            si[I_NET] = 0
+        else:
+            if _opponent_drove(r, 1 - player):
+                break
+            if r['winner'] >= 0:
+                return LEAD_OVER
+            tick = w[0]['tick']
+            if tick % every == 0 and si[I_CTL_TICK] != tick:
+                si[I_WAIT] = _control_tick(si, table, players, plan, player, True, delay)
+                if si[I_WAIT] != 0:
+                    return WAITING
+            n_max = min(FRAME_EVERY - tick % FRAME_EVERY, every - tick % every)
+            got = _advance(si, table, reach, owed, errors, n_max, every, delay, max_rally_s, physics)
+            if got == FAILED:
+                return DONE
+            if got == NEAR_NET:
+                return NET
+        _judge(si, table, best_of, max_rally_s, toss_speed)
     si[I_LEAD] = 0
-    _observe(ball, bats, r, player, axis, obs)
+    observe_state(ball, bats, r, player, axis, obs)
     return DONE
 
 
 @njit(cache=True, _nrt=False)
-def _step_table(status, si, sf, table, players, plan, steps, rewards, terminated, truncated, obs, errors, axis, player,
-                rally_task, dense, best_of, every, delay, max_seconds, max_rally_s, toss_speed, physics):
+def _step_table(status, si, sf, table, reach, owed, players, plan, steps, rewards, terminated, truncated, obs, errors,
+                axis, player, rally_task, dense, best_of, every, delay, max_seconds, max_rally_s, toss_speed, physics):
     """One table's step from where it stands (PingPongEnv.step and play_period); its new status."""
     w, ball, bats, r = table[0], table[1], table[2], table[3]
     if status == START:
@@ -381,15 +353,24 @@ def _step_table(status, si, sf, table, players, plan, steps, rewards, terminated
             sf[F_POTENTIAL + 1] = _potential(bats, ball, r, 1)
         sf[F_BALL_X] = ball[0]
     landed_now = False
-    while w[0]['tick'] < si[I_STOP_AT] and si[I_DECIDED] == 0:
-        tick = w[0]['tick']
-        if tick % every == 0 and si[I_CTL_TICK] != tick:
-            si[I_WAIT] = _control_tick(si, table, players, plan, player, False, delay)
-            if si[I_WAIT] != 0:
-                return WAITING
-        n_max = min(si[I_STOP_AT] - tick, FRAME_EVERY - tick % FRAME_EVERY, every - tick % every)
-        if not _advance_and_judge(si, table, errors, n_max, best_of, every, delay, max_rally_s, toss_speed, physics):
-            return DONE
+    while True:
+        if si[I_NET] == 1:  # the ticks near the net, advanced in Python: judged from here on
+            si[I_NET] = 0
+        else:
+            if w[0]['tick'] >= si[I_STOP_AT] or si[I_DECIDED] != 0:
+                break
+            tick = w[0]['tick']
+            if tick % every == 0 and si[I_CTL_TICK] != tick:
+                si[I_WAIT] = _control_tick(si, table, players, plan, player, False, delay)
+                if si[I_WAIT] != 0:
+                    return WAITING
+            n_max = min(si[I_STOP_AT] - tick, FRAME_EVERY - tick % FRAME_EVERY, every - tick % every)
+            got = _advance(si, table, reach, owed, errors, n_max, every, delay, max_rally_s, physics)
+            if got == FAILED:
+                return DONE
+            if got == NEAR_NET:
+                return NET
+        _judge(si, table, best_of, max_rally_s, toss_speed)
         # PingPongEnv.play_period's rewards
         striker = r['striker']
         if r['shots'] > si[I_SHOTS]:
@@ -420,7 +401,7 @@ def _step_table(status, si, sf, table, players, plan, steps, rewards, terminated
     rewards[0] = sf[F_REWARD + player]
     terminated[0] = done
     truncated[0] = not done and steps[0] * every * physics[0] >= max_seconds
-    _observe(ball, bats, r, player, axis, obs)
+    observe_state(ball, bats, r, player, axis, obs)
     return DONE
 
 
@@ -428,7 +409,7 @@ class TableBatch:
     """The arrays of N tables' steps (one row a table) and the calls that step them.
 
     Args:
-        envs: the tables' PingPongEnv (version 1, rigid net, hold actions, one task, opponent,
+        envs: the tables' PingPongEnv (version 1, hold actions, one net, task, opponent,
             player, reward and max_seconds); a table is loaded (load) after its env began an
             episode (PingPongEnv.begin_episode).
     """
@@ -460,6 +441,7 @@ class TableBatch:
         self.gate_end = np.zeros((n, 2))
         self.opp_ai = np.zeros((n, OPP_AI_SIZE), np.int64)  # the opponent's BatAI, mirrored (_mirror)
         self.opp_floats = np.zeros((n, OPP_FLOATS))
+        self.net_owed = np.zeros(n, np.int64)  # with a cloth net: the ticks its NetSim owes (_advance)
         self.steps = np.zeros(n, np.int64)
         self.rewards = np.zeros(n)
         self.terminated = np.zeros(n, np.bool_)
@@ -473,8 +455,9 @@ class TableBatch:
         self.rally_task, self.dense = first.task == "rally", first.reward == "dense"
         self.max_seconds = first.max_seconds
         self._scalars = None
-        # wall seconds in the compiled call and in the AI profiles' decisions (bench.env reports them)
-        self.seconds = {"compiled": 0.0, "decisions": 0.0}
+        # wall seconds in the compiled call, in the AI profiles' decisions and in the cloth net's
+        # ticks near the ball (bench.env reports them)
+        self.seconds = {"compiled": 0.0, "decisions": 0.0, "net": 0.0}
 
     def _shape_from(self, env: PingPongEnv) -> None:
         """The arrays and numbers that depend on the match: its decision delay and model."""
@@ -490,7 +473,8 @@ class TableBatch:
                    model.posts, model.ball_params, model.materials)
         self._scalars = (int(self.player), self.rally_task, self.dense, int(match.scene.match.best_of),
                          int(match.ai_every), int(match.delay), float(self.max_seconds),
-                         float(match.scene.match.max_rally_s), float(match.scene.match.toss_speed), physics)
+                         float(match.scene.match.max_rally_s), float(match.scene.match.toss_speed),
+                         model.cloth_reach, physics)
 
     def load(self, k: int, lead_in: bool) -> None:
         """Table k's match as its env left it (PingPongEnv.begin_episode or next_match) into the
@@ -519,6 +503,7 @@ class TableBatch:
         self._mirror(k)
         self.ints[k, I_CTL_TICK] = self.ints[k, I_REQ_TICK] = -1
         self.ints[k, I_LEAD] = int(lead_in)
+        self.ints[k, I_NET] = self.net_owed[k] = 0
         self.steps[k] = 0
         self.errors[k] = 0
         self.status[k] = IDLE
@@ -581,7 +566,7 @@ class TableBatch:
 
     def _play(self, status: np.ndarray) -> None:
         """Run the tables from `status` to their end: the players' decisions where they wait, the
-        next match where a lead-in's match ended."""
+        cloth net's ticks where the ball is near it, the next match where a lead-in's match ended."""
         self.status[:] = status
         seconds = self.seconds
         while True:
@@ -596,6 +581,13 @@ class TableBatch:
                 self._decide(k)
                 self.status[k] = STEPPING
             seconds["decisions"] += time.perf_counter() - decided
+            near = np.flatnonzero(self.status == NET)
+            if len(near):
+                netted = time.perf_counter()
+                for k in near:
+                    self._step_net(k)
+                    self.status[k] = STEPPING
+                seconds["net"] += time.perf_counter() - netted
             for k in over:
                 self.envs[k].next_match()
                 self.load(k, True)
@@ -609,7 +601,8 @@ class TableBatch:
         return run_tables(self.status, self.ints, self.floats, self.world, self.ball, self.bats, self.rally,
                           self.bat_motion, self.bat_tmp, self.work, self.scratch, self.event_rows, self.ctl, self.arm,
                           self.inputs, self.players, self.pending, self.pending_tick, self.pending_at, self.plans,
-                          self.gate_key, self.gate_due, self.gate_end, self.opp_ai, self.opp_floats, self.steps,
+                          self.gate_key, self.gate_due, self.gate_end, self.opp_ai, self.opp_floats, self.net_owed,
+                          self.steps,
                           self.rewards, self.terminated,
                           self.truncated, self.obs, self.errors, self.axis, *self._scalars)
 
@@ -633,6 +626,35 @@ class TableBatch:
             self._gate(k, player)
             if player == self.opp:
                 self._mirror(k)
+
+    def _step_net(self, k: int) -> None:
+        """Table k's ticks with its ball in the cloth net's reach (the compiled call stopped there,
+        NET): its match's state takes the table's rows, its NetSim the ticks it owes, then
+        engine.physics.world.advance steps the ticks Match.tick would have it step from here
+        (si[I_NET_TICKS]: the rest of the call _advance began), and the rows take the state back,
+        the contacts in event_rows for the compiled call's referee."""
+        match = self.envs[k].match
+        state = match.state
+        state.world[0] = self.world[k]
+        state.ball_flat[:] = self.ball[k]
+        state.bat_flat[:] = self.bats[k]
+        state.bat_motion[:] = self.bat_motion[k]
+        owed = int(self.net_owed[k])
+        if owed:
+            state.net_sim.step_free(owed)
+            self.net_owed[k] = 0
+        ints = self.ints[k]
+        deadline = float(self.rally[k]["rally_started"]) + match.scene.match.max_rally_s
+        _, n, _ = advance(match.model, state, int(ints[I_NET_TICKS]), None, match.events,
+                          gone_radius=OUT_OF_PLAY_DISTANCE, gone_z=_GONE_Z, deadline=deadline)
+        self.world[k] = state.world[0]
+        self.ball[k] = state.ball_flat
+        self.bats[k] = state.bat_flat
+        self.bat_motion[k] = state.bat_motion
+        rows, events = self.event_rows[k], match.events
+        for e in range(n):  # what the referee reads: engine.physics.world._copy_events' columns
+            rows[e, 0], rows[e, 1], rows[e, 2:5] = events[e]["time"], events[e]["body"], events[e]["pos"]
+        ints[I_EVENTS], ints[I_NET] = n, 1
 
     def observe(self, k: int) -> np.ndarray:
         """Table k's observation of the state loaded or reached (agent_frame.observe, compiled), in obs[k]."""

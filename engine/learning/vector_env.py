@@ -16,13 +16,13 @@ neither terminated nor truncated. reset(options={"reset_mask": mask}) resets onl
 tables. Table k's episodes are those of a single PingPongEnv reset with the same seed, bit for
 bit, as they are those of gymnasium.vector.SyncVectorEnv (tests/engine/test_vector_env.py).
 
-Version 1 with the rigid net and `hold` actions (what examples/train_ppo.py trains on) is
-batched (`batched`; `batch` is its engine.learning.batch.TableBatch): every table's step, and a
-drive's lead-in at its reset, in one numba call, Python only where an AI profile decides a
-stroke and where an episode begins (its match is made). Otherwise (version 0, the cloth net,
-`target` or `force` actions, a second agent, pictures kept) the tables are stepped one after
-another, each one PingPongEnv.step: its physics one numba call between the referee's and the
-players' Python work.
+Version 1 with `hold` actions (what examples/train_ppo.py trains on) is batched (`batched`;
+`batch` is its engine.learning.batch.TableBatch): every table's step, and a drive's lead-in at
+its reset, in one numba call, Python only where an AI profile decides a stroke, where an
+episode begins (its match is made) and, with the cloth net, where the ball comes near the net
+(its ticks there, and the ones it owes). Otherwise (version 0, `target` or `force` actions, a
+second agent, pictures kept) the tables are stepped one after another, each one
+PingPongEnv.step: its physics one numba call between the referee's and the players' Python work.
 """
 from __future__ import annotations
 
@@ -68,8 +68,8 @@ class PingPongVectorEnv(VectorEnv):
         self._autoreset = np.zeros(self.num_envs, dtype=np.bool_)
         self._elapsed = np.zeros(self.num_envs, dtype=np.int64)
         first = self.envs[0]
-        self.batched = (first.version == 1 and first.net == "rigid" and first.action_type == "hold"
-                        and first.opponent is not None and not first.record)
+        self.batched = (first.version == 1 and first.action_type == "hold" and first.opponent is not None
+                        and not first.record)
         self.batch = TableBatch(self.envs) if self.batched else None
         self._points = np.zeros(self.num_envs, dtype=np.int64)
 

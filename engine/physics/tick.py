@@ -107,7 +107,7 @@ def _stop_reason(n, support_before, support, w, ball_flat, gone_r2, gone_z, dead
 
 
 @njit(inline="always")
-def _inside(box, ball_flat):
+def ball_inside(box, ball_flat):
     """Is the ball's centre inside the (6,) lo xyz, hi xyz box?"""
     return (box[0] <= ball_flat[0] <= box[3] and box[1] <= ball_flat[1] <= box[4]
             and box[2] <= ball_flat[2] <= box[5])
@@ -130,7 +130,7 @@ def _advance(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, bat_t
         reason = _stop_reason(n, support_before, support, w, ball_flat, gone_r2, gone_z, deadline)
         if reason != STOP_LIMIT:
             return k + 1, n, reason, 0
-        if watch is not None and _inside(watch, ball_flat):
+        if watch is not None and ball_inside(watch, ball_flat):
             return k + 1, 0, STOP_WATCH, 0
     return n_max, 0, STOP_LIMIT, 0
 
@@ -181,6 +181,6 @@ def advance_run(n_max, h, world, bat_flat, bat_mass, bat_inertia, bat_motion, ba
         for b in range(size):
             run_records[k, b] = record[b]
         reason = _stop_reason(n, support_before, support, w, ball_flat, gone_r2, gone_z, deadline)
-        if reason != STOP_LIMIT or not _inside(reach, ball_flat):
+        if reason != STOP_LIMIT or not ball_inside(reach, ball_flat):
             return k + 1, n, reason, 0
     return n_max, 0, STOP_LIMIT, 0

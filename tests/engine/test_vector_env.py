@@ -5,10 +5,11 @@ import numpy as np
 import pytest
 
 import engine.learning.env  # noqa: F401 - registers the ids and their vector entry point
-from engine.learning.batch import OPP_TAKEN
+from engine.learning.batch import OPP_TAKEN, TableBatch
 from engine.learning.env import PingPongEnv
 from engine.physics.dtypes import physics_snapshot_dtype
 from engine.learning.vector_env import PingPongVectorEnv
+from net_kernel import NetSim
 
 KWARGS = {"opponent": "novice", "max_seconds": 0.12}  # 12 control periods an episode: several autoresets
 
@@ -104,8 +105,8 @@ def test_bad_input_is_named():
     {"task": "return", "reward": "dense", "ball_speed": (6.0, 12.0), "ball_spin": (-200.0, 200.0)},
 ])
 def test_the_batched_step_is_the_single_environment_bit_for_bit(kwargs):
-    """Version 1, rigid net, hold actions: every table stepped in one compiled call (the opponent's
-    decisions in Python), each equal to a single environment with its seed."""
+    """Version 1, hold actions: every table stepped in one compiled call (the opponent's decisions
+    in Python), each equal to a single environment with its seed."""
     kwargs = {"opponent": "novice", "version": 1, "max_seconds": 1.0, **kwargs}
     n, steps = 2, 260
     vector = PingPongVectorEnv(n, **kwargs)
@@ -118,6 +119,44 @@ def test_the_batched_step_is_the_single_environment_bit_for_bit(kwargs):
         for got, expected in zip(rows, single, strict=True):
             assert got[0][k].tobytes() == expected[0].tobytes()
             assert (float(got[1][k]), bool(got[2][k]), bool(got[3][k])) == expected[1:]
+
+
+def test_the_batched_cloth_net_owes_its_ticks_and_gives_the_single_environments_bits(monkeypatch):
+    """With the cloth net the batch steps the ball's ticks out of the net's reach in its compiled
+    call and the net's own ticks (those and the ones near the ball) in Python, only when the ball
+    comes near again: a struck net, still ringing, is stepped over the ticks it owes then. Each
+    table is the single environment with its seed, bit for bit, and so is the net the ball meets
+    whenever it comes near (its knots at every run of ticks near the ball)."""
+    kwargs = {"opponent": "novice", "version": 1, "max_seconds": 3.0, "net": "cloth", "task": "rally"}
+    n, steps = 3, 500
+    met, paid, table = {}, [], [None]
+    step_run, step_net = NetSim.step_run, TableBatch._step_net
+
+    def seen_run(net, *args):
+        met.setdefault(table[0], []).append((net.sleeping, net.in_tail, net.knot_pos.tobytes(),
+                                             net.knot_vel.tobytes()))
+        return step_run(net, *args)
+
+    def seen_step_net(batch, k):
+        if batch.net_owed[k] > 0 and not batch.envs[k].match.state.net_sim.sleeping:
+            paid.append(k)
+        table[0] = k
+        step_net(batch, k)
+
+    monkeypatch.setattr(NetSim, "step_run", seen_run)
+    monkeypatch.setattr(TableBatch, "_step_net", seen_step_net)
+    vector = PingPongVectorEnv(n, **kwargs)
+    assert vector.batched
+    actions = np.random.default_rng(1).uniform(-1.2, 1.2, size=(steps, n, 6))
+    rows = _vector_rows(vector, 70, actions)
+    assert len(paid) >= 3  # ringing nets stepped over the ticks they owed: the path this test is for
+    for k in range(n):
+        table[0] = ("single", k)
+        single = _single_next_step(70 + k, actions[:, k], kwargs)
+        for got, expected in zip(rows, single, strict=True):
+            assert got[0][k].tobytes() == expected[0].tobytes()
+            assert (float(got[1][k]), bool(got[2][k]), bool(got[3][k])) == expected[1:]
+        assert met[k] == met[("single", k)]
 
 
 def test_a_batched_lead_in_whose_match_ended_first_leads_in_anew_as_the_single_environment(monkeypatch):
