@@ -57,6 +57,7 @@ from __future__ import annotations
 import hashlib
 import math
 import os
+import weakref
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -85,7 +86,7 @@ _FLAT_TOL = 1e-12
 # Out-of-plane modes, the lowest, whose pairwise detuning P_mn (see the module's docstring) is
 # computed (the pairs cost a quadratic form in the springs each; between others it is left out).
 DETUNED_MODES = 100
-_CACHE_VERSION = 4
+_CACHE_VERSION = 5
 
 
 @dataclass(frozen=True, eq=False)
@@ -96,13 +97,13 @@ class NetModes:
         rest_pos: (n_knots, 3) m, the rest shape x0 the scheme is linearised about (topology.rest_pos).
         free: (n_free,) int64, the free knots (inverse mass > 0), in knot order.
         rest_energy: J, the potential energy (springs and gravity) at rest_pos (kernels.modal).
-        out_shape: (n_out, n_free) m per unit modal coordinate, mode-major: u_x = out_shape.T @ q;
-            out_shape_abs its absolute values (the tail's bounds, kernels.modal.modal_bounds).
+        out_shape: (n_out, n_free) m per unit modal coordinate, mode-major: u_x = out_shape.T @ q.
         out_proj: (n_free, n_out), knot-major: q = out_proj.T @ u_x (the mass-weighted inverse of out_shape.T).
         out_log_r, out_theta: (n_out,) ln |mu| and arg mu of each out-of-plane mode's tick eigenvalue.
         out_e: (n_out,) complex, the eigenvector's velocity component (its position component is 1).
-        out_detune: (n_out, n_out) rad per tick per m^2: mode m's angle a tick rises by
-            sum_n out_detune[m, n] |c_n|^2 for coefficients c (the amplitude correction, above).
+        out_detune: (n_out, n_out) rad per tick per m^2, by the mode whose amplitude acts: mode m's
+            angle a tick rises by sum_n out_detune[n, m] |c_n|^2 for coefficients c (the amplitude
+            correction, above); rows, so that kernels.modal.modal_detuning adds one after another.
         out_rate: (n_out,) rad, each mode's angle a tick as the substeps turn it (not aliased).
         in_proj: (2 n_free, K), knot-major: a = in_proj.T @ u_yz, u_yz the (y, z) of each free knot in turn.
         in_pos, in_vel: (2, 2K, 2 n_free), the real and imaginary parts of the in-plane shapes P and
@@ -122,7 +123,6 @@ class NetModes:
     free: np.ndarray
     rest_energy: float
     out_shape: np.ndarray
-    out_shape_abs: np.ndarray
     out_proj: np.ndarray
     out_log_r: np.ndarray
     out_theta: np.ndarray
@@ -148,10 +148,19 @@ class NetModes:
 
 
 _MODES: dict[str, NetModes | str] = {}  # by _key: the modes, or why a net has none
+# linear_tail_refusal's answers by topology (a frozen dataclass, hashed by identity)
+_REFUSALS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def linear_tail_refusal(topo: NetTopology) -> str | None:
-    """Why `topo`'s net can have no linear tail, or None when it can."""
+    """Why `topo`'s net can have no linear tail, or None when it can (found once a topology: a
+    NetSim asks at its construction, an environment's every episode)."""
+    if topo not in _REFUSALS:
+        _REFUSALS[topo] = _tail_refusal(topo)
+    return _REFUSALS[topo]
+
+
+def _tail_refusal(topo: NetTopology) -> str | None:
     spec = topo.spec
     if spec is None:
         return "the net was built from raw arrays (no NetSpec)"
@@ -254,9 +263,9 @@ def build_modes(topo: NetTopology, dt: float, substeps: int) -> NetModes:
         rest_pos=_read_only(x0), free=_read_only(free),
         rest_energy=float(potential_energy(x0, topo.knot_mass, topo.knot_inv_mass, topo.spring_ij, topo.spring_rest,
                                            topo.spring_k, topo.spec.gravity)),
-        out_shape=_read_only(out_shape), out_shape_abs=_read_only(np.abs(out_shape)), out_proj=_read_only(phi * root[:, None]),
+        out_shape=_read_only(out_shape), out_proj=_read_only(phi * root[:, None]),
         out_log_r=_read_only(np.log(np.abs(mu_tick))), out_theta=_read_only(np.angle(mu_tick)),
-        out_e=_read_only(out_e), out_detune=_read_only(out_detune), out_rate=_read_only(substeps * theta_sub),
+        out_e=_read_only(out_e), out_detune=_read_only(np.ascontiguousarray(out_detune.T)), out_rate=_read_only(substeps * theta_sub),
         in_proj=_read_only(psi * root2[:, None]),
         in_pos=_read_only(np.stack([in_pos.real, in_pos.imag])), in_vel=_read_only(np.stack([in_vel.real, in_vel.imag])),
         in_pos_abs=_read_only(np.abs(in_pos)),

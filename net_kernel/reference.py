@@ -572,7 +572,7 @@ def modal_coefficients(knot_pos, knot_vel, rest_pos, free, out_proj, out_e, in_p
 
 def modal_detuning(out_detune, out_c, out_shift):
     """Numpy twin of kernels.modal_detuning (to rounding)."""
-    out_shift[:] = out_detune @ (out_c.real ** 2 + out_c.imag ** 2)
+    out_shift[:] = out_detune.T @ (out_c.real ** 2 + out_c.imag ** 2)
 
 
 def modal_state(ticks, rest_pos, free, out_shape, out_c, out_e, out_log_r, out_theta, out_shift, out_rate, in_pos,
@@ -595,11 +595,11 @@ def modal_state(ticks, rest_pos, free, out_shape, out_c, out_e, out_log_r, out_t
     knot_vel[free, 1:] += (in_vel[0].T @ xi[0] - in_vel[1].T @ xi[1]).reshape(-1, 2)
 
 
-def modal_bounds(out_shape_abs, out_c, out_e, out_shift, out_rate, in_pos_abs, in_vel_abs, in_w, disp, speed):
+def modal_bounds(out_shape, out_c, out_e, out_shift, out_rate, in_pos_abs, in_vel_abs, in_w, disp, speed):
     """Numpy twin of kernels.modal_bounds (to rounding)."""
-    disp[0] = out_shape_abs.T @ (2.0 * np.abs(out_c))
+    disp[0] = np.abs(out_shape).T @ (2.0 * np.abs(out_c))
     fastest = out_e.real + 1j * out_e.imag * (1.0 + np.abs(out_shift) / out_rate)
-    speed[0] = out_shape_abs.T @ (2.0 * np.abs(out_c) * np.abs(fastest))
+    speed[0] = np.abs(out_shape).T @ (2.0 * np.abs(out_c) * np.abs(fastest))
     disp[1:] = (in_pos_abs.T @ np.abs(in_w)).reshape(-1, 2).T
     speed[1:] = (in_vel_abs.T @ np.abs(in_w)).reshape(-1, 2).T
 

@@ -71,7 +71,7 @@ class LinearTail:
         k.modal_coefficients(self.start_pos, self.start_vel, m.rest_pos, m.free, m.out_proj, m.out_e, m.in_proj,
                              m.in_inverse, self._out_c, self._in_w, self._q, self._p, self._in_scratch, self._dofs)
         k.modal_detuning(m.out_detune, self._out_c, self._out_shift)
-        k.modal_bounds(m.out_shape_abs, self._out_c, m.out_e, self._out_shift, m.out_rate, m.in_pos_abs, m.in_vel_abs,
+        k.modal_bounds(m.out_shape, self._out_c, m.out_e, self._out_shift, m.out_rate, m.in_pos_abs, m.in_vel_abs,
                        self._in_w, self._disp, self._speed)
         rest = m.rest_pos[m.free]
         disp = self._disp.T

@@ -3,7 +3,7 @@
 net_kernel/modes.py derives the modes; these kernels use them. Symbols: n_out out-of-plane
 modes, each with tick eigenvalue mu = exp(log_r + i theta) and eigenvector (1, e) on
 (q, q'), its state after n ticks q(n) = 2 Re(c mu^n e^(i phi(n))), q'(n) = 2 Re(c e' mu^n e^(i phi(n))),
-where the amplitude correction (modes.py) turns the angle by delta = sum_k out_detune[m, k] |c_k|^2
+where the amplitude correction (modes.py) turns the angle by delta = sum_k out_detune[k, m] |c_k|^2
 more a tick at the switch, decaying with the amplitudes squared: delta |mu|^(2k) at tick k, so
 phi(n) = delta (1 - |mu|^(2n)) / (1 - |mu|^2), and e' is e with its imaginary part (the
 frequency's) scaled by 1 + delta |mu|^(2n) / rate (rate the mode's angle a tick); 2K in-plane
@@ -59,6 +59,53 @@ def motion_energy(knot_pos, knot_vel, knot_mass, knot_inv_mass, spring_ij, sprin
                                       gravity) - rest_energy
 
 
+@njit(inline="always")
+def _add_rows(acc_a, acc_b, rows, w_a, w_b):
+    """acc_a[j] += sum_i rows[i, j] w_a[i] and acc_b[j] += sum_i rows[i, j] w_b[i], i in order,
+    four rows a pass over the accumulators: each sum adds its terms in the order a row at a time
+    would (the same bits), for a quarter of the accumulators' loads and stores; every row is read
+    once for both."""
+    n_rows, n = rows.shape[0], acc_a.shape[0]
+    i = 0
+    while i + 4 <= n_rows:
+        r0, r1, r2, r3 = rows[i], rows[i + 1], rows[i + 2], rows[i + 3]
+        a0, a1, a2, a3 = w_a[i], w_a[i + 1], w_a[i + 2], w_a[i + 3]
+        b0, b1, b2, b3 = w_b[i], w_b[i + 1], w_b[i + 2], w_b[i + 3]
+        for j in range(n):
+            acc_a[j] = (((acc_a[j] + r0[j] * a0) + r1[j] * a1) + r2[j] * a2) + r3[j] * a3
+            acc_b[j] = (((acc_b[j] + r0[j] * b0) + r1[j] * b1) + r2[j] * b2) + r3[j] * b3
+        i += 4
+    while i < n_rows:
+        row, a, b = rows[i], w_a[i], w_b[i]
+        for j in range(n):
+            acc_a[j] += row[j] * a
+            acc_b[j] += row[j] * b
+        i += 1
+
+
+@njit(inline="always")
+def _add_complex_rows(acc, re_rows, im_rows, xr, xm):
+    """acc[j] += sum_i re_rows[i, j] xr[i] - im_rows[i, j] xm[i] (the real part of a complex
+    row times a complex weight), i in order, four rows a pass (the same bits as one a pass)."""
+    n_rows, n = re_rows.shape[0], acc.shape[0]
+    i = 0
+    while i + 4 <= n_rows:
+        p0, p1, p2, p3 = re_rows[i], re_rows[i + 1], re_rows[i + 2], re_rows[i + 3]
+        q0, q1, q2, q3 = im_rows[i], im_rows[i + 1], im_rows[i + 2], im_rows[i + 3]
+        r0, r1, r2, r3 = xr[i], xr[i + 1], xr[i + 2], xr[i + 3]
+        m0, m1, m2, m3 = xm[i], xm[i + 1], xm[i + 2], xm[i + 3]
+        for j in range(n):
+            acc[j] = ((((acc[j] + (p0[j] * r0 - q0[j] * m0)) + (p1[j] * r1 - q1[j] * m1)) + (p2[j] * r2 - q2[j] * m2))
+                      + (p3[j] * r3 - q3[j] * m3))
+        i += 4
+    while i < n_rows:
+        pr, qr, r, m = re_rows[i], im_rows[i], xr[i], xm[i]
+        for j in range(n):
+            acc[j] += pr[j] * r - qr[j] * m
+        i += 1
+
+
+
 @njit(cache=True, fastmath=False, _nrt=False)
 def _gather(knot_pos, knot_vel, rest_pos, free, dofs):
     """The free knots' displacement and velocity into dofs (4, 2 n_free): rows u_x, v_x (first
@@ -86,23 +133,13 @@ def modal_coefficients(knot_pos, knot_vel, rest_pos, free, out_proj, out_e, in_p
     _gather(knot_pos, knot_vel, rest_pos, free, dofs)
     q[:] = 0.0
     p[:] = 0.0
-    for a in range(n_free):
-        u = dofs[0, a]
-        v = dofs[1, a]
-        for m in range(n_out):
-            q[m] += out_proj[a, m] * u
-            p[m] += out_proj[a, m] * v
+    _add_rows(q, p, out_proj, dofs[0, :n_free], dofs[1, :n_free])
     for m in range(n_out):
         e = out_e[m]
         re = 0.5 * q[m]
         out_c[m] = complex(re, (re * e.real - 0.5 * p[m]) / e.imag)
     in_scratch[:] = 0.0
-    for r in range(2 * n_free):
-        u = dofs[2, r]
-        v = dofs[3, r]
-        for m in range(k):
-            in_scratch[m] += in_proj[r, m] * u
-            in_scratch[k + m] += in_proj[r, m] * v
+    _add_rows(in_scratch[:k], in_scratch[k:], in_proj, dofs[2], dofs[3])
     for r in range(2 * k):
         acc = 0j
         for m in range(2 * k):
@@ -113,13 +150,27 @@ def modal_coefficients(knot_pos, knot_vel, rest_pos, free, out_proj, out_e, in_p
 @njit(cache=True, fastmath=False, _nrt=False)
 def modal_detuning(out_detune, out_c, out_shift):
     """Each out-of-plane mode's angle correction a tick at the switch, into out_shift (n_out,) rad:
-    out_detune (n_out, n_out) (NetModes) times |c|^2 of the coefficients out_c, row by row."""
-    for m in range(out_detune.shape[0]):
-        acc = 0.0
-        for k in range(out_detune.shape[1]):
-            c = out_c[k]
-            acc += out_detune[m, k] * (c.real * c.real + c.imag * c.imag)
-        out_shift[m] = acc
+    the sum over modes k of out_detune[k] (NetModes: k's row, its effect on every mode) times |c_k|^2
+    of the coefficients out_c, k after k, four rows a pass (each mode's sum in the same order)."""
+    n_rows, n = out_detune.shape[0], out_shift.shape[0]
+    for m in range(n):
+        out_shift[m] = 0.0
+    k = 0
+    while k + 4 <= n_rows:
+        c0, c1, c2, c3 = out_c[k], out_c[k + 1], out_c[k + 2], out_c[k + 3]
+        a0, a1 = c0.real * c0.real + c0.imag * c0.imag, c1.real * c1.real + c1.imag * c1.imag
+        a2, a3 = c2.real * c2.real + c2.imag * c2.imag, c3.real * c3.real + c3.imag * c3.imag
+        r0, r1, r2, r3 = out_detune[k], out_detune[k + 1], out_detune[k + 2], out_detune[k + 3]
+        for m in range(n):
+            out_shift[m] = (((out_shift[m] + r0[m] * a0) + r1[m] * a1) + r2[m] * a2) + r3[m] * a3
+        k += 4
+    while k < n_rows:
+        c = out_c[k]
+        a = c.real * c.real + c.imag * c.imag
+        row = out_detune[k]
+        for m in range(n):
+            out_shift[m] += row[m] * a
+        k += 1
 
 
 @njit(cache=True, fastmath=False, _nrt=False)
@@ -162,18 +213,9 @@ def modal_state(ticks, rest_pos, free, out_shape, out_c, out_e, out_log_r, out_t
     _powers(ticks, out_c, out_e, out_log_r, out_theta, out_shift, out_rate, in_w, in_log_r, in_theta, q, p, xi)
     n_free = free.shape[0]
     dofs[:] = 0.0
-    for m in range(out_shape.shape[0]):
-        qm = q[m]
-        pm = p[m]
-        for a in range(n_free):
-            dofs[0, a] += out_shape[m, a] * qm
-            dofs[1, a] += out_shape[m, a] * pm
-    for m in range(xi.shape[1]):
-        xr = xi[0, m]
-        xm = xi[1, m]
-        for r in range(2 * n_free):
-            dofs[2, r] += in_pos[0, m, r] * xr - in_pos[1, m, r] * xm
-            dofs[3, r] += in_vel[0, m, r] * xr - in_vel[1, m, r] * xm
+    _add_rows(dofs[0, :n_free], dofs[1, :n_free], out_shape, q, p)
+    _add_complex_rows(dofs[2], in_pos[0], in_pos[1], xi[0], xi[1])
+    _add_complex_rows(dofs[3], in_vel[0], in_vel[1], xi[0], xi[1])
     for j in range(knot_pos.shape[0]):
         for axis in range(3):
             knot_pos[j, axis] = rest_pos[j, axis]
@@ -188,29 +230,36 @@ def modal_state(ticks, rest_pos, free, out_shape, out_c, out_e, out_log_r, out_t
 
 
 @njit(cache=True, fastmath=False, _nrt=False)
-def modal_bounds(out_shape_abs, out_c, out_e, out_shift, out_rate, in_pos_abs, in_vel_abs, in_w, disp, speed):
+def modal_bounds(out_shape, out_c, out_e, out_shift, out_rate, in_pos_abs, in_vel_abs, in_w, disp, speed):
     """Per axis and free knot, bounds on the tail's displacement (disp) and velocity (speed) at
     the coefficients' tick, (3, n_free) m and m/s, written: sums of |shape| |coefficient| over
     the modes (the triangle inequality; a mode's velocity with the largest frequency correction,
     the switch's). Every mode decays (|mu| <= 1), so a bound times the slowest mode's decay after
-    n ticks bounds the motion from then on. *_abs: the modes' shapes' absolute values (NetModes);
-    in_*_abs (2K, 2 n_free)."""
+    n ticks bounds the motion from then on. out_shape: NetModes' (its absolute values taken here);
+    in_*_abs (2K, 2 n_free): the in-plane shapes' absolute values (NetModes). Each mode adds its
+    contiguous row to every knot's bounds in turn."""
     n_free = disp.shape[1]
     disp[:] = 0.0
     speed[:] = 0.0
-    for m in range(out_shape_abs.shape[0]):
+    disp_x, speed_x = disp[0], speed[0]
+    for m in range(out_shape.shape[0]):
         e = out_e[m]
         cq = 2.0 * abs(out_c[m])
         cp = cq * abs(complex(e.real, e.imag * (1.0 + abs(out_shift[m]) / out_rate[m])))
+        row = out_shape[m]
         for a in range(n_free):
-            disp[0, a] += out_shape_abs[m, a] * cq
-            speed[0, a] += out_shape_abs[m, a] * cp
+            shape = abs(row[a])
+            disp_x[a] += shape * cq
+            speed_x[a] += shape * cp
+    disp_y, disp_z, speed_y, speed_z = disp[1], disp[2], speed[1], speed[2]
     for m in range(in_w.shape[0]):
         w = abs(in_w[m])
+        pos_abs, vel_abs = in_pos_abs[m], in_vel_abs[m]
         for a in range(n_free):
-            for axis in range(2):
-                disp[1 + axis, a] += in_pos_abs[m, 2 * a + axis] * w
-                speed[1 + axis, a] += in_vel_abs[m, 2 * a + axis] * w
+            disp_y[a] += pos_abs[2 * a] * w
+            disp_z[a] += pos_abs[2 * a + 1] * w
+            speed_y[a] += vel_abs[2 * a] * w
+            speed_z[a] += vel_abs[2 * a + 1] * w
 
 
 @njit(cache=True, fastmath=False, _nrt=False)
