@@ -30,10 +30,11 @@ decision (TableBatch._sync). The stand-in is asked only when its gate is open, w
 environment asks it at every control tick: BatAI.wakes promises that the decisions in between
 change nothing. Between decisions the arm law is compiled like the rest.
 
-The cloth net (engine.physics.world._advance_with_cloth): out of its reach (model.cloth_reach)
-the ball's ticks are the compiled call's, and the net, which cannot touch the ball there, owes
-them (TableBatch.net_owed); when the ball comes within reach the compiled call stops the table
-and TableBatch._step_net, in Python, steps its NetSim over the ticks it owes (one free run) and
+The cloth net (engine.physics.world._advance_with_cloth): out of its reach (model.cloth_reach),
+and out of the watched box (model.cloth_watch) while it sleeps or rings in its linear tail, the
+ball's ticks are the compiled call's, and the net, which cannot touch the ball there, owes them
+(TableBatch.net_ints); when the ball comes nearer the compiled call stops the table and
+TableBatch._step_net, in Python, steps its NetSim over the ticks it owes (one free run) and
 then the ticks Match.tick would step from there, with the engine's own code, on the table's
 state. A net never met again in the episode is never stepped: its episode's outcome does not
 depend on it. A table's episodes are the single environment's bit for bit, and so is the net
@@ -78,6 +79,10 @@ I_EVENTS, I_NET_TICKS, I_NET = 17, 18, 19
 N_INTS = 20
 # _advance's outcomes
 ADVANCED, FAILED, NEAR_NET = 0, 1, 2
+# A table's cloth net as the compiled call sees it (TableBatch.net_ints' columns): the ticks its
+# NetSim owes; 1 while it sleeps or rings in its linear tail (so as of its last step in Python:
+# ticks without the ball keep it so).
+NET_OWED, NET_QUIET = 0, 1
 # The opponent's BatAI as the compiled call sees it (TableBatch.opp_ai's columns): its turn_key and
 # planned_key (rally, shots; -1 for none), whether its plan is tracked, the decisions taken here,
 # whether its plan ran out there; TableBatch.opp_floats': its turn_seen_at (s), its ready pose
@@ -172,13 +177,14 @@ def _opponent_drove(r, opp):
 @njit(cache=True, _nrt=False)
 def run_tables(status, ints, floats, world, ball, bats, rally, bat_motion, bat_tmp, work, scratch, event_rows,
                ctl, arm, inputs, players, pending, pending_tick, pending_at, plans, gate_key, gate_due, gate_end, opp_ai,
-               opp_floats, net_owed,
+               opp_floats, net_ints,
                steps, rewards, terminated, truncated, obs, errors, axis, player, rally_task, dense, best_of, every,
-               delay, max_seconds, max_rally_s, toss_speed, reach, physics):
+               delay, max_seconds, max_rally_s, toss_speed, reach, watch, physics):
     """Go on with every table whose status is START or STEPPING (its step, or its lead-in while
     ints[k, I_LEAD] is set) until it is DONE, LEAD_OVER, its players must decide (WAITING) or its
     ball is near the cloth net (NET); returns how many wait for Python. The tables' arrays are
-    TableBatch's; reach: the cloth net's model.cloth_reach, None for the rigid net; physics:
+    TableBatch's; reach, watch: the cloth net's model.cloth_reach and cloth_watch, None for the
+    rigid net; physics:
     TableBatch's tuple of the model's arrays and numbers that engine.physics.tick.advance_ticks reads."""
     waiting = 0
     for k in range(status.shape[0]):
@@ -189,13 +195,13 @@ def run_tables(status, ints, floats, world, ball, bats, rally, bat_motion, bat_t
                  event_rows[k], ctl[k], arm[k], inputs[k], pending[k], pending_tick[k], pending_at[k], gate_key[k],
                  gate_due[k], gate_end[k], opp_ai[k], opp_floats[k])
         if ints[k, I_LEAD] == 1:
-            status[k] = _lead_table(ints[k], table, reach, net_owed[k:k + 1], players, plans[k], errors[k:k + 1], obs[k], axis, player,
-                                    best_of, every, delay, max_rally_s, toss_speed, physics)
+            status[k] = _lead_table(ints[k], table, reach, watch, net_ints[k], players, plans[k], errors[k:k + 1],
+                                    obs[k], axis, player, best_of, every, delay, max_rally_s, toss_speed, physics)
         else:
-            status[k] = _step_table(status[k], ints[k], floats[k], table, reach, net_owed[k:k + 1], players, plans[k], steps[k:k + 1],
-                                    rewards[k:k + 1], terminated[k:k + 1], truncated[k:k + 1], obs[k], errors[k:k + 1],
-                                    axis, player, rally_task, dense, best_of, every, delay, max_seconds, max_rally_s,
-                                    toss_speed, physics)
+            status[k] = _step_table(status[k], ints[k], floats[k], table, reach, watch, net_ints[k], players,
+                                    plans[k], steps[k:k + 1], rewards[k:k + 1], terminated[k:k + 1],
+                                    truncated[k:k + 1], obs[k], errors[k:k + 1], axis, player, rally_task, dense,
+                                    best_of, every, delay, max_seconds, max_rally_s, toss_speed, physics)
         if status[k] == WAITING or status[k] == NET:
             waiting += 1
     return waiting
@@ -237,21 +243,20 @@ def _control_tick(si, table, players, plan, player, lead, delay):
 
 
 @njit(cache=True, _nrt=False)
-def _advance(si, table, reach, owed, errors, n_max, every, delay, max_rally_s, physics):
+def _advance(si, table, reach, watch, net, errors, n_max, every, delay, max_rally_s, physics):
     """The rest of Match.tick from where the decisions were taken, up to the referee: their plans
     wait `delay` ticks (LocalAI.request), the forces are applied, the physics runs up to n_max
     ticks (engine.physics.tick.advance_ticks); their contacts are left in event_rows (si[I_EVENTS]).
 
-    With a cloth net (reach: its model.cloth_reach; owed: the ticks its NetSim owes), the ticks out of its
-    reach are the ones engine.physics.world._advance_with_cloth steps in one kernel call, here;
-    the net, which cannot touch the ball there, owes them (TableBatch._step_net steps them when
-    the ball next comes near; an episode that ends first never needs them). Returns ADVANCED,
-    FAILED on a kernel error (in errors[0]), or NEAR_NET when the ball is in the net's reach with
-    ticks to go (si[I_NET_TICKS] of them, Python's: TableBatch._step_net)."""
+    With a cloth net (reach, watch: its model.cloth_reach and cloth_watch; net: its NET_* row),
+    the ticks engine.physics.world._advance_with_cloth steps by the tick kernel alone are stepped
+    here, in its order: out of the net's reach, and, while the net sleeps or rings in its tail,
+    out of the watched box; the net, which cannot touch the ball there, owes them
+    (TableBatch._step_net steps them when the ball next comes near; an episode that ends first
+    never needs them). Returns ADVANCED, FAILED on a kernel error (in errors[0]), or NEAR_NET
+    when the ball is near the net with ticks to go (si[I_NET_TICKS] of them, Python's)."""
     w, ball, bats, r, bat_motion, bat_tmp, work, scratch, event_rows, ctl, _, inputs, pending, pending_tick, \
         pending_at, _, _, _, _, _ = table
-    h, bat_mass, bat_inertia, method, gravity, drag_k, magnus_k, rtol, atol, surface, floor_z, rigid_net, posts, \
-        params, materials = physics
     tick = w[0]['tick']
     if tick % every == 0:
         if si[I_REQ_TICK] != tick:
@@ -264,23 +269,43 @@ def _advance(si, table, reach, owed, errors, n_max, every, delay, max_rally_s, p
             for i in range(3):
                 bats[b, FORCE_AT + i] = inputs[b, i]
                 bats[b, TORQUE_AT + i] = inputs[b, 3 + i]
-    if reach is not None and ball_inside(reach, ball):
-        si[I_NET_TICKS] = n_max
-        return NEAR_NET
-    ticks, n, reason, error = advance_ticks(
-        n_max, h, w, bats, bat_mass, bat_inertia, bat_motion, bat_tmp, ball[0:9], method, gravity, drag_k, magnus_k,
-        rtol, atol, surface, floor_z, rigid_net, posts, params, materials, work, scratch, w[0]['ball_adapt'],
-        event_rows, _GONE_RADIUS_2, _GONE_Z, r['rally_started'] + max_rally_s, reach)
-    if error != 0:
-        errors[0] = error
-        return FAILED
-    if reach is not None:
-        owed[0] += ticks
-        if reason == STOP_WATCH and ticks < n_max:
-            si[I_NET_TICKS] = n_max - ticks
-            return NEAR_NET
-    si[I_EVENTS] = n
+    if reach is None:
+        ticks, n, _, error = _kernel(table, n_max, r['rally_started'] + max_rally_s, None, physics)
+        if error != 0:
+            errors[0] = error
+            return FAILED
+        si[I_EVENTS] = n
+        return ADVANCED
+    done = 0
+    while done < n_max:  # _advance_with_cloth's loop, up to its ticks near the net
+        box = reach
+        if ball_inside(reach, ball):
+            if net[NET_QUIET] == 0 or ball_inside(watch, ball):
+                si[I_NET_TICKS] = n_max - done
+                return NEAR_NET
+            box = watch
+        ticks, n, reason, error = _kernel(table, n_max - done, r['rally_started'] + max_rally_s, box, physics)
+        if error != 0:
+            errors[0] = error
+            return FAILED
+        net[NET_OWED] += ticks
+        done += ticks
+        if reason != STOP_WATCH:
+            si[I_EVENTS] = n
+            return ADVANCED
+    si[I_EVENTS] = 0
     return ADVANCED
+
+
+@njit(cache=True, _nrt=False)
+def _kernel(table, n_max, deadline, watch, physics):
+    """engine.physics.tick.advance_ticks on the table's rows: (ticks, events, STOP_* reason, error)."""
+    w, ball, bats, _, bat_motion, bat_tmp, work, scratch, event_rows = table[:9]
+    h, bat_mass, bat_inertia, method, gravity, drag_k, magnus_k, rtol, atol, surface, floor_z, rigid_net, posts, \
+        params, materials = physics
+    return advance_ticks(n_max, h, w, bats, bat_mass, bat_inertia, bat_motion, bat_tmp, ball[0:9], method, gravity,
+                         drag_k, magnus_k, rtol, atol, surface, floor_z, rigid_net, posts, params, materials, work,
+                         scratch, w[0]['ball_adapt'], event_rows, _GONE_RADIUS_2, _GONE_Z, deadline, watch)
 
 
 @njit(cache=True, _nrt=False)
@@ -305,7 +330,7 @@ def _judge(si, table, best_of, max_rally_s, toss_speed):
 
 
 @njit(cache=True, _nrt=False)
-def _lead_table(si, table, reach, owed, players, plan, errors, obs, axis, player, best_of, every, delay, max_rally_s,
+def _lead_table(si, table, reach, watch, net, players, plan, errors, obs, axis, player, best_of, every, delay, max_rally_s,
                 toss_speed, physics):
     """A drive's lead-in from where it stands (PingPongEnv._lead_in: the stand-in, the opponent's
     profile, plays the agent's bat until the opponent drove), then the reset's observation;
@@ -326,7 +351,7 @@ def _lead_table(si, table, reach, owed, players, plan, errors, obs, axis, player
                 if si[I_WAIT] != 0:
                     return WAITING
             n_max = min(FRAME_EVERY - tick % FRAME_EVERY, every - tick % every)
-            got = _advance(si, table, reach, owed, errors, n_max, every, delay, max_rally_s, physics)
+            got = _advance(si, table, reach, watch, net, errors, n_max, every, delay, max_rally_s, physics)
             if got == FAILED:
                 return DONE
             if got == NEAR_NET:
@@ -338,7 +363,7 @@ def _lead_table(si, table, reach, owed, players, plan, errors, obs, axis, player
 
 
 @njit(cache=True, _nrt=False)
-def _step_table(status, si, sf, table, reach, owed, players, plan, steps, rewards, terminated, truncated, obs, errors,
+def _step_table(status, si, sf, table, reach, watch, net, players, plan, steps, rewards, terminated, truncated, obs, errors,
                 axis, player, rally_task, dense, best_of, every, delay, max_seconds, max_rally_s, toss_speed, physics):
     """One table's step from where it stands (PingPongEnv.step and play_period); its new status."""
     w, ball, bats, r = table[0], table[1], table[2], table[3]
@@ -365,7 +390,7 @@ def _step_table(status, si, sf, table, reach, owed, players, plan, steps, reward
                 if si[I_WAIT] != 0:
                     return WAITING
             n_max = min(si[I_STOP_AT] - tick, FRAME_EVERY - tick % FRAME_EVERY, every - tick % every)
-            got = _advance(si, table, reach, owed, errors, n_max, every, delay, max_rally_s, physics)
+            got = _advance(si, table, reach, watch, net, errors, n_max, every, delay, max_rally_s, physics)
             if got == FAILED:
                 return DONE
             if got == NEAR_NET:
@@ -441,7 +466,7 @@ class TableBatch:
         self.gate_end = np.zeros((n, 2))
         self.opp_ai = np.zeros((n, OPP_AI_SIZE), np.int64)  # the opponent's BatAI, mirrored (_mirror)
         self.opp_floats = np.zeros((n, OPP_FLOATS))
-        self.net_owed = np.zeros(n, np.int64)  # with a cloth net: the ticks its NetSim owes (_advance)
+        self.net_ints = np.zeros((n, 2), np.int64)  # with a cloth net: its NET_* row (_advance)
         self.steps = np.zeros(n, np.int64)
         self.rewards = np.zeros(n)
         self.terminated = np.zeros(n, np.bool_)
@@ -474,7 +499,7 @@ class TableBatch:
         self._scalars = (int(self.player), self.rally_task, self.dense, int(match.scene.match.best_of),
                          int(match.ai_every), int(match.delay), float(self.max_seconds),
                          float(match.scene.match.max_rally_s), float(match.scene.match.toss_speed),
-                         model.cloth_reach, physics)
+                         model.cloth_reach, model.cloth_watch, physics)
 
     def load(self, k: int, lead_in: bool) -> None:
         """Table k's match as its env left it (PingPongEnv.begin_episode or next_match) into the
@@ -503,7 +528,9 @@ class TableBatch:
         self._mirror(k)
         self.ints[k, I_CTL_TICK] = self.ints[k, I_REQ_TICK] = -1
         self.ints[k, I_LEAD] = int(lead_in)
-        self.ints[k, I_NET] = self.net_owed[k] = 0
+        self.ints[k, I_NET] = 0
+        net = state.net_sim
+        self.net_ints[k] = (0, net is not None and (net.sleeping or net.in_tail))
         self.steps[k] = 0
         self.errors[k] = 0
         self.status[k] = IDLE
@@ -601,7 +628,7 @@ class TableBatch:
         return run_tables(self.status, self.ints, self.floats, self.world, self.ball, self.bats, self.rally,
                           self.bat_motion, self.bat_tmp, self.work, self.scratch, self.event_rows, self.ctl, self.arm,
                           self.inputs, self.players, self.pending, self.pending_tick, self.pending_at, self.plans,
-                          self.gate_key, self.gate_due, self.gate_end, self.opp_ai, self.opp_floats, self.net_owed,
+                          self.gate_key, self.gate_due, self.gate_end, self.opp_ai, self.opp_floats, self.net_ints,
                           self.steps,
                           self.rewards, self.terminated,
                           self.truncated, self.obs, self.errors, self.axis, *self._scalars)
@@ -628,21 +655,23 @@ class TableBatch:
                 self._mirror(k)
 
     def _step_net(self, k: int) -> None:
-        """Table k's ticks with its ball in the cloth net's reach (the compiled call stopped there,
-        NET): its match's state takes the table's rows, its NetSim the ticks it owes, then
+        """Table k's ticks with its ball near the cloth net (the compiled call stopped there, NET):
+        its match's state takes the table's rows, its NetSim the ticks it owes, then
         engine.physics.world.advance steps the ticks Match.tick would have it step from here
         (si[I_NET_TICKS]: the rest of the call _advance began), and the rows take the state back,
-        the contacts in event_rows for the compiled call's referee."""
+        the contacts in event_rows for the compiled call's referee, whether the net is quiet in
+        its NET_* row."""
         match = self.envs[k].match
         state = match.state
         state.world[0] = self.world[k]
         state.ball_flat[:] = self.ball[k]
         state.bat_flat[:] = self.bats[k]
         state.bat_motion[:] = self.bat_motion[k]
-        owed = int(self.net_owed[k])
+        net, net_row = state.net_sim, self.net_ints[k]
+        owed = int(net_row[NET_OWED])
         if owed:
-            state.net_sim.step_free(owed)
-            self.net_owed[k] = 0
+            net.step_free(owed)
+            net_row[NET_OWED] = 0
         ints = self.ints[k]
         deadline = float(self.rally[k]["rally_started"]) + match.scene.match.max_rally_s
         _, n, _ = advance(match.model, state, int(ints[I_NET_TICKS]), None, match.events,
@@ -655,6 +684,7 @@ class TableBatch:
         for e in range(n):  # what the referee reads: engine.physics.world._copy_events' columns
             rows[e, 0], rows[e, 1], rows[e, 2:5] = events[e]["time"], events[e]["body"], events[e]["pos"]
         ints[I_EVENTS], ints[I_NET] = n, 1
+        net_row[NET_QUIET] = net.sleeping or net.in_tail
 
     def observe(self, k: int) -> np.ndarray:
         """Table k's observation of the state loaded or reached (agent_frame.observe, compiled), in obs[k]."""

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import engine.learning.env  # noqa: F401 - registers the ids and their vector entry point
-from engine.learning.batch import OPP_TAKEN, TableBatch
+from engine.learning.batch import NET_OWED, OPP_TAKEN, TableBatch
 from engine.learning.env import PingPongEnv
 from engine.physics.dtypes import physics_snapshot_dtype
 from engine.learning.vector_env import PingPongVectorEnv
@@ -138,7 +138,7 @@ def test_the_batched_cloth_net_owes_its_ticks_and_gives_the_single_environments_
         return step_run(net, *args)
 
     def seen_step_net(batch, k):
-        if batch.net_owed[k] > 0 and not batch.envs[k].match.state.net_sim.sleeping:
+        if batch.net_ints[k, NET_OWED] > 0 and not batch.envs[k].match.state.net_sim.sleeping:
             paid.append(k)
         table[0] = k
         step_net(batch, k)
