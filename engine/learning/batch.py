@@ -297,7 +297,7 @@ def _advance(si, table, reach, watch, net, errors, n_max, every, delay, max_rall
     return ADVANCED
 
 
-@njit(cache=True, _nrt=False)
+@njit(inline="always")
 def _kernel(table, n_max, deadline, watch, physics):
     """engine.physics.tick.advance_ticks on the table's rows: (ticks, events, STOP_* reason, error)."""
     w, ball, bats, _, bat_motion, bat_tmp, work, scratch, event_rows = table[:9]
