@@ -13,8 +13,8 @@
   environment, then each N, ROUNDS times: a drifting machine moves them alike); medians, and the
   ratios to that one environment as the median of the turns' ratios with their range. Each N's
   wall time is split into the compiled call (engine.learning.batch.TableBatch.seconds), the AI
-  profiles' decisions (Python: BatAI thinking a stroke out), the cloth net's ticks near the ball
-  (its NetSim's kernels and their Python) and the rest (episodes' starts, the vector env's own
+  profiles' decisions (Python: BatAI thinking a stroke out), the cloth net's own steps (its
+  NetSim over the ticks it owes and those near the ball: its kernels and their Python) and the rest (episodes' starts, the vector env's own
   work); "the compiled call alone" is the ratio the batch would reach if all else took no time.
 - physics share: the share of the one environment's step (the process's CPU time, every thread)
   spent in the physics (engine.physics.world.advance, timed around each call: the numba tick kernel and,
@@ -272,7 +272,7 @@ def _report(result: dict) -> None:
               f"brackets): one environment {b['single']:.0f} steps/s")
         for n, r in b["batched"].items():
             low, high = r["ratio_range"]
-            cloth = f", the cloth net's ticks near the ball {r['net_share']:.0%}" if net == "cloth" else ""
+            cloth = f", the cloth net's own steps {r['net_share']:.0%}" if net == "cloth" else ""
             print(f"    {'batched vector env':<18} N = {n:>3}: {r['steps_per_s']:7.0f} steps/s  {r['ratio']:5.2f}x "
                   f"[{low:.2f}-{high:.2f}]  (compiled call {r['compiled_share']:.0%}, AI profiles' decisions "
                   f"{r['decisions_share']:.0%}{cloth}; the compiled call alone: {r['compiled_alone_ratio']:.1f}x)")

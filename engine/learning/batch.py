@@ -330,6 +330,28 @@ def _judge(si, table, best_of, max_rally_s, toss_speed):
 
 
 @njit(cache=True, _nrt=False)
+def _tick_call(si, table, reach, watch, net, players, plan, player, lead, errors, stop_at, every, delay, max_rally_s,
+               physics):
+    """One call of Match.tick from the table's tick up to its referee, ending by stop_at: the
+    control tick's decisions if one is due (_control_tick), then the ticks to the next control
+    tick, frame boundary or stop_at (_advance). Returns STEPPING when they were advanced (the
+    referee's next), else the table's status: WAITING (its seats must decide), NET (the cloth
+    net's Python is next) or DONE (a kernel error)."""
+    tick = table[0][0]['tick']
+    if tick % every == 0 and si[I_CTL_TICK] != tick:
+        si[I_WAIT] = _control_tick(si, table, players, plan, player, lead, delay)
+        if si[I_WAIT] != 0:
+            return WAITING
+    n_max = min(stop_at - tick, FRAME_EVERY - tick % FRAME_EVERY, every - tick % every)
+    got = _advance(si, table, reach, watch, net, errors, n_max, every, delay, max_rally_s, physics)
+    if got == FAILED:
+        return DONE
+    if got == NEAR_NET:
+        return NET
+    return STEPPING
+
+
+@njit(cache=True, _nrt=False)
 def _lead_table(si, table, reach, watch, net, players, plan, errors, obs, axis, player, best_of, every, delay, max_rally_s,
                 toss_speed, physics):
     """A drive's lead-in from where it stands (PingPongEnv._lead_in: the stand-in, the opponent's
@@ -345,17 +367,10 @@ def _lead_table(si, table, reach, watch, net, players, plan, errors, obs, axis, 
                 break
             if r['winner'] >= 0:
                 return LEAD_OVER
-            tick = w[0]['tick']
-            if tick % every == 0 and si[I_CTL_TICK] != tick:
-                si[I_WAIT] = _control_tick(si, table, players, plan, player, True, delay)
-                if si[I_WAIT] != 0:
-                    return WAITING
-            n_max = min(FRAME_EVERY - tick % FRAME_EVERY, every - tick % every)
-            got = _advance(si, table, reach, watch, net, errors, n_max, every, delay, max_rally_s, physics)
-            if got == FAILED:
-                return DONE
-            if got == NEAR_NET:
-                return NET
+            got = _tick_call(si, table, reach, watch, net, players, plan, player, True, errors, w[0]['tick'] + every,
+                             every, delay, max_rally_s, physics)
+            if got != STEPPING:
+                return got
         _judge(si, table, best_of, max_rally_s, toss_speed)
     si[I_LEAD] = 0
     observe_state(ball, bats, r, player, axis, obs)
@@ -384,17 +399,10 @@ def _step_table(status, si, sf, table, reach, watch, net, players, plan, steps, 
         else:
             if w[0]['tick'] >= si[I_STOP_AT] or si[I_DECIDED] != 0:
                 break
-            tick = w[0]['tick']
-            if tick % every == 0 and si[I_CTL_TICK] != tick:
-                si[I_WAIT] = _control_tick(si, table, players, plan, player, False, delay)
-                if si[I_WAIT] != 0:
-                    return WAITING
-            n_max = min(si[I_STOP_AT] - tick, FRAME_EVERY - tick % FRAME_EVERY, every - tick % every)
-            got = _advance(si, table, reach, watch, net, errors, n_max, every, delay, max_rally_s, physics)
-            if got == FAILED:
-                return DONE
-            if got == NEAR_NET:
-                return NET
+            got = _tick_call(si, table, reach, watch, net, players, plan, player, False, errors, si[I_STOP_AT],
+                             every, delay, max_rally_s, physics)
+            if got != STEPPING:
+                return got
         _judge(si, table, best_of, max_rally_s, toss_speed)
         # PingPongEnv.play_period's rewards
         striker = r['striker']
@@ -690,7 +698,3 @@ class TableBatch:
         """Table k's observation of the state loaded or reached (agent_frame.observe, compiled), in obs[k]."""
         observe_table(k, self.ball, self.bats, self.rally, self.player, self.axis, self.obs)
         return self.obs[k]
-
-    def points(self, k: int) -> int:
-        """Points decided in table k's match (lets included)."""
-        return int(self.rally[k]["points_total"])
