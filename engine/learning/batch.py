@@ -14,8 +14,8 @@ lead-in and PingPongEnv.step do in Python, in the same order and arithmetic:
   its gate is open (engine.play.players.gate_open: its decision key changed or its wakes came);
 - the physics to the next control tick, a frame boundary or the first tick that needs the
   referee (engine.physics.tick.advance_ticks), the referee's judgement of each contact, the ball
-  out of play, the next rally's toss (engine.play.judge); with the cloth net, the ball's ticks
-  out of the net's reach (below);
+  out of play, the next rally's toss (engine.play.judge); with the cloth net, the ticks in which
+  the net has nothing to do (below);
 - a lead-in ends when the opponent drove (the reset's observation), or, if the match ended
   first, is played again in the env's next match (PingPongEnv.next_match);
 - a step's rewards (PingPongEnv.play_period's, sparse and dense), the end of the episode, and
@@ -30,15 +30,14 @@ decision (TableBatch._sync). The stand-in is asked only when its gate is open, w
 environment asks it at every control tick: BatAI.wakes promises that the decisions in between
 change nothing. Between decisions the arm law is compiled like the rest.
 
-The cloth net (engine.physics.world._advance_with_cloth): out of its reach (model.cloth_reach),
-and out of the watched box (model.cloth_watch) while it sleeps or rings in its linear tail, the
-ball's ticks are the compiled call's, and the net, which cannot touch the ball there, owes them
-(TableBatch.net_ints); when the ball comes nearer the compiled call stops the table and
-TableBatch._step_net, in Python, steps its NetSim over the ticks it owes (one free run) and
-then the ticks Match.tick would step from there, with the engine's own code, on the table's
-state. A net never met again in the episode is never stepped: its episode's outcome does not
-depend on it. A table's episodes are the single environment's bit for bit, and so is the net
-the ball meets (tests/engine/test_vector_env.py).
+The cloth net (engine.learning.batch_net): the ticks in which it has nothing to do (the ball
+out of its reach, or a quiet net far from the ball) are the compiled call's, and the net owes
+them; where it may touch the ball the compiled call stops the table and TableBatch._step_net,
+in Python, steps its NetSim over the ticks it owes and then the ticks Match.tick would step
+from there, with the engine's own code, on the table's state. A net never met again in the
+episode is never stepped: its episode's outcome does not depend on it. A table's episodes are
+the single environment's bit for bit, and so is the net the ball meets
+(tests/engine/test_vector_env.py).
 """
 from __future__ import annotations
 
@@ -50,17 +49,17 @@ from numba import njit
 
 from engine.learning import agent_frame
 from engine.learning.agent_frame import hold_plans, next_striker, observe_state
+from engine.learning.batch_net import (ADVANCED, FAILED, NEAR_NET, NET_OWED, advance_cloth, mirror_net, step_net,
+                                      table_kernel)
 from engine.learning.env import APPROACH, FRAME_EVERY, NET_CLEAR, RETURN_LANDED, RETURN_STRIKE, PingPongEnv
 from engine.physics.bat import FORCE_AT, TORQUE_AT
-from engine.physics.collision import BAT_ROW, EVENT_ROW, MAX_IMPACTS_PER_TICK, SCRATCH_SHAPE
+from engine.physics.collision import BAT_ROW, EVENT_ROW, MAX_IMPACTS_PER_TICK, P_RADIUS, SCRATCH_SHAPE
 from engine.physics.dtypes import RALLY_DTYPE, WORLD_DTYPE
 from engine.physics.integrators import WORK_SHAPE
-from engine.physics.tick import STOP_WATCH, advance_ticks, ball_inside
-from engine.physics.world import advance
 from engine.play.arm import (ARM_TARGET, BAT_FLOATS, CTL_HOLD, CTL_KIND, CTL_N_SEGMENTS, CTL_SEGMENTS,
                              CTL_SIZE, control_bats)
 from engine.play.judge import NO_POINT, ball_out_of_play, next_rally_and_toss, on_contact
-from engine.play.match import _GONE_RADIUS_2, _GONE_Z, OUT_OF_PLAY_DISTANCE
+from engine.play.match import _GONE_RADIUS_2, _GONE_Z
 from engine.play.players import NO_KEY
 from engine.play.rules import Phase
 
@@ -77,12 +76,6 @@ I_WAIT, I_LEAD, I_KEY = 11, 12, 13  # I_KEY: the decision key (engine.play.playe
 # net's Python is to advance; I_NET: 1 once it did (the compiled call then judges them).
 I_EVENTS, I_NET_TICKS, I_NET = 17, 18, 19
 N_INTS = 20
-# _advance's outcomes
-ADVANCED, FAILED, NEAR_NET = 0, 1, 2
-# A table's cloth net as the compiled call sees it (TableBatch.net_ints' columns): the ticks its
-# NetSim owes; 1 while it sleeps or rings in its linear tail (so as of its last step in Python:
-# ticks without the ball keep it so).
-NET_OWED, NET_QUIET = 0, 1
 # The opponent's BatAI as the compiled call sees it (TableBatch.opp_ai's columns): its turn_key and
 # planned_key (rally, shots; -1 for none), whether its plan is tracked, the decisions taken here,
 # whether its plan ran out there; TableBatch.opp_floats': its turn_seen_at (s), its ready pose
@@ -177,15 +170,15 @@ def _opponent_drove(r, opp):
 @njit(cache=True, _nrt=False)
 def run_tables(status, ints, floats, world, ball, bats, rally, bat_motion, bat_tmp, work, scratch, event_rows,
                ctl, arm, inputs, players, pending, pending_tick, pending_at, plans, gate_key, gate_due, gate_end, opp_ai,
-               opp_floats, net_ints,
+               opp_floats, net_ints, net_box,
                steps, rewards, terminated, truncated, obs, errors, axis, player, rally_task, dense, best_of, every,
-               delay, max_seconds, max_rally_s, toss_speed, reach, watch, physics):
+               delay, max_seconds, max_rally_s, toss_speed, cloth, physics):
     """Go on with every table whose status is START or STEPPING (its step, or its lead-in while
     ints[k, I_LEAD] is set) until it is DONE, LEAD_OVER, its players must decide (WAITING) or its
     ball is near the cloth net (NET); returns how many wait for Python. The tables' arrays are
-    TableBatch's; reach, watch: the cloth net's model.cloth_reach and cloth_watch, None for the
-    rigid net; physics:
-    TableBatch's tuple of the model's arrays and numbers that engine.physics.tick.advance_ticks reads."""
+    TableBatch's; cloth: None for the rigid net, else the cloth net's model.cloth_reach and
+    cloth_watch, the ball's radius plus a knot's (m) and the net's tick (s) (batch_net.advance_cloth);
+    physics: the model's arrays and numbers that engine.physics.tick.advance_ticks reads."""
     waiting = 0
     for k in range(status.shape[0]):
         if status[k] != START and status[k] != STEPPING:
@@ -195,10 +188,10 @@ def run_tables(status, ints, floats, world, ball, bats, rally, bat_motion, bat_t
                  event_rows[k], ctl[k], arm[k], inputs[k], pending[k], pending_tick[k], pending_at[k], gate_key[k],
                  gate_due[k], gate_end[k], opp_ai[k], opp_floats[k])
         if ints[k, I_LEAD] == 1:
-            status[k] = _lead_table(ints[k], table, reach, watch, net_ints[k], players, plans[k], errors[k:k + 1],
+            status[k] = _lead_table(ints[k], table, cloth, net_ints[k], net_box[k], players, plans[k], errors[k:k + 1],
                                     obs[k], axis, player, best_of, every, delay, max_rally_s, toss_speed, physics)
         else:
-            status[k] = _step_table(status[k], ints[k], floats[k], table, reach, watch, net_ints[k], players,
+            status[k] = _step_table(status[k], ints[k], floats[k], table, cloth, net_ints[k], net_box[k], players,
                                     plans[k], steps[k:k + 1], rewards[k:k + 1], terminated[k:k + 1],
                                     truncated[k:k + 1], obs[k], errors[k:k + 1], axis, player, rally_task, dense,
                                     best_of, every, delay, max_seconds, max_rally_s, toss_speed, physics)
@@ -243,18 +236,13 @@ def _control_tick(si, table, players, plan, player, lead, delay):
 
 
 @njit(cache=True, _nrt=False)
-def _advance(si, table, reach, watch, net, errors, n_max, every, delay, max_rally_s, physics):
+def _advance(si, table, cloth, net, box, errors, n_max, every, delay, max_rally_s, physics):
     """The rest of Match.tick from where the decisions were taken, up to the referee: their plans
     wait `delay` ticks (LocalAI.request), the forces are applied, the physics runs up to n_max
     ticks (engine.physics.tick.advance_ticks); their contacts are left in event_rows (si[I_EVENTS]).
-
-    With a cloth net (reach, watch: its model.cloth_reach and cloth_watch; net: its NET_* row),
-    the ticks engine.physics.world._advance_with_cloth steps by the tick kernel alone are stepped
-    here, in its order: out of the net's reach, and, while the net sleeps or rings in its tail,
-    out of the watched box; the net, which cannot touch the ball there, owes them
-    (TableBatch._step_net steps them when the ball next comes near; an episode that ends first
-    never needs them). Returns ADVANCED, FAILED on a kernel error (in errors[0]), or NEAR_NET
-    when the ball is near the net with ticks to go (si[I_NET_TICKS] of them, Python's)."""
+    With a cloth net (cloth: run_tables'; net, box: the table's rows) the ticks the net need not see
+    (engine.learning.batch_net.advance_cloth). Returns ADVANCED, FAILED on a kernel error (in
+    errors[0]), or NEAR_NET when the cloth net's Python must go on (si[I_NET_TICKS] ticks)."""
     w, ball, bats, r, bat_motion, bat_tmp, work, scratch, event_rows, ctl, _, inputs, pending, pending_tick, \
         pending_at, _, _, _, _, _ = table
     tick = w[0]['tick']
@@ -269,43 +257,20 @@ def _advance(si, table, reach, watch, net, errors, n_max, every, delay, max_rall
             for i in range(3):
                 bats[b, FORCE_AT + i] = inputs[b, i]
                 bats[b, TORQUE_AT + i] = inputs[b, 3 + i]
-    if reach is None:
-        ticks, n, _, error = _kernel(table, n_max, r['rally_started'] + max_rally_s, None, physics)
-        if error != 0:
-            errors[0] = error
-            return FAILED
+    deadline = r['rally_started'] + max_rally_s
+    if cloth is None:
+        _, n, _, error = table_kernel(table, n_max, deadline, None, physics)
+        got = ADVANCED if error == 0 else FAILED
+    else:
+        reach, watch, contact, dt = cloth
+        got, n, error = advance_cloth(table, reach, watch, net, box, n_max, deadline, contact, dt, physics)
+    if got == FAILED:
+        errors[0] = error
+    elif got == NEAR_NET:
+        si[I_NET_TICKS] = n
+    else:
         si[I_EVENTS] = n
-        return ADVANCED
-    done = 0
-    while done < n_max:  # _advance_with_cloth's loop, up to its ticks near the net
-        box = reach
-        if ball_inside(reach, ball):
-            if net[NET_QUIET] == 0 or ball_inside(watch, ball):
-                si[I_NET_TICKS] = n_max - done
-                return NEAR_NET
-            box = watch
-        ticks, n, reason, error = _kernel(table, n_max - done, r['rally_started'] + max_rally_s, box, physics)
-        if error != 0:
-            errors[0] = error
-            return FAILED
-        net[NET_OWED] += ticks
-        done += ticks
-        if reason != STOP_WATCH:
-            si[I_EVENTS] = n
-            return ADVANCED
-    si[I_EVENTS] = 0
-    return ADVANCED
-
-
-@njit(inline="always")
-def _kernel(table, n_max, deadline, watch, physics):
-    """engine.physics.tick.advance_ticks on the table's rows: (ticks, events, STOP_* reason, error)."""
-    w, ball, bats, _, bat_motion, bat_tmp, work, scratch, event_rows = table[:9]
-    h, bat_mass, bat_inertia, method, gravity, drag_k, magnus_k, rtol, atol, surface, floor_z, rigid_net, posts, \
-        params, materials = physics
-    return advance_ticks(n_max, h, w, bats, bat_mass, bat_inertia, bat_motion, bat_tmp, ball[0:9], method, gravity,
-                         drag_k, magnus_k, rtol, atol, surface, floor_z, rigid_net, posts, params, materials, work,
-                         scratch, w[0]['ball_adapt'], event_rows, _GONE_RADIUS_2, _GONE_Z, deadline, watch)
+    return got
 
 
 @njit(cache=True, _nrt=False)
@@ -330,7 +295,7 @@ def _judge(si, table, best_of, max_rally_s, toss_speed):
 
 
 @njit(cache=True, _nrt=False)
-def _tick_call(si, table, reach, watch, net, players, plan, player, lead, errors, stop_at, every, delay, max_rally_s,
+def _tick_call(si, table, cloth, net, box, players, plan, player, lead, errors, stop_at, every, delay, max_rally_s,
                physics):
     """One call of Match.tick from the table's tick up to its referee, ending by stop_at: the
     control tick's decisions if one is due (_control_tick), then the ticks to the next control
@@ -343,7 +308,7 @@ def _tick_call(si, table, reach, watch, net, players, plan, player, lead, errors
         if si[I_WAIT] != 0:
             return WAITING
     n_max = min(stop_at - tick, FRAME_EVERY - tick % FRAME_EVERY, every - tick % every)
-    got = _advance(si, table, reach, watch, net, errors, n_max, every, delay, max_rally_s, physics)
+    got = _advance(si, table, cloth, net, box, errors, n_max, every, delay, max_rally_s, physics)
     if got == FAILED:
         return DONE
     if got == NEAR_NET:
@@ -352,8 +317,8 @@ def _tick_call(si, table, reach, watch, net, players, plan, player, lead, errors
 
 
 @njit(cache=True, _nrt=False)
-def _lead_table(si, table, reach, watch, net, players, plan, errors, obs, axis, player, best_of, every, delay, max_rally_s,
-                toss_speed, physics):
+def _lead_table(si, table, cloth, net, box, players, plan, errors, obs, axis, player, best_of, every, delay,
+                max_rally_s, toss_speed, physics):
     """A drive's lead-in from where it stands (PingPongEnv._lead_in: the stand-in, the opponent's
     profile, plays the agent's bat until the opponent drove), then the reset's observation;
     returns DONE, WAITING, NET, or LEAD_OVER when the match ended first (the episode's next match
@@ -367,7 +332,7 @@ def _lead_table(si, table, reach, watch, net, players, plan, errors, obs, axis, 
                 break
             if r['winner'] >= 0:
                 return LEAD_OVER
-            got = _tick_call(si, table, reach, watch, net, players, plan, player, True, errors, w[0]['tick'] + every,
+            got = _tick_call(si, table, cloth, net, box, players, plan, player, True, errors, w[0]['tick'] + every,
                              every, delay, max_rally_s, physics)
             if got != STEPPING:
                 return got
@@ -378,8 +343,10 @@ def _lead_table(si, table, reach, watch, net, players, plan, errors, obs, axis, 
 
 
 @njit(cache=True, _nrt=False)
-def _step_table(status, si, sf, table, reach, watch, net, players, plan, steps, rewards, terminated, truncated, obs, errors,
-                axis, player, rally_task, dense, best_of, every, delay, max_seconds, max_rally_s, toss_speed, physics):
+def _step_table(status, si, sf, table, cloth, net, box, players, plan, steps, rewards, terminated, truncated, obs,
+                errors, axis, player, rally_task, dense, best_of, every, delay, max_seconds, max_rally_s, toss_speed,
+                physics):
+
     """One table's step from where it stands (PingPongEnv.step and play_period); its new status."""
     w, ball, bats, r = table[0], table[1], table[2], table[3]
     if status == START:
@@ -399,7 +366,7 @@ def _step_table(status, si, sf, table, reach, watch, net, players, plan, steps, 
         else:
             if w[0]['tick'] >= si[I_STOP_AT] or si[I_DECIDED] != 0:
                 break
-            got = _tick_call(si, table, reach, watch, net, players, plan, player, False, errors, si[I_STOP_AT],
+            got = _tick_call(si, table, cloth, net, box, players, plan, player, False, errors, si[I_STOP_AT],
                              every, delay, max_rally_s, physics)
             if got != STEPPING:
                 return got
@@ -474,7 +441,8 @@ class TableBatch:
         self.gate_end = np.zeros((n, 2))
         self.opp_ai = np.zeros((n, OPP_AI_SIZE), np.int64)  # the opponent's BatAI, mirrored (_mirror)
         self.opp_floats = np.zeros((n, OPP_FLOATS))
-        self.net_ints = np.zeros((n, 2), np.int64)  # with a cloth net: its NET_* row (_advance)
+        self.net_ints = np.zeros((n, 2), np.int64)  # with a cloth net: its NET_* row and box (batch_net)
+        self.net_box = np.zeros((n, 6))
         self.steps = np.zeros(n, np.int64)
         self.rewards = np.zeros(n)
         self.terminated = np.zeros(n, np.bool_)
@@ -506,8 +474,11 @@ class TableBatch:
                    model.posts, model.ball_params, model.materials)
         self._scalars = (int(self.player), self.rally_task, self.dense, int(match.scene.match.best_of),
                          int(match.ai_every), int(match.delay), float(self.max_seconds),
-                         float(match.scene.match.max_rally_s), float(match.scene.match.toss_speed),
-                         model.cloth_reach, model.cloth_watch, physics)
+                         float(match.scene.match.max_rally_s), float(match.scene.match.toss_speed), None, physics)
+        net = match.state.net_sim
+        if net is not None:  # NetSim.step_run's ball_far: its radius, a knot's and no margin (quiet)
+            contact = float(model.ball_params[P_RADIUS]) + net.knot_radius + 0.0
+            self._scalars = self._scalars[:-2] + ((model.cloth_reach, model.cloth_watch, contact, net.dt), physics)
 
     def load(self, k: int, lead_in: bool) -> None:
         """Table k's match as its env left it (PingPongEnv.begin_episode or next_match) into the
@@ -536,9 +507,9 @@ class TableBatch:
         self._mirror(k)
         self.ints[k, I_CTL_TICK] = self.ints[k, I_REQ_TICK] = -1
         self.ints[k, I_LEAD] = int(lead_in)
-        self.ints[k, I_NET] = 0
-        net = state.net_sim
-        self.net_ints[k] = (0, net is not None and (net.sleeping or net.in_tail))
+        self.ints[k, I_NET] = self.net_ints[k, NET_OWED] = 0
+        if state.net_sim is not None:
+            mirror_net(state.net_sim, self.net_ints[k], self.net_box[k])
         self.steps[k] = 0
         self.errors[k] = 0
         self.status[k] = IDLE
@@ -637,9 +608,8 @@ class TableBatch:
                           self.bat_motion, self.bat_tmp, self.work, self.scratch, self.event_rows, self.ctl, self.arm,
                           self.inputs, self.players, self.pending, self.pending_tick, self.pending_at, self.plans,
                           self.gate_key, self.gate_due, self.gate_end, self.opp_ai, self.opp_floats, self.net_ints,
-                          self.steps,
-                          self.rewards, self.terminated,
-                          self.truncated, self.obs, self.errors, self.axis, *self._scalars)
+                          self.net_box, self.steps, self.rewards, self.terminated, self.truncated, self.obs, self.errors,
+                          self.axis, *self._scalars)
 
     def _decide(self, k: int) -> None:
         """The seats of table k that must decide do, in seat order, on the state there
@@ -663,36 +633,14 @@ class TableBatch:
                 self._mirror(k)
 
     def _step_net(self, k: int) -> None:
-        """Table k's ticks with its ball near the cloth net (the compiled call stopped there, NET):
-        its match's state takes the table's rows, its NetSim the ticks it owes, then
-        engine.physics.world.advance steps the ticks Match.tick would have it step from here
-        (si[I_NET_TICKS]: the rest of the call _advance began), and the rows take the state back,
-        the contacts in event_rows for the compiled call's referee, whether the net is quiet in
-        its NET_* row."""
-        match = self.envs[k].match
-        state = match.state
-        state.world[0] = self.world[k]
-        state.ball_flat[:] = self.ball[k]
-        state.bat_flat[:] = self.bats[k]
-        state.bat_motion[:] = self.bat_motion[k]
-        net, net_row = state.net_sim, self.net_ints[k]
-        owed = int(net_row[NET_OWED])
-        if owed:
-            net.step_free(owed)
-            net_row[NET_OWED] = 0
-        ints = self.ints[k]
+        """Table k's ticks near its cloth net, in Python (batch_net.step_net); the compiled call then
+        judges them."""
+        match, ints = self.envs[k].match, self.ints[k]
         deadline = float(self.rally[k]["rally_started"]) + match.scene.match.max_rally_s
-        _, n, _ = advance(match.model, state, int(ints[I_NET_TICKS]), None, match.events,
-                          gone_radius=OUT_OF_PLAY_DISTANCE, gone_z=_GONE_Z, deadline=deadline)
-        self.world[k] = state.world[0]
-        self.ball[k] = state.ball_flat
-        self.bats[k] = state.bat_flat
-        self.bat_motion[k] = state.bat_motion
-        rows, events = self.event_rows[k], match.events
-        for e in range(n):  # what the referee reads: engine.physics.world._copy_events' columns
-            rows[e, 0], rows[e, 1], rows[e, 2:5] = events[e]["time"], events[e]["body"], events[e]["pos"]
-        ints[I_EVENTS], ints[I_NET] = n, 1
-        net_row[NET_QUIET] = net.sleeping or net.in_tail
+        ints[I_EVENTS] = step_net(match, self.world[k:k + 1], self.ball[k], self.bats[k], self.bat_motion[k],
+                                  self.event_rows[k], self.net_ints[k], self.net_box[k], int(ints[I_NET_TICKS]),
+                                  deadline)
+        ints[I_NET] = 1
 
     def observe(self, k: int) -> np.ndarray:
         """Table k's observation of the state loaded or reached (agent_frame.observe, compiled), in obs[k]."""

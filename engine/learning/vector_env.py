@@ -19,7 +19,7 @@ bit, as they are those of gymnasium.vector.SyncVectorEnv (tests/engine/test_vect
 Version 1 with `hold` actions (what examples/train_ppo.py trains on) is batched (`batched`;
 `batch` is its engine.learning.batch.TableBatch): every table's step, and a drive's lead-in at
 its reset, in one numba call, Python only where an AI profile decides a stroke, where an
-episode begins (its match is made) and, with the cloth net, where the ball comes near the net
+episode begins (its match is made) and, with the cloth net, where the net may touch the ball
 (its ticks there, and the ones it owes). Otherwise (version 0, `target` or `force` actions, a
 second agent, pictures kept) the tables are stepped one after another, each one
 PingPongEnv.step: its physics one numba call between the referee's and the players' Python work.
