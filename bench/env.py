@@ -13,8 +13,9 @@
   environment, then each N, ROUNDS times: a drifting machine moves them alike); medians, and the
   ratios to that one environment as the median of the turns' ratios with their range. Each N's
   wall time is split into the compiled call (engine.learning.batch.TableBatch.seconds), the AI
-  profiles' decisions (Python: BatAI thinking a stroke out), the cloth net's own steps (its
-  NetSim over the ticks it owes and those near the ball: its kernels and their Python) and the rest (episodes' starts, the vector env's own
+  profiles' decisions (Python: BatAI thinking a stroke out), the cloth net's own steps (in Python:
+  its NetSim over the ticks it owes, and the ticks near the ball with the ball's, the table's
+  state handed over and back) and the rest (episodes' starts, the vector env's own
   work); "the compiled call alone" is the ratio the batch would reach if all else took no time.
 - physics share: the share of the one environment's step (the process's CPU time, every thread)
   spent in the physics (engine.physics.world.advance, timed around each call: the numba tick kernel and,

@@ -35,7 +35,8 @@ out of its reach, or a quiet net far from the ball) are the compiled call's, and
 them; where it may touch the ball the compiled call stops the table and TableBatch._step_net,
 in Python, steps its NetSim over the ticks it owes and then the ticks Match.tick would step
 from there, with the engine's own code, on the table's state. A net never met again in the
-episode is never stepped: its episode's outcome does not depend on it. A table's episodes are
+episode is never stepped: its episode does not depend on it (a net that would blow up in those
+ticks raises when they are stepped, or not at all). A table's episodes are
 the single environment's bit for bit, and so is the net the ball meets
 (tests/engine/test_vector_env.py).
 """
@@ -243,8 +244,8 @@ def _advance(si, table, cloth, net, box, errors, n_max, every, delay, max_rally_
     With a cloth net (cloth: run_tables'; net, box: the table's rows) the ticks the net need not see
     (engine.learning.batch_net.advance_cloth). Returns ADVANCED, FAILED on a kernel error (in
     errors[0]), or NEAR_NET when the cloth net's Python must go on (si[I_NET_TICKS] ticks)."""
-    w, ball, bats, r, bat_motion, bat_tmp, work, scratch, event_rows, ctl, _, inputs, pending, pending_tick, \
-        pending_at, _, _, _, _, _ = table
+    w, bats, r, ctl, inputs, pending, pending_tick, pending_at = table[0], table[2], table[3], table[9], table[11], \
+        table[12], table[13], table[14]
     tick = w[0]['tick']
     if tick % every == 0:
         if si[I_REQ_TICK] != tick:
@@ -346,7 +347,6 @@ def _lead_table(si, table, cloth, net, box, players, plan, errors, obs, axis, pl
 def _step_table(status, si, sf, table, cloth, net, box, players, plan, steps, rewards, terminated, truncated, obs,
                 errors, axis, player, rally_task, dense, best_of, every, delay, max_seconds, max_rally_s, toss_speed,
                 physics):
-
     """One table's step from where it stands (PingPongEnv.step and play_period); its new status."""
     w, ball, bats, r = table[0], table[1], table[2], table[3]
     if status == START:

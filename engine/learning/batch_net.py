@@ -7,11 +7,14 @@ the watched box (model.cloth_watch); nearer, it steps runs of ticks (_run_near_n
 quiet net does nothing at a tick whose ball is far from the net's box (NetSim.step_run,
 ball_far_from_box). advance_cloth does all of these here, in that order, and the net owes the
 ticks it did not see (NET_OWED: NetSim.step_free takes them in one run when the ball next comes
-near; a net never met again in its episode is never stepped). Anything else (an awake net near
+near; a net never met again in its episode is never stepped, and a net that would blow up in
+those ticks raises when they are stepped, or not at all). Anything else (an awake net near
 the ball, a quiet one the ball may touch) stops the table for Python: step_net hands the
 table's state to its match's, lets its NetSim take the ticks it owes, and steps the rest of the
 call with the engine's own advance(). Splitting a call there is Match.tick's own contract: any
-chunking of its ticks gives the same match.
+chunking of its ticks gives the same match; and as a call of the batch is at most FRAME_EVERY
+ticks (engine.learning.env), fewer than NET_RUN_TICKS, a run of _advance_with_cloth ends where
+the call does, here as there, so the environment's rewards sample the ball at the same ticks.
 """
 from __future__ import annotations
 
@@ -77,7 +80,7 @@ def advance_cloth(table, reach, watch, net, box, n_max, deadline, contact, dt, p
             for _ in range(min(n_max - done, NET_RUN_TICKS)):
                 if ball_inside(watch, ball) and not _far(box, contact, dt, ball):
                     return NEAR_NET, n_max - done, 0  # it may touch the net: NetSim.step's
-                ticks, n, reason, error = table_kernel(table, 1, deadline, None, physics)
+                _, n, reason, error = table_kernel(table, 1, deadline, None, physics)
                 if error != 0:
                     return FAILED, 0, error
                 net[NET_OWED] += 1

@@ -105,7 +105,6 @@ def _add_complex_rows(acc, re_rows, im_rows, xr, xm):
         i += 1
 
 
-
 @njit(cache=True, fastmath=False, _nrt=False)
 def _gather(knot_pos, knot_vel, rest_pos, free, dofs):
     """The free knots' displacement and velocity into dofs (4, 2 n_free): rows u_x, v_x (first

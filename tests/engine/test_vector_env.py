@@ -7,8 +7,9 @@ import pytest
 import engine.learning.env  # noqa: F401 - registers the ids and their vector entry point
 from engine.learning.batch import OPP_TAKEN, TableBatch
 from engine.learning.batch_net import NET_OWED
-from engine.learning.env import PingPongEnv
+from engine.learning.env import FRAME_EVERY, PingPongEnv
 from engine.physics.dtypes import physics_snapshot_dtype
+from engine.physics.world import NET_RUN_TICKS
 from engine.learning.vector_env import PingPongVectorEnv
 from net_kernel import NetSim
 from net_kernel.sim import compile_kernels
@@ -130,6 +131,7 @@ def test_the_batched_cloth_net_owes_its_ticks_and_gives_the_single_environments_
     table is the single environment with its seed, bit for bit, and so is the net the ball meets
     (its knots at every tick it might touch the ball: a sleeping net's sweep, an awake net's tick
     with the ball near)."""
+    assert FRAME_EVERY < NET_RUN_TICKS  # a batch call ends where a run near the net does (batch_net)
     kwargs = {"opponent": "novice", "version": 1, "max_seconds": 3.0, "net": "cloth", "task": "rally"}
     n, steps = 3, 500
     met, paid, table = {}, [], [None]
