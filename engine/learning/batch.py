@@ -472,13 +472,13 @@ class TableBatch:
         physics = (float(model.dt), model.bat_mass, model.bat_inertia, model.method, model.gravity, model.drag_k,
                    model.magnus_k, model.scene.rtol, model.scene.atol, model.table, model.floor_z, model.net,
                    model.posts, model.ball_params, model.materials)
+        net, cloth = match.state.net_sim, None
+        if net is not None:  # NetSim.step_run's ball_far: its radius, a knot's and no margin (quiet)
+            cloth = (model.cloth_reach, model.cloth_watch, float(model.ball_params[P_RADIUS]) + net.knot_radius + 0.0,
+                     net.dt)
         self._scalars = (int(self.player), self.rally_task, self.dense, int(match.scene.match.best_of),
                          int(match.ai_every), int(match.delay), float(self.max_seconds),
-                         float(match.scene.match.max_rally_s), float(match.scene.match.toss_speed), None, physics)
-        net = match.state.net_sim
-        if net is not None:  # NetSim.step_run's ball_far: its radius, a knot's and no margin (quiet)
-            contact = float(model.ball_params[P_RADIUS]) + net.knot_radius + 0.0
-            self._scalars = self._scalars[:-2] + ((model.cloth_reach, model.cloth_watch, contact, net.dt), physics)
+                         float(match.scene.match.max_rally_s), float(match.scene.match.toss_speed), cloth, physics)
 
     def load(self, k: int, lead_in: bool) -> None:
         """Table k's match as its env left it (PingPongEnv.begin_episode or next_match) into the
